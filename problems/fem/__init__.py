@@ -1,0 +1,1 @@
+"""Finite-element and contact machinery shared by the scenes (no scene here)."""

@@ -1,0 +1,1 @@
+"""Table and figure builders; they read result files and write figures."""

@@ -1,0 +1,111 @@
+"""Figures of the non-matching Laplace study (thesis Figs. 6.3, 6.5, 6.6)."""
+from __future__ import annotations
+
+import argparse
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import pandas as pd  # noqa: E402
+
+from workflows.io import atomic_path  # noqa: E402
+
+STYLE = {"conforming": ("k", "o", "-"), "nodal": ("tab:red", "s", "--"),
+         "stabilised_a0.5": ("tab:orange", "^", "-."), "stabilised_a1": ("tab:blue", "D", "-")}
+
+
+def add_slope(ax, h: np.ndarray, anchor: float, slope: int, label: str) -> None:
+    """Reference line err = C h^slope through (h.max(), anchor), drawn dotted."""
+    hh = np.array([h.min(), h.max()])
+    ax.loglog(hh, anchor * (hh / h.max()) ** slope, ":", color="0.5", lw=1)
+    ax.annotate(label, (hh[0], anchor * (hh[0] / h.max()) ** slope), fontsize=8, color="0.4",
+                ha="left", va="top")
+
+
+def convergence_figure(errors: pd.DataFrame, rates: pd.DataFrame, case: str, path: str) -> None:
+    """H1 (left) and L2 (right) error against h, one line per variant, both sides."""
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.8), sharex=True)
+    sub = errors[errors["case"] == case]
+    exact = sub[(sub.variant == "conforming")]
+    roundoff = bool(len(exact)) and exact[["err_h1", "err_l2"]].to_numpy().max() < 1e-10
+    if roundoff:  # patch test passed to round-off: nothing to plot on a rate scale
+        sub = sub[sub.variant != "conforming"]
+    for ax, col, rcol, title, slopes in (
+            (axes[0], "err_h1", "rate_h1", "$H^1$-seminorm error (cf. Fig. 6.5)", (0.5, 1)),
+            (axes[1], "err_l2", "rate_l2", "$L_2$ error (cf. Fig. 6.6)", (1, 2))):
+        for (side, variant), grp in sub.groupby(["constrained", "variant"], sort=False):
+            if variant == "conforming" and side != "coarse":
+                continue  # the conforming grid has no constrained side
+            color, marker, ls = STYLE[variant]
+            r = rates[(rates.case == case) & (rates.variant == variant) & (rates.constrained == side)]
+            rate = float(r[rcol].iloc[0]) if len(r) else float("nan")
+            label = variant if variant == "conforming" else f"{variant}, {side} constrained"
+            ax.loglog(grp["h"], grp[col], ls if side == "coarse" else ":", color=color,
+                      marker=marker, mfc="none" if side == "fine" else color, ms=5,
+                      label=f"{label} (rate {rate:.2f})")
+        h = sub["h"].to_numpy()
+        anchor = sub.loc[sub["h"] == h.max(), col].min() * 0.4
+        for s in slopes:
+            add_slope(ax, h, anchor, s, f"slope {s:g}")
+        ax.set_xlabel("mesh size $h$ of the finer side (conforming: its one $h$)")
+        ax.set_ylabel(f"{'$|u-u_h|_{1}$' if col == 'err_h1' else '$||u-u_h||_{0}$'} (dimensionless)")
+        ax.set_title(title, fontsize=10)
+        ax.grid(True, which="both", alpha=0.3)
+        ax.invert_xaxis()
+    axes[1].legend(fontsize=7, loc="lower left")
+    note = (f"; conforming exact to round-off (max error {exact[['err_h1', 'err_l2']].to_numpy().max():.1e})"
+            if roundoff else "")
+    fig.suptitle(f"Non-matching Laplace problem, case '{case}' "
+                 f"({'u = sin(10x)' if case == 'sin10x' else 'u = 1 + 2x - y, patch test'}); "
+                 f"\nrates fitted over the finest three levels{note}", fontsize=10)
+    fig.tight_layout()
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=130, format="png")
+    plt.close(fig)
+
+
+def mesh_figure(level: int, ratio: str, path: str) -> None:
+    """The two independent meshes and their non-matching interface (cf. Fig. 6.3)."""
+    from problems.laplace_nonmatching import (INTERFACE_X, cells_per_unit, interface_nodes,
+                                              parse_ratio, subdomain_mesh)
+    nc, nf = cells_per_unit(level, parse_ratio(ratio))
+    fig, ax = plt.subplots(figsize=(5.2, 5))
+    for mesh, color, label in ((subdomain_mesh(0, INTERFACE_X, nc), "tab:blue", f"$\\Omega_1$, h=1/{nc}"),
+                               (subdomain_mesh(INTERFACE_X, 1, nf), "tab:red", f"$\\Omega_2$, h=1/{nf}")):
+        ax.triplot(mesh.p[0], mesh.p[1], mesh.t.T, color=color, lw=0.6)
+        i = interface_nodes(mesh)
+        ax.plot(mesh.p[0, i], mesh.p[1, i], "o", color=color, ms=4, label=label + " interface nodes")
+    ax.set_aspect("equal")
+    ax.set_xlabel("x")
+    ax.set_ylabel("y")
+    ax.set_title(f"Non-matching grid, level {level}, ratio {ratio} (cf. Fig. 6.3)", fontsize=10)
+    ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=1)
+    fig.tight_layout()
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=130, format="png")
+    plt.close(fig)
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__)
+    sub = ap.add_subparsers(dest="what", required=True)
+    c = sub.add_parser("convergence")
+    c.add_argument("--errors", required=True)
+    c.add_argument("--rates", required=True)
+    c.add_argument("--case", required=True)
+    c.add_argument("--out", required=True)
+    m = sub.add_parser("mesh")
+    m.add_argument("--level", type=int, default=0)
+    m.add_argument("--ratio", default="2:3")
+    m.add_argument("--out", required=True)
+    args = ap.parse_args(argv)
+    if args.what == "convergence":
+        convergence_figure(pd.read_csv(args.errors), pd.read_csv(args.rates), args.case, args.out)
+    else:
+        mesh_figure(args.level, args.ratio, args.out)
+
+
+if __name__ == "__main__":
+    main()

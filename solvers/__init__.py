@@ -1,0 +1,1 @@
+"""Contact solvers, one module each, all behind :mod:`solvers.interface`."""

@@ -1,0 +1,1 @@
+"""Snakemake rules, configurations and the scripts the rules call (and the CLI)."""

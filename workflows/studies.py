@@ -1,0 +1,37 @@
+"""The studies the Snakefile regenerates: one entry each, with the files it produces.
+
+The Snakefile's default target is the union of every study's ``outputs``;
+``contactbench list`` prints this table. Paths are relative to the repository.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class Study:
+    name: str
+    summary: str
+    thesis: str
+    outputs: tuple[str, ...]
+
+
+STUDIES = {
+    s.name: s
+    for s in (
+        Study(
+            name="laplace_nonmatching",
+            summary="convergence of nodal constraints with/without the stabilisation (6.18) on a "
+                    "non-matching grid: H1 and L2 errors, fitted rates, both constrained sides",
+            thesis="Ch. 6, Figs. 6.3, 6.5, 6.6, Theorems 6.17/6.24",
+            outputs=(
+                "results/laplace_nonmatching/errors.csv",
+                "results/laplace_nonmatching/errors_by_side.csv",
+                "results/laplace_nonmatching/rates.csv",
+                "results/laplace_nonmatching/convergence_sin10x.png",
+                "results/laplace_nonmatching/convergence_linear.png",
+                "results/laplace_nonmatching/mesh.png",
+            ),
+        ),
+    )
+}
