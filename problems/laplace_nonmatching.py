@@ -22,6 +22,9 @@ Variants (the interface coupling):
   *constrained* side, u_constrained(x_i) = u_other(x_i), the other side's trace
   evaluated by linear interpolation. No stabilisation; Theorem 6.17 proves only
   O(h^1/2) in H1.
+* ``mortar``: the thesis's yardstick (Sect. 6.1, Remark 6.8): the jump is
+  orthogonal to a multiplier space on the constrained (non-mortar) side,
+  standard P1 multipliers modified at the Dirichlet end points.
 * ``stabilised_a0.5``, ``stabilised_a1``: the nodal constraints plus the
   consistent penalty (6.18) on the jump at the *other* side's interface nodes,
   with the lumped interface mass of Sect. 6.5,
@@ -54,7 +57,7 @@ from skfem.models.poisson import laplace
 
 from problems.spec import Parameter, ParameterError, ProblemSpec
 
-VARIANTS = ("conforming", "nodal", "stabilised_a0.5", "stabilised_a1")
+VARIANTS = ("conforming", "nodal", "stabilised_a0.5", "stabilised_a1", "mortar")
 CASES = ("sin10x", "linear")
 INTERFACE_X = 0.5
 
@@ -140,6 +143,36 @@ def lumped_interface_weights(y: np.ndarray, alpha: float) -> np.ndarray:
     return w
 
 
+def mortar_coupling(y_c: np.ndarray, y_o: np.ndarray, gauss_points: int = 3):
+    """Mortar condition int_Gamma (u_c - u_o) mu ds = 0 for all multipliers mu,
+    solved for the constrained (non-mortar) side's interior interface values.
+
+    Multipliers: the constrained side's interior hat functions, the first and
+    last extended by the end hats (constant on the end elements), the standard
+    modification at Dirichlet end points, so the multiplier space holds the
+    constants. Integrals are exact: Gauss quadrature on the merged 1D mesh.
+
+    Returns ``(T_other, T_ends)`` with
+    ``u_c[1:-1] = T_other @ u_o + T_ends @ u_c[[0, -1]]``.
+    """
+    breaks = np.union1d(y_c, y_o)
+    xg, wg = np.polynomial.legendre.leggauss(gauss_points)
+    a, b = breaks[:-1, None], breaks[1:, None]
+    yq = (0.5 * (a + b) + 0.5 * (b - a) * xg).ravel()
+    wq = (0.5 * (b - a) * wg).ravel()
+    hats_c = trace_interpolation(y_c, yq).toarray()      # hat functions at the quadrature points
+    hats_o = trace_interpolation(y_o, yq).toarray()
+    mu = hats_c[:, 1:-1].copy()
+    mu[:, 0] += hats_c[:, 0]
+    mu[:, -1] += hats_c[:, -1]
+    M_c = mu.T @ (wq[:, None] * hats_c)
+    M_o = mu.T @ (wq[:, None] * hats_o)
+    inner = M_c[:, 1:-1]
+    T_other = np.linalg.solve(inner, M_o)
+    T_ends = -np.linalg.solve(inner, M_c[:, [0, -1]])
+    return sp.csr_matrix(T_other), sp.csr_matrix(T_ends)
+
+
 @dataclass
 class Discretisation:
     """The assembled non-matching problem before elimination.
@@ -208,6 +241,10 @@ def assemble(level: int, case: str, variant: str, ratio: tuple[int, int],
         else:
             (c_nodes, c_y), (o_nodes, o_y) = (right, yr), (left, yl)
         constrained, other, T = c_nodes[1:-1], o_nodes, trace_interpolation(o_y, c_y[1:-1])
+        if variant == "mortar":
+            T_other, T_ends = mortar_coupling(c_y, o_y)
+            other = np.concatenate([o_nodes, c_nodes[[0, -1]]])
+            T = sp.hstack([T_other, T_ends]).tocsr()
         if variant.startswith("stabilised_a"):
             alpha = float(variant.removeprefix("stabilised_a"))
             # jump at the other side's nodes: [u](y_j) = u_other(y_j) - u_constrained trace(y_j)

@@ -13,6 +13,25 @@ def test_conforming_reproduces_linear_solution_to_roundoff():
     assert sol.err_h1 < 1e-11 and sol.err_l2 < 1e-12
 
 
+@pytest.mark.parametrize("side", ["coarse", "fine"])
+def test_mortar_passes_the_patch_test(side):
+    # the modified multiplier space holds the constants: no consistency error for linear u
+    sol = lap.solve(3, case="linear", variant="mortar", constrained=side)
+    assert sol.err_h1 < 1e-11 and sol.err_l2 < 1e-12
+
+
+def test_mortar_coupling_reproduces_linear_traces():
+    y_c, y_o = np.linspace(0, 1, 9), np.linspace(0, 1, 13)
+    T_other, T_ends = lap.mortar_coupling(y_c, y_o)
+    u = lambda y: 2.0 - 3.0 * y
+    np.testing.assert_allclose(T_other @ u(y_o) + T_ends @ u(y_c[[0, -1]]), u(y_c[1:-1]), atol=1e-13)
+
+
+def test_mortar_rates_are_optimal():
+    r1, r0 = _rates("sin10x", "mortar", [2, 3, 4])
+    assert r1 >= 0.95 and r0 >= 1.9
+
+
 @pytest.mark.parametrize("variant", ["nodal", "stabilised_a0.5", "stabilised_a1"])
 def test_nonmatching_variants_fail_the_patch_test(variant):
     # nodal constraints are not exact for linear u: the interface's own error
@@ -99,7 +118,7 @@ def test_errors_use_quadrature_not_nodal_values():
 
 
 @pytest.mark.parametrize("bad, message", [({"ratio": "3:2"}, "ratio"), ({"ratio": "x"}, "ratio"),
-                                          ({"case": "cos"}, "case"), ({"variant": "mortar"}, "variant"),
+                                          ({"case": "cos"}, "case"), ({"variant": "mortar_dual"}, "variant"),
                                           ({"constrained": "left"}, "constrained")])
 def test_bad_parameters_name_the_parameter(bad, message):
     with pytest.raises(ParameterError, match=message):
