@@ -13,6 +13,7 @@ with open(f"workflows/config/{SCALE}.yaml") as fh:
 PY = "python"  # the interpreter snakemake runs under (the venv's, via `make run`)
 
 include: "workflows/laplace.smk"
+include: "workflows/circle_square.smk"
 
 rule all:
     input:

@@ -183,7 +183,8 @@ class KKTResiduals:
     ``stationarity = ||Au + B'p - f||_inf / max(||f||_inf, ||Au||_inf, ||B'p||_inf)``,
     ``primal = max(Bu - Cp - g)_+ / max(||Bu||_inf, ||g||_inf)``,
     ``dual = max(-p)_+ / ||p||_inf``,
-    ``complementarity = |p'(g - Bu + Cp)| / (||p||_1 max(||Bu||_inf, ||g||_inf))``.
+    ``complementarity = sum_i |p_i (g - Bu + Cp)_i| / (||p||_1 max(||Bu||_inf, ||g||_inf))``
+    (entrywise, so that violations of opposite sign cannot cancel).
     Every denominator is floored at the tiny number ``1e-300``; ``raw`` holds the
     unscaled values.
     """
@@ -214,9 +215,9 @@ def kkt_residuals(qp: ContactQP, u: np.ndarray, p: np.ndarray) -> KKTResiduals:
     slack = qp.g - Bu + (qp.C @ p if qp.C is not None else 0.0)
     inf = lambda v: float(np.max(np.abs(v))) if np.size(v) else 0.0
     r_stat = inf(Au + Btp - qp.f)
-    r_primal = float(max(np.max(-slack), 0.0)) if slack.size else 0.0
-    r_dual = float(max(np.max(-p), 0.0)) if p.size else 0.0
-    r_comp = abs(float(p @ slack))
+    r_primal = max(0.0, float(np.max(-slack))) if slack.size else 0.0  # 0.0 first: never -0.0
+    r_dual = max(0.0, float(np.max(-p))) if p.size else 0.0
+    r_comp = float(np.sum(np.abs(p * slack)))
     disp_scale = max(inf(Bu), inf(qp.g), tiny)
     return KKTResiduals(
         stationarity=r_stat / max(inf(qp.f), inf(Au), inf(Btp), tiny),
@@ -237,7 +238,8 @@ class SolveResult:
         Primal solution on the free DOFs and multipliers (``p >= 0``, ``Bu <= g``).
     claimed_status : str
         What the solver itself says: one of ``converged``, ``max_iter``,
-        ``time_limit``, ``failed``.
+        ``time_limit``, ``failed``, or ``inaccurate`` when the solver itself
+        knows it stopped short of its tolerance (e.g. Clarabel ``AlmostSolved``).
     status : str
         After verification (:func:`solve`): ``converged`` only if the solver
         claimed it *and* every verified KKT residual is <= tol; a claimed

@@ -33,5 +33,28 @@ STUDIES = {
                 "results/laplace_nonmatching/mesh.png",
             ),
         ),
+        Study(
+            name="circle_square",
+            summary="circle pressed onto a square (plane strain): exact contact solution per "
+                    "level against plane-strain Hertz, fields, contact pressure",
+            thesis="Sect. 9.1",
+            outputs=(
+                "results/circle_square/hertz.csv",
+                "results/circle_square/fields.png",
+                "results/circle_square/pressure.png",
+            ),
+        ),
+        Study(
+            name="solver_comparison",
+            summary="OSQP, ProxSuite, Clarabel and the exact PDAS on identical circle-square QPs at "
+                    "three tolerance presets: verified status, KKT residuals, time, energy error",
+            thesis="Sect. 9.1 (problems), Ch. 8 (solvers)",
+            outputs=(
+                "results/circle_square/solvers.csv",
+                "results/circle_square/solver_presets.csv",
+                "results/circle_square/solver_times.png",
+                "results/circle_square/solver_error_vs_time.png",
+            ),
+        ),
     )
 }

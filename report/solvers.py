@@ -1,0 +1,104 @@
+"""Solver comparison report: one tidy table, the preset mapping, two figures."""
+from __future__ import annotations
+
+import argparse
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import pandas as pd  # noqa: E402
+
+from solvers.interface import TOLERANCES, solvers  # noqa: E402
+from workflows.io import atomic_path, write_csv  # noqa: E402
+
+MARKERS = {"converged": "o", "inaccurate": "x", "max_iter": "s", "time_limit": ">", "failed": "X"}
+LINES = {"low": ":", "mid": "--", "high": "-"}
+
+
+def preset_table() -> pd.DataFrame:
+    """How each solver maps the presets low/mid/high onto its own options."""
+    rows = []
+    for name, spec in solvers().items():
+        for preset, tol in TOLERANCES.items():
+            rows.append({"solver": name, "preset": preset, "tol": tol,
+                         "options": spec.presets.get(preset, "")})
+    return pd.DataFrame(rows)
+
+
+def _save(fig, path):
+    fig.tight_layout()
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=130, format="png")
+    plt.close(fig)
+
+
+def times_figure(table: pd.DataFrame, path: str) -> None:
+    """Wall time against problem size per solver and preset; markers show the verified status."""
+    fig, ax = plt.subplots(figsize=(7.5, 4.8))
+    runs = table[table.preset != "reference"]
+    colors = dict(zip(sorted(runs.solver.unique()), plt.cm.tab10.colors))
+    for (solver, preset), grp in runs.groupby(["solver", "preset"]):
+        grp = grp.sort_values("n")
+        ax.loglog(grp["n"], grp["total_time"], LINES.get(preset, "-"), color=colors[solver], lw=1,
+                  label=f"{solver} ({preset})")
+        for _, r in grp.iterrows():
+            ax.loglog(r["n"], r["total_time"], MARKERS.get(r["status"], "?"), color=colors[solver],
+                      mfc="none" if r["status"] != "converged" else colors[solver], ms=6)
+    n = np.array(sorted(runs["n"].unique()), dtype=float)
+    t0 = runs[runs.n == n[0]]["total_time"].median()
+    ax.loglog(n, t0 * n / n[0], ":", color="0.6", lw=1, label="slope 1 (O(N))")
+    ax.set_xlabel("unknowns N (free DOFs)")
+    ax.set_ylabel("wall time, setup + solve [s]")
+    ax.set_title("Circle-square: time per solver and preset "
+                 "(filled o = verified converged; x inaccurate, s max_iter, > time limit, X failed)",
+                 fontsize=8)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=6, ncol=2)
+    _save(fig, path)
+
+
+def work_precision_figure(table: pd.DataFrame, path: str) -> None:
+    """Energy-norm error against time, one curve per solver and level (points = presets)."""
+    fig, ax = plt.subplots(figsize=(7.5, 4.8))
+    runs = table[(table.preset != "reference") & np.isfinite(table.energy_error)]
+    colors = dict(zip(sorted(runs.solver.unique()), plt.cm.tab10.colors))
+    levels = sorted(runs.level.unique())
+    styles = dict(zip(levels, ["-", "--", ":", "-.", (0, (1, 3))]))
+    for (solver, level), grp in runs.groupby(["solver", "level"]):
+        order = grp["preset"].map({k: i for i, k in enumerate(TOLERANCES)}).argsort()
+        grp = grp.iloc[order]
+        err = np.maximum(grp["energy_error"], 1e-16)
+        ax.loglog(grp["total_time"], err, linestyle=styles[level], color=colors[solver], lw=1,
+                  marker="o", ms=3, label=f"{solver}, level {level}")
+    ax.set_xlabel("wall time, setup + solve [s]")
+    ax.set_ylabel(r"energy-norm error $\|u-u_{ref}\|_A/\|u_{ref}\|_A$ (floored at 1e-16)")
+    ax.set_title("Work-precision: presets low/mid/high along each curve; reference = exact PDAS",
+                 fontsize=8)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=6, ncol=2)
+    _save(fig, path)
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__)
+    ap.add_argument("--inputs", nargs="+", required=True)
+    ap.add_argument("--table", required=True)
+    ap.add_argument("--presets", required=True)
+    ap.add_argument("--times", required=True)
+    ap.add_argument("--work", required=True)
+    args = ap.parse_args(argv)
+    table = pd.concat([pd.read_csv(f) for f in args.inputs], ignore_index=True)
+    keep = ["level", "n", "m", "solver", "preset", "tol", "status", "claimed_status", "iterations",
+            "setup_time", "solve_time", "total_time", "kkt_stationarity", "kkt_primal", "kkt_dual",
+            "kkt_complementarity", "kkt_max", "energy_error", "message"]
+    table = table[[c for c in keep if c in table.columns]]
+    write_csv(args.table, table)
+    write_csv(args.presets, preset_table())
+    times_figure(table, args.times)
+    work_precision_figure(table, args.work)
+
+
+if __name__ == "__main__":
+    main()

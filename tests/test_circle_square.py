@@ -1,0 +1,110 @@
+"""The circle-square scene (Sect. 9.1) end to end: QP, solvers, Hertz, invariances."""
+import numpy as np
+import pytest
+
+from problems.circle_square import PROBLEM
+from problems.spec import ParameterError
+from reference import hertz
+from solvers.interface import solve
+from workflows.scripts.circle_square_contact import hertz_record
+from workflows.scripts.solver_comparison import energy_error
+
+
+@pytest.fixture(scope="module")
+def level1():
+    qp = PROBLEM.make(1)
+    return qp, solve(qp, solver="pdas", tol=1e-10)
+
+
+def test_level1_sizes_match_the_thesis(level1):
+    qp, _ = level1
+    assert qp.m == 33                        # N^C of Table 9.1
+    assert abs(len(qp.geometry["points"]) - 4226) / 4226 < 0.01  # 4237 vs 4226 nodes
+
+
+def test_circle_boundary_nodes_lie_on_the_circle():
+    qp = PROBLEM.make(2)
+    pts, body = qp.geometry["points"], qp.geometry["body_of_node"]
+    r = np.linalg.norm(pts[body == 1] - qp.geometry["center"], axis=1)
+    assert abs(r.max() - 0.707) < 1e-12
+
+
+def test_exact_reference_meets_kkt_and_is_in_contact(level1):
+    qp, res = level1
+    assert res.status == "converged" and res.kkt.max < 1e-10
+    assert (res.p > 0).sum() >= 5
+    np.testing.assert_allclose(res.p.sum(), hertz_record(qp, res)["force"])
+
+
+def test_contact_matches_hertz_on_level2():
+    qp = PROBLEM.make(2)
+    rec = hertz_record(qp, solve(qp, solver="pdas", tol=1e-10))
+    assert abs(rec["dev_a_moment"]) < 0.05 and abs(rec["dev_p0_moment"]) < 0.05
+    assert abs(rec["check_P_pi2_a_p0"]) < 1e-12  # the moment estimator is consistent by construction
+
+
+@pytest.mark.parametrize("solver", ["osqp", "proxsuite", "clarabel"])
+def test_reference_solvers_agree_with_exact_solution(level1, solver):
+    qp, ref = level1
+    res = solve(qp, solver=solver, tol="mid")
+    # the verified status is exactly "claimed and every scaled KKT residual <= tol"
+    assert (res.status == "converged") == (res.claimed_status == "converged" and res.kkt.max <= 1e-6)
+    assert res.status in ("converged", "inaccurate"), (res.status, res.message)
+    # within its tolerance: energy error at most ~100 tol (Clarabel's complementarity
+    # stays near 1e-5 at "mid" here and is reported "inaccurate" -- the table shows it)
+    assert energy_error(qp, res.u, ref.u) < 1e-4
+    assert res.kkt.max < 1e-4
+
+
+def test_swapping_body_order_leaves_solution_unchanged(level1):
+    qp, res = level1
+    qp2 = PROBLEM.make(1, order="circle_first")
+    res2 = solve(qp2, solver="pdas", tol=1e-10)
+    x1 = qp.geometry["points"][qp.contact_nodes, 0]
+    x2 = qp2.geometry["points"][qp2.contact_nodes, 0]
+    np.testing.assert_allclose(np.sort(x1), np.sort(x2))
+    np.testing.assert_allclose(res2.p[np.argsort(x2)], res.p[np.argsort(x1)], rtol=1e-9, atol=1e-14)
+    u1 = qp.full_displacement(res.u)
+    u2 = qp2.full_displacement(res2.u)
+    nodes1 = {tuple(np.round(p, 12)): i for i, p in enumerate(qp.geometry["points"])}
+    perm = np.array([nodes1[tuple(np.round(p, 12))] for p in qp2.geometry["points"]])
+    np.testing.assert_allclose(u2, u1[perm], atol=1e-12 * np.abs(u1).max())
+
+
+def test_search_a_and_b_agree_for_this_geometry():
+    qa, qb = PROBLEM.make(1, search="a"), PROBLEM.make(1, search="b")
+    ra, rb = solve(qa, "pdas", tol=1e-10), solve(qb, "pdas", tol=1e-10)
+    # closest point and vertical ray differ slightly off-centre; total force within 1%
+    assert abs(ra.p.sum() / rb.p.sum() - 1) < 0.01
+
+
+def test_multilevel_data_is_consistent():
+    qp = PROBLEM.make(2)
+    P = qp.multilevel["prolongations"]
+    assert len(P) == 2 and P[-1].shape[0] == qp.n
+    # prolongation of a coarse rigid translation is the fine rigid translation on the square
+    coarse = PROBLEM.make(1)
+    t = np.tile([0.0, 1.0], len(coarse.geometry["points"]))[coarse.free_dofs]
+    fine_t = P[-1] @ t
+    sq = qp.multilevel["body_of_dof"] == 0
+    interior = np.abs(P[-1][sq].sum(axis=1).A.ravel() - 1.0) < 1e-12  # rows untouched by Dirichlet
+    expected = np.tile([0.0, 1.0], len(qp.geometry["points"]))[qp.free_dofs]
+    np.testing.assert_allclose(fine_t[sq][interior], expected[sq][interior])
+    rbm = qp.multilevel["rigid_body_modes"]
+    assert rbm.shape == (qp.n, 6)
+
+
+def test_hertz_formulas_are_consistent():
+    E = hertz.effective_modulus(1, 0.3, 1, 0.3)
+    a = hertz.half_width(0.01, 0.7, E)
+    x = np.linspace(0.5 - a, 0.5 + a, 2001)
+    p = hertz.pressure(x, 0.01, 0.7, E, x0=0.5)
+    np.testing.assert_allclose(np.trapezoid(p, x), 0.01, rtol=1e-3)
+    xbar, a_m, p0 = hertz.moment_estimate(x, p * (x[1] - x[0]))
+    assert abs(a_m / a - 1) < 1e-3 and abs(xbar - 0.5) < 1e-12
+
+
+@pytest.mark.parametrize("bad", [{"radius": "-1"}, {"search": "c"}, {"nu1": "0.5"}, {"load": "x"}])
+def test_bad_parameters(bad):
+    with pytest.raises(ParameterError, match=list(bad)[0]):
+        PROBLEM.make(1, **bad)
