@@ -1,7 +1,6 @@
 """Non-matching Laplace problem (thesis Ch. 6): exactness, rates, definiteness."""
 import numpy as np
 import pytest
-import scipy.sparse as sp
 
 from problems import laplace_nonmatching as lap
 from problems.spec import ParameterError
