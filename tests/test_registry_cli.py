@@ -55,3 +55,29 @@ def test_cli_bad_input_is_a_clear_error_and_writes_nothing(tmp_path, capsys, arg
     assert main(["solve", *argv, "--out", str(out)]) == 2
     assert needle in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_cli_solve_contact_problem_writes_state_and_fields(tmp_path):
+    out, vtu = tmp_path / "cs.json", tmp_path / "cs.vtu"
+    rc = main(["solve", "--problem", "circle_square", "--level", "0", "--solver", "pdas",
+               "--tol", "high", "--set", "E2=2.0", "--out", str(out), "--vtu", str(vtu)])
+    assert rc == 0
+    data = json.loads(out.read_text())
+    assert data["status"] == "converged" and data["kkt_max"] <= 1e-9
+    assert data["params"]["E2"] == 2.0 and data["params"]["radius"] == 0.707
+    contact = data["contact"]
+    assert set(contact) >= {"x", "p", "pressure", "force", "active"}
+    assert len(contact["x"]) == data["m"] == 17
+    # the square pushes the circle up with the total contact force, and only there
+    assert contact["force"][1] > 0 and abs(contact["force"][0]) < 1e-10
+    assert abs(contact["force"][1] - sum(contact["p"])) < 1e-14
+    import meshio
+    mesh = meshio.read(vtu)
+    assert {"displacement", "contact_pressure"} <= set(mesh.point_data)
+    assert "von_mises" in mesh.cell_data
+
+
+def test_cli_unknown_solver_option_is_rejected(tmp_path, capsys):
+    rc = main(["solve", "--problem", "circle_square", "--level", "0", "--solver", "osqp",
+               "--set", "polish=maybe", "--out", str(tmp_path / "x.json")])
+    assert rc == 2 and "'polish'" in capsys.readouterr().err

@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from problems.spec import ParameterError, lookup, problems
+from problems.spec import ParameterError, lookup, problems, resolve_parameters
 from workflows.io import provenance, write_json
 
 
@@ -86,7 +86,8 @@ def cmd_solve(args: argparse.Namespace) -> int:
         if args.solver not in (None, "direct"):
             raise ParameterError(f"option '--solver': {args.solver!r} is not allowed for the linear "
                                  f"problem {spec.name!r}; allowed: direct")
-        problem = spec.make(level, **params)
+        problem = spec.make(level, **resolve_parameters(spec.parameters, params,
+                                                        f"problem '{spec.name}'"))
         t0 = time.perf_counter()
         sol = problem.solve()
         record.update(solver="direct", status="converged" if sol.residual < 1e-10 else "inaccurate",
@@ -99,8 +100,12 @@ def cmd_solve(args: argparse.Namespace) -> int:
         # parameters of the scene vs. of the solver: --set names are split by owner
         solver_spec = solvers()[solver]
         solver_names = {p.name for p in solver_spec.parameters}
-        scene_params = {k: v for k, v in params.items() if k not in solver_names}
-        solver_params = {k: v for k, v in params.items() if k in solver_names}
+        scene_params = resolve_parameters(
+            spec.parameters, {k: v for k, v in params.items() if k not in solver_names},
+            f"problem '{spec.name}' (or solver '{solver}')")
+        solver_params = resolve_parameters(
+            solver_spec.parameters, {k: v for k, v in params.items() if k in solver_names},
+            f"solver '{solver}'")
         t0 = time.perf_counter()
         qp = spec.make(level, **scene_params)
         t_build = time.perf_counter() - t0
