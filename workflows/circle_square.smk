@@ -32,6 +32,7 @@ rule circle_square_figures:
 rule solver_comparison:
     output: f"{CSDIR}/solvers_L{{level}}.csv"
     wildcard_constraints: level=r"\d+"
+    threads: 2  # timings: nothing else runs beside it
     params: limit=CS["time_limit"]
     shell:
         "{PY} -m workflows.scripts.solver_comparison --level {wildcards.level} "
@@ -45,3 +46,24 @@ rule solver_comparison_report:
     shell:
         "{PY} -m report.solvers --inputs {input} --table {output.table} --presets {output.presets} "
         "--times {output.times} --work {output.work}"
+
+# Alg. 8.4 complexity study: all levels in one process, alone on the machine (threads:
+# 2 keeps snakemake from running anything beside it), so timings are side by side.
+rule augmented_projection_study:
+    output: f"{CSDIR}/augmented_projection_study.csv"
+    threads: 2
+    params:
+        levels=" ".join(map(str, CS["ap_levels"])), configs=" ".join(CS["ap_configs"]),
+        limit=CS["time_limit"]
+    shell:
+        "{PY} -m workflows.scripts.augmented_projection_study --levels {params.levels} "
+        "--configs {params.configs} --time-limit {params.limit} --out {output}"
+
+rule table_9_1:
+    input: f"{CSDIR}/augmented_projection_study.csv"
+    output:
+        table=f"{CSDIR}/table_9_1.csv", claims=f"{CSDIR}/claims_ch8.csv",
+        fig91=f"{CSDIR}/fig_9_1_time.png", fig93=f"{CSDIR}/fig_9_3_kappa.png"
+    shell:
+        "{PY} -m report.augmented_projection --study {input} --table {output.table} "
+        "--claims {output.claims} --fig91 {output.fig91} --fig93 {output.fig93}"

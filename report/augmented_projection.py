@@ -1,0 +1,157 @@
+"""Table 9.1 regenerated and the complexity claims of Ch. 8 checked (Figs. 9.1, 9.3).
+
+Reads the tidy study CSV of ``workflows/scripts/augmented_projection_study.py``
+and the thesis's Table 9.1 (``reference/table_9_1.csv``); writes our Table 9.1
+beside the thesis's, a claims table (each claim, the measured number, the bar,
+pass/miss) and the figures.
+"""
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import pandas as pd  # noqa: E402
+
+from workflows.io import atomic_path, write_csv  # noqa: E402
+
+THESIS_TABLE = Path(__file__).resolve().parent.parent / "reference" / "table_9_1.csv"
+MAIN = "alg84"
+
+
+def read_thesis(path: Path = THESIS_TABLE) -> pd.DataFrame:
+    """The thesis's Table 9.1 (rows = uniform levels 1..4)."""
+    t = pd.read_csv(path, comment="#")
+    t.insert(0, "level", np.arange(1, len(t) + 1))
+    return t
+
+
+def slope(x, y, last: int = 3) -> float:
+    """Least-squares slope of log y against log x over the ``last`` largest x."""
+    x, y = np.asarray(x, float), np.asarray(y, float)
+    order = np.argsort(x)[-last:]
+    ok = np.isfinite(y[order]) & (y[order] > 0)
+    if ok.sum() < 2:
+        return float("nan")
+    return float(np.polyfit(np.log(x[order][ok]), np.log(y[order][ok]), 1)[0])
+
+
+def table_9_1(study: pd.DataFrame, thesis: pd.DataFrame, config: str = MAIN) -> pd.DataFrame:
+    """Our columns of Table 9.1 for ``config`` beside the thesis's (``thesis_*``)."""
+    ours = study[study.config == config].sort_values("level")
+    out = pd.DataFrame({
+        "level": ours["level"].to_numpy(), "N": ours["N"].to_numpy(), "NC": ours["NC"].to_numpy(),
+        "n_outer": ours["n_outer"].to_numpy(), "n_inner_mean": ours["n_inner_mean"].to_numpy(),
+        "t_solve": (ours["t_setup"] + ours["t_solve"]).to_numpy(), "t_setup": ours["t_setup"].to_numpy(),
+        "t_proj": ours["t_proj"].to_numpy(), "kappa_S": ours["kappa_S"].to_numpy(),
+        "energy_error": ours["energy_error"].to_numpy(), "status": ours["status"].to_numpy()})
+    th = thesis.rename(columns={c: f"thesis_{c}" for c in thesis.columns if c != "level"})
+    return out.merge(th, on="level", how="left")
+
+
+def claims(study: pd.DataFrame, config: str = MAIN) -> pd.DataFrame:
+    """The checkable claims of Ch. 8 / the issue's bars, measured."""
+    ours = study[study.config == config].sort_values("N")
+    rows = []
+    if len(ours) >= 2:
+        n_o = ours["n_outer"].to_numpy(float)
+        growth = n_o[-1] / n_o[-2] - 1
+        rows.append({"claim": "n_o(eps) independent of h: growth second-finest -> finest",
+                     "measured": growth, "bar": 0.15, "pass": bool(growth <= 0.15)})
+        k = ours["kappa_S"].to_numpy(float)
+        ratio = k[-1] / k[-2]
+        rows.append({"claim": "kappa(S-hat) = O(h^-1) (Lemma 8.13): ratio per refinement (2 expected)",
+                     "measured": ratio, "bar": 2.0, "pass": bool(1.5 <= ratio <= 2.6)})
+    if len(ours) >= 3:
+        s = slope(ours["N"], ours["t_setup"] + ours["t_solve"])
+        rows.append({"claim": "T_solve = O(N) (Example 8.1): slope of log T_solve (setup incl.) "
+                              "vs log N, finest three levels",
+                     "measured": s, "bar": 1.15, "pass": bool(s <= 1.15)})
+    finest = study[study.level == study.level.max()]
+    ap = finest[finest.config == config]
+    floor = finest[finest.config.str.startswith("amg_pcg")]
+    if len(ap) and len(floor) and np.isfinite(floor["t_to_target"]).any():
+        r = float(ap["t_to_target"].iloc[0] / floor["t_to_target"].min())
+        rows.append({"claim": f"time to energy error target at the finest level / fastest AMG-PCG "
+                              f"linear solve (N = {int(ap['N'].iloc[0])})",
+                     "measured": r, "bar": 5.0, "pass": bool(r <= 5.0)})
+    return pd.DataFrame(rows)
+
+
+def _save(fig, path):
+    fig.tight_layout()
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=130, format="png")
+    plt.close(fig)
+
+
+def figure_9_1(study: pd.DataFrame, thesis: pd.DataFrame, path: str) -> None:
+    """T_solve against N (log-log): our configurations, the AMG-PCG floor, the thesis."""
+    fig, ax = plt.subplots(figsize=(7.5, 4.8))
+    for config, grp in study[study.config != "pdas"].groupby("config"):
+        grp = grp.sort_values("N")
+        if config.startswith("amg_pcg"):
+            t, style = grp["t_to_target"], "k:" if config.endswith("gmg") else "k-."
+            label = f"{config} (linear solve, no contact; floor)"
+        else:
+            t, style = grp["t_setup"] + grp["t_solve"], "o-" if config == MAIN else "s--"
+            label = f"{config}"
+        ax.loglog(grp["N"], t, style, ms=4, label=f"{label}, slope {slope(grp['N'], t):.2f}")
+    ax.loglog(thesis["nodes"], thesis["t_solve"], "^-", color="tab:red", ms=5,
+              label=f"thesis Table 9.1, slope {slope(thesis['nodes'], thesis['t_solve']):.2f}")
+    n = np.array([study["N"].min(), study["N"].max()], float)
+    main = study[study.config == MAIN].sort_values("N")
+    if len(main):
+        t0 = float((main["t_setup"] + main["t_solve"]).iloc[0])
+        ax.loglog(n, t0 * n / n[0], color="0.6", lw=1, label="slope 1 guide")
+    ax.set_xlabel("nodes N")
+    ax.set_ylabel("T_solve incl. setup [s] (floor: time to the same energy error)")
+    ax.set_title("Fig. 9.1 regenerated: solve time against N (slopes over the finest three levels; "
+                 "thesis on its 1999 machine)", fontsize=8)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=6)
+    _save(fig, path)
+
+
+def figure_9_3(study: pd.DataFrame, thesis: pd.DataFrame, path: str) -> None:
+    """kappa(S-hat) against N with the O(h^-1) = O(N^(1/2)) guide and the thesis's values."""
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    for config, grp in study[study.config.isin([MAIN])].groupby("config"):
+        grp = grp.sort_values("N")
+        ax.loglog(grp["N"], grp["kappa_S"], "o-", label=f"kappa(S-hat), {config}")
+        if "kappa_SinvS" in grp and np.isfinite(grp["kappa_SinvS"]).any():
+            ax.loglog(grp["N"], grp["kappa_SinvS"], "s--", label="kappa(S-hat^-1 S)")
+        n = grp["N"].to_numpy(float)
+        ax.loglog(n, grp["kappa_S"].iloc[0] * np.sqrt(n / n[0]), color="0.6", lw=1,
+                  label="O(h^-1) = O(N^1/2) guide")
+    ax.loglog(thesis["nodes"], thesis["kappa_S"], "^-", color="tab:red", label="thesis Table 9.1")
+    ax.set_xlabel("nodes N")
+    ax.set_ylabel("condition number (Lanczos)")
+    ax.set_title("Fig. 9.3 regenerated: kappa(S-hat) against N (Lemma 8.13)", fontsize=9)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7)
+    _save(fig, path)
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__)
+    ap.add_argument("--study", required=True)
+    ap.add_argument("--table", required=True)
+    ap.add_argument("--claims", required=True)
+    ap.add_argument("--fig91", required=True)
+    ap.add_argument("--fig93", required=True)
+    args = ap.parse_args(argv)
+    study = pd.read_csv(args.study)
+    thesis = read_thesis()
+    write_csv(args.table, table_9_1(study, thesis))
+    write_csv(args.claims, claims(study))
+    figure_9_1(study, thesis, args.fig91)
+    figure_9_3(study, thesis, args.fig93)
+
+
+if __name__ == "__main__":
+    main()
