@@ -54,7 +54,7 @@ def convergence_figure(errors: pd.DataFrame, rates: pd.DataFrame, case: str, pat
         ax.set_title(title, fontsize=10)
         ax.grid(True, which="both", alpha=0.3)
         ax.invert_xaxis()
-    axes[1].legend(fontsize=7, loc="lower left")
+    axes[1].legend(fontsize=7, loc="upper left")
     note = (f"; exact to round-off (max error {worst[exact].max():.1e}): {', '.join(exact)}"
             if exact else "")
     fig.suptitle(f"Non-matching Laplace problem, case '{case}' "
@@ -76,7 +76,9 @@ def mesh_figure(level: int, ratio: str, path: str) -> None:
                                (subdomain_mesh(INTERFACE_X, 1, nf), "tab:red", f"$\\Omega_2$, h=1/{nf}")):
         ax.triplot(mesh.p[0], mesh.p[1], mesh.t.T, color=color, lw=0.6)
         i = interface_nodes(mesh)
-        ax.plot(mesh.p[0, i], mesh.p[1, i], "o", color=color, ms=4, label=label + " interface nodes")
+        big = color == "tab:blue"  # hollow and larger, so coinciding nodes show both sides
+        ax.plot(mesh.p[0, i], mesh.p[1, i], "o", color=color, ms=8 if big else 4,
+                mfc="none" if big else color, label=label + " interface nodes")
     ax.set_aspect("equal")
     ax.set_xlabel("x")
     ax.set_ylabel("y")
