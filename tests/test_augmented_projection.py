@@ -1,0 +1,225 @@
+"""Alg. 8.4 (augmented projection): agreement with PDAS, Theorem 8.2, (8.25), Lemma 8.13."""
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+from problems.circle_square import PROBLEM
+from solvers import preconditioners as pc
+from solvers.augmented_projection import (augmented_projection_algorithm, face_cg_variant,
+                                          make_projection, mprgp, nested_initial_guess,
+                                          projected_richardson, theorem_8_8_alpha)
+from solvers.interface import ContactQP, solve
+
+
+def synthetic_qp(n: int = 9) -> ContactQP:
+    """Vector Laplacian on an n x n grid clamped at the bottom, pushed up against a
+    parabolic obstacle above its top row (one constraint per top node)."""
+    h = 1.0 / (n - 1)
+    xy = np.array([(i * h, j * h) for j in range(n) for i in range(n)])
+    lap1 = sp.diags([-np.ones(n - 1), 2 * np.ones(n), -np.ones(n - 1)], [-1, 0, 1])
+    lap1 = sp.lil_matrix(lap1)
+    lap1[0, 0] = lap1[-1, -1] = 1.0
+    K = sp.kron(sp.eye(n), lap1) + sp.kron(lap1, sp.eye(n))
+    A_full = sp.kron(K, sp.eye(2)).tocsr() + 1e-3 * sp.eye(2 * n * n)
+    free_nodes = np.flatnonzero(xy[:, 1] > 0)
+    free = np.sort(np.concatenate([2 * free_nodes, 2 * free_nodes + 1]))
+    A = A_full[free][:, free]
+    f = np.zeros(2 * n * n)
+    f[1::2] = 0.05 * h
+    top = np.flatnonzero(np.isclose(xy[:, 1], 1.0))
+    pos = -np.ones(2 * n * n, dtype=int)
+    pos[free] = np.arange(free.size)
+    B = sp.csr_matrix((np.ones(n), (np.arange(n), pos[2 * top + 1])), shape=(n, free.size))
+    g = 0.02 + 0.5 * (xy[top, 0] - 0.5) ** 2
+    return ContactQP(A=A, f=f[free], B=B, g=g, free_dofs=free, u_fixed=np.zeros(2 * n * n), dim=2,
+                     contact_nodes=top, contact_mass=np.full(n, h),
+                     contact_direction=np.tile([0.0, 1.0], (n, 1)),
+                     geometry={"points": xy}, name="synthetic")
+
+
+@pytest.fixture(scope="module")
+def problems():
+    qps = {"synthetic": synthetic_qp(), "cs0": PROBLEM.make(0), "cs1": PROBLEM.make(1)}
+    refs = {k: solve(qp, solver="pdas", tol=1e-10) for k, qp in qps.items()}
+    for r in refs.values():
+        assert r.status == "converged"
+    return qps, refs
+
+
+def energy_error(qp, u, u_ref):
+    e = u - u_ref
+    return float(np.sqrt(e @ (qp.A @ e) / (u_ref @ (qp.A @ u_ref))))
+
+
+COMBOS = list(itertools.product(("gmg", "sa"), ("multilevel", "inexact", "inexact_assembled",
+                                                 "jacobi"), ("mprgp", "richardson")))
+
+
+@pytest.mark.parametrize("name", ["synthetic", "cs0"])
+@pytest.mark.parametrize("ahat,schur,projection", COMBOS)
+def test_every_combination_reaches_pdas(problems, name, ahat, schur, projection):
+    qps, refs = problems
+    qp, ref = qps[name], refs[name]
+    res = solve(qp, solver="augmented_projection", tol=1e-6, max_iter=3000, ahat=ahat,
+                schur=schur, projection=projection, eps=1e-7, max_inner=400, record_kkt=False)
+    assert res.claimed_status == "converged", res.message
+    assert energy_error(qp, res.u, ref.u) < 1e-5
+    assert np.all(res.p >= 0)
+    assert np.max(np.abs(res.p - ref.p)) < 1e-3 * np.max(np.abs(ref.p))
+    assert res.kkt.max < 1e-4
+
+
+@pytest.mark.parametrize("opts", [{}, {"ahat": "sa"}, {"schur": "inexact"},
+                                  {"update": "additive"}, {"projection": "richardson"},
+                                  {"stop": "kkt"}, {"accelerate": "face_cg"},
+                                  {"accelerate": "face_cg", "schur": "jacobi"}])
+def test_level1_converges_to_pdas(problems, opts):
+    qps, refs = problems
+    qp, ref = qps["cs1"], refs["cs1"]
+    res = solve(qp, solver="augmented_projection", tol=1e-6, max_iter=2000,
+                **{"eps": 1e-7, **opts})
+    assert res.status == "converged", res.message
+    assert energy_error(qp, res.u, ref.u) < 1e-5
+    s = res.stats
+    assert s["N"] == len(qp.geometry["points"]) and s["NC"] == qp.m
+    assert s["n_outer"] == res.iterations == len(res.history["kkt_max"])
+    assert s["t_proj"] <= s["t_solve"]
+
+
+@pytest.mark.parametrize("update", ["additive", "multiplicative"])
+@pytest.mark.parametrize("schur", ["multilevel", "inexact"])
+def test_transformed_functional_decreases(problems, update, schur):
+    """Theorem 8.2: the functional of the transformed problem (8.20) decreases
+    monotonically; the primal energy J(u^k) need not (u^k is infeasible)."""
+    qp = problems[0]["cs1"]
+    res = solve(qp, solver="augmented_projection", tol=1e-8, max_iter=300, update=update,
+                schur=schur, record_kkt=False)
+    Jt = np.asarray(res.history["J_transformed"])
+    assert len(Jt) > 5
+    assert np.all(np.diff(Jt) <= 1e-12 * np.max(np.abs(Jt)))
+    assert Jt[-1] < Jt[0]
+
+
+def _transformed_norm_sq(qp, Ainv, e_u, e_p):
+    """||(e_u, e_p)||^2 in the operator of (8.20)."""
+    r = qp.A @ e_u + qp.B.T @ e_p
+    Ar = Ainv(r)
+    return float(e_u @ (qp.A @ Ar - r) + e_p @ (qp.B @ Ar - qp.B @ e_u))
+
+
+@pytest.mark.parametrize("name", ["synthetic", "cs0"])
+def test_estimate_8_25_bounds_true_error(problems, name):
+    """Corollary 8.4 / (8.25): ||U - U^{k+1}||^2 <= 2 rho/(1 - rho) eta_k for the
+    additive update, S-hat = S_in and Alg. 8.3 with n_i by (8.15) (rho_P <= e^-c)."""
+    qps, refs = problems
+    qp, ref = qps[name], refs[name]
+    Ainv = pc.scaled_vcycle(qp.A, "gmg", qp.multilevel, 2, qp.free_dofs)
+    S_hat = pc.build_schur("inexact", qp, Ainv)
+    a_low, a_bar = theorem_8_8_alpha(Ainv.gamma_bar)
+    tau, c = 1.0 / a_bar, 1.0
+    project, _ = make_projection("richardson", S_hat, 0.1, 10_000, c)
+    rho = 1.0 - 0.5 * tau * a_low * (1.0 - np.exp(-c))
+    steps = []
+    augmented_projection_algorithm(qp.A, qp.B, None, qp.f, qp.g, Ainv, S_hat, tau,
+                                   Ainv.gamma_bar, project, np.zeros(qp.n), np.zeros(qp.m),
+                                   1e-6, 60, "additive", lambda s: steps.append(s) or False)
+    ratios = []
+    for s in steps:
+        err = _transformed_norm_sq(qp, Ainv, ref.u - s.u, ref.p - s.p)
+        assert s.eta >= 0 and s.corollary_8_4 >= 0
+        assert err <= 2 * rho / (1 - rho) * s.corollary_8_4 * (1 + 1e-8) + 1e-14
+        assert err <= 2 * rho / (1 - rho) * s.eta * (1 + 1e-8) + 1e-14
+        ratios.append(err / max(s.eta, 1e-300))
+    assert len(steps) > 3
+
+
+@pytest.mark.parametrize("name", ["synthetic", "cs1"])
+def test_face_cg_variant_decreases_transformed_functional(problems, name):
+    """The Krylov variant (beyond the thesis) keeps Theorem 8.2's monotone decay of Jt."""
+    qps, refs = problems
+    qp, ref = qps[name], refs[name]
+    Ainv = pc.scaled_vcycle(qp.A, "gmg", qp.multilevel, 2, qp.free_dofs)
+    S_hat = pc.build_schur("multilevel", qp, Ainv)
+    project, _ = make_projection("mprgp", S_hat, 0.1, 500, 1.0)
+    iterates = []
+    u, p, k, reason, n_cg = face_cg_variant(
+        qp.A, qp.B, None, qp.f, qp.g, Ainv, S_hat, S_hat.dense(), 1.0, Ainv.gamma_bar, project,
+        np.zeros(qp.n), np.zeros(qp.m), 1e-9, 300,
+        monitor=lambda s: iterates.append((s.u.copy(), s.p.copy())) or False)
+    assert reason == "converged" and n_cg > 0
+    assert energy_error(qp, u, ref.u) < 1e-6
+    z = Ainv(qp.f)
+    Jt = [0.5 * _transformed_norm_sq(qp, Ainv, u_k, p_k)
+          - ((qp.A @ u_k) @ z - qp.f @ u_k + p_k @ (qp.B @ z) - p_k @ qp.g) for u_k, p_k in iterates]
+    assert np.all(np.diff(Jt) <= 1e-10 * np.max(np.abs(Jt)))
+
+
+def test_kappa_S_hat_doubles_per_refinement():
+    """Lemma 8.13: kappa(S) = O(h^-1), so kappa(S-hat) doubles per uniform refinement."""
+    kappas = {"multilevel": [], "inexact": []}
+    for level in (0, 1, 2):
+        qp = PROBLEM.make(level)
+        Ainv = pc.scaled_vcycle(qp.A, "gmg", qp.multilevel, 2, qp.free_dofs, lanczos_steps=10)
+        for kind in kappas:
+            kappas[kind].append(pc.build_schur(kind, qp, Ainv, lanczos_steps=40).kappa)
+    for kind, k in kappas.items():
+        ratios = np.array(k[1:]) / np.array(k[:-1])
+        assert np.all((ratios > 1.6) & (ratios < 2.5)), (kind, k)
+
+
+def test_multilevel_S_hat_is_spectrally_close_to_S_in(problems):
+    qp = problems[0]["cs1"]
+    Ainv = pc.scaled_vcycle(qp.A, "gmg", qp.multilevel, 2, qp.free_dofs)
+    sh = pc.build_schur("multilevel", qp, Ainv)
+    Sd = sh.dense()
+    assert np.allclose(Sd, Sd.T) and np.linalg.eigvalsh(Sd)[0] > 0
+    assert sh.kappa_Sin < 5.0
+    # scaled so that S_in <= S-hat
+    S_in = np.column_stack([qp.B @ Ainv(qp.B.T @ e) for e in np.eye(qp.m)])
+    lam = np.linalg.eigvals(np.linalg.solve(Sd, 0.5 * (S_in + S_in.T))).real
+    assert lam.max() <= 1.0 + 1e-6
+    assert lam.max() / lam.min() < 5.0
+
+
+def test_projections_solve_the_box_qp():
+    rng = np.random.default_rng(0)
+    M = rng.standard_normal((30, 30))
+    S = M @ M.T + 30 * np.eye(30)
+    d = rng.standard_normal(30) * 10
+    S_hat = lambda q: S @ q
+    lam = np.linalg.eigvalsh(S)
+    q_m, n_m = mprgp(S_hat, d, np.zeros(30), 1.0 / lam[-1], 1e-12, 500)
+    q_r, n_r = projected_richardson(S_hat, d, np.zeros(30), 1.0 / lam[-1], 3000)
+    for q in (q_m, q_r):
+        g = S @ q - d
+        assert np.all(q >= 0)
+        assert np.max(np.abs(np.where(q > 0, g, np.minimum(g, 0)))) < 1e-8
+    assert n_m < n_r
+
+
+def test_nested_initial_guess_saves_outer_steps(problems):
+    qps, refs = problems
+    coarse, fine = qps["cs0"], qps["cs1"]
+    rc = solve(coarse, solver="augmented_projection", tol=1e-6, eps=1e-6)
+    u0, p0 = nested_initial_guess(coarse, rc, fine)
+    assert np.all(p0 >= 0) and u0.shape == (fine.n,) and p0.shape == (fine.m,)
+    # the pressure transfers: total force is roughly kept
+    assert abs(p0.sum() / rc.p.sum() - 1) < 0.1
+    cold = solve(fine, solver="augmented_projection", tol=1e-6, eps=1e-4, stop="kkt",
+                 max_iter=500)
+    warm = solve(fine, solver="augmented_projection", tol=1e-6, eps=1e-4, stop="kkt",
+                 max_iter=500, u0=u0, p0=p0)
+    assert warm.status == cold.status == "converged"
+    assert warm.iterations < cold.iterations
+
+
+def test_honest_status(problems):
+    qp = problems[0]["cs1"]
+    res = solve(qp, solver="augmented_projection", tol=1e-9, max_iter=3)
+    assert res.status == "max_iter" and res.iterations == 3
+    res = solve(qp, solver="augmented_projection", tol=1e-12, time_limit=1e-3, max_iter=10_000)
+    assert res.status == "time_limit"

@@ -1,0 +1,224 @@
+"""Complexity study of the augmented projection method (thesis Table 9.1, Fig. 9.1).
+
+For each level of a scene: the exact reference (PDAS), the chosen configurations
+of Alg. 8.4 and, as the floor, AMG-PCG for the linear elasticity system
+``A u = f`` without contact (geometric MG and pyamg SA preconditioners), run to
+the same energy accuracy in the same process. One tidy CSV row per (level,
+configuration), written atomically.
+
+Each configuration runs once with a tiny (8.25) tolerance; ``n_outer`` and
+``t_solve`` are read off the history where (8.25) first reaches ``--eps``
+(identical to a run stopped there: the iteration is deterministic), and the run
+continues until the energy-norm error ``||u - u_pdas||_A / ||u_pdas||_A`` is
+below ``--target`` (``t_to_target``, setup included). The error and KKT checks
+inside the callback are timed and subtracted.
+
+Example::
+
+    python -m workflows.scripts.augmented_projection_study --levels 1 2 3 4 \\
+        --configs alg84 face_cg nested_face_cg --out results/augmented_projection_study.csv
+"""
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import scipy.sparse.linalg as spla
+
+from problems.spec import problems
+from solvers import augmented_projection as ap
+from solvers import preconditioners as pc
+from solvers.interface import kkt_residuals, solve, verify
+from workflows.io import atomic_path, write_csv
+
+BEST = dict(ahat="gmg", schur="multilevel", projection="mprgp", update="multiplicative")
+
+#: Named configurations. ``alg84``: Alg. 8.4 as in the thesis with the A-hat/S-hat pair
+#: chosen by this study; ``face_cg``: the same plus Krylov acceleration on the active face
+#: (beyond the thesis); ``nested*``: plus the Alg. 8.5 initial guess from two coarser levels.
+CONFIGS = {
+    "alg84": BEST,
+    "face_cg": {**BEST, "accelerate": "face_cg"},
+    "additive": {**BEST, "update": "additive"},
+    "richardson": {**BEST, "projection": "richardson"},
+    "sa": {**BEST, "ahat": "sa"},
+    "thesis_Sin": {**BEST, "schur": "inexact"},
+    "jacobi": {**BEST, "schur": "jacobi"},
+    "nested": BEST,
+    "nested_face_cg": {**BEST, "accelerate": "face_cg"},
+}
+
+
+def energy_error(qp, u, u_ref) -> float:
+    e = u - u_ref
+    return float(np.sqrt(max(e @ (qp.A @ e), 0.0) / (u_ref @ (qp.A @ u_ref))))
+
+
+def run_config(qp, u_ref, opts, eps, target, max_iter, time_limit, u0=None, p0=None,
+               kappa_exact=False) -> dict:
+    """One run of Alg. 8.4 with the error-vs-time record (see module docstring)."""
+    rec = {"err": [], "kkt": [], "t": [], "overhead": 0.0, "cpu": [], "cpu_overhead": 0.0}
+    cpu0 = time.process_time()
+
+    def callback(step):
+        t0, c0 = time.perf_counter(), time.process_time()
+        rec["err"].append(energy_error(qp, step.u, u_ref) if u_ref is not None else np.nan)
+        rec["kkt"].append(kkt_residuals(qp, step.u, step.p).max)
+        rec["overhead"] += time.perf_counter() - t0
+        rec["cpu_overhead"] += time.process_time() - c0
+        rec["t"].append(rec["overhead"])
+        rec["cpu"].append(c0 - cpu0 - rec["cpu_overhead"] + (time.process_time() - c0))
+        reached_eps = step.eta_rel <= eps
+        reached_target = u_ref is None or rec["err"][-1] <= target
+        return reached_eps and reached_target
+
+    res = ap.solve(qp, tol=1e-12, max_iter=max_iter, time_limit=time_limit, u0=u0, p0=p0,
+                   eps=1e-14, record_kkt=False, kappa_exact=kappa_exact, callback=callback, **opts)
+    res = verify(qp, res, 1e-12)
+    h, s = res.history, res.stats
+    t_hist = np.asarray(h["time"]) - np.asarray(rec["t"])
+    eta = np.asarray(h["eta_rel"])
+    hit = np.flatnonzero(eta <= eps)
+    k = int(hit[0]) if hit.size else len(eta) - 1
+    err = np.asarray(rec["err"])
+    hit_t = np.flatnonzero(err <= target)
+    n_inner = np.asarray(h["n_inner"][:k + 1], dtype=float)
+    return {
+        "N": s["N"], "NC": s["NC"], "n": s["n"], "n_outer": k + 1,
+        "n_inner_mean": float(n_inner.mean()), "t_setup": s["t_setup"],
+        "t_solve": float(t_hist[k]), "t_proj": float(np.sum(h["t_proj"][:k + 1])),
+        "kappa_S": s["kappa_S"], "kappa_SinvSin": s["kappa_SinvSin"],
+        "kappa_SinvS": s["kappa_SinvS"], "gamma_bar": s["gamma_bar"], "tau": s["tau"],
+        "energy_error": float(err[k]), "kkt_max": float(rec["kkt"][k]),
+        "status": "converged" if hit.size else res.status,
+        "n_to_target": int(hit_t[0]) + 1 if hit_t.size else -1,
+        "t_to_target": float(s["t_setup"] + t_hist[hit_t[0]]) if hit_t.size else np.nan,
+        "cpu_total": float(rec["cpu"][k]),
+        "cpu_to_target": float(rec["cpu"][hit_t[0]]) if hit_t.size else np.nan,
+        "n_vcycles_per_outer": s["n_vcycles"] / max(len(eta), 1),
+        "message": res.message,
+    }
+
+
+def amg_pcg_floor(qp, kind: str, target: float, max_iter: int = 500,
+                  u_exact: np.ndarray | None = None) -> dict:
+    """PCG for ``A u = f`` (no contact) with one V-cycle, to energy error ``target``.
+
+    ``u_exact`` (a direct solve of ``A u = f``) is computed unless given.
+    """
+    t0 = time.perf_counter()
+    if u_exact is None:
+        u_exact = spla.spsolve(qp.A.tocsc(), qp.f)
+    t_direct = time.perf_counter() - t0
+    norm = np.sqrt(u_exact @ (qp.A @ u_exact))
+    t0, cpu0 = time.perf_counter(), time.process_time()
+    if kind == "sa":  # pyamg defaults + rigid-body modes, node blocks
+        ml = pc.sa_hierarchy(qp.A, qp.multilevel.get("rigid_body_modes"), qp.dim, qp.free_dofs,
+                             smoother="block_gs", max_coarse=500)
+        M = ml.aspreconditioner(cycle="V")
+    else:
+        vc = pc.scaled_vcycle(qp.A, "gmg", qp.multilevel, qp.dim, qp.free_dofs, lanczos_steps=5)
+        M = spla.LinearOperator(qp.A.shape, matvec=vc.raw)
+    t_setup = time.perf_counter() - t0
+    rec = {"t": [], "err": [], "overhead": 0.0, "cpu": [], "cpu_overhead": 0.0}
+    t_start = time.perf_counter()
+
+    def cb(x):
+        t1, c1 = time.perf_counter(), time.process_time()
+        e = x - u_exact
+        rec["err"].append(np.sqrt(max(e @ (qp.A @ e), 0.0)) / norm)
+        rec["overhead"] += time.perf_counter() - t1
+        rec["cpu_overhead"] += time.process_time() - c1
+        rec["t"].append(time.perf_counter() - t_start - rec["overhead"])
+        rec["cpu"].append(time.process_time() - cpu0 - rec["cpu_overhead"])
+        if rec["err"][-1] <= target:
+            raise StopIteration
+
+    try:
+        spla.cg(qp.A, qp.f, M=M, rtol=1e-14, atol=0.0, maxiter=max_iter, callback=cb)
+    except StopIteration:
+        pass
+    ok = rec["err"] and rec["err"][-1] <= target
+    return {"n": qp.n, "n_outer": len(rec["err"]), "t_setup": t_setup,
+            "t_solve": rec["t"][-1] if rec["t"] else np.nan,
+            "t_to_target": t_setup + rec["t"][-1] if ok else np.nan,
+            "n_to_target": len(rec["err"]) if ok else -1,
+            "cpu_total": rec["cpu"][-1] if rec["cpu"] else np.nan,
+            "cpu_to_target": rec["cpu"][-1] if ok else np.nan,
+            "energy_error": rec["err"][-1] if rec["err"] else np.nan,
+            "status": "converged" if ok else "max_iter", "t_direct": t_direct}
+
+
+def _reference(qp, level, problem, cache, rows, base):
+    """PDAS reference displacement (cached as ``<cache>/<problem>_L<level>.npz``)."""
+    path = Path(cache) / f"{problem}_L{level}.npz" if cache else None
+    if path is not None and path.exists():
+        data = np.load(path)
+        if data["u"].shape == (qp.n,):
+            rows.append({**base, "config": "pdas", "status": "cached", "energy_error": 0.0,
+                         "kkt_max": kkt_residuals(qp, data["u"], data["p"]).max})
+            return data["u"]
+    t0 = time.perf_counter()
+    ref = solve(qp, solver="pdas", tol=1e-10)
+    rows.append({**base, "config": "pdas", "status": ref.status, "n_outer": ref.iterations,
+                 "t_solve": time.perf_counter() - t0, "energy_error": 0.0, "kkt_max": ref.kkt.max})
+    if ref.status != "converged":
+        return None
+    if path is not None:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with atomic_path(path, suffix=".npz") as tmp:
+            np.savez(tmp, u=ref.u, p=ref.p)
+    return ref.u
+
+
+def main(argv=None) -> None:
+    ap_ = argparse.ArgumentParser(description=__doc__,
+                                  formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap_.add_argument("--problem", default="circle_square")
+    ap_.add_argument("--levels", type=int, nargs="+", required=True)
+    ap_.add_argument("--configs", nargs="+", default=["alg84", "face_cg"], choices=sorted(CONFIGS))
+    ap_.add_argument("--eps", type=float, default=1e-3, help="relative tolerance of (8.25)")
+    ap_.add_argument("--target", type=float, default=1e-6, help="energy-norm error target")
+    ap_.add_argument("--max-iter", type=int, default=1000)
+    ap_.add_argument("--time-limit", type=float, default=300.0)
+    ap_.add_argument("--kappa-exact", action="store_true", help="also kappa(S-hat^-1 S) (costly)")
+    ap_.add_argument("--no-floor", action="store_true", help="skip the AMG-PCG floor")
+    ap_.add_argument("--ref-cache", default=None,
+                     help="directory for the PDAS reference (u_ref) per level, reused if present")
+    ap_.add_argument("--out", required=True)
+    args = ap_.parse_args(argv)
+    spec = problems()[args.problem]
+    rows = []
+    for level in args.levels:
+        qp = spec.make(level)
+        base = {"level": level, "N": len(qp.geometry["points"]), "NC": qp.m, "n": qp.n}
+        u_ref = _reference(qp, level, args.problem, args.ref_cache, rows, base)
+        for name in args.configs:
+            opts = CONFIGS[name]
+            u0 = p0 = None
+            t_coarse = 0.0
+            if name.startswith("nested"):
+                qps = [spec.make(k) for k in range(max(0, level - 2), level)]  # not timed
+                t0 = time.perf_counter()
+                guess = (None, None)
+                for q_c, q_f in zip(qps, qps[1:] + [qp]):
+                    r_c = solve(q_c, solver="augmented_projection", tol=1e-12, eps=args.eps,
+                                u0=guess[0], p0=guess[1], record_kkt=False, **opts)
+                    guess = ap.nested_initial_guess(q_c, r_c, q_f)
+                u0, p0 = guess
+                t_coarse = time.perf_counter() - t0
+            row = run_config(qp, u_ref, opts, args.eps, args.target, args.max_iter,
+                             args.time_limit, u0, p0, args.kappa_exact)
+            rows.append({**base, "config": name, **row, "t_coarse_levels": t_coarse,
+                         **{f"opt_{k}": v for k, v in opts.items()}})
+        if not args.no_floor:
+            for kind in ("gmg", "sa"):
+                rows.append({**base, "config": f"amg_pcg_{kind}", **amg_pcg_floor(qp, kind, args.target)})
+        write_csv(args.out, pd.DataFrame(rows))  # after every level: partial results survive
+
+
+if __name__ == "__main__":
+    main()
