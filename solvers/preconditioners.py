@@ -64,7 +64,7 @@ def lanczos_extremes(apply_K: Apply, n: int, steps: int = 30, apply_Minv: Apply 
     z = Minv(r)
     beta0 = np.sqrt(max(float(r @ z), 0.0))
     q, Mq = z / beta0, r / beta0
-    q_prev, Mq_prev, beta = np.zeros(n), np.zeros(n), 0.0
+    Mq_prev, beta = np.zeros(n), 0.0
     alphas, betas = [], []
     for _ in range(min(steps, n)):
         w = apply_K(q)
