@@ -57,7 +57,7 @@ rule augmented_projection_study:
         limit=CS["time_limit"]
     shell:
         "{PY} -m workflows.scripts.augmented_projection_study --levels {params.levels} "
-        "--configs {params.configs} --time-limit {params.limit} --out {output}"
+        "--configs {params.configs} --time-limit {params.limit} --kappa-exact --out {output}"
 
 rule table_9_1:
     input: f"{CSDIR}/augmented_projection_study.csv"
