@@ -17,7 +17,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from workflows.io import atomic_path, write_csv  # noqa: E402
+from report.figures import save_figure  # noqa: E402
+from workflows.io import write_csv  # noqa: E402
 
 THESIS_TABLE = Path(__file__).resolve().parent.parent / "reference" / "table_9_1.csv"
 MAIN = "alg84"
@@ -82,12 +83,6 @@ def claims(study: pd.DataFrame, config: str = MAIN) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-def _save(fig, path):
-    fig.tight_layout()
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=130, format="png")
-    plt.close(fig)
-
 
 def figure_9_1(study: pd.DataFrame, thesis: pd.DataFrame, path: str) -> None:
     """T_solve against N (log-log): our configurations, the AMG-PCG floor, the thesis."""
@@ -114,7 +109,7 @@ def figure_9_1(study: pd.DataFrame, thesis: pd.DataFrame, path: str) -> None:
                  "thesis on its 1999 machine)", fontsize=8)
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=6)
-    _save(fig, path)
+    save_figure(fig, path)
 
 
 def figure_9_3(study: pd.DataFrame, thesis: pd.DataFrame, path: str) -> None:
@@ -134,7 +129,7 @@ def figure_9_3(study: pd.DataFrame, thesis: pd.DataFrame, path: str) -> None:
     ax.set_title("Fig. 9.3 regenerated: kappa(S-hat) against N (Lemma 8.13)", fontsize=9)
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=7)
-    _save(fig, path)
+    save_figure(fig, path)
 
 
 def main(argv=None) -> None:

@@ -12,14 +12,8 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 from matplotlib.tri import Triangulation  # noqa: E402
 
-from workflows.io import atomic_path  # noqa: E402
+from report.figures import save_figure  # noqa: E402
 
-
-def _save(fig, path: str) -> None:
-    fig.tight_layout()
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=130, format="png")
-    plt.close(fig)
 
 
 def _read(vtu: str):
@@ -53,7 +47,7 @@ def fields_figure(vtu: str, path: str, magnify: float = 5.0) -> None:
     ax.set_title("von Mises stress near the contact (deformed configuration, true scale)", fontsize=9)
     ax.set_xlabel("x")
     fig.colorbar(im, ax=ax, label="von Mises stress (units of E)")
-    _save(fig, path)
+    save_figure(fig, path)
 
 
 def pressure_figure(contacts: list[str], hertz_rows: list[str], path: str) -> None:
@@ -76,7 +70,7 @@ def pressure_figure(contacts: list[str], hertz_rows: list[str], path: str) -> No
     ax.set_title("Circle-square contact pressure (deviations: moment estimate of a, p0)", fontsize=9)
     ax.legend(fontsize=7)
     ax.grid(alpha=0.3)
-    _save(fig, path)
+    save_figure(fig, path)
 
 
 def main(argv=None) -> None:

@@ -10,7 +10,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from workflows.io import atomic_path  # noqa: E402
+from report.figures import save_figure  # noqa: E402
 
 STYLE = {"conforming": ("k", "o", "-"), "nodal": ("tab:red", "s", "--"),
          "stabilised_a0.5": ("tab:orange", "^", "-."), "stabilised_a1": ("tab:blue", "D", "-"),
@@ -60,10 +60,7 @@ def convergence_figure(errors: pd.DataFrame, rates: pd.DataFrame, case: str, pat
     fig.suptitle(f"Non-matching Laplace problem, case '{case}' "
                  f"({'u = sin(10x)' if case == 'sin10x' else 'u = 1 + 2x - y, patch test'}); "
                  f"\nrates fitted over the finest three levels{note}", fontsize=10)
-    fig.tight_layout()
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=130, format="png")
-    plt.close(fig)
+    save_figure(fig, path)
 
 
 def mesh_figure(level: int, ratio: str, path: str) -> None:
@@ -84,10 +81,7 @@ def mesh_figure(level: int, ratio: str, path: str) -> None:
     ax.set_ylabel("y")
     ax.set_title(f"Non-matching grid, level {level}, ratio {ratio} (cf. Fig. 6.3)", fontsize=10)
     ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=1)
-    fig.tight_layout()
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=130, format="png")
-    plt.close(fig)
+    save_figure(fig, path)
 
 
 def main(argv=None) -> None:

@@ -11,7 +11,8 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
 from solvers.interface import TOLERANCES, solvers  # noqa: E402
-from workflows.io import atomic_path, write_csv  # noqa: E402
+from report.figures import save_figure  # noqa: E402
+from workflows.io import write_csv  # noqa: E402
 
 MARKERS = {"converged": "o", "inaccurate": "x", "max_iter": "s", "time_limit": ">", "failed": "X"}
 LINES = {"low": ":", "mid": "--", "high": "-"}
@@ -26,12 +27,6 @@ def preset_table() -> pd.DataFrame:
                          "options": spec.presets.get(preset, "")})
     return pd.DataFrame(rows)
 
-
-def _save(fig, path):
-    fig.tight_layout()
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=130, format="png")
-    plt.close(fig)
 
 
 def times_figure(table: pd.DataFrame, path: str) -> None:
@@ -56,7 +51,7 @@ def times_figure(table: pd.DataFrame, path: str) -> None:
                  fontsize=8)
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=6, ncol=2)
-    _save(fig, path)
+    save_figure(fig, path)
 
 
 def work_precision_figure(table: pd.DataFrame, path: str) -> None:
@@ -78,7 +73,7 @@ def work_precision_figure(table: pd.DataFrame, path: str) -> None:
                  fontsize=8)
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=6, ncol=2)
-    _save(fig, path)
+    save_figure(fig, path)
 
 
 def main(argv=None) -> None:
