@@ -1,0 +1,53 @@
+"""Rate fits and the Ch. 8 claims table on data with known answers."""
+import numpy as np
+import pandas as pd
+
+from report.augmented_projection import claims, read_thesis, slope, table_9_1
+from report.rates import fitted_rate, rate_table
+
+
+def test_fitted_rate_recovers_exact_powers_over_the_finest_levels():
+    h = 1 / 2 ** np.arange(1, 7)
+    err = 3 * h ** 2
+    err[:2] *= 10  # pre-asymptotic coarse levels do not enter
+    assert abs(fitted_rate(h, err, last=3) - 2) < 1e-12
+    assert np.isnan(fitted_rate(h, 1e-14 * np.ones_like(h)))  # round-off: no rate
+
+
+def test_rate_table_groups():
+    h = 1 / 2 ** np.arange(1, 5)
+    df = pd.DataFrame({"case": "c", "variant": np.repeat(["a", "b"], 4), "level": np.tile(range(4), 2),
+                       "h": np.tile(h, 2), "err": np.concatenate([h, h ** 2])})
+    rates = rate_table(df, ["case", "variant"], {"err": "rate"})
+    np.testing.assert_allclose(rates["rate"], [1, 2])
+    assert list(rates["levels"]) == ["1..3", "1..3"]
+
+
+def _study(t_of_n, n_outer, kappa):
+    N = np.array([4e3, 1.6e4, 6.4e4, 2.56e5])
+    rows = [{"level": i + 1, "N": n, "NC": 33 * 2 ** i, "n": 2 * n, "config": "alg84",
+             "n_outer": n_outer[i], "n_inner_mean": 3.0, "t_setup": 0.0, "t_solve": t_of_n(n),
+             "t_proj": 0.01, "kappa_S": kappa[i], "energy_error": 1e-3, "status": "converged",
+             "t_to_target": 2 * t_of_n(n)} for i, n in enumerate(N)]
+    rows += [{"level": i + 1, "N": n, "config": "amg_pcg_gmg", "t_to_target": t_of_n(n) / 2}
+             for i, n in enumerate(N)]
+    return pd.DataFrame(rows)
+
+
+def test_claims_pass_and_fail_on_synthetic_studies():
+    good = claims(_study(lambda n: 1e-5 * n, [8, 8, 8, 8], [34, 68, 136, 272])).set_index("claim")
+    assert good["pass"].all()
+    assert abs(good["measured"].iloc[2] - 1.0) < 1e-12       # slope of t ~ N
+    assert abs(good["measured"].iloc[3] - 4.0) < 1e-12       # 2 t / (t / 2)
+    bad = claims(_study(lambda n: 1e-8 * n ** 1.5, [8, 9, 12, 20], [34, 68, 136, 272]))
+    assert not bad["pass"].iloc[0] and not bad["pass"].iloc[2]
+    assert abs(bad["measured"].iloc[2] - 1.5) < 1e-12
+    assert abs(slope([1, 2, 4], [1, 4, 16]) - 2) < 1e-12
+
+
+def test_table_9_1_sits_beside_the_thesis():
+    thesis = read_thesis()
+    assert list(thesis["nodes"]) == [4226, 16642, 66050, 263170]
+    t = table_9_1(_study(lambda n: 1e-5 * n, [8] * 4, [34, 68, 136, 272]), thesis)
+    assert list(t["thesis_n_outer"]) == [19, 19, 20, 21]
+    assert list(t["NC"]) == [33, 66, 132, 264]
