@@ -41,6 +41,12 @@ def slope(x, y, last: int = 3) -> float:
     return float(np.polyfit(np.log(x[order][ok]), np.log(y[order][ok]), 1)[0])
 
 
+def time_to_target(df: pd.DataFrame) -> pd.Series:
+    """Time to the energy-error target, including the coarse levels of nested iteration."""
+    extra = df["t_coarse_levels"].fillna(0.0) if "t_coarse_levels" in df else 0.0
+    return df["t_to_target"] + extra
+
+
 def table_9_1(study: pd.DataFrame, thesis: pd.DataFrame, config: str = MAIN) -> pd.DataFrame:
     """Our columns of Table 9.1 for ``config`` beside the thesis's (``thesis_*``)."""
     ours = study[study.config == config].sort_values("level")
@@ -72,14 +78,21 @@ def claims(study: pd.DataFrame, config: str = MAIN) -> pd.DataFrame:
         rows.append({"claim": "T_solve = O(N) (Example 8.1): slope of log T_solve (setup incl.) "
                               "vs log N, finest three levels",
                      "measured": s, "bar": 1.15, "pass": bool(s <= 1.15)})
-    finest = study[study.level == study.level.max()]
-    ap = finest[finest.config == config]
+    finest = study[study.level == study.level.max()].assign(t_total=time_to_target)
     floor = finest[finest.config.str.startswith("amg_pcg")]
-    if len(ap) and len(floor) and np.isfinite(floor["t_to_target"]).any():
-        r = float(ap["t_to_target"].iloc[0] / floor["t_to_target"].min())
-        rows.append({"claim": f"time to energy error target at the finest level / fastest AMG-PCG "
-                              f"linear solve (N = {int(ap['N'].iloc[0])})",
-                     "measured": r, "bar": 5.0, "pass": bool(r <= 5.0)})
+    if len(floor) and np.isfinite(floor["t_to_target"]).any():
+        t_floor = floor["t_to_target"].min()
+        runs = finest[~finest.config.str.startswith("amg_pcg") & (finest.config != "pdas")]
+        best = runs.loc[[runs["t_total"].idxmin()]] if runs["t_total"].notna().any() else runs.iloc[:0]
+        for label, row in ((config + " (Alg. 8.4 as written)", runs[runs.config == config]),
+                           ("best configuration", best)):
+            if not len(row):
+                continue
+            r = float(row["t_total"].iloc[0] / t_floor)
+            rows.append({"claim": f"time to the energy-error target, {label}: {row['config'].iloc[0]}, "
+                                  f"/ fastest AMG-PCG linear solve (N = {int(row['N'].iloc[0])}; "
+                                  "coarse levels of nested iteration included)",
+                         "measured": r, "bar": 5.0, "pass": bool(r <= 5.0)})
     return pd.DataFrame(rows)
 
 
@@ -90,10 +103,11 @@ def figure_9_1(study: pd.DataFrame, thesis: pd.DataFrame, path: str) -> None:
     for config, grp in study[study.config != "pdas"].groupby("config"):
         grp = grp.sort_values("N")
         if config.startswith("amg_pcg"):
-            t, style = grp["t_to_target"], "k:" if config.endswith("gmg") else "k-."
+            t, style = time_to_target(grp), "k:" if config.endswith("gmg") else "k-."
             label = f"{config} (linear solve, no contact; floor)"
         else:
-            t, style = grp["t_setup"] + grp["t_solve"], "o-" if config == MAIN else "s--"
+            coarse = grp["t_coarse_levels"].fillna(0.0) if "t_coarse_levels" in grp else 0.0
+            t, style = grp["t_setup"] + grp["t_solve"] + coarse, "o-" if config == MAIN else "s--"
             label = f"{config}"
         ax.loglog(grp["N"], t, style, ms=4, label=f"{label}, slope {slope(grp['N'], t):.2f}")
     ax.loglog(thesis["nodes"], thesis["t_solve"], "^-", color="tab:red", ms=5,
