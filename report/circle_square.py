@@ -3,6 +3,7 @@ configuration, von Mises stress and contact pressure against Hertz."""
 from __future__ import annotations
 
 import argparse
+import re
 
 import matplotlib
 
@@ -55,8 +56,9 @@ def pressure_figure(contacts: list[str], hertz_rows: list[str], path: str) -> No
     measured total force of the finest level."""
     fig, ax = plt.subplots(figsize=(7.5, 4.6))
     rows = pd.concat([pd.read_csv(f) for f in hertz_rows]).sort_values("level")
-    for csv, (_, row) in zip(sorted(contacts), rows.iterrows()):
-        c = pd.read_csv(csv)
+    by_level = {int(re.search(r"_L(\d+)\.csv$", f).group(1)): f for f in contacts}
+    for _, row in rows.iterrows():
+        c = pd.read_csv(by_level[int(row["level"])])
         ax.plot(c["x"], c["pressure"], "o-", ms=3, lw=0.8,
                 label=f"level {int(row['level'])} ({int(row['nodes'])} nodes): "
                       f"a {row['dev_a_moment']:+.1%}, p0 {row['dev_p0_moment']:+.1%} vs Hertz")

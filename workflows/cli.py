@@ -24,7 +24,7 @@ from problems.spec import ParameterError, lookup, problems, resolve_parameters
 from workflows.io import provenance, write_json
 
 
-def _parse_sets(items: list[str]) -> dict[str, str]:
+def parse_sets(items: list[str]) -> dict[str, str]:
     out = {}
     for item in items or ():
         key, sep, value = item.partition("=")
@@ -79,7 +79,7 @@ def contact_state(qp, result) -> dict[str, Any]:
 
 def cmd_solve(args: argparse.Namespace) -> int:
     spec = lookup(problems(), args.problem, "problem")
-    params = _parse_sets(args.set)
+    params = parse_sets(args.set)
     level = spec.check_level(spec.default_level if args.level is None else args.level)
     record: dict[str, Any] = {"problem": spec.name, "level": level, "kind": spec.kind}
     if spec.kind == "linear":

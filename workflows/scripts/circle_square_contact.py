@@ -18,6 +18,8 @@ from problems.circle_square import PROBLEM
 from problems.fem.output import write_vtu
 from reference import hertz
 from solvers.interface import solve
+from problems.spec import ParameterError
+from workflows.cli import parse_sets
 from workflows.io import write_csv
 
 
@@ -50,7 +52,10 @@ def main(argv=None) -> None:
     ap.add_argument("--outdir", required=True)
     ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE")
     args = ap.parse_args(argv)
-    params = dict(s.split("=", 1) for s in args.set)
+    try:
+        params = parse_sets(args.set)
+    except ParameterError as err:
+        raise SystemExit(f"error: {err}") from None
     out = Path(args.outdir)
     t0 = time.perf_counter()
     qp = PROBLEM.make(args.level, **params)
