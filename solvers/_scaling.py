@@ -36,6 +36,13 @@ ADAPTER_PARAMETERS = (
 )
 
 
+def require_plain_constraints(qp) -> None:
+    """The library adapters solve ``Bu <= g`` only: refuse a stabilisation block C."""
+    if qp.C is not None:
+        raise ValueError("this adapter solves Bu <= g only; the ContactQP has a "
+                         "stabilisation block C (Sect. 7.5)")
+
+
 @dataclass
 class ScaledQP:
     """The data handed to a solver and the factors that undo the scaling.

@@ -25,7 +25,8 @@ import time
 import numpy as np
 
 from problems.spec import Parameter
-from solvers._scaling import ADAPTER_PARAMETERS, scale_qp, upper_triangle
+from solvers._scaling import (ADAPTER_PARAMETERS, require_plain_constraints, scale_qp,
+                              upper_triangle)
 from solvers.interface import TOLERANCES, ContactQP, SolveResult, SolverSpec
 
 #: Clarabel status name -> SolveResult status.
@@ -92,9 +93,7 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None = N
     """
     import clarabel  # the library (this module is solvers.clarabel)
 
-    if qp.C is not None:
-        raise ValueError("this adapter solves Bu <= g only; the ContactQP has a "
-                         "stabilisation block C (Sect. 7.5)")
+    require_plain_constraints(qp)
     t0 = time.perf_counter()
     data = scale_qp(qp, enabled=scale)
     settings = clarabel.DefaultSettings()

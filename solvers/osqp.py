@@ -21,7 +21,8 @@ import time
 import numpy as np
 
 from problems.spec import Parameter
-from solvers._scaling import ADAPTER_PARAMETERS, scale_qp, upper_triangle
+from solvers._scaling import (ADAPTER_PARAMETERS, require_plain_constraints, scale_qp,
+                              upper_triangle)
 from solvers.interface import TOLERANCES, ContactQP, SolveResult, SolverSpec
 
 #: OSQP status strings -> SolveResult status (``solved inaccurate`` is resolved
@@ -127,9 +128,7 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None = N
 
 
 def _reject_stabilisation(qp: ContactQP) -> None:
-    if qp.C is not None:
-        raise ValueError("this adapter solves Bu <= g only; the ContactQP has a "
-                         "stabilisation block C (Sect. 7.5)")
+    require_plain_constraints(qp)
 
 
 def _unscaled(data, x, y, qp: ContactQP) -> tuple[np.ndarray, np.ndarray]:

@@ -30,7 +30,7 @@ import time
 import numpy as np
 
 from problems.spec import Parameter
-from solvers._scaling import ADAPTER_PARAMETERS, scale_qp
+from solvers._scaling import ADAPTER_PARAMETERS, require_plain_constraints, scale_qp
 from solvers.interface import TOLERANCES, ContactQP, SolveResult, SolverSpec
 
 #: ProxQP status name -> SolveResult status.
@@ -94,9 +94,7 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None = N
     """
     from proxsuite import proxqp  # the library (this module is solvers.proxsuite)
 
-    if qp.C is not None:
-        raise ValueError("this adapter solves Bu <= g only; the ContactQP has a "
-                         "stabilisation block C (Sect. 7.5)")
+    require_plain_constraints(qp)
     t0 = time.perf_counter()
     data = scale_qp(qp, enabled=scale)
     solver = proxqp.sparse.QP(qp.n, 0, qp.m)
