@@ -21,7 +21,7 @@ $(BIN)/contactbench: pyproject.toml constraints.txt
 setup: $(BIN)/contactbench
 
 run: setup
-	$(BIN)/snakemake --cores $(CORES) --config scale=$(SCALE) --rerun-incomplete
+	$(BIN)/snakemake --cores $(CORES) --configfile workflows/config/$(SCALE).yaml --rerun-incomplete
 
 full: setup
 	$(MAKE) run SCALE=full

@@ -1,22 +1,30 @@
 # Regenerates every table and figure of the suite.
-#   snakemake --cores 2                      (quick scale, minutes)
-#   snakemake --cores 2 --config scale=full  (the thesis's sizes, hours)
-# Each study lives in workflows/<study>.smk; workflows/studies.py lists its outputs.
+#   snakemake --cores 2                                           (quick scale, minutes)
+#   snakemake --cores 2 --configfile workflows/config/full.yaml   (the thesis's sizes, hours)
+# Studies, their outputs and every path template are declared once in workflows/studies.py;
+# each study's rules live in workflows/<study>.smk and run on the scenes its config lists.
+import os
 import sys
 
-import yaml
-from workflows.studies import STUDIES
+from snakemake.utils import validate
 
-SCALE = config.get("scale", "quick")
-if SCALE not in ("quick", "full"):
-    raise ValueError(f"config 'scale': {SCALE!r} is not allowed; allowed: quick, full")
-with open(f"workflows/config/{SCALE}.yaml") as fh:
-    CFG = yaml.safe_load(fh)
+from workflows.studies import (PATHS, all_targets, bench_path, check_config, log_path,
+                               scenes_of, set_args, thesis_table)
+
+configfile: "workflows/config/quick.yaml"
+validate(config, "workflows/config.schema.yaml")
+check_config(config)   # scenes exist, problems and parameters valid, variant names known
+
 PY = sys.executable  # the interpreter snakemake runs under (the venv's, via `make run`)
+ENV = "envs/contactbench.yaml"
+
 
 include: "workflows/laplace.smk"
-include: "workflows/circle_square.smk"
+include: "workflows/contact_solution.smk"
+include: "workflows/solver_comparison.smk"
+include: "workflows/augmented_projection.smk"
 
 rule all:
     input:
-        [out for study in STUDIES.values() for out in study.outputs]
+        all_targets(config)
+    default_target: True

@@ -39,126 +39,70 @@ boundary nodes lie on the circle at every level. Total nodes: 1099, 4237, 16636,
 from __future__ import annotations
 
 import numpy as np
-import scipy.sparse as sp
 
-from problems.fem.contact import contact_constraints
-from problems.fem.elasticity import (body_force_vector, boundary_facets, dirichlet_split,
-                                     lumped_surface_mass, rigid_body_modes, stiffness_matrix)
-from problems.fem.mesh import (dof_prolongation, netgen_disk, nested_prolongation, project_to_circle,
+from problems.fem.mesh import (Hierarchy, nested_prolongation, netgen_disk, project_to_circle,
                                structured_square, uniform_hierarchy)
-from problems.spec import Parameter, ProblemSpec
-from solvers.interface import ContactQP
+from problems.fem.surface import tensor_coarsening
+from problems.fem.two_body import Body, TwoBodyScene, assemble_two_body
+from problems.qp import ContactQP, HertzSetup
+from problems.spec import Options, Parameter, ProblemSpec
+from reference.hertz import effective_modulus
 
-SQUARE, CIRCLE = 0, 1
 COARSE_SQUARE_CELLS = 16
 DISK_MAXH = 0.05
 
 
-def scene_meshes(level: int, radius: float, gap: float):
-    """Per-body mesh hierarchies up to ``level``: ``(square, circle)`` Hierarchy objects."""
-    center = (0.5, 1.0 + radius + gap)
-    square_levels = [structured_square(COARSE_SQUARE_CELLS * 2 ** k) for k in range(level + 1)]
-    disk = uniform_hierarchy(*netgen_disk(center, radius, DISK_MAXH * min(1.0, radius / 0.707)),
+def square_meshes(level: int) -> Hierarchy:
+    """Structured squares with 16 * 2^k cells per edge, k = 0..level, nested.
+
+    Level k+1 is not numbered as the red refinement of level k, so the
+    prolongation is found by matching coordinates.
+    """
+    pts, cells = zip(*[structured_square(COARSE_SQUARE_CELLS * 2 ** k) for k in range(level + 1)])
+    P = [nested_prolongation(pts[k], cells[k], pts[k + 1]) for k in range(level)]
+    return Hierarchy(list(pts), list(cells), P)
+
+
+def disk_meshes(level: int, center, radius: float) -> Hierarchy:
+    """Netgen disk (maxh 0.05 at R = 0.707) refined ``level`` times, boundary on the circle."""
+    return uniform_hierarchy(*netgen_disk(center, radius, DISK_MAXH * min(1.0, radius / 0.707)),
                              level, project_to_circle(center, radius))
-    return square_levels, disk, center
 
 
-def _combine(first, second):
-    """Stack two bodies' (points, cells): node ids of the second are offset."""
-    (p1, c1), (p2, c2) = first, second
-    return np.vstack([p1, p2]), np.vstack([c1, c2 + len(p1)]), len(p1)
+def scene(level: int, p: Options) -> TwoBodyScene:
+    """The circle-square scene up to mesh level ``level`` (see the module docstring)."""
+    center = np.array([0.5, 1.0 + p.radius + p.gap])
+    square = Body("square", square_meshes(level), p.E1, p.nu1, np.zeros(2))
+    circle = Body("circle", disk_meshes(level, center, p.radius), p.E2, p.nu2,
+                  np.array([0.0, -p.load]))
+    bodies = (square, circle) if p.order == "square_first" else (circle, square)
+    sq = bodies.index(square)
+
+    def supports(points, body_of_node):
+        is_sq = body_of_node == sq
+        bottom = np.flatnonzero(is_sq & np.isclose(points[:, 1], 0.0))
+        rel = points - center
+        on_circle = ~is_sq & np.isclose(np.linalg.norm(rel, axis=1), p.radius, rtol=1e-9)
+        top_cos = p.radius * np.cos(np.radians(p.held_arc)) - 1e-12
+        held = np.flatnonzero(on_circle & (rel[:, 1] >= top_cos))
+        fixed = np.concatenate([2 * bottom, 2 * bottom + 1, 2 * held, 2 * held + 1])
+        values = np.concatenate([np.zeros(2 * len(bottom)), np.zeros(len(held)),
+                                 np.full(len(held), -p.indent)])
+        return fixed, values
+
+    return TwoBodyScene(
+        bodies=bodies, constrained_body=sq, supports=supports,
+        on_constrained=lambda x: np.isclose(x[:, 1], 1.0),          # the square's top edge
+        on_opposing=lambda c: c[:, 1] < center[1],                   # the circle's lower half
+        direction=np.array([0.0, 1.0]), search=p.search,
+        surface_coarsening=lambda x: tensor_coarsening(x[:, :1]),   # the top edge is a line
+        hertz=HertzSetup("line", p.radius, effective_modulus(p.E1, p.nu1, p.E2, p.nu2)),
+        units="dimensionless")
 
 
-def build(level: int, radius: float = 0.707, gap: float = 0.0, E1: float = 1.0, nu1: float = 0.3,
-          E2: float = 1.0, nu2: float = 0.3, load: float = 0.01, indent: float = 0.017,
-          held_arc: float = 60.0, search: str = "b", order: str = "square_first") -> ContactQP:
-    """The circle-square ContactQP at uniform level ``level`` (see module docstring).
-
-    Returns
-    -------
-    ContactQP
-        With ``geometry`` (points, cells, body_of_node, E_cell, nu_cell, ...) and
-        ``multilevel`` (``prolongations`` on the free DOFs, coarse -> fine,
-        ``rigid_body_modes``, ``body_of_dof``).
-    """
-    squares, disk, center = scene_meshes(level, radius, gap)
-    free_by_level = []
-    for k in range(level):
-        pts, _, _, fixed_k, values_k = _assemble_geometry(
-            squares[k], (disk.points[k], disk.cells[k]), center, radius, indent, held_arc, order)
-        free_by_level.append(dirichlet_split(2 * len(pts), fixed_k, values_k)[0])
-    points, cells, body_of_node, fixed, values = _assemble_geometry(
-        squares[level], (disk.points[level], disk.cells[level]), center, radius, indent, held_arc, order)
-    n_nodes = len(points)
-    body_of_cell = body_of_node[cells[:, 0]]
-    E_cell = np.where(body_of_cell == SQUARE, E1, E2)
-    nu_cell = np.where(body_of_cell == SQUARE, nu1, nu2)
-    A_full = stiffness_matrix(points, cells, E_cell, nu_cell)
-    force = np.zeros((len(cells), 2))
-    force[body_of_cell == CIRCLE, 1] = -load
-    f_full = body_force_vector(points, cells, force)
-    free, u_fixed = dirichlet_split(2 * n_nodes, fixed, values)
-    free_by_level.append(free)
-
-    # contact: the square's top edge (constrained) against the circle's lower half
-    top = np.flatnonzero((body_of_node == SQUARE) & np.isclose(points[:, 1], 1.0))
-    top = top[np.argsort(points[top, 0])]
-    circle_facets = boundary_facets(cells[body_of_cell == CIRCLE], points)
-    lower = points[circle_facets].mean(axis=1)[:, 1] < center[1]
-    cc = contact_constraints(points, top, circle_facets[lower], direction=np.array([0.0, 1.0]),
-                             search=search, n_nodes=n_nodes)
-    top_edges = np.stack([top[:-1], top[1:]], axis=1)
-    mass = lumped_surface_mass(points, top_edges, n_nodes)[cc.rows]
-
-    A = A_full[free][:, free].tocsr()
-    f = f_full[free] - (A_full @ u_fixed)[free]
-    B = cc.B[:, free].tocsr()
-    g = cc.g - cc.B @ u_fixed
-    modes = rigid_body_modes(points)
-    body_of_dof = np.repeat(body_of_node, 2)[free]
-    rbm = np.hstack([modes[free] * (body_of_dof == b)[:, None] for b in (SQUARE, CIRCLE)])
-    prolongations = []
-    for k in range(level):
-        P_nodes = _body_block_prolongation(squares, disk, k, order)
-        prolongations.append(dof_prolongation(P_nodes, 2, free_by_level[k + 1], free_by_level[k]))
-    return ContactQP(
-        A=A, f=f, B=B, g=g, free_dofs=free, u_fixed=u_fixed, dim=2,
-        contact_nodes=cc.rows, contact_mass=mass, contact_direction=cc.direction,
-        geometry={"points": points, "cells": cells, "body_of_node": body_of_node, "E_cell": E_cell,
-                  "nu_cell": nu_cell, "center": np.array(center), "radius": radius,
-                  "bodies": ("square", "circle"), "constrained_surface": top_edges,
-                  "E_star_params": (E1, nu1, E2, nu2), "level": level},
-        multilevel={"prolongations": prolongations, "rigid_body_modes": rbm, "body_of_dof": body_of_dof},
-        name=f"circle_square level {level}", units="dimensionless",
-    )
-
-
-def _assemble_geometry(square, disk, center, radius, indent, held_arc, order):
-    """Both bodies in one node numbering plus their Dirichlet data."""
-    bodies = [square, disk] if order == "square_first" else [disk, square]
-    points, cells, n_first = _combine(*bodies)
-    body_of_node = np.full(len(points), SQUARE if order == "square_first" else CIRCLE)
-    body_of_node[n_first:] = CIRCLE if order == "square_first" else SQUARE
-    is_sq = body_of_node == SQUARE
-    bottom = np.flatnonzero(is_sq & np.isclose(points[:, 1], 0.0))
-    rel = points - np.asarray(center)
-    on_circle = (~is_sq) & np.isclose(np.linalg.norm(rel, axis=1), radius, rtol=1e-9)
-    held = np.flatnonzero(on_circle & (rel[:, 1] >= radius * np.cos(np.radians(held_arc)) - 1e-12))
-    fixed = np.concatenate([2 * bottom, 2 * bottom + 1, 2 * held, 2 * held + 1])
-    values = np.concatenate([np.zeros(2 * len(bottom)), np.zeros(len(held)), np.full(len(held), -indent)])
-    return points, cells, body_of_node, fixed, values
-
-
-def _body_block_prolongation(squares, disk, k, order):
-    """Nodal prolongation level k -> k+1 of both bodies, in memory order.
-
-    The structured square of level k+1 is not the red refinement of level k
-    (node numbering), so its prolongation is found by matching coordinates.
-    """
-    P_sq = nested_prolongation(*squares[k], squares[k + 1][0])
-    P_disk = disk.prolongations[k]
-    blocks = [P_sq, P_disk] if order == "square_first" else [P_disk, P_sq]
-    return sp.block_diag(blocks, format="csr")
+def build(level: int, p: Options) -> ContactQP:
+    """The circle-square ContactQP at uniform level ``level`` (see module docstring)."""
+    return assemble_two_body(scene(level, p), level, name=f"circle_square level {level}")
 
 
 PROBLEM = ProblemSpec(
@@ -189,4 +133,5 @@ PROBLEM = ProblemSpec(
                   choices=("square_first", "circle_first")),
     ),
     build=build,
+    thesis_tables={"augmented_projection": "table_9_1"},
 )

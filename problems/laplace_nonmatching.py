@@ -55,7 +55,7 @@ import scipy.sparse.linalg as spla
 from skfem import Basis, ElementTriP1, Functional, LinearForm, MeshTri, asm
 from skfem.models.poisson import laplace
 
-from problems.spec import Parameter, ParameterError, ProblemSpec
+from problems.spec import Options, Parameter, ParameterError, ProblemSpec
 
 VARIANTS = ("conforming", "nodal", "stabilised_a0.5", "stabilised_a1", "mortar")
 CASES = ("sin10x", "linear")
@@ -361,39 +361,36 @@ def smallest_eigenvalue(K: sp.spmatrix) -> float:
     return float(spla.eigsh(K, k=1, sigma=0, which="LM", return_eigenvectors=False)[0])
 
 
-def solve(level: int, case: str = "sin10x", variant: str = "stabilised_a1", ratio: str = "2:3",
-          constrained: str = "coarse", check_definite: bool = False) -> LaplaceSolution:
+def solve(level: int, check_definite: bool = False, **params) -> LaplaceSolution:
     """Assemble, eliminate the nodal constraints, solve directly, measure errors.
 
     Parameters
     ----------
     level : int
         Refinement level (see :func:`cells_per_unit`).
-    case : {"sin10x", "linear"}
-    variant : {"conforming", "nodal", "stabilised_a0.5", "stabilised_a1"}
-    ratio : str
-        ``"p:q"``, cells per unit length of the coarse : fine subdomain.
-    constrained : {"coarse", "fine"}
-        The side whose interface nodes carry the nodal constraints.
     check_definite : bool
         Also compute the smallest eigenvalue of the reduced operator.
+    **params
+        The problem's parameters (``case``, ``variant``, ``ratio``,
+        ``constrained``; declared once in :data:`PROBLEM`, defaults there).
     """
-    disc = assemble(level, case, variant, parse_ratio(ratio), constrained)
+    p = PROBLEM.options(**params)
+    disc = assemble(level, p.case, p.variant, parse_ratio(p.ratio), p.constrained)
     K, rhs, P, u0 = reduced_system(disc)
     w = spla.spsolve(K.tocsc(), rhs)
     residual = float(np.linalg.norm(K @ w - rhs) / max(np.linalg.norm(rhs), 1e-300))
     u = P @ w + u0
     parts = [u[a:b] for a, b in zip(disc.offsets[:-1], disc.offsets[1:])]
-    err_h1, err_l2 = errors(disc.meshes, parts, case)
+    err_h1, err_l2 = errors(disc.meshes, parts, p.case)
     lam = smallest_eigenvalue(K) if check_definite else None
-    return LaplaceSolution(case, variant, constrained, level, disc.h, K.shape[0], err_h1, err_l2,
-                           residual, lam, disc.meshes, parts)
+    return LaplaceSolution(p.case, p.variant, p.constrained, level, disc.h, K.shape[0], err_h1,
+                           err_l2, residual, lam, disc.meshes, parts)
 
 
-def build(level: int, **params) -> "LaplaceProblem":
+def build(level: int, p: Options) -> "LaplaceProblem":
     """Registry entry point: a lazily solved Laplace problem."""
-    parse_ratio(params.get("ratio", "2:3"))
-    return LaplaceProblem(level=level, params=params)
+    parse_ratio(p.ratio)
+    return LaplaceProblem(level=level, params=dict(p))
 
 
 @dataclass

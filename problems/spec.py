@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import importlib
 import pkgutil
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
@@ -113,9 +114,132 @@ class Parameter:
         return value
 
 
-def resolve_parameters(declared: tuple[Parameter, ...], given: dict[str, Any],
-                       owner: str) -> dict[str, Any]:
+@dataclass(frozen=True)
+class ComponentParameter:
+    """A component chosen by name, with its own options (pyamg's
+    ``presmoother=('gauss_seidel', {'sweep': 'symmetric'})`` style).
+
+    The resolved value is a :class:`Component` ``(kind, options)``. From Python
+    give ``"kind"``, ``("kind", {...})`` or a :class:`Component`; on the command
+    line ``--set name=kind`` and ``--set name.option=value``.
+
+    Parameters
+    ----------
+    name : str
+    default : str
+        Default kind.
+    kinds : dict
+        ``{kind: (Parameter, ...)}``: the options each kind accepts (with
+        their defaults, declared here once).
+    help : str
+    """
+
+    name: str
+    default: str
+    kinds: dict
+    help: str = ""
+
+    @property
+    def choices(self) -> tuple:
+        return tuple(self.kinds)
+
+    def allowed(self) -> str:
+        return "one of " + ", ".join(self.kinds)
+
+    def validate(self, value: Any, extra: dict | None = None) -> "Component":
+        """Resolve ``value`` (plus dotted options ``extra``) into a Component.
+
+        Raises
+        ------
+        ParameterError
+            For an unknown kind or an option the kind does not have.
+        """
+        if isinstance(value, Component):
+            kind, given = value.kind, dict(value.options)
+        elif isinstance(value, (tuple, list)) and len(value) == 2 and isinstance(value[1], dict):
+            kind, given = value[0], dict(value[1])
+        else:
+            kind, given = value, {}
+        if kind not in self.kinds:
+            raise ParameterError(f"parameter '{self.name}': {kind!r} is not allowed; "
+                                 f"allowed: {self.allowed()}")
+        given.update(extra or {})
+        declared = self.kinds[kind]
+        names = {p.name for p in declared}
+        unknown = sorted(set(given) - names)
+        if unknown:
+            known = ", ".join(f"{self.name}.{n}" for n in names) or "(none)"
+            raise ParameterError(f"parameter '{self.name}' = {kind!r} has no option "
+                                 f"{', '.join(repr(self.name + '.' + u) for u in unknown)}; "
+                                 f"known: {known}")
+        opts = {p.name: _prefixed(p, self.name).validate(given.get(p.name, p.default))
+                for p in declared}
+        return Component(kind, opts)
+
+
+def _prefixed(p: Parameter, owner: str) -> Parameter:
+    """``p`` renamed ``owner.name`` so that its messages name the dotted option."""
+    from dataclasses import replace
+    return replace(p, name=f"{owner}.{p.name}")
+
+
+@dataclass(frozen=True)
+class Component:
+    """A resolved :class:`ComponentParameter`: the chosen kind and its options."""
+
+    kind: str
+    options: dict
+
+    def __getitem__(self, key):          # component["smoother"]
+        return self.options[key]
+
+    def __str__(self) -> str:
+        inner = ", ".join(f"{k}={v}" for k, v in self.options.items())
+        return f"{self.kind}({inner})" if inner else self.kind
+
+
+class Options(Mapping):
+    """Resolved options of a solver or problem: a read-only mapping with attribute
+    access (``opts.update`` is the option ``update``, whatever its name)."""
+
+    def __init__(self, values: dict | None = None):
+        self._values = dict(values or {})
+
+    def __getitem__(self, key):
+        return self._values[key]
+
+    def __iter__(self):
+        return iter(self._values)
+
+    def __len__(self):
+        return len(self._values)
+
+    def __getattr__(self, key):
+        try:
+            return self.__dict__["_values"][key]
+        except KeyError:
+            raise AttributeError(key) from None
+
+    def __repr__(self):
+        return f"Options({self._values!r})"
+
+    def flat(self) -> dict:
+        """``{name: value}`` with components spelled ``kind`` and ``name.option``."""
+        out = {}
+        for key, value in self.items():
+            if isinstance(value, Component):
+                out[key] = value.kind
+                out.update({f"{key}.{k}": v for k, v in value.options.items()})
+            else:
+                out[key] = value
+        return out
+
+
+def resolve_parameters(declared: tuple, given: dict[str, Any], owner: str) -> Options:
     """Defaults overridden by ``given``, every value validated.
+
+    ``given`` may set a component's options with dotted keys
+    (``{"ahat": "sa", "ahat.max_coarse": 200}``).
 
     Raises
     ------
@@ -123,12 +247,26 @@ def resolve_parameters(declared: tuple[Parameter, ...], given: dict[str, Any],
         For an unknown name (listing the known ones) or an invalid value.
     """
     by_name = {p.name: p for p in declared}
-    unknown = sorted(set(given) - set(by_name))
+    plain = {k: v for k, v in given.items() if "." not in k}
+    dotted: dict[str, dict] = {}
+    for key, value in given.items():
+        if "." in key:
+            head, _, tail = key.partition(".")
+            dotted.setdefault(head, {})[tail] = value
+    unknown = sorted(set(plain) - set(by_name))
+    unknown += sorted(f"{h}.{t}" for h, opts in dotted.items() for t in opts
+                      if not isinstance(by_name.get(h), ComponentParameter))
     if unknown:
         known = ", ".join(by_name) or "(none)"
         raise ParameterError(f"{owner} has no parameter {', '.join(map(repr, unknown))}; "
                              f"known parameters: {known}")
-    return {name: p.validate(given.get(name, p.default)) for name, p in by_name.items()}
+    out = {}
+    for name, p in by_name.items():
+        if isinstance(p, ComponentParameter):
+            out[name] = p.validate(plain.get(name, p.default), dotted.get(name))
+        else:
+            out[name] = p.validate(plain.get(name, p.default))
+    return Options(out)
 
 
 @dataclass(frozen=True)
@@ -142,17 +280,22 @@ class ProblemSpec:
     summary : str
         One line: what the scene is, with the thesis section.
     kind : str
-        ``"contact"``: ``build`` returns a ``solvers.interface.ContactQP``;
+        ``"contact"``: ``build`` returns a :class:`problems.qp.ContactQP`;
         ``"linear"``: ``build`` returns an object with ``solve()`` (no contact,
         e.g. the Laplace problem of Ch. 6) and any QP solver is meaningless.
     levels : tuple[int, int]
         Smallest and largest admissible refinement level.
     parameters : tuple[Parameter, ...]
-        Scene parameters, overridable from the CLI.
+        Scene parameters (declared here once), overridable from the CLI.
     build : callable
-        ``build(level, **params)``; the one entry point.
+        ``build(level, params)`` with ``params`` the resolved :class:`Options`;
+        the one entry point.
     default_level : int
         Level used when the CLI gets none.
+    thesis_tables : dict
+        ``{study: reference table}`` this scene regenerates with the thesis's
+        own parameters, e.g. ``{"augmented_projection": "table_9_1"}``
+        (``reference/<table>.csv``).
     """
 
     name: str
@@ -162,17 +305,20 @@ class ProblemSpec:
     parameters: tuple[Parameter, ...]
     build: Callable[..., Any]
     default_level: int = 1
-    extras: dict = field(default_factory=dict)
+    thesis_tables: dict = field(default_factory=dict)
 
     def check_level(self, level: Any) -> int:
         lo, hi = self.levels
         return Parameter("level", lo, low=lo, high=hi, kind=int).validate(level)
 
+    def options(self, **params: Any) -> Options:
+        """The resolved parameters: defaults overridden by ``params``, validated."""
+        return resolve_parameters(self.parameters, params, f"problem '{self.name}'")
+
     def make(self, level: int | None = None, **params: Any) -> Any:
         """Validate ``level`` and ``params`` and call :attr:`build`."""
         level = self.check_level(self.default_level if level is None else level)
-        values = resolve_parameters(self.parameters, params, f"problem '{self.name}'")
-        return self.build(level, **values)
+        return self.build(level, self.options(**params))
 
 
 def discover(package: str, attribute: str) -> dict[str, Any]:

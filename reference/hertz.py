@@ -1,72 +1,99 @@
-"""Plane-strain Hertz contact of a cylinder on a flat body (analytic reference).
+"""Hertz contact (analytic reference): a cylinder on a flat body (plane strain, "line")
+and a sphere on a flat body ("point").
 
-For a line load P (force per unit thickness) between a cylinder of radius R
-and a flat elastic body (a half-plane), with the effective modulus
-``1/E* = (1 - nu1^2)/E1 + (1 - nu2^2)/E2``::
+With the effective modulus ``1/E* = (1 - nu1^2)/E1 + (1 - nu2^2)/E2`` and the
+radius ``R`` of the curved body (K. L. Johnson, Contact Mechanics, 1985,
+Sects. 4.2-4.3):
 
-    a^2 = 4 P R / (pi E*),      p0 = 2 P / (pi a),
-    p(x) = p0 sqrt(1 - (x - x0)^2 / a^2)   for |x - x0| < a.
+* line contact, load ``P`` per unit thickness::
 
-(K. L. Johnson, Contact Mechanics, 1985, Sect. 4.3.) The half-width depends
-only on the local geometry and the total force, so it is the right yardstick
-for a FE contact zone that is small against the bodies.
+      a^2 = 4 P R / (pi E*),   p0 = 2 P / (pi a),   p(x) = p0 sqrt(1 - x^2/a^2);
+
+* point contact, total load ``P``::
+
+      a^3 = 3 P R / (4 E*),    p0 = 3 P / (2 pi a^2),   p(r) = p0 sqrt(1 - r^2/a^2).
+
+The contact size depends only on the local geometry and the total force, so it
+is the yardstick for a FE contact zone that is small against the bodies.
+Estimators of ``a`` and ``p0`` from nodal forces (:func:`moment_estimate`,
+:func:`fit_ellipse`) are robust against the cell-by-cell jumps of a single
+nodal value.
 """
 from __future__ import annotations
 
 import numpy as np
 
+KINDS = ("line", "point")
+
+#: ``a^2 = MOMENT[kind] * <r^2>``: second moment of the Hertz pressure about its centre
+#: (line: <x^2> = a^2/4; point: <r^2> = 2 a^2/5).
+MOMENT = {"line": 4.0, "point": 2.5}
+
 
 def effective_modulus(E1: float, nu1: float, E2: float, nu2: float) -> float:
-    """Plane-strain effective modulus E* of two bodies."""
+    """Effective modulus E* of two bodies (plane strain in 2D)."""
     return 1.0 / ((1 - nu1 ** 2) / E1 + (1 - nu2 ** 2) / E2)
 
 
-def half_width(P: float, R: float, E_star: float) -> float:
-    """Contact half-width a for line load P."""
-    return float(np.sqrt(4 * P * R / (np.pi * E_star)))
+def _check(kind: str) -> None:
+    if kind not in KINDS:
+        raise ValueError(f"parameter 'kind': {kind!r} is not allowed; allowed: line, point")
 
 
-def peak_pressure(P: float, a: float) -> float:
-    """Maximum pressure p0 = 2P / (pi a)."""
-    return float(2 * P / (np.pi * a))
+def contact_size(kind: str, P: float, R: float, E_star: float) -> float:
+    """Half-width (line) or radius (point) ``a`` of the contact zone for load ``P``."""
+    _check(kind)
+    if kind == "line":
+        return float(np.sqrt(4 * P * R / (np.pi * E_star)))
+    return float(np.cbrt(3 * P * R / (4 * E_star)))
 
 
-def pressure(x: np.ndarray, P: float, R: float, E_star: float, x0: float = 0.0) -> np.ndarray:
-    """The semi-elliptic Hertz pressure at positions ``x``."""
-    a = half_width(P, R, E_star)
-    s = 1 - ((np.asarray(x, dtype=float) - x0) / a) ** 2
-    return peak_pressure(P, a) * np.sqrt(np.clip(s, 0, None))
+def peak_pressure(kind: str, P: float, a: float) -> float:
+    """Maximum pressure ``p0`` for load ``P`` over a zone of size ``a``."""
+    _check(kind)
+    if kind == "line":
+        return float(2 * P / (np.pi * a))
+    return float(3 * P / (2 * np.pi * a ** 2))
 
 
-def moment_estimate(x: np.ndarray, p: np.ndarray) -> tuple[float, float, float]:
-    """Centre, half-width and peak pressure of nodal contact forces ``p`` at ``x``.
+def pressure(kind: str, r: np.ndarray, P: float, R: float, E_star: float) -> np.ndarray:
+    """The Hertz pressure at distances ``r`` from the centre."""
+    a = contact_size(kind, P, R, E_star)
+    s = 1 - (np.asarray(r, dtype=float) / a) ** 2
+    return peak_pressure(kind, P, a) * np.sqrt(np.clip(s, 0, None))
 
-    For a semi-elliptic distribution the second moment about the centroid is a^2/4,
-    so ``a^2 = 4 sum p (x - xbar)^2 / sum p``; then ``p0 = 2 P / (pi a)`` with
-    ``P = sum p``. Robust against the cell-by-cell jumps of the last loaded node.
+
+def moment_estimate(kind: str, x: np.ndarray, p: np.ndarray) -> tuple[np.ndarray, float, float]:
+    """Centre, size and peak pressure of nodal contact forces ``p`` at positions ``x``.
+
+    ``x`` is ``(m,)`` (positions along a line) or ``(m, k)`` (points in the contact
+    plane). With ``P = sum p`` and ``<r^2> = sum p |x - xbar|^2 / P`` the Hertz
+    distribution has ``a^2 = MOMENT[kind] <r^2>``; then ``p0`` by :func:`peak_pressure`.
     """
-    x = np.asarray(x, dtype=float)
+    _check(kind)
+    x = np.asarray(x, dtype=float).reshape(len(p), -1)
     p = np.asarray(p, dtype=float)
     P = p.sum()
     if P <= 0:
-        return float("nan"), 0.0, 0.0
-    xbar = float((p * x).sum() / P)
-    a = float(np.sqrt(4 * (p * (x - xbar) ** 2).sum() / P))
-    return xbar, a, peak_pressure(P, a)
+        return np.full(x.shape[1], np.nan), float("nan"), 0.0
+    xbar = (p[:, None] * x).sum(axis=0) / P
+    r2 = np.sum((x - xbar) ** 2, axis=1)
+    a = float(np.sqrt(MOMENT[kind] * (p * r2).sum() / P))
+    return xbar, a, peak_pressure(kind, P, a)
 
 
-def fit_semi_ellipse(x: np.ndarray, pressure_values: np.ndarray, xbar: float) -> tuple[float, float]:
-    """Least-squares fit of p^2 = p0^2 (1 - (x - xbar)^2 / a^2) over the loaded nodes.
+def fit_ellipse(r: np.ndarray, pressure_values: np.ndarray) -> tuple[float, float]:
+    """Least-squares fit of ``p^2 = p0^2 (1 - r^2/a^2)`` over the loaded nodes.
 
-    Returns ``(a, p0)``. ``p^2`` is linear in ``(x - xbar)^2``: p^2 = c0 + c1 s.
+    ``p^2`` is linear in ``r^2``: ``p^2 = c0 + c1 r^2``. Returns ``(a, p0)``
+    (NaN with fewer than three loaded nodes or a fit of the wrong shape).
     """
-    x = np.asarray(x, dtype=float)
+    r = np.asarray(r, dtype=float)
     q = np.asarray(pressure_values, dtype=float)
     loaded = q > 0
     if loaded.sum() < 3:
         return float("nan"), float("nan")
-    s = (x[loaded] - xbar) ** 2
-    c1, c0 = np.polyfit(s, q[loaded] ** 2, 1)
+    c1, c0 = np.polyfit(r[loaded] ** 2, q[loaded] ** 2, 1)
     if c0 <= 0 or c1 >= 0:
         return float("nan"), float("nan")
     return float(np.sqrt(-c0 / c1)), float(np.sqrt(c0))

@@ -1,9 +1,11 @@
-"""Table 9.1 regenerated and the complexity claims of Ch. 8 checked (Figs. 9.1, 9.3).
+"""The thesis's solver table regenerated and the complexity claims of Ch. 8 checked.
 
 Reads the tidy study CSV of ``workflows/scripts/augmented_projection_study.py``
-and the thesis's Table 9.1 (``reference/table_9_1.csv``); writes our Table 9.1
-beside the thesis's, a claims table (each claim, the measured number, the bar,
-pass/miss) and the figures.
+for one scene and, when the scene runs with the thesis's parameters, the
+thesis's table (``--thesis reference/table_9_1.csv`` for circle-square,
+Table 9.3 for cube-sphere); writes our table beside the thesis's, a claims
+table (each claim, the measured number, the bar, pass/miss) and the figures
+(T_solve against N: Figs. 9.1/9.6; kappa(S-hat) against N: Figs. 9.3/9.8).
 """
 from __future__ import annotations
 
@@ -18,27 +20,19 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
 from report.figures import save_figure  # noqa: E402
+from report.rates import fitted_slope as slope  # noqa: E402
 from workflows.io import write_csv  # noqa: E402
 
-THESIS_TABLE = Path(__file__).resolve().parent.parent / "reference" / "table_9_1.csv"
 MAIN = "alg84"
 
 
-def read_thesis(path: Path = THESIS_TABLE) -> pd.DataFrame:
-    """The thesis's Table 9.1 (rows = uniform levels 1..4)."""
+def read_thesis(path: str | Path | None) -> pd.DataFrame | None:
+    """A thesis table (rows = uniform levels 1, 2, ...), or None without a path."""
+    if path is None:
+        return None
     t = pd.read_csv(path, comment="#")
     t.insert(0, "level", np.arange(1, len(t) + 1))
     return t
-
-
-def slope(x, y, last: int = 3) -> float:
-    """Least-squares slope of log y against log x over the ``last`` largest x."""
-    x, y = np.asarray(x, float), np.asarray(y, float)
-    order = np.argsort(x)[-last:]
-    ok = np.isfinite(y[order]) & (y[order] > 0)
-    if ok.sum() < 2:
-        return float("nan")
-    return float(np.polyfit(np.log(x[order][ok]), np.log(y[order][ok]), 1)[0])
 
 
 def time_to_target(df: pd.DataFrame) -> pd.Series:
@@ -47,8 +41,9 @@ def time_to_target(df: pd.DataFrame) -> pd.Series:
     return df["t_to_target"] + extra
 
 
-def table_9_1(study: pd.DataFrame, thesis: pd.DataFrame, config: str = MAIN) -> pd.DataFrame:
-    """Our columns of Table 9.1 for ``config`` beside the thesis's (``thesis_*``)."""
+def thesis_table(study: pd.DataFrame, thesis: pd.DataFrame | None,
+                 config: str = MAIN) -> pd.DataFrame:
+    """Our columns of the thesis's table for ``config`` beside its values (``thesis_*``)."""
     ours = study[study.config == config].sort_values("level")
     out = pd.DataFrame({
         "level": ours["level"].to_numpy(), "N": ours["N"].to_numpy(), "NC": ours["NC"].to_numpy(),
@@ -58,6 +53,8 @@ def table_9_1(study: pd.DataFrame, thesis: pd.DataFrame, config: str = MAIN) -> 
         "energy_error": ours["energy_error"].to_numpy(), "kkt_max": ours["kkt_max"].to_numpy(),
         "stop_8_25": ours["stop_8_25"].to_numpy() if "stop_8_25" in ours else True,
         "status": ours["status"].to_numpy()})
+    if thesis is None:
+        return out
     th = thesis.rename(columns={c: f"thesis_{c}" for c in thesis.columns if c != "level"})
     return out.merge(th, on="level", how="left")
 
@@ -101,8 +98,9 @@ def claims(study: pd.DataFrame, config: str = MAIN) -> pd.DataFrame:
 
 
 
-def figure_9_1(study: pd.DataFrame, thesis: pd.DataFrame, path: str) -> None:
-    """T_solve against N (log-log): our configurations, the AMG-PCG floor, the thesis."""
+def figure_time(study: pd.DataFrame, thesis: pd.DataFrame | None, path: str) -> None:
+    """T_solve against N (log-log; Figs. 9.1, 9.6): our configurations, the multigrid-PCG
+    floor, the thesis."""
     fig, ax = plt.subplots(figsize=(7.5, 4.8))
     for config, grp in study[study.config != "pdas"].groupby("config"):
         grp = grp.sort_values("N")
@@ -114,8 +112,9 @@ def figure_9_1(study: pd.DataFrame, thesis: pd.DataFrame, path: str) -> None:
             t, style = grp["t_setup"] + grp["t_solve"] + coarse, "o-" if config == MAIN else "s--"
             label = f"{config}"
         ax.loglog(grp["N"], t, style, ms=4, label=f"{label}, slope {slope(grp['N'], t):.2f}")
-    ax.loglog(thesis["nodes"], thesis["t_solve"], "^-", color="tab:red", ms=5,
-              label=f"thesis Table 9.1, slope {slope(thesis['nodes'], thesis['t_solve']):.2f}")
+    if thesis is not None:
+        ax.loglog(thesis["nodes"], thesis["t_solve"], "^-", color="tab:red", ms=5,
+                  label=f"thesis, slope {slope(thesis['nodes'], thesis['t_solve']):.2f}")
     n = np.array([study["N"].min(), study["N"].max()], float)
     main = study[study.config == MAIN].sort_values("N")
     if len(main):
@@ -123,15 +122,15 @@ def figure_9_1(study: pd.DataFrame, thesis: pd.DataFrame, path: str) -> None:
         ax.loglog(n, t0 * n / n[0], color="0.6", lw=1, label="slope 1 guide")
     ax.set_xlabel("nodes N")
     ax.set_ylabel("T_solve incl. setup [s] (floor: time to the same energy error)")
-    ax.set_title("Fig. 9.1 regenerated: solve time against N (slopes over the finest three levels; "
+    ax.set_title("Solve time against N (Figs. 9.1/9.6; slopes over the finest three levels; "
                  "thesis on its 1999 machine)", fontsize=8)
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=6)
     save_figure(fig, path)
 
 
-def figure_9_3(study: pd.DataFrame, thesis: pd.DataFrame, path: str) -> None:
-    """kappa(S-hat) against N with the O(h^-1) = O(N^(1/2)) guide and the thesis's values."""
+def figure_kappa(study: pd.DataFrame, thesis: pd.DataFrame | None, path: str) -> None:
+    """kappa(S-hat) against N (Figs. 9.3, 9.8) with the O(h^-1) guide and the thesis's values."""
     fig, ax = plt.subplots(figsize=(7, 4.5))
     for config, grp in study[study.config.isin([MAIN])].groupby("config"):
         grp = grp.sort_values("N")
@@ -139,31 +138,35 @@ def figure_9_3(study: pd.DataFrame, thesis: pd.DataFrame, path: str) -> None:
         if "kappa_SinvS" in grp and np.isfinite(grp["kappa_SinvS"]).any():
             ax.loglog(grp["N"], grp["kappa_SinvS"], "s--", label="kappa(S-hat^-1 S)")
         n = grp["N"].to_numpy(float)
-        ax.loglog(n, grp["kappa_S"].iloc[0] * np.sqrt(n / n[0]), color="0.6", lw=1,
-                  label="O(h^-1) = O(N^1/2) guide")
-    ax.loglog(thesis["nodes"], thesis["kappa_S"], "^-", color="tab:red", label="thesis Table 9.1")
+        d = int(grp["dim"].iloc[0]) if "dim" in grp else 2
+        ax.loglog(n, grp["kappa_S"].iloc[0] * (n / n[0]) ** (1 / d), color="0.6", lw=1,
+                  label=f"O(h^-1) = O(N^1/{d}) guide")
+    if thesis is not None and "kappa_S" in thesis:
+        ax.loglog(thesis["nodes"], thesis["kappa_S"], "^-", color="tab:red", label="thesis")
     ax.set_xlabel("nodes N")
     ax.set_ylabel("condition number (Lanczos)")
-    ax.set_title("Fig. 9.3 regenerated: kappa(S-hat) against N (Lemma 8.13)", fontsize=9)
+    ax.set_title("kappa(S-hat) against N (Figs. 9.3/9.8, Lemma 8.13)", fontsize=9)
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=7)
     save_figure(fig, path)
 
 
 def main(argv=None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__)
+    ap = argparse.ArgumentParser(description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--study", required=True)
+    ap.add_argument("--thesis", default=None, help="the thesis's table (reference/*.csv)")
     ap.add_argument("--table", required=True)
     ap.add_argument("--claims", required=True)
-    ap.add_argument("--fig91", required=True)
-    ap.add_argument("--fig93", required=True)
+    ap.add_argument("--fig-time", required=True, dest="fig_time")
+    ap.add_argument("--fig-kappa", required=True, dest="fig_kappa")
     args = ap.parse_args(argv)
     study = pd.read_csv(args.study)
-    thesis = read_thesis()
-    write_csv(args.table, table_9_1(study, thesis))
+    thesis = read_thesis(args.thesis)
+    write_csv(args.table, thesis_table(study, thesis))
     write_csv(args.claims, claims(study))
-    figure_9_1(study, thesis, args.fig91)
-    figure_9_3(study, thesis, args.fig93)
+    figure_time(study, thesis, args.fig_time)
+    figure_kappa(study, thesis, args.fig_kappa)
 
 
 if __name__ == "__main__":

@@ -1,4 +1,4 @@
-"""Figures of the non-matching Laplace study (thesis Figs. 6.3, 6.5, 6.6)."""
+"""Tables and figures of the non-matching Laplace study (thesis Ch. 6, Figs. 6.3, 6.5, 6.6)."""
 from __future__ import annotations
 
 import argparse
@@ -11,6 +11,8 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
 from report.figures import save_figure  # noqa: E402
+from report.rates import rate_table  # noqa: E402
+from workflows.io import write_csv  # noqa: E402
 
 STYLE = {"conforming": ("k", "o", "-"), "nodal": ("tab:red", "s", "--"),
          "stabilised_a0.5": ("tab:orange", "^", "-."), "stabilised_a1": ("tab:blue", "D", "-"),
@@ -84,9 +86,37 @@ def mesh_figure(level: int, ratio: str, path: str) -> None:
     save_figure(fig, path)
 
 
+def tables(inputs: list[str], default_side: str, errors_path: str, by_side_path: str,
+           rates_path: str) -> None:
+    """Merge the per-case/side error tables; fit rates over the finest three levels.
+
+    Writes ``errors.csv`` (the default constrained side: case, variant, level,
+    h, ndof, err_h1, err_l2), ``errors_by_side.csv`` (both sides, column
+    ``constrained``) and ``rates.csv`` (case, variant, rate_h1, rate_l2 for the
+    default side first, then the other side).
+    """
+    both = pd.concat([pd.read_csv(p) for p in inputs], ignore_index=True)
+    both = both.sort_values(["constrained", "case", "variant", "level"], kind="stable")
+    columns = ["case", "variant", "level", "h", "ndof", "err_h1", "err_l2"]
+    write_csv(by_side_path, both)
+    write_csv(errors_path, both[both["constrained"] == default_side][columns])
+    rates = rate_table(both, ["constrained", "case", "variant"],
+                       {"err_h1": "rate_h1", "err_l2": "rate_l2"})
+    rates["default_side"] = rates["constrained"] == default_side
+    rates = rates.sort_values(["default_side", "constrained", "case", "variant"],
+                              ascending=[False, True, True, True], kind="stable")
+    write_csv(rates_path, rates[["case", "variant", "rate_h1", "rate_l2", "constrained", "levels"]])
+
+
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     sub = ap.add_subparsers(dest="what", required=True)
+    t = sub.add_parser("tables", help="merge error tables, fit rates")
+    t.add_argument("--inputs", nargs="+", required=True)
+    t.add_argument("--default-side", choices=("coarse", "fine"), default="coarse")
+    t.add_argument("--errors", required=True)
+    t.add_argument("--by-side", required=True, dest="by_side")
+    t.add_argument("--rates", required=True)
     c = sub.add_parser("convergence")
     c.add_argument("--errors", required=True)
     c.add_argument("--rates", required=True)
@@ -97,7 +127,9 @@ def main(argv=None) -> None:
     m.add_argument("--ratio", default="2:3")
     m.add_argument("--out", required=True)
     args = ap.parse_args(argv)
-    if args.what == "convergence":
+    if args.what == "tables":
+        tables(args.inputs, args.default_side, args.errors, args.by_side, args.rates)
+    elif args.what == "convergence":
         convergence_figure(pd.read_csv(args.errors), pd.read_csv(args.rates), args.case, args.out)
     else:
         mesh_figure(args.level, args.ratio, args.out)

@@ -15,7 +15,7 @@ preconditioned Richardson with the block preconditioner (8.22)
 ``p >= 0`` in the ``S-hat`` norm that only multiplies by ``S-hat`` ((8.24)).
 
 Ingredients (:mod:`solvers.preconditioners`): ``Ah`` one symmetric V-cycle
-(geometric multigrid on ``qp.multilevel['prolongations']`` or pyamg smoothed
+(geometric multigrid on ``qp.multilevel.prolongations`` or pyamg smoothed
 aggregation with rigid-body modes), scaled by Lanczos so that
 ``Ah < A <= gamma_bar Ah`` (8.18, Remark 8.14); ``S-hat`` the inexact Schur
 complement ``S_in`` or a sparse one (multilevel surface operator, Jacobi-type),
@@ -25,8 +25,12 @@ scaled so that ``S_in <= S-hat``. Then ``alpha_bar <= 1 + sqrt(1 - 1/gamma_bar)`
 Approximate projection: Alg. 8.3 (projected Richardson, ``n_i`` by (8.15)) or
 Dostál's MPRGP (Sect. 8.6, ref. [19]) stopped at a relative reduction of the
 projected gradient. ``u`` is updated additively or multiplicatively (Alg. 8.4).
-Termination by (8.25): ``sqrt(eta_k / eta_0) <= eps`` with
-``eta_k = <w_u, d_u> + <p^{k+1} - p^k, w_p>``.
+Termination: by default when the verified KKT residuals (the suite's own
+check, :func:`problems.qp.kkt_residuals`) meet the tolerance, so that a claim
+of convergence is never refuted by the verification; with ``stop="estimate"``
+by the thesis's (8.25): ``sqrt(eta_k / eta_0) <= eps`` with
+``eta_k = <w_u, d_u> + <p^{k+1} - p^k, w_p>`` (which defines n_o(eps) of
+Tables 9.1 and 9.3).
 
 What Theorem 8.2 guarantees here: the *transformed* functional ``Jt(u^k, p^k)``
 decreases monotonically (recorded as ``history['J_transformed']``), not the
@@ -45,14 +49,16 @@ never builds coarser problems.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Callable
 
 import numpy as np
 
-from problems.spec import Parameter
+
+from problems.qp import ContactQP, kkt_residuals
+from problems.spec import Component, ComponentParameter, Options, Parameter
 from solvers import preconditioners as pc
-from solvers.interface import ContactQP, SolveResult, SolverSpec, kkt_residuals
+from solvers.interface import SolveResult, SolverSpec
 
 
 # ---------------------------------------------------------------------------
@@ -167,27 +173,71 @@ class OuterStep:
     t_proj: float
 
 
-def augmented_projection_algorithm(A, B, C, F, G, A_hat_inv: Callable, S_hat: Callable,
-                                   tau: float, gamma_bar: float, project: Callable,
-                                   u: np.ndarray, p: np.ndarray, eps: float, max_iter: int,
-                                   update: str = "multiplicative",
-                                   monitor: Callable[[OuterStep], bool] | None = None):
-    """Alg. 8.4 (approximate augmented projection), line by line.
+@dataclass
+class Alg84:
+    """The operators of Alg. 8.4 for ``A u + B'p = F``, ``B u - C p <= G``, ``p >= 0``.
 
-    Parameters
+    Attributes
     ----------
     A, B, C, F, G
-        The contact problem ``A u + B'p = F``, ``B u - C p <= G``, ``p >= 0``
-        (``C`` may be None).
+        The contact problem (``C`` may be None).
     A_hat_inv : callable
         Scaled preconditioner, ``A_hat < A <= gamma_bar A_hat`` (8.18).
     S_hat : callable
         Product with the Schur-complement preconditioner (never its inverse).
+    gamma_bar : float
     tau : float
         Relaxation parameter of the Richardson step.
     project : callable
         ``project(d, p_k) -> (p_{k+1}, n_inner)``: approximate minimiser of
         ``1/2 q'S_hat q - d'q`` over ``q >= 0`` ((8.24), Alg. 8.3 or MPRGP).
+    """
+
+    A: object
+    B: object
+    C: object
+    F: np.ndarray
+    G: np.ndarray
+    A_hat_inv: Callable
+    S_hat: Callable
+    gamma_bar: float
+    tau: float
+    project: Callable
+
+    def Cp(self, p):
+        return self.C @ p if self.C is not None else 0.0
+
+    def step(self, u: np.ndarray, p: np.ndarray, update: str = "multiplicative"):
+        """One step of Alg. 8.4, (8.23)-(8.25), line by line.
+
+        Returns
+        -------
+        (u_new, p_new, eta, n_inner, t_proj, d_u, w_u, w_p)
+            The new iterate, the (8.25) estimate ``eta`` and the quantities of
+            (8.23) at ``(u, p)`` (for the transformed functional and Cor. 8.4).
+        """
+        A, B, tau, gamma = self.A, self.B, self.tau, self.gamma_bar
+        d_u = self.F - A @ u - B.T @ p                          # (8.23)
+        w_u = self.A_hat_inv(d_u)                               # (8.23)
+        w_p = B @ w_u - (self.G - B @ u + self.Cp(p))           # (8.23)
+        t0 = time.perf_counter()
+        p_new, n_inner = self.project(self.S_hat(p) + tau * w_p, p)  # p^{k+1} = P~(S-hat p^k + tau w_p)
+        t_proj = time.perf_counter() - t0
+        u_new = u + (tau / gamma) * w_u                         # additive update
+        if update == "multiplicative":
+            u_new = u_new + (tau / gamma) * self.A_hat_inv(B.T @ (p - p_new))
+        eta = float(w_u @ d_u + (p_new - p) @ w_p)              # (8.25)
+        return u_new, p_new, eta, n_inner, t_proj, d_u, w_u, w_p
+
+
+def augmented_projection_algorithm(op: Alg84, u: np.ndarray, p: np.ndarray, eps: float,
+                                   max_iter: int, update: str = "multiplicative",
+                                   monitor: Callable[[OuterStep], bool] | None = None):
+    """Alg. 8.4 (approximate augmented projection): repeat :meth:`Alg84.step` until (8.25).
+
+    Parameters
+    ----------
+    op : Alg84
     u, p : arrays
         Initial guess ``(u^0, p^0)``, ``p^0 >= 0``.
     eps : float
@@ -201,34 +251,22 @@ def augmented_projection_algorithm(A, B, C, F, G, A_hat_inv: Callable, S_hat: Ca
     -------
     (u, p, k, reason) with ``reason`` in {"converged", "max_iter", "monitor"}.
     """
-    Cp = (lambda q: C @ q) if C is not None else (lambda q: 0.0)
-    z = A_hat_inv(F)                                         # for Jt(U^k) only
-    Ft_dot = lambda u, p, Au: Au @ z - F @ u + p @ (B @ z) - p @ G
+    z = op.A_hat_inv(op.F)                                      # for Jt(U^k) only
+    Bz = op.B @ z
     eta_0 = None
     for k in range(max_iter):
-        Au = A @ u
-        d_u = F - Au - B.T @ p                               # (8.23)
-        w_u = A_hat_inv(d_u)                                 # (8.23)
-        w_p = B @ w_u - (G - B @ u + Cp(p))                  # (8.23)
-        J_t = -0.5 * Ft_dot(u, p, Au) - 0.5 * (Au @ w_u - u @ d_u + p @ w_p)
-        t0 = time.perf_counter()
-        p_new, n_inner = project(S_hat(p) + tau * w_p, p)    # p^{k+1} = P~(S-hat p^k + tau w_p), (8.24)
-        t_proj = time.perf_counter() - t0
-        u_add = u + (tau / gamma_bar) * w_u                  # additive update
-        if update == "multiplicative":
-            u_new = u_add + (tau / gamma_bar) * A_hat_inv(B.T @ (p - p_new))
-        else:
-            u_new = u_add
-        eta = float(w_u @ d_u + (p_new - p) @ w_p)           # (8.25)
+        Au = op.A @ u
+        u_new, p_new, eta, n_inner, t_proj, d_u, w_u, w_p = op.step(u, p, update)
+        Ft_U = Au @ z - op.F @ u + p @ Bz - p @ op.G
+        J_t = -0.5 * Ft_U - 0.5 * (Au @ w_u - u @ d_u + p @ w_p)  # Jt(U^k) of (8.20)
         du = u_new - u
-        cor = float(du @ (A @ w_u) - du @ d_u + (p_new - p) @ w_p)  # Corollary 8.4
-        if eta_0 is None:
-            eta_0 = max(eta, 1e-300)
+        cor = float(du @ (op.A @ w_u) - du @ d_u + (p_new - p) @ w_p)  # Corollary 8.4
+        eta_0 = max(eta, 1e-300) if eta_0 is None else eta_0
         eta_rel = float(np.sqrt(max(eta, 0.0) / eta_0))
         u, p = u_new, p_new
         stop = monitor(OuterStep(k + 1, u, p, eta, eta_rel, cor, float(J_t), n_inner, t_proj)) \
             if monitor else False
-        if eta_rel <= eps:                                   # termination (8.25)
+        if eta_rel <= eps:                                      # termination (8.25)
             return u, p, k + 1, "converged"
         if stop:
             return u, p, k + 1, "monitor"
@@ -238,25 +276,24 @@ def augmented_projection_algorithm(A, B, C, F, G, A_hat_inv: Callable, S_hat: Ca
 # ---------------------------------------------------------------------------
 # Variant beyond the thesis: Krylov acceleration of the outer iteration
 # ---------------------------------------------------------------------------
-def face_cg_variant(A, B, C, F, G, A_hat_inv: Callable, S_hat: Callable, S_dense: np.ndarray,
-                    tau: float, gamma_bar: float, project: Callable, u: np.ndarray,
-                    p: np.ndarray, eps: float, max_iter: int, Gamma: float = 1.0,
+def face_cg_variant(op: Alg84, S_hat_columns: Callable, u: np.ndarray, p: np.ndarray,
+                    eps: float, max_iter: int, Gamma: float = 1.0,
                     monitor: Callable[[OuterStep], bool] | None = None):
     """Alg. 8.4 accelerated by preconditioned CG on the face of the active set.
 
     *Not in the thesis* (option ``accelerate="face_cg"``). An MPRGP-like
     outer method for the transformed problem (8.20): multiplicative Alg. 8.4
-    steps (which also play the role of proportioning/expansion steps) until
-    the set ``{p > 0}`` repeats; then Bramble-Pasciak CG for (8.20) with
-    ``p`` restricted to that face and the block preconditioner
-    ``diag(gamma_bar (A - A_hat), S_hat_II)`` (8.22), one V-cycle per step
-    (the ``u``-part of the residual stays of the form ``(A - A_hat) y``, so
-    ``(A - A_hat)^{-1}`` is never needed). The CG phase ends at a step that
-    would leave ``p >= 0`` (truncated, feasible step), or when the chopped
-    gradient of the zero multipliers outgrows the face residual (factor
-    ``Gamma``). Both steps decrease ``Jt`` monotonically. ``S_hat_II^{-1}`` is a
-    dense Cholesky factor of the face block of ``S_hat`` (size = number of
-    active constraints; in 2D far below N).
+    steps (:meth:`Alg84.step`, which also play the role of proportioning and
+    expansion steps) until the set ``{p > 0}`` repeats; then Bramble-Pasciak
+    CG for (8.20) with ``p`` restricted to that face and the block
+    preconditioner ``diag(gamma_bar (A - A_hat), S_hat_II)`` (8.22), one
+    V-cycle per step (the ``u``-part of the residual stays of the form
+    ``(A - A_hat) y``, so ``(A - A_hat)^{-1}`` is never needed). The CG phase
+    ends at a step that would leave ``p >= 0`` (truncated, feasible step), or
+    when the chopped gradient of the zero multipliers outgrows the face
+    residual (factor ``Gamma``). Both steps decrease ``Jt`` monotonically.
+    ``S_hat_II^{-1}`` is a dense Cholesky factor of the face block of
+    ``S_hat`` (``S_hat_columns(I)``; size = number of active constraints).
 
     Returns
     -------
@@ -264,9 +301,9 @@ def face_cg_variant(A, B, C, F, G, A_hat_inv: Callable, S_hat: Callable, S_dense
     the number of CG steps among the ``k`` outer steps.
     """
     import scipy.linalg as sla
-    Cp = (lambda q: C @ q) if C is not None else (lambda q: 0.0)
-    S_diag = np.diag(S_dense).copy()
+    A, B, F, G, gamma_bar = op.A, op.B, op.F, op.G, op.gamma_bar
     eta_0, k, n_cg, last_face = None, 0, 0, None
+    S_diag = None
 
     def emit(eta, cor, n_inner, t_proj):
         eta_rel = float(np.sqrt(max(eta, 0.0) / eta_0))
@@ -276,16 +313,9 @@ def face_cg_variant(A, B, C, F, G, A_hat_inv: Callable, S_hat: Callable, S_dense
 
     while k < max_iter:
         # -- one multiplicative step of Alg. 8.4 ---------------------------
-        d_u = F - A @ u - B.T @ p
-        w_u = A_hat_inv(d_u)
-        w_p = B @ w_u - (G - B @ u + Cp(p))
-        t0 = time.perf_counter()
-        p_new, n_inner = project(S_hat(p) + tau * w_p, p)
-        t_proj = time.perf_counter() - t0
-        u_new = u + (tau / gamma_bar) * (w_u + A_hat_inv(B.T @ (p - p_new)))
-        eta = float(w_u @ d_u + (p_new - p) @ w_p)
+        u, p, eta, n_inner, t_proj, *_ = op.step(u, p, "multiplicative")
         eta_0 = max(eta, 1e-300) if eta_0 is None else eta_0
-        u, p, k = u_new, p_new, k + 1
+        k += 1
         eta_rel, stop = emit(eta, np.nan, n_inner, t_proj)
         if eta_rel <= eps:
             return u, p, k, "converged", n_cg
@@ -297,11 +327,14 @@ def face_cg_variant(A, B, C, F, G, A_hat_inv: Callable, S_hat: Callable, S_dense
             continue
         # -- CG on the face {p > 0} ------------------------------------------
         I = np.flatnonzero(face)
-        chol = sla.cho_factor(S_dense[np.ix_(I, I)])
+        S_II = S_hat_columns(I)[I]
+        chol = sla.cho_factor(0.5 * (S_II + S_II.T))
+        if S_diag is None:
+            S_diag = np.array([S_hat_columns(np.array([j]))[j, 0] for j in range(len(p))])
         d = F - A @ u - B.T @ p
-        y = A_hat_inv(d)
+        y = op.A_hat_inv(d)
         Ay = A @ y
-        r_p = B @ y - (G - B @ u + Cp(p))
+        r_p = B @ y - (G - B @ u + op.Cp(p))
         P_u = AP_u = P_p = None
         rz_old = None
         while k < max_iter:
@@ -322,8 +355,8 @@ def face_cg_variant(A, B, C, F, G, A_hat_inv: Callable, S_hat: Callable, S_dense
                 P_p = Z_p + beta * P_p
             rz_old = rz
             q = AP_u + B.T @ P_p
-            v = A_hat_inv(q)
-            BPv = B @ v - B @ P_u + Cp(P_p)
+            v = op.A_hat_inv(q)
+            BPv = B @ v - B @ P_u + op.Cp(P_p)
             pAp = float(AP_u @ v - P_u @ q + P_p @ BPv)
             if pAp <= 0.0:
                 break
@@ -358,43 +391,44 @@ def theorem_8_8_alpha(gamma_bar: float) -> tuple[float, float]:
     return 1.0 - r, 1.0 + r
 
 
-def make_projection(kind: str, S_hat: pc.SchurPreconditioner, inner_rtol: float,
-                    max_inner: int, n_i_factor: float, tau_2_hat: float = 1.0):
+def make_projection(projection: Component, S_hat: pc.SchurPreconditioner, tau_2_hat: float = 1.0):
     """The approximate projection ``project(d, p_k) -> (p_{k+1}, n_inner)``.
 
     ``richardson``: Alg. 8.3 with ``tau_2 = tau_2_hat / lambda_max(S-hat)`` and
     ``n_i = ceil(c 2 kappa(S-hat) / tau_2_hat)`` (8.15), ``c = n_i_factor``,
     i.e. ``rho_P <= exp(-c)``. ``mprgp``: MPRGP with ``alpha_bar = 1/lambda_max``
-    stopped at the relative projected-gradient reduction ``inner_rtol``.
+    stopped at the relative projected-gradient reduction ``rtol``.
+
+    Returns
+    -------
+    (project, n_i) with ``n_i`` the fixed step count of Alg. 8.3 (None for MPRGP).
     """
     lam_max = S_hat.lam_max
-    if kind == "richardson":
-        n_i = int(min(max_inner, np.ceil(n_i_factor * 2.0 * S_hat.kappa / tau_2_hat)))
+    o = projection.options
+    if projection.kind == "richardson":
+        n_i = int(min(o["max_steps"], np.ceil(o["n_i_factor"] * 2.0 * S_hat.kappa / tau_2_hat)))
         tau_2 = tau_2_hat / lam_max
         return (lambda d, p: projected_richardson(S_hat, d, p, tau_2, n_i)), n_i
-    if kind == "mprgp":
-        return (lambda d, p: mprgp(S_hat, d, p, 1.0 / lam_max, inner_rtol, max_inner)), None
-    raise ValueError(f"unknown projection {kind!r}; allowed: mprgp, richardson")
+    if projection.kind == "mprgp":
+        return (lambda d, p: mprgp(S_hat, d, p, 1.0 / lam_max, o["rtol"], o["max_steps"])), None
+    raise ValueError(f"unknown projection {projection.kind!r}; allowed: mprgp, richardson")
 
 
-def _default_kinds(qp: ContactQP, ahat: str, schur: str) -> tuple[str, str]:
-    if ahat == "auto":
-        ahat = "gmg" if qp.multilevel.get("prolongations") else "sa"
-    if schur == "auto":
-        ok = qp.dim == 2 and qp.contact_nodes is not None and "points" in qp.geometry and qp.m > 2
-        schur = "multilevel" if ok else "inexact"
-    return ahat, schur
+def resolve_kinds(qp: ContactQP, ahat: Component, schur: Component) -> tuple[str, str]:
+    """The A-hat and S-hat kinds ``auto`` stands for on this problem."""
+    a = ahat.kind
+    if a == "auto":
+        a = "gmg" if qp.multilevel.prolongations else "sa"
+    s = schur.kind
+    if s == "auto":
+        s = "multilevel" if (qp.multilevel.surface is not None and qp.m > 2) else "inexact"
+    return a, s
 
 
-def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None = None,
-          u0: np.ndarray | None = None, p0: np.ndarray | None = None, *,
-          ahat: str = "auto", smoother: str = "symmetric_gs", max_coarse: int = 500,
-          schur: str = "auto", projection: str = "mprgp", update: str = "multiplicative",
-          eps: float = 0.0, stop: str = "estimate", tau: float = 0.0, inner_rtol: float = 0.1,
-          n_i_factor: float = 1.0, max_inner: int = 2000, lanczos_steps: int = 12,
-          kappa_exact: bool = False, record_kkt: bool = True, seed: int = 0,
-          accelerate: str = "none", callback: Callable | None = None) -> SolveResult:
-    """Solve ``qp`` by Alg. 8.4 (see the module docstring for the options).
+def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
+          u0: np.ndarray | None, p0: np.ndarray | None, opts: Options,
+          callback: Callable | None = None) -> SolveResult:
+    """Solve ``qp`` by Alg. 8.4 (see the module docstring and :data:`SOLVER` for ``opts``).
 
     ``callback(step: OuterStep) -> bool`` (Python only, not a registry option)
     is called after each outer step; True stops the run (status ``max_iter``
@@ -403,44 +437,47 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None = N
     Returns
     -------
     SolveResult
-        ``claimed_status`` ``converged`` when (8.25) (``stop="estimate"``) or
-        the verified KKT residual (``stop="kkt"``) meets the tolerance;
-        ``stats`` has the columns of Table 9.1 and the setup details;
-        ``history`` per outer step: ``energy`` J(u^k), ``J_transformed``,
-        ``kkt_max``, ``eta_rel``, ``corollary_8_4``, ``n_inner``, ``time``.
+        ``claimed_status`` ``converged`` when the verified KKT residual
+        (``stop="kkt"``, the default) or (8.25) (``stop="estimate"``) meets the
+        tolerance; ``stats`` has the columns of Table 9.1 and the setup
+        details; ``history`` per outer step: ``energy`` J(u^k),
+        ``J_transformed``, ``kkt_max``, ``eta_rel``, ``corollary_8_4``,
+        ``n_inner``, ``time``.
     """
     t_start = time.perf_counter()
     deadline = None if time_limit is None else t_start + time_limit
-    ahat, schur = _default_kinds(qp, ahat, schur)
     if qp.m == 0:
         raise ValueError("augmented projection needs at least one constraint")
-    A_hat_inv = pc.scaled_vcycle(qp.A, ahat, qp.multilevel, qp.dim, qp.free_dofs, smoother,
-                                 max_coarse, lanczos_steps, seed)
+    ahat_kind, schur_kind = resolve_kinds(qp, opts.ahat, opts.schur)
+    a, s = opts.ahat.options, opts.schur.options
+    A_hat_inv = pc.scaled_vcycle(qp.A, ahat_kind, qp.multilevel, qp.dim, qp.free_dofs,
+                                 seed=opts.seed, **a)
     gamma_bar = A_hat_inv.gamma_bar
-    S_hat = pc.build_schur(schur, qp, A_hat_inv, lanczos_steps, seed)
+    S_hat = pc.build_schur(schur_kind, qp, A_hat_inv, s["lanczos_steps"], opts.seed)
     alpha_low, alpha_bar = theorem_8_8_alpha(gamma_bar)
+    tau = opts.tau
     if tau <= 0.0:  # Sect. 8.5: tau = 1/alpha_bar; block Gauss-Seidel (multiplicative): 1
-        tau = 1.0 / alpha_bar if update == "additive" else 1.0
-    project, n_i_fixed = make_projection(projection, S_hat, inner_rtol, max_inner, n_i_factor)
+        tau = 1.0 / alpha_bar if opts.update == "additive" else 1.0
+    project, n_i_fixed = make_projection(opts.projection, S_hat)
     # Theorem 8.2 rate (known rho_P only for Alg. 8.3, where rho_P <= exp(-c)).
     mu = S_hat.ritz_Sin[0] / S_hat.scale if S_hat.name in ("jacobi", "multilevel") else 1.0
-    rho_P = np.exp(-n_i_factor) if projection == "richardson" else np.nan
+    richardson = opts.projection.kind == "richardson"
+    rho_P = np.exp(-opts.projection.options["n_i_factor"]) if richardson else np.nan
     rho = 1.0 - 0.5 * tau * alpha_low * mu * (1.0 - rho_P)
-    if accelerate == "face_cg":
-        if update != "multiplicative":
-            raise ValueError("accelerate='face_cg' uses the multiplicative update")
-        S_dense = S_hat.dense()
-        S_hat.n_applications = 0
+    if opts.accelerate == "face_cg" and opts.update != "multiplicative":
+        raise ValueError("accelerate='face_cg' uses the multiplicative update")
+    op = Alg84(qp.A, qp.B, qp.C, qp.f, qp.g, A_hat_inv, S_hat, gamma_bar, tau, project)
     setup_time = time.perf_counter() - t_start
     vcycles_setup = A_hat_inv.n_applications
 
     u = np.zeros(qp.n) if u0 is None else np.array(u0, dtype=float)
     p = np.zeros(qp.m) if p0 is None else np.maximum(np.asarray(p0, dtype=float), 0.0)
-    eps_eff = eps if eps > 0 else tol
+    eps_eff = opts.eps if opts.eps > 0 else tol
     history = {k: [] for k in ("energy", "J_transformed", "kkt_max", "eta_rel", "eta",
                                "corollary_8_4", "n_inner", "t_proj", "time")}
     t_solve = time.perf_counter()
     state = {"reason": None}
+    stop_kkt = opts.stop == "kkt"
 
     def monitor(step: OuterStep) -> bool:
         history["energy"].append(qp.energy(step.u))
@@ -450,13 +487,13 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None = N
         history["corollary_8_4"].append(step.corollary_8_4)
         history["n_inner"].append(step.n_inner)
         history["t_proj"].append(step.t_proj)
-        kmax = kkt_residuals(qp, step.u, step.p).max if (record_kkt or stop == "kkt") else np.nan
+        kmax = kkt_residuals(qp, step.u, step.p).max if (opts.record_kkt or stop_kkt) else np.nan
         history["kkt_max"].append(kmax)
         history["time"].append(time.perf_counter() - t_solve)
         if callback is not None and callback(step):
             state["reason"] = "callback"
             return True
-        if stop == "kkt" and kmax <= tol:
+        if stop_kkt and kmax <= tol:
             state["reason"] = "kkt"
             return True
         if deadline is not None and time.perf_counter() > deadline:
@@ -464,43 +501,42 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None = N
             return True
         return False
 
-    eps_run = eps_eff if stop == "estimate" else 0.0
+    eps_run = 0.0 if stop_kkt else eps_eff
     n_cg = 0
-    if accelerate == "face_cg":
-        u, p, k, reason, n_cg = face_cg_variant(
-            qp.A, qp.B, qp.C, qp.f, qp.g, A_hat_inv, S_hat, S_dense, tau, gamma_bar, project,
-            u, p, eps_run, max_iter, monitor=monitor)
+    if opts.accelerate == "face_cg":
+        u, p, k, reason, n_cg = face_cg_variant(op, S_hat.columns, u, p, eps_run, max_iter,
+                                                monitor=monitor)
     else:
-        u, p, k, reason = augmented_projection_algorithm(
-            qp.A, qp.B, qp.C, qp.f, qp.g, A_hat_inv, S_hat, tau, gamma_bar, project, u, p,
-            eps_run, max_iter, update, monitor)
+        u, p, k, reason = augmented_projection_algorithm(op, u, p, eps_run, max_iter,
+                                                         opts.update, monitor)
     solve_time = time.perf_counter() - t_solve
     if reason == "converged" or state["reason"] == "kkt":
         status = "converged"
         message = (f"(8.25) estimate reduced by {history['eta_rel'][-1]:.2e} <= eps {eps_eff:.1e}"
-                   if reason == "converged" else f"KKT max <= {tol:.1e}") + f" after {k} outer steps"
+                   if reason == "converged" else f"verified KKT max <= {tol:.1e}") \
+            + f" after {k} outer steps"
     elif state["reason"] == "time_limit":
         status, message = "time_limit", f"time limit {time_limit:g} s reached after {k} outer steps"
     elif state["reason"] == "callback":
         status, message = "max_iter", f"stopped by the callback after {k} outer steps"
     else:
-        status, message = "max_iter", f"(8.25) not met after {k} outer steps"
+        status = "max_iter"
+        message = (f"{'KKT max' if stop_kkt else '(8.25)'} not met after {k} outer steps")
     n_vcycles, t_vcycle = A_hat_inv.n_applications - vcycles_setup, A_hat_inv.time
     kappa_SinvS = np.nan
-    if kappa_exact:  # diagnostic, after the timed solve (Sect. 8.6: kappa(S-hat^-1 S))
-        kappa_SinvS = pc.kappa_schur_exact(qp, A_hat_inv, S_hat, max(lanczos_steps, 20))[0]
+    if opts.kappa_exact:  # diagnostic, after the timed solve (Sect. 8.6: kappa(S-hat^-1 S))
+        kappa_SinvS = pc.kappa_schur_exact(qp, A_hat_inv, S_hat, max(s["lanczos_steps"], 20))[0]
     n_inner = np.asarray(history["n_inner"], dtype=float)
     stats = {
-        "N": int(len(qp.geometry["points"])) if "points" in qp.geometry else qp.n // qp.dim,
-        "NC": qp.m, "n": qp.n,
+        "N": qp.n_nodes, "NC": qp.m,
         "n_outer": k, "n_inner_mean": float(n_inner.mean()) if n_inner.size else 0.0,
         "n_inner_total": int(n_inner.sum()),
         "t_solve": solve_time, "t_setup": setup_time, "t_proj": float(np.sum(history["t_proj"])),
         "t_vcycle": t_vcycle, "n_vcycles": n_vcycles,
         "t_ahat_setup": A_hat_inv.setup_time, "t_ahat_lanczos": A_hat_inv.lanczos_time,
         "t_shat_setup": S_hat.setup_time,
-        "ahat": ahat, "smoother": smoother, "schur": schur, "projection": projection,
-        "update": update, "accelerate": accelerate, "n_cg": n_cg, "stop": stop, "eps": eps_eff, "tau": tau,
+        "ahat_kind": ahat_kind, "schur_kind": schur_kind,
+        "tau": tau, "eps": eps_eff, "n_cg": n_cg,
         "gamma_bar": gamma_bar, "ritz_AhatA_min": A_hat_inv.ritz[0],
         "ritz_AhatA_max": A_hat_inv.ritz[1], "amg_levels": len(A_hat_inv.ml.levels),
         "operator_complexity": A_hat_inv.operator_complexity(),
@@ -520,16 +556,16 @@ def nested_initial_guess(qp_coarse: ContactQP, result_coarse, qp_fine: ContactQP
                          ) -> tuple[np.ndarray, np.ndarray]:
     """Initial guess on level L from the solution on level L-1 (Alg. 8.5, Sect. 8.6).
 
-    ``u0 = P u_{L-1}`` with ``P = qp_fine.multilevel['prolongations'][-1]``;
+    ``u0 = P u_{L-1}`` with ``P = qp_fine.multilevel.prolongations[-1]``;
     ``p0 = M_L Prolongate(M_{L-1}^{-1} p_{L-1})``: the pressure
-    ``p / contact_mass`` is a grid function on the constrained surface; it is
-    prolongated with the same nodal prolongation (the contact direction as the
-    vector component) and multiplied by the fine lumped mass, so ``p0 >= 0``.
+    ``p / contact mass`` is a grid function on the constrained surface,
+    prolongated with the surface prolongation of the last mesh level and
+    multiplied by the fine lumped mass, so ``p0 >= 0``.
 
     Parameters
     ----------
     qp_coarse, qp_fine : ContactQP
-        Consecutive levels of one scene (``qp_fine`` carries the prolongation).
+        Consecutive levels of one scene (``qp_fine`` carries the prolongations).
     result_coarse : SolveResult or (u, p) tuple
 
     Returns
@@ -537,35 +573,25 @@ def nested_initial_guess(qp_coarse: ContactQP, result_coarse, qp_fine: ContactQP
     (u0, p0)
     """
     u_c, p_c = (result_coarse.u, result_coarse.p) if hasattr(result_coarse, "u") else result_coarse
-    P = qp_fine.multilevel["prolongations"][-1]
-    if P.shape != (qp_fine.n, qp_coarse.n):
-        raise ValueError(f"prolongation has shape {P.shape}, expected {(qp_fine.n, qp_coarse.n)}")
-    u0 = P @ u_c
-    dim = qp_fine.dim
-    pos_c = _dof_position(qp_coarse)
-    pos_f = _dof_position(qp_fine)
-    v = np.zeros(qp_coarse.n)
-    lam_c = p_c / qp_coarse.contact_mass
-    for comp in range(dim):
-        idx = pos_c[qp_coarse.contact_nodes * dim + comp]
-        ok = idx >= 0
-        v[idx[ok]] += lam_c[ok] * qp_coarse.contact_direction[ok, comp]
-    vf = P @ v
-    lam_f = np.zeros(qp_fine.m)
-    for comp in range(dim):
-        idx = pos_f[qp_fine.contact_nodes * dim + comp]
-        ok = idx >= 0
-        lam_f[ok] += vf[idx[ok]] * qp_fine.contact_direction[ok, comp]
-    return u0, np.maximum(lam_f, 0.0) * qp_fine.contact_mass
+    ml = qp_fine.multilevel
+    if not ml.prolongations or ml.surface is None:
+        raise ValueError("nested iteration needs qp_fine.multilevel.prolongations and .surface")
+    P = ml.prolongations[-1]
+    P_s = ml.surface.prolongations[-1]
+    if P.shape != (qp_fine.n, qp_coarse.n) or P_s.shape != (qp_fine.m, qp_coarse.m):
+        raise ValueError(f"prolongations have shapes {P.shape}, {P_s.shape}; expected "
+                         f"{(qp_fine.n, qp_coarse.n)}, {(qp_fine.m, qp_coarse.m)}: the problems "
+                         "are not consecutive levels of one scene")
+    pressure = P_s @ (p_c / qp_coarse.contact.mass)
+    return P @ u_c, np.maximum(pressure, 0.0) * qp_fine.contact.mass
 
 
-def _dof_position(qp: ContactQP) -> np.ndarray:
-    """Map full DOF index -> position among the free DOFs (-1 if prescribed)."""
-    size = len(qp.u_fixed) if qp.u_fixed is not None else int(qp.free_dofs.max()) + 1
-    pos = -np.ones(size, dtype=int)
-    pos[qp.free_dofs] = np.arange(qp.n)
-    return pos
-
+#: Options of the A-hat component, per kind (declared once).
+_LANCZOS = Parameter("lanczos_steps", 12, "Lanczos steps for the spectral bounds", low=5, kind=int)
+_SMOOTHER = Parameter("smoother", "symmetric_gs", "V-cycle smoother", choices=tuple(pc.SMOOTHERS))
+_SWEEPS = Parameter("sweeps", 1, "pre- and post-smoothing steps: V(sweeps, sweeps)", low=1,
+                    high=10, kind=int)
+_MAX_COARSE = Parameter("max_coarse", 500, "SA: largest coarsest level", low=10, kind=int)
 
 SOLVER = SolverSpec(
     name="augmented_projection",
@@ -573,38 +599,84 @@ SOLVER = SolverSpec(
             "Bramble-Pasciak-transformed problem, multigrid A-hat, sparse S-hat, MPRGP projection",
     solve=solve,
     parameters=(
-        Parameter("ahat", "auto", "A-hat: one symmetric V-cycle of geometric MG on the hierarchy "
-                  "(gmg) or pyamg SA with rigid-body modes (sa); auto = gmg if prolongations exist",
-                  choices=("auto", "gmg", "sa")),
-        Parameter("smoother", "symmetric_gs", "V(1,1) smoother", choices=tuple(pc._SMOOTHERS)),
-        Parameter("max_coarse", 500, "SA: largest coarsest level", low=10, kind=int),
-        Parameter("schur", "auto", "S-hat: multilevel surface operator (O(N^C)), inexact S_in "
-                  "(matrix-free), inexact_assembled (N^C V-cycles) or jacobi B diag(A)^-1 B'",
-                  choices=("auto", "multilevel", "inexact", "inexact_assembled", "jacobi")),
-        Parameter("projection", "mprgp", "approximate projection: MPRGP (Sect. 8.6) or "
-                  "projected Richardson (Alg. 8.3, n_i by (8.15))", choices=("mprgp", "richardson")),
+        ComponentParameter(
+            "ahat", "auto", {"auto": (_SMOOTHER, _SWEEPS, _MAX_COARSE, _LANCZOS),
+                             "gmg": (_SMOOTHER, _SWEEPS, _LANCZOS),
+                             "sa": (_SMOOTHER, _SWEEPS, _MAX_COARSE, _LANCZOS)},
+            "A-hat (8.18): one symmetric V-cycle of geometric MG on the refinement hierarchy "
+            "(gmg) or pyamg SA with rigid-body modes (sa), scaled by Lanczos (Remark 8.14); "
+            "auto = gmg if the problem has a hierarchy"),
+        ComponentParameter(
+            "schur", "auto", {k: (replace(_LANCZOS, default=24),) for k in
+                              ("auto", "multilevel", "inexact", "inexact_assembled", "jacobi")},
+            "S-hat: multilevel surface operator (O(N^C)), inexact S_in (matrix-free), "
+            "inexact_assembled (N^C V-cycles) or jacobi B diag(A)^-1 B'; auto = multilevel "
+            "if the scene supplies its surface hierarchy"),
+        ComponentParameter(
+            "projection", "mprgp",
+            {"mprgp": (Parameter("rtol", 0.1, "relative projected-gradient reduction", low=0.0,
+                                 high=1.0, low_open=True),
+                       Parameter("max_steps", 2000, "cap on inner steps", low=1, kind=int)),
+             "richardson": (Parameter("n_i_factor", 1.0, "c in n_i = c 2 kappa(S-hat) (8.15)",
+                                      low=0.0, low_open=True),
+                            Parameter("max_steps", 2000, "cap on inner steps", low=1, kind=int))},
+            "approximate projection (8.24): MPRGP (Sect. 8.6) or projected Richardson "
+            "(Alg. 8.3, n_i by (8.15))"),
         Parameter("update", "multiplicative", "u-update of Alg. 8.4",
                   choices=("multiplicative", "additive")),
-        Parameter("eps", 0.0, "relative tolerance of (8.25); 0 = tol", low=0.0, high=1.0),
-        Parameter("stop", "estimate", "stop by (8.25) or by the verified KKT residual <= tol",
-                  choices=("estimate", "kkt")),
+        Parameter("stop", "kkt", "stop when the verified KKT residual <= tol (kkt), or by the "
+                  "thesis's estimate (8.25) <= eps (estimate)", choices=("kkt", "estimate")),
+        Parameter("eps", 0.0, "relative tolerance of (8.25) for stop=estimate; 0 = tol",
+                  low=0.0, high=1.0),
         Parameter("tau", 0.0, "relaxation; 0 = auto: 1/alpha_bar (Theorem 8.8) for the additive, "
                   "1 for the multiplicative update", low=0.0, high=2.0),
-        Parameter("inner_rtol", 0.1, "MPRGP: relative projected-gradient reduction", low=0.0,
-                  high=1.0, low_open=True),
-        Parameter("n_i_factor", 1.0, "Alg. 8.3: c in n_i = c 2 kappa(S-hat) (8.15)", low=0.0,
-                  low_open=True),
-        Parameter("max_inner", 2000, "cap on inner steps per projection", low=1, kind=int),
-        Parameter("lanczos_steps", 12, "Lanczos steps for gamma_bar and S-hat scaling", low=5,
-                  kind=int),
-        Parameter("kappa_exact", False, "also estimate kappa(S-hat^-1 S), S = B A^-1 B' (costly)"),
         Parameter("accelerate", "none", "beyond the thesis: 'face_cg' = Bramble-Pasciak CG on the "
                   "face of the active set between Alg. 8.4 steps", choices=("none", "face_cg")),
+        Parameter("kappa_exact", False, "also estimate kappa(S-hat^-1 S), S = B A^-1 B' (costly)"),
         Parameter("record_kkt", True, "verified KKT residual in the history at every step"),
         Parameter("seed", 0, "Lanczos start vectors", low=0, kind=int),
     ),
-    presets={"low": "eps = 1e-3 in (8.25)", "mid": "eps = 1e-6 in (8.25)",
-             "high": "eps = 1e-9 in (8.25)"},
+    presets={"low": "stop when the verified KKT max <= 1e-3",
+             "mid": "stop when the verified KKT max <= 1e-6",
+             "high": "stop when the verified KKT max <= 1e-9"},
     default_max_iter=2000,
     role="thesis",
 )
+
+
+@dataclass(frozen=True)
+class Variant:
+    """A named configuration of this solver, as the studies run it.
+
+    ``thesis`` tells whether it stays Alg. 8.4 (with the thesis's or another
+    A-hat/S-hat pair) or goes beyond it (``face_cg``); ``nested`` adds the
+    initial guess of Alg. 8.5 from the two coarser levels.
+    """
+
+    summary: str
+    options: dict
+    nested: bool = False
+    thesis: bool = True
+
+
+_BEST = {"ahat": "gmg", "schur": "multilevel", "projection": "mprgp", "update": "multiplicative"}
+
+#: Named configurations of Alg. 8.4 (the augmented-projection study's ``configs``).
+VARIANTS = {
+    "alg84": Variant("Alg. 8.4 as written: geometric-multigrid A-hat, multilevel S-hat, "
+                     "MPRGP projection, multiplicative update", _BEST),
+    "additive": Variant("Alg. 8.4 with the additive update", {**_BEST, "update": "additive"}),
+    "richardson": Variant("Alg. 8.4 with the projection of Alg. 8.3 (n_i by (8.15))",
+                          {**_BEST, "projection": "richardson"}),
+    "sa": Variant("Alg. 8.4 with pyamg SA as A-hat", {**_BEST, "ahat": "sa"}),
+    "thesis_Sin": Variant("Alg. 8.4 with the thesis's inexact Schur complement S_in",
+                          {**_BEST, "schur": "inexact"}),
+    "jacobi": Variant("Alg. 8.4 with the Jacobi-type S-hat B diag(A)^-1 B'",
+                      {**_BEST, "schur": "jacobi"}),
+    "nested": Variant("Alg. 8.4 with the nested initial guess of Alg. 8.5", _BEST, nested=True),
+    "face_cg": Variant("beyond the thesis: Alg. 8.4 steps + Krylov (CG) steps on the active face",
+                       {**_BEST, "accelerate": "face_cg"}, thesis=False),
+    "nested_face_cg": Variant("beyond the thesis: face_cg with the nested initial guess of "
+                              "Alg. 8.5", {**_BEST, "accelerate": "face_cg"}, nested=True,
+                              thesis=False),
+}

@@ -27,7 +27,9 @@ import numpy as np
 from problems.spec import Parameter
 from solvers._scaling import (ADAPTER_PARAMETERS, require_plain_constraints, scale_qp,
                               upper_triangle)
-from solvers.interface import TOLERANCES, ContactQP, SolveResult, SolverSpec
+from problems.qp import ContactQP
+from problems.spec import Options, resolve_parameters
+from solvers.interface import TOLERANCES, SolveResult, SolverSpec
 
 #: Clarabel status name -> SolveResult status.
 _STATUS = {
@@ -46,15 +48,22 @@ _STATUS = {
 }
 
 
-def settings_for(tol: float, equilibrate: bool = True) -> dict:
+#: The adapter's options, declared once (defaults here).
+PARAMETERS = (
+    *ADAPTER_PARAMETERS,
+    Parameter("equilibrate", True, "Clarabel's Ruiz equilibration"),
+)
+
+
+def settings_for(tol: float, opts: Options) -> dict:
     """Clarabel settings for the target ``tol`` (the preset table of the report).
 
     Parameters
     ----------
     tol : float
         Target for the verified scaled KKT residuals.
-    equilibrate : bool
-        Clarabel's Ruiz equilibration.
+    opts : Options
+        Resolved options (``equilibrate``: Clarabel's Ruiz equilibration).
 
     Returns
     -------
@@ -62,12 +71,11 @@ def settings_for(tol: float, equilibrate: bool = True) -> dict:
         Attribute values for ``clarabel.DefaultSettings``.
     """
     return {"tol_gap_abs": tol, "tol_gap_rel": tol, "tol_feas": tol,
-            "equilibrate_enable": bool(equilibrate), "verbose": False}
+            "equilibrate_enable": bool(opts.equilibrate), "verbose": False}
 
 
-def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None = None,
-          u0: np.ndarray | None = None, p0: np.ndarray | None = None, *,
-          tol_factor: float = 1.0, scale: bool = True, equilibrate: bool = True) -> SolveResult:
+def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
+          u0: np.ndarray | None, p0: np.ndarray | None, opts: Options) -> SolveResult:
     """Solve ``qp`` with Clarabel.
 
     Parameters
@@ -78,14 +86,8 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None = N
         As in :func:`solvers.interface.solve`.
     u0, p0
         Ignored (interior point methods are not warm-started).
-    tol_factor : float
-        The library's tolerances are ``tol * tol_factor`` (1: the preset as is;
-        smaller values buy a verified pass where the library's own stopping
-        test is looser than the verified KKT residuals).
-    scale : bool
-        Hand Clarabel the rescaled problem (:mod:`solvers._scaling`).
-    equilibrate : bool
-        Clarabel's own equilibration.
+    opts : Options
+        ``tol_factor``, ``scale``, ``equilibrate`` (see :data:`SOLVER`).
 
     Returns
     -------
@@ -95,9 +97,9 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None = N
 
     require_plain_constraints(qp)
     t0 = time.perf_counter()
-    data = scale_qp(qp, enabled=scale)
+    data = scale_qp(qp, enabled=opts.scale)
     settings = clarabel.DefaultSettings()
-    for key, value in settings_for(tol * tol_factor, equilibrate).items():
+    for key, value in settings_for(tol * opts.tol_factor, opts).items():
         setattr(settings, key, value)
     settings.max_iter = int(max_iter)
     if time_limit is not None:
@@ -116,7 +118,7 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None = N
     if u0 is not None or p0 is not None:
         message += "; initial guess ignored (no warm start)"
     stats = {"clarabel_r_prim": float(sol.r_prim), "clarabel_r_dual": float(sol.r_dual),
-             "clarabel_solve_time": float(sol.solve_time), "scaled": bool(scale)}
+             "clarabel_solve_time": float(sol.solve_time), "scaled": bool(opts.scale)}
     return SolveResult(u=u, p=p, claimed_status=_STATUS.get(status_name, "failed"),
                        message=message, iterations=int(sol.iterations),
                        setup_time=setup_time, solve_time=solve_time, stats=stats)
@@ -131,10 +133,7 @@ SOLVER = SolverSpec(
     name="clarabel",
     summary="Clarabel (interior point, homogeneous embedding), general conic solver",
     solve=solve,
-    parameters=(
-        *ADAPTER_PARAMETERS,
-        Parameter("equilibrate", True, "Clarabel's Ruiz equilibration"),
-    ),
+    parameters=PARAMETERS,
     presets={name: _describe(tol) for name, tol in TOLERANCES.items()},
     default_max_iter=200,
     role="reference",

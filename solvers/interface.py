@@ -1,18 +1,16 @@
 """The one interface between discrete contact problems and every solver.
 
-Data flow (DESIGN.md): a scene builds a :class:`ContactQP`; any registered
-solver turns it into a :class:`SolveResult`; :func:`solve` adds the four
-verified KKT residuals (:func:`kkt_residuals`) so that no solver is trusted on
-its own word.
+Data flow (DESIGN.md): a scene builds a :class:`problems.qp.ContactQP`; any
+registered solver turns it into a :class:`SolveResult`; :func:`solve` adds the
+four verified KKT residuals (:func:`problems.qp.kkt_residuals`) so that no
+solver is trusted on its own word.
 
-Conventions (thesis Ch. 7-8, DESIGN.md)::
-
-    minimise 1/2 u^T A u - f^T u   subject to   B u <= g
-    KKT:  A u + B^T p = f,  B u <= g,  p >= 0,  p^T (g - B u) = 0
-
-A solver module under ``solvers/`` defines ``SOLVER = SolverSpec(...)`` whose
-``solve(qp, tol, max_iter, time_limit, u0, p0, **options)`` returns a
-:class:`SolveResult` with ``claimed_status`` set; :func:`solve` verifies it.
+A solver module under ``solvers/`` defines ``SOLVER = SolverSpec(...)``. Its
+options are declared once, as the spec's ``parameters``; its
+``solve(qp, tol, max_iter, time_limit, u0, p0, opts)`` receives them resolved
+(defaults filled in, validated) as one :class:`problems.spec.Options` mapping
+and returns a :class:`SolveResult` with ``claimed_status`` set; :func:`solve`
+verifies it.
 """
 from __future__ import annotations
 
@@ -21,211 +19,16 @@ from dataclasses import dataclass, field
 from typing import Any, Callable
 
 import numpy as np
-import scipy.sparse as sp
 
-from problems.spec import Parameter, ParameterError, discover, lookup, resolve_parameters
+from problems.qp import ContactQP, KKTResiduals, kkt_residuals
+from problems.spec import (Options, Parameter, ParameterError, discover, lookup,
+                           resolve_parameters)
 
 #: Tolerance presets; each solver maps them to its own options (``SolverSpec.presets``).
 TOLERANCES = {"low": 1e-3, "mid": 1e-6, "high": 1e-9}
 
 #: Status values of a :class:`SolveResult`.
 STATUSES = ("converged", "inaccurate", "max_iter", "time_limit", "failed")
-
-
-class QPValidationError(ValueError):
-    """A ContactQP failed its consistency checks (the message says which)."""
-
-
-@dataclass
-class ContactQP:
-    """The algebraic contact problem ``min 1/2 u'Au - f'u  s.t.  Bu <= g``.
-
-    Attributes
-    ----------
-    A : (n, n) sparse, symmetric positive definite
-        Stiffness of both bodies on the free DOFs (block diagonal for two bodies).
-    f : (n,) array
-        Load vector (body force, tractions, minus the Dirichlet lift).
-    B : (m, n) sparse
-        One row per constrained node (Alg. 7.1, (7.14)).
-    g : (m,) array
-        Gaps along the contact direction, same units as ``u``.
-    C : (m, m) sparse, optional
-        Stabilisation block (Sect. 7.5): the constraint reads ``Bu - Cp <= g``.
-        ``None`` (the default everywhere so far) means zero.
-    free_dofs : (n,) int array, optional
-        Position of each unknown in the full nodal vector ``u_full`` (node-major,
-        ``node * dim + component``).
-    u_fixed : (N_full,) array, optional
-        Full nodal vector with the prescribed (Dirichlet) values, zero elsewhere;
-        ``u_full = u_fixed; u_full[free_dofs] = u``.
-    dim : int
-        Spatial dimension (2 or 3).
-    contact_nodes : (m,) int array, optional
-        Global node index of the constrained node behind each row of ``B``.
-    contact_mass : (m,) array, optional
-        Lumped mass of the constrained surface at those nodes: the pressure is
-        ``p / contact_mass`` (Sect. 8.6).
-    contact_direction : (m, dim) array, optional
-        Unit direction ``n`` of each constraint (case b) or the closest-point
-        direction (case a).
-    geometry : dict
-        Anything the output needs (``points``, ``cells``, ``body_of_node``, ...).
-    multilevel : dict
-        Optional data for multilevel solvers: ``prolongations`` (list of sparse
-        matrices, coarse -> fine, on the free DOFs), ``rigid_body_modes`` (n, k),
-        ``body_of_dof`` (n,), ``hierarchy`` (coarser ContactQPs).
-    name : str
-        Scene and level, for reports.
-    units : str
-        Units of length and force, e.g. ``"dimensionless"`` or ``"m, N"``.
-    """
-
-    A: sp.spmatrix
-    f: np.ndarray
-    B: sp.spmatrix
-    g: np.ndarray
-    C: sp.spmatrix | None = None
-    free_dofs: np.ndarray | None = None
-    u_fixed: np.ndarray | None = None
-    dim: int = 2
-    contact_nodes: np.ndarray | None = None
-    contact_mass: np.ndarray | None = None
-    contact_direction: np.ndarray | None = None
-    geometry: dict = field(default_factory=dict)
-    multilevel: dict = field(default_factory=dict)
-    name: str = ""
-    units: str = "dimensionless"
-
-    def __post_init__(self):
-        self.A = sp.csr_matrix(self.A, dtype=float)
-        self.B = sp.csr_matrix(self.B, dtype=float)
-        self.f = np.asarray(self.f, dtype=float).ravel()
-        self.g = np.asarray(self.g, dtype=float).ravel()
-        if self.C is not None:
-            self.C = sp.csr_matrix(self.C, dtype=float)
-        self.validate()
-
-    @property
-    def n(self) -> int:
-        """Number of unknowns (free DOFs)."""
-        return self.A.shape[0]
-
-    @property
-    def m(self) -> int:
-        """Number of constraints (constrained nodes, N^C)."""
-        return self.B.shape[0]
-
-    def validate(self, symmetry_tol: float = 1e-10) -> None:
-        """Check shapes, finiteness, symmetry of A and non-empty rows of B.
-
-        Raises
-        ------
-        QPValidationError
-            Naming the offending field.
-        """
-        n, m = self.A.shape[0], self.B.shape[0]
-        if self.A.shape != (n, n) or n == 0:
-            raise QPValidationError(f"A must be square and non-empty, got shape {self.A.shape}")
-        if self.f.shape != (n,):
-            raise QPValidationError(f"f must have shape ({n},), got {self.f.shape}")
-        if self.B.shape[1] != n:
-            raise QPValidationError(f"B must have {n} columns (one per unknown), got {self.B.shape[1]}")
-        if self.g.shape != (m,):
-            raise QPValidationError(f"g must have shape ({m},), got {self.g.shape}")
-        for name in ("A", "B", "C"):
-            mat = getattr(self, name)
-            if mat is not None and not np.all(np.isfinite(mat.data)):
-                raise QPValidationError(f"{name} has non-finite entries")
-        for name in ("f", "g"):
-            if not np.all(np.isfinite(getattr(self, name))):
-                raise QPValidationError(f"{name} has non-finite entries")
-        asym = abs(self.A - self.A.T)
-        scale = abs(self.A).max() if self.A.nnz else 1.0
-        if asym.nnz and asym.max() > symmetry_tol * scale:
-            raise QPValidationError(f"A is not symmetric: max |A - A^T| = {asym.max():.3e} "
-                                    f"(scale {scale:.3e})")
-        if m:
-            row_nnz = np.diff(self.B.indptr)
-            rownorm = np.sqrt(np.asarray(self.B.multiply(self.B).sum(axis=1)).ravel())
-            empty = np.flatnonzero((row_nnz == 0) | (rownorm == 0))
-            if empty.size:
-                raise QPValidationError(f"B has {empty.size} empty rows (first: {empty[:5].tolist()})")
-        if self.C is not None and self.C.shape != (m, m):
-            raise QPValidationError(f"C must have shape ({m}, {m}), got {self.C.shape}")
-        for name, shape in (("contact_nodes", (m,)), ("contact_mass", (m,)),
-                            ("contact_direction", (m, self.dim))):
-            val = getattr(self, name)
-            if val is not None and np.shape(val) != shape:
-                raise QPValidationError(f"{name} must have shape {shape}, got {np.shape(val)}")
-        if self.contact_mass is not None and np.any(np.asarray(self.contact_mass) <= 0):
-            raise QPValidationError("contact_mass must be positive")
-        if self.free_dofs is not None and np.shape(self.free_dofs) != (n,):
-            raise QPValidationError(f"free_dofs must have shape ({n},), got {np.shape(self.free_dofs)}")
-
-    def full_displacement(self, u: np.ndarray) -> np.ndarray:
-        """Nodal displacement array ``(n_nodes, dim)`` including prescribed values."""
-        if self.free_dofs is None or self.u_fixed is None:
-            raise QPValidationError("this ContactQP has no free_dofs/u_fixed to expand u")
-        full = np.array(self.u_fixed, dtype=float, copy=True)
-        full[self.free_dofs] = u
-        return full.reshape(-1, self.dim)
-
-    def energy(self, u: np.ndarray) -> float:
-        """J(u) = 1/2 u'Au - f'u."""
-        return 0.5 * float(u @ (self.A @ u)) - float(self.f @ u)
-
-
-@dataclass
-class KKTResiduals:
-    """The four KKT residuals, scaled to be comparable across meshes and units.
-
-    ``stationarity = ||Au + B'p - f||_inf / max(||f||_inf, ||Au||_inf, ||B'p||_inf)``,
-    ``primal = max(Bu - Cp - g)_+ / max(||Bu||_inf, ||g||_inf)``,
-    ``dual = max(-p)_+ / ||p||_inf``,
-    ``complementarity = sum_i |p_i (g - Bu + Cp)_i| / (||p||_1 max(||Bu||_inf, ||g||_inf))``
-    (entrywise, so that violations of opposite sign cannot cancel).
-    Every denominator is floored at the tiny number ``1e-300``; ``raw`` holds the
-    unscaled values.
-    """
-
-    stationarity: float
-    primal: float
-    dual: float
-    complementarity: float
-    raw: dict = field(default_factory=dict)
-
-    @property
-    def max(self) -> float:
-        return max(self.stationarity, self.primal, self.dual, self.complementarity)
-
-    def as_dict(self, prefix: str = "kkt_") -> dict:
-        return {f"{prefix}stationarity": self.stationarity, f"{prefix}primal": self.primal,
-                f"{prefix}dual": self.dual, f"{prefix}complementarity": self.complementarity}
-
-
-def kkt_residuals(qp: ContactQP, u: np.ndarray, p: np.ndarray) -> KKTResiduals:
-    """Verified KKT residuals of ``(u, p)`` for ``qp`` (same formula for every solver)."""
-    tiny = 1e-300
-    u = np.asarray(u, dtype=float)
-    p = np.asarray(p, dtype=float)
-    Au = qp.A @ u
-    Btp = qp.B.T @ p
-    Bu = qp.B @ u
-    slack = qp.g - Bu + (qp.C @ p if qp.C is not None else 0.0)
-    inf = lambda v: float(np.max(np.abs(v))) if np.size(v) else 0.0
-    r_stat = inf(Au + Btp - qp.f)
-    r_primal = max(0.0, float(np.max(-slack))) if slack.size else 0.0  # 0.0 first: never -0.0
-    r_dual = max(0.0, float(np.max(-p))) if p.size else 0.0
-    r_comp = float(np.sum(np.abs(p * slack)))
-    disp_scale = max(inf(Bu), inf(qp.g), tiny)
-    return KKTResiduals(
-        stationarity=r_stat / max(inf(qp.f), inf(Au), inf(Btp), tiny),
-        primal=r_primal / disp_scale,
-        dual=r_dual / max(inf(p), tiny),
-        complementarity=r_comp / max(float(np.sum(np.abs(p))) * disp_scale, tiny),
-        raw={"stationarity": r_stat, "primal": r_primal, "dual": r_dual, "complementarity": r_comp},
-    )
 
 
 @dataclass
@@ -269,6 +72,7 @@ class SolveResult:
     tol: float = float("nan")
     status: str = ""
     kkt: KKTResiduals | None = None
+    options: dict = field(default_factory=dict)
 
     @property
     def total_time(self) -> float:
@@ -283,7 +87,8 @@ class SolveResult:
         if self.kkt is not None:
             out.update(self.kkt.as_dict())
             out["kkt_max"] = self.kkt.max
-        out.update({k: v for k, v in self.stats.items() if np.isscalar(v)})
+        # solver statistics never overwrite the common columns above
+        out.update({k: v for k, v in self.stats.items() if np.isscalar(v) and k not in out})
         return out
 
 
@@ -296,9 +101,11 @@ class SolverSpec:
     name : str
     summary : str
     solve : callable
-        ``solve(qp, tol, max_iter, time_limit, u0, p0, **options) -> SolveResult``.
-    parameters : tuple[Parameter, ...]
-        Solver options (``--set`` on the CLI).
+        ``solve(qp, tol, max_iter, time_limit, u0, p0, opts) -> SolveResult`` with
+        ``opts`` the resolved :class:`problems.spec.Options`.
+    parameters : tuple
+        Solver options, declared here once (``Parameter`` or
+        ``ComponentParameter``; ``--set`` on the CLI).
     presets : dict
         For the report: how the presets ``low/mid/high`` map to the solver's own
         options, e.g. ``{"low": "eps_abs=eps_rel=1e-3, polish", ...}``.
@@ -315,6 +122,10 @@ class SolverSpec:
     presets: dict = field(default_factory=dict)
     default_max_iter: int = 10_000
     role: str = "reference"
+
+    def options(self, **given: Any) -> Options:
+        """The resolved options: defaults overridden by ``given``, validated."""
+        return resolve_parameters(self.parameters, given, f"solver '{self.name}'")
 
 
 def solvers() -> dict[str, SolverSpec]:
@@ -371,11 +182,10 @@ def solve(qp: ContactQP, solver: str = "pdas", tol: float | str = "mid",
         if guess is not None and np.shape(guess) != (size,):
             raise ParameterError(f"parameter '{name}': shape {np.shape(guess)} is not allowed; "
                                  f"allowed: ({size},)")
-    opts = resolve_parameters(spec.parameters, options, f"solver '{spec.name}'")
+    opts = spec.options(**options)
     t0 = time.perf_counter()
     try:
-        result = spec.solve(qp, tol=tol, max_iter=max_iter, time_limit=time_limit,
-                            u0=u0, p0=p0, **opts)
+        result = spec.solve(qp, tol, max_iter, time_limit, u0, p0, opts)
     except (MemoryError, np.linalg.LinAlgError, RuntimeError, ValueError) as err:
         if isinstance(err, ParameterError):
             raise
@@ -384,6 +194,7 @@ def solve(qp: ContactQP, solver: str = "pdas", tol: float | str = "mid",
                              message=f"{type(err).__name__}: {err}", solve_time=elapsed)
     result.solver = spec.name
     result.tol = tol
+    result.options = opts.flat()
     return verify(qp, result, tol)
 
 

@@ -23,7 +23,9 @@ import numpy as np
 from problems.spec import Parameter
 from solvers._scaling import (ADAPTER_PARAMETERS, require_plain_constraints, scale_qp,
                               upper_triangle)
-from solvers.interface import TOLERANCES, ContactQP, SolveResult, SolverSpec
+from problems.qp import ContactQP
+from problems.spec import Options, resolve_parameters
+from solvers.interface import TOLERANCES, SolveResult, SolverSpec
 
 #: OSQP status strings -> SolveResult status (``solved inaccurate`` is resolved
 #: by :func:`_map_status`).
@@ -45,30 +47,38 @@ _POLISH = {1: "polish succeeded", 0: "polish not performed", -1: "polish failed"
            2: "polish not needed (no active constraint)"}
 
 
-def settings_for(tol: float, polish: bool = True, adaptive_rho: bool = True) -> dict:
+#: The adapter's options, declared once (defaults here).
+PARAMETERS = (
+    *ADAPTER_PARAMETERS,
+    Parameter("polish", True, "OSQP solution polishing (the source of its accuracy)"),
+    Parameter("adaptive_rho", True, "OSQP adaptive ADMM step size"),
+    Parameter("rho", 0.1, "initial ADMM step size", low=0.0, low_open=True),
+)
+
+
+def settings_for(tol: float, opts: Options) -> dict:
     """OSQP settings for the target ``tol`` (the preset table of the report).
 
     Parameters
     ----------
     tol : float
         Target for the verified scaled KKT residuals.
-    polish, adaptive_rho : bool
+    opts : Options
+        Resolved options (``polish``, ``adaptive_rho``).
 
     Returns
     -------
     dict
         Keyword arguments for ``osqp.OSQP.setup``.
     """
-    return {"eps_abs": tol, "eps_rel": tol, "polishing": bool(polish),
+    return {"eps_abs": tol, "eps_rel": tol, "polishing": bool(opts.polish),
             "polish_refine_iter": 3 if tol >= 1e-6 else 10,
-            "adaptive_rho": bool(adaptive_rho), "check_dualgap": True,
+            "adaptive_rho": bool(opts.adaptive_rho), "check_dualgap": True,
             "scaled_termination": False, "verbose": False}
 
 
-def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None = None,
-          u0: np.ndarray | None = None, p0: np.ndarray | None = None, *,
-          tol_factor: float = 1.0, scale: bool = True, polish: bool = True, adaptive_rho: bool = True,
-          rho: float = 0.1) -> SolveResult:
+def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
+          u0: np.ndarray | None, p0: np.ndarray | None, opts: Options) -> SolveResult:
     """Solve ``qp`` with OSQP.
 
     Parameters
@@ -77,18 +87,10 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None = N
         ``qp.C`` must be ``None`` (OSQP has no stabilisation block).
     tol, max_iter, time_limit, u0, p0
         As in :func:`solvers.interface.solve`; ``(u0, p0)`` warm-start OSQP.
-    tol_factor : float
-        The library's tolerances are ``tol * tol_factor`` (1: the preset as is;
-        smaller values buy a verified pass where the library's own stopping
-        test is looser than the verified KKT residuals).
-    scale : bool
-        Hand OSQP the rescaled problem (:mod:`solvers._scaling`).
-    polish : bool
-        OSQP's solution polishing.
-    adaptive_rho : bool
-        OSQP's adaptive step size.
-    rho : float
-        Initial ADMM step size.
+    opts : Options
+        ``tol_factor`` (the library's tolerances are ``tol * tol_factor``),
+        ``scale`` (hand OSQP the rescaled problem of :mod:`solvers._scaling`),
+        ``polish``, ``adaptive_rho``, ``rho`` (see :data:`SOLVER`).
 
     Returns
     -------
@@ -96,16 +98,16 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None = N
     """
     import osqp  # the library (this module is solvers.osqp)
 
-    _reject_stabilisation(qp)
+    require_plain_constraints(qp)
     t0 = time.perf_counter()
-    data = scale_qp(qp, enabled=scale)
-    opts = settings_for(tol * tol_factor, polish, adaptive_rho)
-    opts.update(max_iter=int(max_iter), rho=float(rho))
+    data = scale_qp(qp, enabled=opts.scale)
+    settings = settings_for(tol * opts.tol_factor, opts)
+    settings.update(max_iter=int(max_iter), rho=float(opts.rho))
     if time_limit is not None:
-        opts["time_limit"] = float(time_limit)
+        settings["time_limit"] = float(time_limit)
     solver = osqp.OSQP()
     solver.setup(P=upper_triangle(data.A), q=-data.f, A=data.B,
-                 l=np.full(qp.m, -np.inf), u=data.g, **opts)
+                 l=np.full(qp.m, -np.inf), u=data.g, **settings)
     u_s0, p_s0 = data.scale_guess(u0, p0)
     if u_s0 is not None or p_s0 is not None:
         solver.warm_start(x=u_s0, y=p_s0)
@@ -121,14 +123,10 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None = N
     stats = {"status_polish": int(info.status_polish), "rho_updates": int(info.rho_updates),
              "rho_estimate": float(info.rho_estimate), "osqp_prim_res": float(info.prim_res),
              "osqp_dual_res": float(info.dual_res), "osqp_run_time": float(info.run_time),
-             "scaled": bool(scale)}
+             "scaled": bool(opts.scale)}
     return SolveResult(u=u, p=p, claimed_status=status,
                        message=f"osqp: {info.status}; {polish_note}", iterations=int(info.iter),
                        setup_time=setup_time, solve_time=solve_time, stats=stats)
-
-
-def _reject_stabilisation(qp: ContactQP) -> None:
-    require_plain_constraints(qp)
 
 
 def _unscaled(data, x, y, qp: ContactQP) -> tuple[np.ndarray, np.ndarray]:
@@ -156,7 +154,7 @@ def _map_status(status: str, iters: int, max_iter: int, time_limit: float | None
 
 
 def _describe(tol: float) -> str:
-    s = settings_for(tol)
+    s = settings_for(tol, resolve_parameters(PARAMETERS, {}, "osqp"))
     return (f"eps_abs=eps_rel={s['eps_abs']:g}, polishing (refine_iter="
             f"{s['polish_refine_iter']}), adaptive_rho, check_dualgap; scale=true, tol_factor=1")
 
@@ -165,12 +163,7 @@ SOLVER = SolverSpec(
     name="osqp",
     summary="OSQP 1.x (ADMM + solution polishing), general convex QP solver",
     solve=solve,
-    parameters=(
-        *ADAPTER_PARAMETERS,
-        Parameter("polish", True, "OSQP solution polishing (the source of its accuracy)"),
-        Parameter("adaptive_rho", True, "OSQP adaptive ADMM step size"),
-        Parameter("rho", 0.1, "initial ADMM step size", low=0.0, low_open=True),
-    ),
+    parameters=PARAMETERS,
     presets={name: _describe(tol) for name, tol in TOLERANCES.items()},
     default_max_iter=100_000,
     role="reference",

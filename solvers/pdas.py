@@ -35,8 +35,9 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from problems.spec import Parameter
-from solvers.interface import ContactQP, SolveResult, SolverSpec, kkt_residuals
+from problems.qp import ContactQP, kkt_residuals
+from problems.spec import Options, Parameter
+from solvers.interface import SolveResult, SolverSpec
 
 #: Columns of ``A^{-1} B^T`` computed at once when forming the Schur complement.
 _SCHUR_BLOCK = 64
@@ -46,10 +47,8 @@ _SCHUR_BLOCK = 64
 _SCHUR_MAX_M = 5000
 
 
-def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None = None,
-          u0: np.ndarray | None = None, p0: np.ndarray | None = None, *,
-          c: float = 1.0, method: str = "kkt", refine: int = 3,
-          flip_tol: float = 1e-13) -> SolveResult:
+def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
+          u0: np.ndarray | None, p0: np.ndarray | None, opts: Options) -> SolveResult:
     """Solve ``qp`` by the primal-dual active set method.
 
     Parameters
@@ -65,15 +64,12 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None = N
     u0, p0 : arrays, optional
         Initial guess; without one the first step solves the unconstrained
         problem (empty active set).
-    c : float
-        PDAS parameter, relative to the stiffness scale
-        ``mean(diag A) / mean(||B_i||^2)``.
-    method : {"kkt", "schur"}
-        Linear algebra of a step (see the module docstring).
-    refine : int
-        Iterative refinement steps after each direct solve.
-    flip_tol : float
-        Relative size below which a sign change does not change the active set.
+    opts : Options
+        ``c`` (PDAS parameter, relative to the stiffness scale
+        ``mean(diag A) / mean(||B_i||^2)``), ``method`` (linear algebra of a
+        step, see the module docstring), ``refine`` (iterative refinement
+        steps after each direct solve), ``flip_tol`` (relative size below which
+        a sign change does not change the active set); see :data:`SOLVER`.
 
     Returns
     -------
@@ -84,8 +80,8 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None = N
     """
     t_start = time.perf_counter()
     _check_positive_diagonal(qp.A)
-    c_eff = c * _stiffness_scale(qp)
-    system = _ActiveSetSystem(qp, method, refine)
+    c_eff = opts.c * _stiffness_scale(qp)
+    system = _ActiveSetSystem(qp, opts.method, opts.refine)
     setup_time = time.perf_counter() - t_start
 
     t_solve = time.perf_counter()
@@ -111,7 +107,7 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None = N
         res = kkt_residuals(qp, u, p)
         if res.max < best[0]:
             best = (res.max, u, p, n_active)
-        proposed = _pdas_update(qp, active, u, p, flip_tol)
+        proposed = _pdas_update(qp, active, u, p, opts.flip_tol)
         new = proposed if limit is None else _damped_update(qp, active, proposed, u, p, limit)
         _record(history, active, new, res.max, time.perf_counter() - t_solve)
         if np.array_equal(new, active):
@@ -134,7 +130,7 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None = N
             break
 
     stats = {"n_active": n_active, "factor_time": system.factor_time,
-             "n_factorisations": system.n_factorisations, "method": method, "c_eff": c_eff,
+             "n_factorisations": system.n_factorisations, "method": opts.method, "c_eff": c_eff,
              "damped": limit is not None, "damping_limit": -1 if limit is None else limit}
     return SolveResult(u=u, p=p, claimed_status=status, message=message,
                        iterations=iterations, setup_time=setup_time,

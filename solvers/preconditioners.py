@@ -10,8 +10,9 @@ Machinery only (no ``SOLVER``): :mod:`solvers.augmented_projection` builds on it
 * ``S-hat`` (Sect. 8.5, Remarks 8.11, 8.12, 8.15): the inexact Schur complement
   ``S_in = B A-hat^{-1} B^T + C`` (matrix-free, one V-cycle per product, or
   assembled), the Jacobi-type ``B diag(A)^{-1} B^T + C`` and a multilevel
-  ``S-hat`` for the order -1 operator ``S = B A^{-1} B^T`` on the 2D contact
-  surface (1D surface mesh), whose product costs O(N^C).
+  ``S-hat`` for the order -1 operator ``S = B A^{-1} B^T`` on the nested
+  constrained-surface meshes the scene supplies (a line in 2D, a triangulated
+  face in 3D), whose product costs O(N^C).
 * :func:`lanczos_extremes`: Ritz estimates of extreme eigenvalues of a
   symmetric pencil (Remark 8.14, kappa(S-hat) of Table 9.1).
 """
@@ -24,6 +25,9 @@ from typing import Callable
 import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from problems.qp import ContactQP, Multilevel, SurfaceHierarchy
 
 #: Safety factors applied to Ritz values (Ritz values lie inside the spectrum).
 LOW_SAFETY = 0.9
@@ -87,11 +91,23 @@ def lanczos_extremes(apply_K: Apply, n: int, steps: int = 30, apply_Minv: Apply 
 # ---------------------------------------------------------------------------
 # A-hat: one symmetric V-cycle (8.18)
 # ---------------------------------------------------------------------------
-_SMOOTHERS = {
-    "symmetric_gs": ("gauss_seidel", {"sweep": "symmetric", "iterations": 1}),
-    "block_gs": ("block_gauss_seidel", {"sweep": "symmetric", "iterations": 1}),
-    "jacobi": ("jacobi", {"omega": 0.6, "iterations": 2}),
+#: Smoothers of the V-cycle: pyamg name and settings per sweep.
+SMOOTHERS = {
+    "symmetric_gs": ("gauss_seidel", {"sweep": "symmetric"}),
+    "block_gs": ("block_gauss_seidel", {"sweep": "symmetric"}),
+    "jacobi": ("jacobi", {"omega": 0.6}),
 }
+
+
+def _smoother(name: str, sweeps: int, blocked: bool):
+    """pyamg smoother spec ``(name, settings)`` with ``sweeps`` iterations.
+
+    Block Gauss-Seidel needs a BSR operator; otherwise pointwise symmetric GS.
+    """
+    if name == "block_gs" and not blocked:
+        name = "symmetric_gs"
+    kind, settings = SMOOTHERS[name]
+    return kind, {**settings, "iterations": int(sweeps) * (2 if kind == "jacobi" else 1)}
 
 
 def _as_blocked(A: sp.spmatrix, dim: int, free_dofs: np.ndarray | None):
@@ -105,9 +121,8 @@ def _as_blocked(A: sp.spmatrix, dim: int, free_dofs: np.ndarray | None):
     return sp.csr_matrix(A)
 
 
-def sa_hierarchy(A: sp.spmatrix, near_null: np.ndarray | None, dim: int = 2,
-                 free_dofs: np.ndarray | None = None, smoother: str = "symmetric_gs",
-                 max_coarse: int = 500):
+def sa_hierarchy(A: sp.spmatrix, near_null: np.ndarray | None, dim: int,
+                 free_dofs: np.ndarray | None, smoother: str, sweeps: int, max_coarse: int):
     """pyamg smoothed aggregation with ``near_null`` (rigid-body modes per body).
 
     Node-blocked (BSR) when the free DOFs come in whole nodes; symmetric
@@ -115,22 +130,21 @@ def sa_hierarchy(A: sp.spmatrix, near_null: np.ndarray | None, dim: int = 2,
     """
     import pyamg
     Ab = _as_blocked(A, dim, free_dofs)
-    sm = _SMOOTHERS[smoother]
-    if sm[0] == "block_gauss_seidel" and not sp.isspmatrix_bsr(Ab):
-        sm = _SMOOTHERS["symmetric_gs"]
+    sm = _smoother(smoother, sweeps, sp.isspmatrix_bsr(Ab))
     B = None if near_null is None else np.asarray(near_null, dtype=float)
     return pyamg.smoothed_aggregation_solver(
         Ab, B=B, max_coarse=max_coarse, presmoother=sm, postsmoother=sm,
         improve_candidates=None, coarse_solver="splu")
 
 
-def geometric_hierarchy(A: sp.spmatrix, prolongations: list, smoother: str = "symmetric_gs"):
+def geometric_hierarchy(A: sp.spmatrix, prolongations: list, smoother: str, sweeps: int):
     """Geometric multigrid on the refinement hierarchy, Galerkin coarse operators.
 
     Parameters
     ----------
     prolongations : list of sparse
-        ``P_k`` maps level ``k`` to ``k+1`` on the free DOFs; ``P[-1]`` ends at ``A``.
+        ``P_k`` maps level ``k`` to ``k+1`` on the free DOFs; ``P[-1]`` ends at
+        ``A``. Without prolongations the "V-cycle" is a direct solve.
     """
     from pyamg.multilevel import MultilevelSolver
     from pyamg.relaxation.smoothing import change_smoothers
@@ -145,9 +159,7 @@ def geometric_hierarchy(A: sp.spmatrix, prolongations: list, smoother: str = "sy
     coarse.A = A_k
     levels.append(coarse)
     ml = MultilevelSolver(levels, coarse_solver="splu")
-    sm = _SMOOTHERS[smoother]
-    if sm[0] == "block_gauss_seidel":
-        sm = _SMOOTHERS["symmetric_gs"]
+    sm = _smoother(smoother, sweeps, blocked=False)
     change_smoothers(ml, presmoother=sm, postsmoother=sm)
     return ml
 
@@ -197,7 +209,7 @@ class ScaledVCycle:
         return self.gamma_high / self.gamma_low
 
     def raw(self, r: np.ndarray) -> np.ndarray:
-        """One unscaled V-cycle with zero start (V(1,1), symmetric smoothing)."""
+        """One unscaled V-cycle with zero start (symmetric smoothing)."""
         t0 = time.perf_counter()
         x = _vcycle(self.ml, 0, np.asarray(r, dtype=float))
         self.time += time.perf_counter() - t0
@@ -212,20 +224,27 @@ class ScaledVCycle:
         return float(self.ml.operator_complexity())
 
 
-def scaled_vcycle(A: sp.spmatrix, kind: str = "sa", multilevel: dict | None = None, dim: int = 2,
-                  free_dofs: np.ndarray | None = None, smoother: str = "symmetric_gs",
-                  max_coarse: int = 500, lanczos_steps: int = 20, seed: int = 0) -> ScaledVCycle:
+def scaled_vcycle(A: sp.spmatrix, kind: str, multilevel: Multilevel | None, dim: int,
+                  free_dofs: np.ndarray | None, *, smoother: str, sweeps: int,
+                  lanczos_steps: int, max_coarse: int = 0, seed: int = 0) -> ScaledVCycle:
     """Build ``A-hat`` and scale it by Lanczos so that (8.18) holds.
 
     Parameters
     ----------
-    kind : {"sa", "gmg"}
-        pyamg smoothed aggregation (rigid-body modes as near-null space) or
-        geometric multigrid on ``multilevel['prolongations']``.
-    multilevel : dict
+    kind : {"gmg", "sa"}
+        Geometric multigrid on ``multilevel.prolongations`` or pyamg smoothed
+        aggregation (rigid-body modes as near-null space).
+    multilevel : Multilevel
         ``qp.multilevel``.
+    smoother, sweeps : str, int
+        V(sweeps, sweeps) with the named symmetric smoother.
     lanczos_steps : int
         Steps of preconditioned Lanczos for ``lambda(A-hat^{-1} A)``.
+    max_coarse : int
+        SA only: largest coarsest level.
+
+    The defaults of these options are declared once, in
+    :data:`solvers.augmented_projection.SOLVER` (``ahat``).
 
     Returns
     -------
@@ -233,14 +252,15 @@ def scaled_vcycle(A: sp.spmatrix, kind: str = "sa", multilevel: dict | None = No
         With ``gamma_low = LOW_SAFETY * ritz_min`` and
         ``gamma_high = HIGH_SAFETY * ritz_max``.
     """
-    multilevel = multilevel or {}
+    multilevel = multilevel or Multilevel()
     t0 = time.perf_counter()
     if kind == "sa":
-        ml = sa_hierarchy(A, multilevel.get("rigid_body_modes"), dim, free_dofs, smoother, max_coarse)
+        ml = sa_hierarchy(A, multilevel.rigid_body_modes, dim, free_dofs, smoother, sweeps,
+                          max_coarse)
     elif kind == "gmg":
-        ml = geometric_hierarchy(A, list(multilevel.get("prolongations") or []), smoother)
+        ml = geometric_hierarchy(A, list(multilevel.prolongations), smoother, sweeps)
     else:
-        raise ValueError(f"unknown A-hat kind {kind!r}; allowed: sa, gmg")
+        raise ValueError(f"unknown A-hat kind {kind!r}; allowed: gmg, sa")
     setup = time.perf_counter() - t0
     vc = ScaledVCycle(kind, ml, 1.0, 1.0, (np.nan, np.nan), setup, 0.0)
     t0 = time.perf_counter()
@@ -262,6 +282,9 @@ class SchurPreconditioner:
     ----------
     name : str
     apply_unscaled : callable
+    m : int
+    diagonal_unscaled : (m,) array or None
+        Diagonal of ``apply_unscaled`` when it is cheap (sparse kinds).
     scale : float
         ``S-hat = scale * apply_unscaled``; chosen so that ``S_in <= S-hat``.
     lam_min, lam_max : float
@@ -273,6 +296,7 @@ class SchurPreconditioner:
     name: str
     apply_unscaled: Apply
     m: int
+    diagonal_unscaled: np.ndarray | None = None
     scale: float = 1.0
     lam_min: float = np.nan
     lam_max: float = np.nan
@@ -291,119 +315,77 @@ class SchurPreconditioner:
         """kappa(S-hat) of Table 9.1 (Euclidean, Lanczos)."""
         return self.lam_max / self.lam_min
 
+    def columns(self, idx: np.ndarray) -> np.ndarray:
+        """``S-hat[:, idx]`` (one product per column)."""
+        out = np.empty((self.m, len(idx)))
+        e = np.zeros(self.m)
+        for c, j in enumerate(idx):
+            e[j] = 1.0
+            out[:, c] = self.scale * self.apply_unscaled(e)
+            e[j] = 0.0
+        return out
+
     def dense(self) -> np.ndarray:
-        """Explicit ``S-hat`` (m products; for setup and tests, small m)."""
-        I = np.eye(self.m)
-        M = np.column_stack([self.scale * self.apply_unscaled(I[:, j]) for j in range(self.m)])
+        """Explicit, symmetrised ``S-hat`` (m products; for tests and small m)."""
+        M = self.columns(np.arange(self.m))
         return 0.5 * (M + M.T)
 
+    def solve_unscaled(self) -> Apply:
+        """``x = apply_unscaled^{-1} b`` by Jacobi-PCG (needs ``diagonal_unscaled``)."""
+        if self.diagonal_unscaled is None:
+            raise ValueError(f"S-hat '{self.name}' has no cheap diagonal for its inverse")
+        K = spla.LinearOperator((self.m, self.m), matvec=self.apply_unscaled)
+        M = spla.LinearOperator((self.m, self.m), matvec=lambda x: x / self.diagonal_unscaled)
 
-def surface_order(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Order the constrained nodes along a (2D) contact surface.
+        def solve(b: np.ndarray) -> np.ndarray:
+            x, info = spla.cg(K, b, M=M, rtol=1e-11, atol=0.0, maxiter=10 * self.m + 100)
+            if info != 0:
+                raise RuntimeError(f"CG on S-hat '{self.name}' did not converge (info {info})")
+            return x
 
-    Projects the coordinates on their principal axis; fine for a surface that
-    is a graph over a line (both 2D scenes here).
+        return solve
 
-    Returns
-    -------
-    order : int array
-        ``points[order]`` runs along the surface.
-    s : float array
-        Arc length of the ordered nodes, starting at 0.
+
+def multilevel_schur_apply(surface: SurfaceHierarchy) -> tuple[Apply, np.ndarray]:
+    """``S-hat q = sum_k I_k W_k M_k^{-1} I_k^T q`` (a multilevel H^{-1/2} norm) and its diagonal.
+
+    ``I_k`` interpolates surface level ``k`` to the finest, ``M_k`` is the
+    lumped surface mass and ``W_k`` the local mesh size (``surface.sizes``),
+    halved below the finest level (``h_k - h_{k+1}`` on uniform levels). With
+    ``lambda = M^{-1} q`` the pressure, ``q^T S-hat q`` is
+    ``sum_k ||Q_k lambda||^2_{W_k}`` with quasi-L2 projections ``Q_k``, i.e. the
+    multilevel norm ``sum_k h_k ||(Q_k - Q_{k-1}) lambda||^2 ~
+    ||lambda||^2_{H^{-1/2}}``, which matches ``S = B A^{-1} B^T`` (order -1,
+    Lemma 8.13). One product costs O(N^C) (Remark 8.12): restrictions down,
+    diagonal scalings, prolongations up. Dimension-generic: the surface is a
+    line (2D) or a triangulated face (3D), nested as the scene supplies it.
     """
-    pts = np.asarray(points, dtype=float)
-    c = pts - pts.mean(axis=0)
-    axis = np.linalg.svd(c, full_matrices=False)[2][0]
-    order = np.argsort(c @ axis, kind="stable")
-    seg = np.linalg.norm(np.diff(pts[order], axis=0), axis=1)
-    return order, np.concatenate([[0.0], np.cumsum(seg)])
-
-
-def _linear_interpolation(s_coarse: np.ndarray, s_fine: np.ndarray) -> sp.csr_matrix:
-    """Piecewise-linear prolongation on a 1D mesh (coarse nodes are fine nodes)."""
-    j = np.clip(np.searchsorted(s_coarse, s_fine, side="right") - 1, 0, len(s_coarse) - 2)
-    t = (s_fine - s_coarse[j]) / (s_coarse[j + 1] - s_coarse[j])
-    t = np.clip(t, 0.0, 1.0)
-    rows = np.repeat(np.arange(len(s_fine)), 2)
-    cols = np.column_stack([j, j + 1]).ravel()
-    vals = np.column_stack([1 - t, t]).ravel()
-    P = sp.csr_matrix((vals, (rows, cols)), shape=(len(s_fine), len(s_coarse)))
-    P.eliminate_zeros()
-    return P
-
-
-def _lumped_mass_1d(s: np.ndarray) -> np.ndarray:
-    h = np.diff(s)
-    return 0.5 * (np.concatenate([h, [0.0]]) + np.concatenate([[0.0], h]))
-
-
-@dataclass
-class SurfaceHierarchy:
-    """Nested 1D meshes of the contact surface (every other node dropped per level).
-
-    ``P[k]`` maps level ``k`` to ``k+1``; level ``len(s)-1`` is the constrained
-    surface itself (in surface order).
-    """
-
-    order: np.ndarray
-    s: list
-    P: list
-    mass: list
-
-    @property
-    def h(self) -> np.ndarray:
-        return np.array([float(np.max(np.diff(sk))) for sk in self.s])
-
-
-def surface_hierarchy(points: np.ndarray, n_coarse: int = 2) -> SurfaceHierarchy:
-    """Build the nested surface meshes down to ``n_coarse`` nodes."""
-    order, s = surface_order(points)
-    levels = [s]
-    while len(levels[0]) > n_coarse:
-        fine = levels[0]
-        keep = np.arange(0, len(fine), 2)
-        if keep[-1] != len(fine) - 1:
-            keep = np.append(keep, len(fine) - 1)
-        if len(keep) == len(fine):
-            break
-        levels.insert(0, fine[keep])
-    P = [_linear_interpolation(levels[k], levels[k + 1]) for k in range(len(levels) - 1)]
-    return SurfaceHierarchy(order, levels, P, [_lumped_mass_1d(sk) for sk in levels])
-
-
-def multilevel_schur_apply(hier: SurfaceHierarchy, m: int) -> Apply:
-    """``S-hat q = sum_k w_k I_k M_k^{-1} I_k^T q`` (a multilevel H^{-1/2} norm).
-
-    With ``lambda = M^{-1} q`` the pressure, ``q^T S-hat q`` is
-    ``sum_k w_k ||Q_k lambda||^2`` with quasi-L2 projections ``Q_k`` (lumped
-    masses) and ``w_k = h_k - h_{k+1}`` (``w_L = h_L``), i.e. the multilevel
-    norm ``sum_k h_k ||(Q_k - Q_{k-1}) lambda||^2 ~ ||lambda||^2_{H^{-1/2}}``,
-    which matches ``S = B A^{-1} B^T`` (order -1, Lemma 8.13). One product costs
-    O(N^C) (Remark 8.12): restrictions down, diagonal scalings, prolongations up.
-    """
-    h = hier.h
-    L = len(hier.s) - 1
-    w = np.append(h[:-1] - h[1:], h[-1])
-    w = np.maximum(w, 0.25 * h)  # non-uniform surfaces: keep every level positive
-    Pt = [P.T.tocsr() for P in hier.P]
-    order = hier.order
+    L = surface.n_levels - 1
+    h = [np.asarray(s, dtype=float) for s in surface.sizes]
+    scale = [(0.5 * h[k] if k < L else h[k]) / surface.masses[k] for k in range(L + 1)]
+    P = [sp.csr_matrix(p) for p in surface.prolongations]
+    Pt = [p.T.tocsr() for p in P]
 
     def apply(q: np.ndarray) -> np.ndarray:
         r = [None] * (L + 1)
-        r[L] = q[order]
+        r[L] = np.asarray(q, dtype=float)
         for k in range(L - 1, -1, -1):
             r[k] = Pt[k] @ r[k + 1]
-        y = w[0] * r[0] / hier.mass[0]
+        y = scale[0] * r[0]
         for k in range(1, L + 1):
-            y = hier.P[k - 1] @ y + w[k] * r[k] / hier.mass[k]
-        out = np.empty(m)
-        out[order] = y
-        return out
+            y = P[k - 1] @ y + scale[k] * r[k]
+        return y
 
-    return apply
+    # diag(I_k D_k I_k^T) = (I_k o I_k) diag(D_k), with I_k the composite interpolation
+    diag = scale[L].copy()
+    I = sp.identity(len(scale[L]), format="csr")
+    for k in range(L - 1, -1, -1):
+        I = (I @ P[k]).tocsr()
+        diag += I.multiply(I) @ scale[k]
+    return apply, diag
 
 
-def build_schur(kind: str, qp, Ainv: ScaledVCycle, lanczos_steps: int = 30,
+def build_schur(kind: str, qp: ContactQP, Ainv: ScaledVCycle, lanczos_steps: int,
                 seed: int = 0) -> SchurPreconditioner:
     """Build ``S-hat`` of the given kind, scaled so that ``S_in <= S-hat``.
 
@@ -416,18 +398,21 @@ def build_schur(kind: str, qp, Ainv: ScaledVCycle, lanczos_steps: int = 30,
     qp : ContactQP
     Ainv : ScaledVCycle
         The scaled ``A-hat^{-1}``.
+    lanczos_steps : int
+        Lanczos steps for the extreme eigenvalues (scaling, kappa).
 
     Returns
     -------
     SchurPreconditioner
         With Lanczos estimates of ``lambda(S-hat)`` and, for sparse kinds,
-        of ``lambda(S-hat^{-1} S_in)`` (setup uses a dense Cholesky of the
-        small ``S-hat``; the iteration never inverts it).
+        of ``lambda(S-hat^{-1} S_in)`` (setup inverts the sparse ``S-hat`` by
+        PCG; the iteration never does).
     """
     t0 = time.perf_counter()
     B, C, m = qp.B, qp.C, qp.m
     Bt = sp.csr_matrix(B.T)
     plusC = (lambda q: C @ q) if C is not None else (lambda q: 0.0)
+    diagC = C.diagonal() if C is not None else 0.0
 
     def S_in(q):
         return B @ Ainv(Bt @ q) + plusC(q)
@@ -439,26 +424,27 @@ def build_schur(kind: str, qp, Ainv: ScaledVCycle, lanczos_steps: int = 30,
         I = np.eye(m)
         Sd = np.column_stack([S_in(I[:, j]) for j in range(m)])
         Sd = 0.5 * (Sd + Sd.T)
-        sh = SchurPreconditioner("inexact_assembled", lambda q: Sd @ q, m)
+        sh = SchurPreconditioner("inexact_assembled", lambda q: Sd @ q, m, np.diag(Sd).copy())
     elif kind == "jacobi":
         Sj = sp.csr_matrix(B @ sp.diags(1.0 / qp.A.diagonal()) @ Bt)
         if C is not None:
             Sj = Sj + C
-        sh = SchurPreconditioner("jacobi", lambda q: Sj @ q, m)
+        sh = SchurPreconditioner("jacobi", lambda q: Sj @ q, m, Sj.diagonal().copy())
     elif kind == "multilevel":
-        if qp.dim != 2 or qp.contact_nodes is None or "points" not in qp.geometry:
-            raise ValueError("S-hat 'multilevel' needs a 2D ContactQP with contact_nodes and "
-                             "geometry['points'] (1D contact surface)")
-        hier = surface_hierarchy(np.asarray(qp.geometry["points"])[qp.contact_nodes])
-        base = multilevel_schur_apply(hier, m)
+        surface = qp.multilevel.surface
+        if surface is None:
+            raise ValueError("schur=multilevel needs the nested constrained-surface meshes "
+                             "(qp.multilevel.surface), which this problem does not supply; "
+                             "use schur=inexact")
+        base, diag = multilevel_schur_apply(surface)
         apply = (lambda q: base(q) + C @ q) if C is not None else base
-        sh = SchurPreconditioner("multilevel", apply, m)
-        info["surface_levels"] = len(hier.s)
+        sh = SchurPreconditioner("multilevel", apply, m, diag + diagC)
+        info["surface_levels"] = surface.n_levels
     else:
         raise ValueError(f"unknown S-hat kind {kind!r}")
     sh.info = info
     if kind in ("jacobi", "multilevel"):
-        _scale_against_Sin(sh, S_in, max(6, (2 * lanczos_steps) // 3), seed)  # lambda_max converges first
+        _scale_against_Sin(sh, S_in, max(6, (2 * lanczos_steps) // 3), seed)  # lambda_max first
     lo, hi = lanczos_extremes(sh, m, min(lanczos_steps * 2, m), seed=seed + 1)
     sh.lam_min, sh.lam_max = lo, HIGH_SAFETY * hi
     sh.n_applications = 0
@@ -469,31 +455,27 @@ def build_schur(kind: str, qp, Ainv: ScaledVCycle, lanczos_steps: int = 30,
 def _scale_against_Sin(sh: SchurPreconditioner, S_in: Apply, steps: int, seed: int) -> None:
     """Scale ``S-hat`` so that ``S_in <= S-hat`` (so the bound alpha_bar <= 2 holds).
 
-    Lanczos on ``L^{-1} S_in L^{-T}`` with the Cholesky factor of the (small,
-    dense) unscaled ``S-hat``; also records ``kappa(S-hat^{-1} S_in)``.
+    Lanczos for the pencil ``(S_in, S-hat)`` with ``S-hat^{-1}`` by PCG; also
+    records ``kappa(S-hat^{-1} S_in)``.
     """
-    Sd = sh.dense()
-    Lc = sla.cholesky(Sd, lower=True)
-
-    def op(x):
-        y = sla.solve_triangular(Lc, x, lower=True, trans="T")
-        return sla.solve_triangular(Lc, S_in(y), lower=True)
-
-    lo, hi = lanczos_extremes(op, sh.m, min(steps, sh.m), seed=seed + 2)
+    lo, hi = lanczos_extremes(S_in, sh.m, min(steps, sh.m), sh.solve_unscaled(), seed=seed + 2)
     sh.ritz_Sin = (lo, hi)
     sh.scale = HIGH_SAFETY * hi
     sh.kappa_Sin = hi / lo
 
 
-def kappa_schur_exact(qp, Ainv: ScaledVCycle, sh: SchurPreconditioner, steps: int = 30,
-                      cg_tol: float = 1e-10, seed: int = 3) -> tuple[float, float, float]:
+def kappa_schur_exact(qp: ContactQP, Ainv: ScaledVCycle, sh: SchurPreconditioner,
+                      steps: int = 30, cg_tol: float = 1e-10,
+                      seed: int = 3) -> tuple[float, float, float]:
     """``kappa(S-hat^{-1} S)`` with ``S = B A^{-1} B^T + C`` (costly: PCG per product).
+
+    ``S-hat^{-1}`` by PCG on the sparse ``S-hat``, or a dense Cholesky factor
+    for a kind without a cheap diagonal (small ``m``).
 
     Returns
     -------
     (kappa, lambda_min, lambda_max)
     """
-    import scipy.sparse.linalg as spla
     Bt = sp.csr_matrix(qp.B.T)
     M = spla.LinearOperator(qp.A.shape, matvec=Ainv)
 
@@ -501,11 +483,11 @@ def kappa_schur_exact(qp, Ainv: ScaledVCycle, sh: SchurPreconditioner, steps: in
         x, info = spla.cg(qp.A, Bt @ q, M=M, rtol=cg_tol, atol=0.0, maxiter=500)
         return qp.B @ x + (qp.C @ q if qp.C is not None else 0.0)
 
-    Lc = sla.cholesky(sh.dense(), lower=True)
-
-    def op(x):
-        y = sla.solve_triangular(Lc, x, lower=True, trans="T")
-        return sla.solve_triangular(Lc, S(y), lower=True)
-
-    lo, hi = lanczos_extremes(op, sh.m, min(steps, sh.m), seed=seed)
+    if sh.diagonal_unscaled is not None:
+        inv_unscaled = sh.solve_unscaled()
+        inv = lambda x: inv_unscaled(x) / sh.scale
+    else:
+        factor = sla.cho_factor(sh.dense())
+        inv = lambda x: sla.cho_solve(factor, x)
+    lo, hi = lanczos_extremes(S, sh.m, min(steps, sh.m), inv, seed=seed)
     return hi / lo, lo, hi

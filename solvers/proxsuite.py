@@ -31,7 +31,9 @@ import numpy as np
 
 from problems.spec import Parameter
 from solvers._scaling import ADAPTER_PARAMETERS, require_plain_constraints, scale_qp
-from solvers.interface import TOLERANCES, ContactQP, SolveResult, SolverSpec
+from problems.qp import ContactQP
+from problems.spec import Options, resolve_parameters
+from solvers.interface import TOLERANCES, SolveResult, SolverSpec
 
 #: ProxQP status name -> SolveResult status.
 _STATUS = {
@@ -44,30 +46,40 @@ _STATUS = {
 }
 
 
-def settings_for(tol: float, check_duality_gap: bool = True) -> dict:
+#: The adapter's options, declared once (defaults here).
+PARAMETERS = (
+    *ADAPTER_PARAMETERS,
+    Parameter("check_duality_gap", True, "also stop on the duality gap (ProxQP's default "
+              "is off, which stops with complementarity unresolved)"),
+    Parameter("backend", "sparse_cholesky", "ProxQP sparse backend (automatic may switch "
+              "to the ~27x slower matrix-free mode)",
+              choices=("sparse_cholesky", "automatic", "matrix_free")),
+)
+
+
+def settings_for(tol: float, opts: Options) -> dict:
     """ProxQP settings for the target ``tol`` (the preset table of the report).
 
     Parameters
     ----------
     tol : float
         Target for the verified scaled KKT residuals.
-    check_duality_gap : bool
-        Also stop on the duality gap (ProxQP's default is off).
+    opts : Options
+        Resolved options (``check_duality_gap``: also stop on the duality gap;
+        ProxQP's default is off).
 
     Returns
     -------
     dict
         Attribute values for ``qp.settings``.
     """
-    return {"eps_abs": tol, "eps_rel": tol, "check_duality_gap": bool(check_duality_gap),
+    return {"eps_abs": tol, "eps_rel": tol, "check_duality_gap": bool(opts.check_duality_gap),
             "eps_duality_gap_abs": tol, "eps_duality_gap_rel": tol,
             "verbose": False, "compute_timings": True}
 
 
-def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None = None,
-          u0: np.ndarray | None = None, p0: np.ndarray | None = None, *,
-          tol_factor: float = 1.0, scale: bool = True, check_duality_gap: bool = True,
-          backend: str = "sparse_cholesky") -> SolveResult:
+def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
+          u0: np.ndarray | None, p0: np.ndarray | None, opts: Options) -> SolveResult:
     """Solve ``qp`` with ProxQP (sparse API).
 
     Parameters
@@ -77,16 +89,8 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None = N
     tol, max_iter, time_limit, u0, p0
         As in :func:`solvers.interface.solve`; ``(u0, p0)`` warm-start ProxQP.
         ``time_limit`` is checked after the run (ProxQP cannot be interrupted).
-    tol_factor : float
-        The library's tolerances are ``tol * tol_factor`` (1: the preset as is;
-        smaller values buy a verified pass where the library's own stopping
-        test is looser than the verified KKT residuals).
-    scale : bool
-        Hand ProxQP the rescaled problem (:mod:`solvers._scaling`).
-    check_duality_gap : bool
-        Stop on the duality gap too (``False`` reproduces ProxQP's default).
-    backend : {"sparse_cholesky", "automatic", "matrix_free"}
-        ProxQP sparse backend.
+    opts : Options
+        ``tol_factor``, ``scale``, ``check_duality_gap``, ``backend`` (see :data:`SOLVER`).
 
     Returns
     -------
@@ -96,12 +100,12 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None = N
 
     require_plain_constraints(qp)
     t0 = time.perf_counter()
-    data = scale_qp(qp, enabled=scale)
+    data = scale_qp(qp, enabled=opts.scale)
     solver = proxqp.sparse.QP(qp.n, 0, qp.m)
-    for key, value in settings_for(tol * tol_factor, check_duality_gap).items():
+    for key, value in settings_for(tol * opts.tol_factor, opts).items():
         setattr(solver.settings, key, value)
     solver.settings.max_iter = int(max_iter)
-    solver.settings.sparse_backend = _backend(proxqp, backend)
+    solver.settings.sparse_backend = _backend(proxqp, opts.backend)
     u_s0, p_s0 = data.scale_guess(u0, p0)
     if u_s0 is not None or p_s0 is not None:
         solver.settings.initial_guess = proxqp.InitialGuess.WARM_START
@@ -131,7 +135,7 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None = N
              "proxqp_duality_gap": float(info.duality_gap), "mu_updates": int(info.mu_updates),
              "rho_updates": int(info.rho_updates), "iter_ext": int(info.iter_ext),
              "proxqp_setup_time": float(info.setup_time) * 1e-6,
-             "proxqp_solve_time": float(info.solve_time) * 1e-6, "scaled": bool(scale)}
+             "proxqp_solve_time": float(info.solve_time) * 1e-6, "scaled": bool(opts.scale)}
     return SolveResult(u=u, p=p, claimed_status=status, message=message,
                        iterations=int(info.iter), setup_time=setup_time,
                        solve_time=solve_time, stats=stats)
@@ -153,14 +157,7 @@ SOLVER = SolverSpec(
     name="proxsuite",
     summary="ProxSuite ProxQP (proximal augmented Lagrangian), sparse Cholesky backend",
     solve=solve,
-    parameters=(
-        *ADAPTER_PARAMETERS,
-        Parameter("check_duality_gap", True, "also stop on the duality gap (ProxQP's default "
-                  "is off, which stops with complementarity unresolved)"),
-        Parameter("backend", "sparse_cholesky", "ProxQP sparse backend (automatic may switch "
-                  "to the ~27x slower matrix-free mode)",
-                  choices=("sparse_cholesky", "automatic", "matrix_free")),
-    ),
+    parameters=PARAMETERS,
     presets={name: _describe(tol) for name, tol in TOLERANCES.items()},
     default_max_iter=10_000,
     role="reference",

@@ -2,7 +2,8 @@
 import numpy as np
 import pandas as pd
 
-from report.augmented_projection import claims, read_thesis, slope, table_9_1
+from report.augmented_projection import claims, read_thesis, thesis_table
+from report.rates import fitted_slope as slope
 from report.rates import fitted_rate, rate_table
 
 
@@ -47,9 +48,9 @@ def test_claims_pass_and_fail_on_synthetic_studies():
 
 
 def test_table_9_1_sits_beside_the_thesis():
-    thesis = read_thesis()
+    thesis = read_thesis("reference/table_9_1.csv")
     assert list(thesis["nodes"]) == [4226, 16642, 66050, 263170]
-    t = table_9_1(_study(lambda n: 1e-5 * n, [8] * 4, [34, 68, 136, 272]), thesis)
+    t = thesis_table(_study(lambda n: 1e-5 * n, [8] * 4, [34, 68, 136, 272]), thesis)
     assert list(t["thesis_n_outer"]) == [19, 19, 20, 21]
     assert list(t["NC"]) == [33, 66, 132, 264]
 

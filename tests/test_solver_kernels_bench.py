@@ -11,7 +11,7 @@ import pytest
 
 from problems.circle_square import PROBLEM
 from solvers import preconditioners as pc
-from solvers.augmented_projection import make_projection
+from solvers.augmented_projection import SOLVER, make_projection
 
 LEVEL = 2
 
@@ -20,7 +20,8 @@ LEVEL = 2
 def setup():
     qp = PROBLEM.make(LEVEL)
     vcycles = {kind: pc.scaled_vcycle(qp.A, kind, qp.multilevel, 2, qp.free_dofs,
-                                      lanczos_steps=10) for kind in ("gmg", "sa")}
+                                      **{**SOLVER.options(ahat=kind).ahat.options,
+                                         "lanczos_steps": 10}) for kind in ("gmg", "sa")}
     schur = {kind: pc.build_schur(kind, qp, vcycles["gmg"], lanczos_steps=20)
              for kind in ("multilevel", "inexact", "jacobi")}
     rng = np.random.default_rng(0)
@@ -61,7 +62,7 @@ def test_schur_product(benchmark, setup, kind):
 def test_projection(benchmark, setup, projection):
     qp, _, schur, _, q = setup
     S_hat = schur["multilevel"]
-    project, _ = make_projection(projection, S_hat, 0.1, 2000, 1.0)
+    project, _ = make_projection(SOLVER.options(projection=projection).projection, S_hat)
     p_k = np.maximum(q, 0.0)
     d = S_hat(p_k) + 0.5 * q
     p_new, n_inner = benchmark(project, d, p_k)

@@ -17,8 +17,8 @@ import scipy.sparse.linalg as spla
 
 from problems.spec import ParameterError
 from solvers import _scaling
-from solvers.interface import (TOLERANCES, ContactQP, QPValidationError, kkt_residuals,
-                               solve, solvers)
+from problems.qp import ContactQP, QPValidationError, kkt_residuals
+from solvers.interface import TOLERANCES, solve, solvers
 
 REFERENCE_SOLVERS = ("osqp", "proxsuite", "clarabel")
 ALL_SOLVERS = ("pdas",) + REFERENCE_SOLVERS
@@ -190,7 +190,8 @@ def test_pdas_reaches_round_off(references, name, method):
     assert 0 < res.stats["n_active"] < qp.m
     assert len(res.history["kkt_max"]) == res.iterations == len(res.history["n_active"])
     assert res.history["kkt_max"][-1] == pytest.approx(res.kkt.max, rel=1e-6, abs=1e-300)
-    assert res.stats["factor_time"] >= 0 and res.stats["n_factorisations"] >= 1
+    # one factorisation per active-set step (kkt) or one of A for all steps (schur)
+    assert res.stats["n_factorisations"] == (res.iterations if method == "kkt" else 1)
     if method == "schur":
         np.testing.assert_allclose(res.u, references[name][1].u, rtol=0,
                                    atol=1e-10 * np.abs(references[name][1].u).max())
@@ -247,8 +248,7 @@ def test_reference_solver_agrees_with_pdas_at_mid(references, name, solver):
     # energy-norm error <= sqrt(2 * relative duality gap): sqrt(tol) is the natural scale
     assert energy_error(qp, res.u, ref.u) <= np.sqrt(tol)
     assert np.max(np.abs(res.p - ref.p)) <= 1e-2 * np.max(np.abs(ref.p))
-    assert res.iterations >= 1 and res.setup_time >= 0 and res.solve_time > 0
-    assert solver in res.message
+    assert res.iterations >= 1 and solver in res.message
 
 
 @pytest.mark.parametrize("solver", REFERENCE_SOLVERS)

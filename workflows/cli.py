@@ -5,52 +5,81 @@ Examples
 ::
 
     contactbench list
+    contactbench solve --problem circle_square --level 2 --solver augmented_projection \\
+        --set schur=multilevel --set ahat.sweeps=2 --out run.json --vtu run.vtu
     contactbench solve --problem laplace_nonmatching --level 3 \\
         --set case=linear --set variant=nodal --out run.json
 
-Bad input (unknown names, out-of-range values) ends with exit code 2 and a
-message naming the parameter and what is allowed; nothing is written then.
+Every failure ends with exit code 2 and one line naming the parameter and what
+is allowed (``--debug`` shows the traceback); nothing is written then. The
+output paths are checked before any work starts; an existing file is kept
+unless ``--force`` is given. Result files are written atomically.
 """
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
+from pathlib import Path
 from typing import Any
 
-import numpy as np
+from problems.spec import ParameterError, lookup, problems
+from workflows.io import provenance, write_json, write_vtu
+from workflows.scene_args import parse_sets
 
-from problems.spec import ParameterError, lookup, problems, resolve_parameters
-from workflows.io import provenance, write_json
 
+def check_output(path: str | None, option: str, force: bool, suffix: str) -> None:
+    """Refuse an output path that cannot be written or would overwrite a result.
 
-def parse_sets(items: list[str]) -> dict[str, str]:
-    out = {}
-    for item in items or ():
-        key, sep, value = item.partition("=")
-        if not sep or not key.strip():
-            raise ParameterError(f"option '--set': {item!r} is not allowed; allowed: key=value")
-        if key.strip() in out:
-            raise ParameterError(f"option '--set': {key.strip()!r} is given twice")
-        out[key.strip()] = value.strip()
-    return out
+    Raises
+    ------
+    ParameterError
+        Naming ``option``: a directory, a missing or read-only parent directory,
+        a wrong suffix, or an existing file without ``--force``.
+    """
+    if path is None:
+        return
+    p = Path(path)
+    if p.suffix.lower() != suffix:
+        raise ParameterError(f"option '{option}': {path!r} is not allowed; allowed: a file "
+                             f"name ending in {suffix}")
+    if p.is_dir():
+        raise ParameterError(f"option '{option}': {path!r} is a directory; allowed: a file path")
+    parent = p.parent if str(p.parent) else Path(".")
+    if not parent.is_dir():
+        raise ParameterError(f"option '{option}': directory {str(parent)!r} does not exist")
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise ParameterError(f"option '{option}': directory {str(parent)!r} is not writable")
+    if p.exists() and not force:
+        raise ParameterError(f"option '{option}': {path!r} exists; allowed: a new file, or "
+                             "--force to replace it")
 
 
 def cmd_list(args: argparse.Namespace) -> int:
     from solvers.interface import TOLERANCES, solvers
     from workflows.studies import STUDIES
 
+    def show(parameters):
+        for p in parameters:
+            if hasattr(p, "kinds"):
+                print(f"      --set {p.name}=...  (default {p.default!r}; {p.allowed()})  {p.help}")
+                for kind, opts in p.kinds.items():
+                    for o in opts:
+                        print(f"          --set {p.name}.{o.name}=...  [{kind}] (default "
+                              f"{o.default!r}; {o.allowed()})  {o.help}")
+            else:
+                print(f"      --set {p.name}=...  (default {p.default!r}; {p.allowed()})  {p.help}")
+
     print("problems:")
     for name, spec in problems().items():
         print(f"  {name}  [{spec.kind}; levels {spec.levels[0]}..{spec.levels[1]}, "
               f"default {spec.default_level}]\n      {spec.summary}")
-        for p in spec.parameters:
-            print(f"      --set {p.name}=...  (default {p.default!r}; {p.allowed()})  {p.help}")
+        show(spec.parameters)
     print("solvers:")
     for name, spec in solvers().items():
         print(f"  {name}  [{spec.role}]  {spec.summary}")
-        for p in spec.parameters:
-            print(f"      --set {p.name}=...  (default {p.default!r}; {p.allowed()})  {p.help}")
+        show(spec.parameters)
     print("tolerance presets: " + ", ".join(f"{k}={v:g}" for k, v in TOLERANCES.items()))
     print("studies (snakemake targets):")
     for name, study in STUDIES.items():
@@ -58,86 +87,80 @@ def cmd_list(args: argparse.Namespace) -> int:
     return 0
 
 
-def contact_state(qp, result) -> dict[str, Any]:
-    """The contact state of a solved ContactQP, for the JSON output.
+def _solve_linear(spec, level: int, params: dict, args: argparse.Namespace) -> dict[str, Any]:
+    for option, value, default in (("--solver", args.solver, None), ("--tol", args.tol, None),
+                                   ("--max-iter", args.max_iter, None),
+                                   ("--time-limit", args.time_limit, None),
+                                   ("--vtu", args.vtu, None)):
+        if value != default:
+            raise ParameterError(f"option '{option}' does not apply to the linear problem "
+                                 f"{spec.name!r} (it is solved directly, without contact); "
+                                 "allowed: leave it out")
+    problem = spec.make(level, **params)
+    t0 = time.perf_counter()
+    sol = problem.solve()
+    return {"solver": "direct", "status": "converged" if sol.residual < 1e-10 else "inaccurate",
+            "time": time.perf_counter() - t0, "params": problem.params, **sol.record()}
 
-    ``force`` is sum_i p_i n_i: the total force the constrained body exerts on the
-    opposing one (the constrained body feels its negative).
-    """
-    p = np.asarray(result.p, dtype=float)
-    out: dict[str, Any] = {"p": p}
-    if qp.contact_nodes is not None and "points" in qp.geometry:
-        out["x"] = np.asarray(qp.geometry["points"])[qp.contact_nodes]
-    if qp.contact_mass is not None:
-        out["pressure"] = p / qp.contact_mass
-    if qp.contact_direction is not None:
-        out["force"] = (p[:, None] * qp.contact_direction).sum(axis=0)
-    slack = qp.g - qp.B @ result.u
-    out["active"] = (p > 0) & (slack <= 1e-8 * max(np.max(np.abs(qp.g)), 1e-300))
-    return out
+
+def _solve_contact(spec, level: int, params: dict, args: argparse.Namespace) -> dict[str, Any]:
+    from problems.fem.fields import contact_fields, contact_state
+    from solvers.interface import solve, solvers
+
+    solver = lookup(solvers(), args.solver or "pdas", "solver")
+    # --set names are split by owner: the solver's options (dotted ones by their head)
+    solver_names = {p.name for p in solver.parameters}
+    mine = {k: v for k, v in params.items() if k.partition(".")[0] in solver_names}
+    scene = {k: v for k, v in params.items() if k not in mine}
+    scene_opts = spec.options(**scene)
+    solver_opts = solver.options(**mine)
+    t0 = time.perf_counter()
+    qp = spec.build(level, scene_opts)
+    t_build = time.perf_counter() - t0
+    result = solve(qp, solver=solver.name, tol=args.tol or "mid", max_iter=args.max_iter,
+                   time_limit=args.time_limit, **solver_opts)
+    record = {"params": dict(scene_opts), "n": qp.n, "m": qp.m, "n_nodes": qp.n_nodes,
+              "units": qp.units, "build_time": t_build, **result.summary(),
+              "solver_options": result.options, "kkt": result.kkt.as_dict(prefix=""),
+              "contact": contact_state(qp, result.u, result.p)}
+    if args.vtu:
+        write_vtu(args.vtu, contact_fields(qp, result.u, result.p))
+    return record
 
 
 def cmd_solve(args: argparse.Namespace) -> int:
     spec = lookup(problems(), args.problem, "problem")
+    check_output(args.out, "--out", args.force, ".json")
+    check_output(args.vtu, "--vtu", args.force, ".vtu")
     params = parse_sets(args.set)
     level = spec.check_level(spec.default_level if args.level is None else args.level)
-    record: dict[str, Any] = {"problem": spec.name, "level": level, "kind": spec.kind}
-    if spec.kind == "linear":
-        if args.solver not in (None, "direct"):
-            raise ParameterError(f"option '--solver': {args.solver!r} is not allowed for the linear "
-                                 f"problem {spec.name!r}; allowed: direct")
-        problem = spec.make(level, **resolve_parameters(spec.parameters, params,
-                                                        f"problem '{spec.name}'"))
-        t0 = time.perf_counter()
-        sol = problem.solve()
-        record.update(solver="direct", status="converged" if sol.residual < 1e-10 else "inaccurate",
-                      time=time.perf_counter() - t0, params=problem.params, **sol.record())
-    else:
-        from solvers.interface import solve, solvers
-
-        solver = args.solver or "pdas"
-        lookup(solvers(), solver, "solver")
-        # parameters of the scene vs. of the solver: --set names are split by owner
-        solver_spec = solvers()[solver]
-        solver_names = {p.name for p in solver_spec.parameters}
-        scene_params = resolve_parameters(
-            spec.parameters, {k: v for k, v in params.items() if k not in solver_names},
-            f"problem '{spec.name}' (or solver '{solver}')")
-        solver_params = resolve_parameters(
-            solver_spec.parameters, {k: v for k, v in params.items() if k in solver_names},
-            f"solver '{solver}'")
-        t0 = time.perf_counter()
-        qp = spec.make(level, **scene_params)
-        t_build = time.perf_counter() - t0
-        result = solve(qp, solver=solver, tol=args.tol, max_iter=args.max_iter,
-                       time_limit=args.time_limit, **solver_params)
-        record.update(params=scene_params, solver_options=solver_params, n=qp.n, m=qp.m,
-                      build_time=t_build, **result.summary(),
-                      kkt=result.kkt.as_dict(prefix=""), contact=contact_state(qp, result))
-        if args.vtu:
-            from problems.fem.output import write_vtu  # noqa: PLC0415 (optional dependency path)
-            write_vtu(args.vtu, qp, result)
-    record["provenance"] = provenance()
+    run = _solve_linear if spec.kind == "linear" else _solve_contact
+    record = {"problem": spec.name, "level": level, "kind": spec.kind,
+              **run(spec, level, params, args), "provenance": provenance()}
     write_json(args.out, record)
-    print(f"{spec.name} level {level}: status {record['status']} -> {args.out}")
+    print(f"{spec.name} level {level}: {record['solver']} {record['status']} -> {args.out}")
     return 0
 
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="contactbench", description=__doc__.split("\n")[0])
+    parser.add_argument("--debug", action="store_true", help="show tracebacks")
     sub = parser.add_subparsers(dest="command", required=True)
     sub.add_parser("list", help="list problems, solvers and studies").set_defaults(func=cmd_list)
     s = sub.add_parser("solve", help="solve one problem at one level and write JSON")
     s.add_argument("--problem", required=True, help="problem name (see 'contactbench list')")
-    s.add_argument("--level", type=int, default=None, help="refinement level")
+    s.add_argument("--level", default=None, help="refinement level")
     s.add_argument("--solver", default=None, help="solver name (contact problems; default pdas)")
-    s.add_argument("--tol", default="mid", help="low | mid | high or a number in (0, 1)")
-    s.add_argument("--max-iter", type=int, default=None, dest="max_iter")
-    s.add_argument("--time-limit", type=float, default=None, dest="time_limit", help="seconds")
+    s.add_argument("--tol", default=None, help="low | mid | high or a number in (0, 1) "
+                   "(contact problems; default mid)")
+    s.add_argument("--max-iter", default=None, dest="max_iter", help="iteration cap")
+    s.add_argument("--time-limit", default=None, dest="time_limit", help="seconds")
     s.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
-                   help="problem or solver parameter (repeatable)")
+                   help="problem or solver parameter (repeatable; solver components as "
+                        "name=kind and name.option=value)")
     s.add_argument("--out", required=True, help="JSON file to write (atomically)")
     s.add_argument("--vtu", default=None, help="also write fields as VTU (contact problems)")
+    s.add_argument("--force", action="store_true", help="replace existing output files")
     s.set_defaults(func=cmd_solve)
     return parser
 
@@ -147,8 +170,15 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     try:
         return args.func(args)
-    except ParameterError as err:
-        print(f"contactbench: error: {err}", file=sys.stderr)
+    except KeyboardInterrupt:
+        print("contactbench: interrupted; nothing written", file=sys.stderr)
+        return 130
+    except Exception as err:  # noqa: BLE001 -- the one place a user could meet a traceback
+        if args.debug:
+            raise
+        kind = "" if isinstance(err, ParameterError) else f"{type(err).__name__}: "
+        text = " ".join(str(err).split())
+        print(f"contactbench: error: {kind}{text}", file=sys.stderr)
         return 2
 
 

@@ -105,3 +105,25 @@ def provenance(seed: int | None = None) -> dict:
             "python": platform.python_version(), "machine": platform.machine(),
             "processor": platform.processor(), "node": platform.node(), "cpu_count": os.cpu_count(),
             "threads": threads, "packages": versions, "seed": seed}
+
+
+def write_vtu(path: str | os.PathLike, fields: dict) -> None:
+    """Write a field dict of :func:`problems.fem.fields.contact_fields` as VTU (atomically).
+
+    Point data: ``displacement``, ``contact_pressure``, ``body``; cell data:
+    ``von_mises``. 2D points and vectors get a zero z-component (VTU is 3D).
+    """
+    import meshio
+
+    points, cells, disp = fields["points"], fields["cells"], fields["displacement"]
+    if points.shape[1] == 2:
+        points = np.hstack([points, np.zeros((len(points), 1))])
+        disp = np.hstack([disp, np.zeros((len(disp), 1))])
+    kind = "triangle" if cells.shape[1] == 3 else "tetra"
+    mesh = meshio.Mesh(points, [(kind, cells)],
+                       point_data={"displacement": disp,
+                                   "contact_pressure": fields["contact_pressure"],
+                                   "body": np.asarray(fields["body"], dtype=float)},
+                       cell_data={"von_mises": [fields["von_mises"]]})
+    with atomic_path(path, suffix=".vtu") as tmp:
+        meshio.write(tmp, mesh, file_format="vtu")

@@ -1,33 +1,47 @@
-# Non-matching Laplace study (thesis Ch. 6): errors per case and constrained side,
-# merged tables with fitted rates, convergence figures and the mesh picture.
-LAP = CFG["laplace_nonmatching"]
-LAPDIR = "results/laplace_nonmatching"
+# Study laplace_nonmatching (thesis Ch. 6): errors per case and constrained side, merged
+# tables with fitted rates, convergence figures and the mesh picture. Paths: workflows/studies.py.
+LAP = config.get("laplace_nonmatching", {})
 
 rule laplace_errors:
-    output: f"{LAPDIR}/runs/{{case}}_{{side}}.csv"
+    output: PATHS["laplace_runs"]
+    log: log_path("laplace_errors", "{case}_{side}")
     wildcard_constraints: case="sin10x|linear", side="coarse|fine"
-    params: levels=" ".join(map(str, LAP["levels"])), ratio=LAP["ratio"]
+    conda: ENV
+    params: py=PY, levels=" ".join(map(str, LAP.get("levels", []))), ratio=LAP.get("ratio")
     shell:
-        "{PY} -m workflows.scripts.laplace_errors --case {wildcards.case} "
-        "--constrained {wildcards.side} --levels {params.levels} --ratio {params.ratio} --out {output}"
+        "{params.py} -m workflows.scripts.laplace_errors --case {wildcards.case} "
+        "--constrained {wildcards.side} --levels {params.levels} --ratio {params.ratio} "
+        "--out {output} > {log} 2>&1"
 
 rule laplace_summary:
-    input: expand(f"{LAPDIR}/runs/{{case}}_{{side}}.csv", case=["sin10x", "linear"], side=["coarse", "fine"])
+    input: expand(PATHS["laplace_runs"], case=["sin10x", "linear"], side=["coarse", "fine"])
     output:
-        f"{LAPDIR}/errors.csv", f"{LAPDIR}/errors_by_side.csv", f"{LAPDIR}/rates.csv",
-        f"{LAPDIR}/provenance.json"
-    params: side=LAP["default_side"]
+        errors=PATHS["laplace_errors"], by_side=PATHS["laplace_errors_by_side"],
+        rates=PATHS["laplace_rates"]
+    log: log_path("laplace_summary", "all")
+    conda: ENV
+    params: py=PY, side=LAP.get("default_side")
     shell:
-        "{PY} -m workflows.scripts.laplace_summary {input} --default-side {params.side} --outdir {LAPDIR}"
+        "{params.py} -m report.laplace tables --inputs {input} --default-side {params.side} "
+        "--errors {output.errors} --by-side {output.by_side} --rates {output.rates} > {log} 2>&1"
 
 rule laplace_convergence_figure:
-    input: errors=f"{LAPDIR}/errors_by_side.csv", rates=f"{LAPDIR}/rates.csv"
-    output: f"{LAPDIR}/convergence_{{case}}.png"
+    input: errors=PATHS["laplace_errors_by_side"], rates=PATHS["laplace_rates"]
+    output:
+        report(PATHS["laplace_convergence"], caption="../report/captions/laplace_convergence.rst",
+               category="laplace_nonmatching", subcategory="convergence")
+    log: log_path("laplace_convergence_figure", "{case}")
+    conda: ENV
+    params: py=PY
     shell:
-        "{PY} -m report.laplace convergence --errors {input.errors} --rates {input.rates} "
-        "--case {wildcards.case} --out {output}"
+        "{params.py} -m report.laplace convergence --errors {input.errors} --rates {input.rates} "
+        "--case {wildcards.case} --out {output} > {log} 2>&1"
 
 rule laplace_mesh_figure:
-    output: f"{LAPDIR}/mesh.png"
-    params: ratio=LAP["ratio"]
-    shell: "{PY} -m report.laplace mesh --level 0 --ratio {params.ratio} --out {output}"
+    output:
+        report(PATHS["laplace_mesh"], caption="../report/captions/laplace_mesh.rst",
+               category="laplace_nonmatching", subcategory="mesh")
+    log: log_path("laplace_mesh_figure", "all")
+    conda: ENV
+    params: py=PY, ratio=LAP.get("ratio")
+    shell: "{params.py} -m report.laplace mesh --level 0 --ratio {params.ratio} --out {output} > {log} 2>&1"

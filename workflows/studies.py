@@ -1,19 +1,111 @@
-"""The studies the Snakefile regenerates: one entry each, with the files it produces.
+"""The studies the Snakefile regenerates, declared once.
 
-The Snakefile's default target is the union of every study's ``outputs``;
-``contactbench list`` prints this table. Paths are relative to the repository.
+Every file a rule writes has one path template here (:data:`PATHS`); the rules
+(``workflows/*.smk``) and the default target read them back, so an output is
+named in one place. A study runs on the scenes its config entry lists::
+
+    scenes:                                    # a scene = a registered problem + overrides
+      circle_square: {problem: circle_square}
+      circle_square_stiff: {problem: circle_square, params: {E2: 10.0}}
+    solver_comparison:
+      scenes: {circle_square: [1, 2, 3], circle_square_stiff: [1, 2]}
+
+so a new scene joins a study by a config line; results land under
+``results/<scene>/``. The Laplace study of Ch. 6 is not a contact scene and has
+its own entry.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
 
+RESULTS = "results"
+
+#: Path templates of every file the workflow writes ({scene}, {level}, {case} wildcards).
+PATHS = {
+    # contact_solution: exact solve per level, fields, Hertz
+    "contact_level": "results/{scene}/contact_L{level}.csv",
+    "hertz_level": "results/{scene}/hertz_L{level}.csv",
+    "fields_level": "results/{scene}/fields_L{level}.vtu",
+    "hertz": "results/{scene}/hertz.csv",
+    "fields_figure": "results/{scene}/fields.png",
+    "pressure_figure": "results/{scene}/pressure.png",
+    # solver_comparison
+    "solver_runs": "results/{scene}/solvers_L{level}.csv",
+    "solver_table": "results/{scene}/solvers.csv",
+    "solver_presets": "results/{scene}/solver_presets.csv",
+    "solver_times": "results/{scene}/solver_times.png",
+    "solver_work": "results/{scene}/solver_error_vs_time.png",
+    # augmented_projection
+    "ap_study": "results/{scene}/augmented_projection_study.csv",
+    "ap_table": "results/{scene}/augmented_projection_table.csv",
+    "ap_claims": "results/{scene}/augmented_projection_claims.csv",
+    "ap_time": "results/{scene}/augmented_projection_time.png",
+    "ap_kappa": "results/{scene}/augmented_projection_kappa.png",
+    # laplace_nonmatching (Ch. 6)
+    "laplace_runs": "results/laplace_nonmatching/runs/{case}_{side}.csv",
+    "laplace_errors": "results/laplace_nonmatching/errors.csv",
+    "laplace_errors_by_side": "results/laplace_nonmatching/errors_by_side.csv",
+    "laplace_rates": "results/laplace_nonmatching/rates.csv",
+    "laplace_convergence": "results/laplace_nonmatching/convergence_{case}.png",
+    "laplace_mesh": "results/laplace_nonmatching/mesh.png",
+    # logs and benchmarks of every rule
+    "log": "results/logs/{rule}/{name}.log",
+    "benchmark": "results/benchmarks/{rule}/{name}.tsv",
+}
+
 
 @dataclass(frozen=True)
 class Study:
+    """One study: what it shows, the thesis it regenerates, its final outputs.
+
+    ``outputs`` are keys of :data:`PATHS`; per-scene studies expand them over the
+    scenes their config entry lists.
+    """
+
     name: str
     summary: str
     thesis: str
     outputs: tuple[str, ...]
+    per_scene: bool = True
+
+    def targets(self, config: dict) -> list[str]:
+        """The files this study produces under ``config``."""
+        if self.name not in config:
+            return []
+        if not self.per_scene:
+            cases = config[self.name].get("cases", ["sin10x", "linear"])
+            return [PATHS[k].format(case=c) for k in self.outputs
+                    for c in (cases if "{case}" in PATHS[k] else [None])]
+        return [PATHS[k].format(scene=s) for s in scenes_of(config, self.name)
+                for k in self.outputs]
+
+
+def scenes_of(config: dict, study: str) -> dict[str, list[int]]:
+    """``{scene: levels}`` a per-scene study runs (empty if the study is not configured)."""
+    return dict(config.get(study, {}).get("scenes", {}))
+
+
+def scene_problem(config: dict, scene: str) -> tuple[str, dict]:
+    """The registered problem behind a scene and its parameter overrides."""
+    entry = config["scenes"][scene]
+    return entry["problem"], dict(entry.get("params") or {})
+
+
+def thesis_table(config: dict, scene: str, study: str) -> str | None:
+    """``reference/<table>.csv`` a scene regenerates in ``study``, if it runs with the
+    thesis's own parameters (no overrides) and its problem declares one."""
+    from problems.spec import problems
+
+    problem, params = scene_problem(config, scene)
+    table = problems()[problem].thesis_tables.get(study)
+    return f"reference/{table}.csv" if table and not params else None
+
+
+def set_args(config: dict, scene: str) -> str:
+    """Command-line arguments for a scene: ``--problem P --set k=v ...``."""
+    problem, params = scene_problem(config, scene)
+    sets = " ".join(f"--set {k}={v}" for k, v in params.items())
+    return f"--problem {problem} {sets}".strip()
 
 
 STUDIES = {
@@ -24,50 +116,93 @@ STUDIES = {
             summary="convergence of nodal constraints with/without the stabilisation (6.18) on a "
                     "non-matching grid: H1 and L2 errors, fitted rates, both constrained sides",
             thesis="Ch. 6, Figs. 6.3, 6.5, 6.6, Theorems 6.17/6.24",
-            outputs=(
-                "results/laplace_nonmatching/errors.csv",
-                "results/laplace_nonmatching/errors_by_side.csv",
-                "results/laplace_nonmatching/rates.csv",
-                "results/laplace_nonmatching/convergence_sin10x.png",
-                "results/laplace_nonmatching/convergence_linear.png",
-                "results/laplace_nonmatching/mesh.png",
-            ),
+            outputs=("laplace_errors", "laplace_errors_by_side", "laplace_rates",
+                     "laplace_convergence", "laplace_mesh"),
+            per_scene=False,
         ),
         Study(
-            name="circle_square",
-            summary="circle pressed onto a square (plane strain): exact contact solution per "
-                    "level against plane-strain Hertz, fields, contact pressure",
-            thesis="Sect. 9.1",
-            outputs=(
-                "results/circle_square/hertz.csv",
-                "results/circle_square/fields.png",
-                "results/circle_square/pressure.png",
-            ),
+            name="contact_solution",
+            summary="exact contact solution per level of each scene: Hertz check (2D line or 3D "
+                    "point contact), fields (VTU), von Mises stress and contact pressure figures",
+            thesis="Sects. 9.1, 9.2 (Figs. 9.5)",
+            outputs=("hertz", "fields_figure", "pressure_figure"),
         ),
         Study(
             name="solver_comparison",
-            summary="OSQP, ProxSuite, Clarabel and the exact PDAS on identical circle-square QPs at "
-                    "three tolerance presets: verified status, KKT residuals, time, energy error",
-            thesis="Sect. 9.1 (problems), Ch. 8 (solvers)",
-            outputs=(
-                "results/circle_square/solvers.csv",
-                "results/circle_square/solver_presets.csv",
-                "results/circle_square/solver_times.png",
-                "results/circle_square/solver_error_vs_time.png",
-            ),
+            summary="every registered solver at three tolerance presets on identical QPs: "
+                    "verified status, KKT residuals, time, memory, energy error",
+            thesis="Ch. 8 (solvers) on the scenes of Ch. 9",
+            outputs=("solver_table", "solver_presets", "solver_times", "solver_work"),
         ),
         Study(
             name="augmented_projection",
             summary="the thesis's solver (Alg. 8.4) with multigrid A-hat and a sparse multilevel "
-                    "S-hat: Table 9.1 regenerated beside the thesis's, the O(N) claim tested "
-                    "against the AMG-PCG linear solve as the floor",
-            thesis="Ch. 8, Table 9.1, Figs. 9.1, 9.3",
-            outputs=(
-                "results/circle_square/table_9_1.csv",
-                "results/circle_square/claims_ch8.csv",
-                "results/circle_square/fig_9_1_time.png",
-                "results/circle_square/fig_9_3_kappa.png",
-            ),
+                    "S-hat: the thesis's table regenerated beside its values, the O(N) claim "
+                    "tested against the multigrid-PCG linear solve as the floor",
+            thesis="Ch. 8, Tables 9.1/9.3, Figs. 9.1/9.6, 9.3/9.8",
+            outputs=("ap_table", "ap_claims", "ap_time", "ap_kappa"),
         ),
     )
 }
+
+
+class ConfigError(ValueError):
+    """The workflow configuration is inconsistent (the message says where)."""
+
+
+def check_config(config: dict) -> None:
+    """What the JSON schema cannot check: every scene a study names is defined, its
+    problem is registered, its parameters and levels are valid, variant names exist.
+
+    Raises
+    ------
+    ConfigError
+        Naming the config key and what is allowed.
+    """
+    from problems.spec import ParameterError, problems
+    from solvers.augmented_projection import VARIANTS
+
+    registry = problems()
+    for scene, entry in config.get("scenes", {}).items():
+        problem = entry["problem"]
+        if problem not in registry:
+            raise ConfigError(f"config 'scenes.{scene}.problem': {problem!r} is not a registered "
+                              f"problem; allowed: {', '.join(registry)}")
+        if registry[problem].kind != "contact":
+            raise ConfigError(f"config 'scenes.{scene}.problem': {problem!r} is not a contact "
+                              "problem")
+        try:
+            registry[problem].options(**(entry.get("params") or {}))
+        except ParameterError as err:
+            raise ConfigError(f"config 'scenes.{scene}.params': {err}") from None
+    for name, study in STUDIES.items():
+        if not study.per_scene:
+            continue
+        for scene, levels in scenes_of(config, name).items():
+            if scene not in config.get("scenes", {}):
+                raise ConfigError(f"config '{name}.scenes.{scene}': no such scene; defined: "
+                                  f"{', '.join(config.get('scenes', {}))}")
+            lo, hi = registry[config["scenes"][scene]["problem"]].levels
+            bad = [lv for lv in levels if not lo <= lv <= hi]
+            if bad:
+                raise ConfigError(f"config '{name}.scenes.{scene}': levels {bad} are not "
+                                  f"allowed; allowed: {lo}..{hi}")
+    for variant in config.get("augmented_projection", {}).get("configs", []):
+        if variant not in VARIANTS:
+            raise ConfigError(f"config 'augmented_projection.configs': {variant!r} is not "
+                              f"allowed; allowed: {', '.join(VARIANTS)}")
+
+
+def log_path(rule: str, name: str = "{scene}") -> str:
+    """The log file of a rule's job (``name`` may hold wildcards)."""
+    return PATHS["log"].format(rule=rule, name=name)
+
+
+def bench_path(rule: str, name: str = "{scene}") -> str:
+    """The Snakemake benchmark file of a rule's job."""
+    return PATHS["benchmark"].format(rule=rule, name=name)
+
+
+def all_targets(config: dict) -> list[str]:
+    """Every study's outputs under ``config`` (the Snakefile's default target)."""
+    return [t for study in STUDIES.values() for t in study.targets(config)]

@@ -15,8 +15,9 @@ inside the callback are timed and subtracted.
 
 Example::
 
-    python -m workflows.scripts.augmented_projection_study --levels 1 2 3 4 \\
-        --configs alg84 face_cg nested_face_cg --out results/augmented_projection_study.csv
+    python -m workflows.scripts.augmented_projection_study --problem circle_square \\
+        --levels 1 2 3 4 --configs alg84 face_cg nested_face_cg \\
+        --out results/circle_square/augmented_projection_study.csv
 """
 from __future__ import annotations
 
@@ -28,33 +29,12 @@ import numpy as np
 import pandas as pd
 import scipy.sparse.linalg as spla
 
-from problems.spec import problems
+from problems.qp import energy_error, kkt_residuals
 from solvers import augmented_projection as ap
 from solvers import preconditioners as pc
-from solvers.interface import kkt_residuals, solve, verify
+from solvers.interface import solve, verify
 from workflows.io import atomic_path, write_csv
-
-BEST = dict(ahat="gmg", schur="multilevel", projection="mprgp", update="multiplicative")
-
-#: Named configurations. ``alg84``: Alg. 8.4 as in the thesis with the A-hat/S-hat pair
-#: chosen by this study; ``face_cg``: the same plus Krylov acceleration on the active face
-#: (beyond the thesis); ``nested*``: plus the Alg. 8.5 initial guess from two coarser levels.
-CONFIGS = {
-    "alg84": BEST,
-    "face_cg": {**BEST, "accelerate": "face_cg"},
-    "additive": {**BEST, "update": "additive"},
-    "richardson": {**BEST, "projection": "richardson"},
-    "sa": {**BEST, "ahat": "sa"},
-    "thesis_Sin": {**BEST, "schur": "inexact"},
-    "jacobi": {**BEST, "schur": "jacobi"},
-    "nested": BEST,
-    "nested_face_cg": {**BEST, "accelerate": "face_cg"},
-}
-
-
-def energy_error(qp, u, u_ref) -> float:
-    e = u - u_ref
-    return float(np.sqrt(max(e @ (qp.A @ e), 0.0) / (u_ref @ (qp.A @ u_ref))))
+from workflows.scene_args import add_scene_arguments, check_levels, scene_from_args
 
 
 def run_config(qp, u_ref, opts, eps, target, max_iter, time_limit, u0=None, p0=None,
@@ -77,8 +57,9 @@ def run_config(qp, u_ref, opts, eps, target, max_iter, time_limit, u0=None, p0=N
         reached_target = u_ref is None or rec["err"][-1] <= target
         return reached_eps and reached_target
 
-    res = ap.solve(qp, tol=1e-12, max_iter=max_iter, time_limit=time_limit, u0=u0, p0=p0,
-                   eps=1e-14, record_kkt=False, kappa_exact=kappa_exact, callback=callback, **opts)
+    options = ap.SOLVER.options(**opts, stop="estimate", eps=1e-14, record_kkt=False,
+                                kappa_exact=kappa_exact)
+    res = ap.solve(qp, 1e-12, max_iter, time_limit, u0, p0, options, callback=callback)
     res = verify(qp, res, 1e-12)
     h, s = res.history, res.stats
     t_hist = np.asarray(h["time"]) - np.asarray(rec["t"])
@@ -89,7 +70,7 @@ def run_config(qp, u_ref, opts, eps, target, max_iter, time_limit, u0=None, p0=N
     hit_t = np.flatnonzero(err <= target)
     n_inner = np.asarray(h["n_inner"][:k + 1], dtype=float)
     return {
-        "N": s["N"], "NC": s["NC"], "n": s["n"], "n_outer": k + 1,
+        "N": s["N"], "NC": s["NC"], "n": qp.n, "n_outer": k + 1,
         "n_inner_mean": float(n_inner.mean()), "t_setup": s["t_setup"],
         "t_solve": float(t_hist[k]), "t_proj": float(np.sum(h["t_proj"][:k + 1])),
         "kappa_S": s["kappa_S"], "kappa_SinvSin": s["kappa_SinvSin"],
@@ -122,11 +103,12 @@ def amg_pcg_floor(qp, kind: str, target: float, max_iter: int = 500,
     norm = np.sqrt(u_exact @ (qp.A @ u_exact))
     t0, cpu0 = time.perf_counter(), time.process_time()
     if kind == "sa":  # pyamg defaults + rigid-body modes, node blocks
-        ml = pc.sa_hierarchy(qp.A, qp.multilevel.get("rigid_body_modes"), qp.dim, qp.free_dofs,
-                             smoother="block_gs", max_coarse=500)
+        ml = pc.sa_hierarchy(qp.A, qp.multilevel.rigid_body_modes, qp.dim, qp.free_dofs,
+                             smoother="block_gs", sweeps=1, max_coarse=500)
         M = ml.aspreconditioner(cycle="V")
     else:
-        vc = pc.scaled_vcycle(qp.A, "gmg", qp.multilevel, qp.dim, qp.free_dofs, lanczos_steps=5)
+        gmg = {**ap.SOLVER.options(ahat="gmg").ahat.options, "lanczos_steps": 5}
+        vc = pc.scaled_vcycle(qp.A, "gmg", qp.multilevel, qp.dim, qp.free_dofs, **gmg)
         M = spla.LinearOperator(qp.A.shape, matvec=vc.raw)
     t_setup = time.perf_counter() - t0
     rec = {"t": [], "err": [], "overhead": 0.0, "cpu": [], "cpu_overhead": 0.0}
@@ -182,48 +164,53 @@ def _reference(qp, level, problem, cache, rows, base):
 
 
 def main(argv=None) -> None:
-    ap_ = argparse.ArgumentParser(description=__doc__,
-                                  formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap_.add_argument("--problem", default="circle_square")
-    ap_.add_argument("--levels", type=int, nargs="+", required=True)
-    ap_.add_argument("--configs", nargs="+", default=["alg84", "face_cg"], choices=sorted(CONFIGS))
-    ap_.add_argument("--eps", type=float, default=1e-3, help="relative tolerance of (8.25)")
-    ap_.add_argument("--target", type=float, default=1e-6, help="energy-norm error target")
-    ap_.add_argument("--max-iter", type=int, default=1000)
-    ap_.add_argument("--time-limit", type=float, default=300.0)
-    ap_.add_argument("--kappa-exact", action="store_true", help="also kappa(S-hat^-1 S) (costly)")
-    ap_.add_argument("--no-floor", action="store_true", help="skip the AMG-PCG floor")
-    ap_.add_argument("--ref-cache", default=None,
-                     help="directory for the PDAS reference (u_ref) per level, reused if present")
-    ap_.add_argument("--out", required=True)
-    args = ap_.parse_args(argv)
-    spec = problems()[args.problem]
+    parser = argparse.ArgumentParser(description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    add_scene_arguments(parser)
+    parser.add_argument("--levels", type=int, nargs="+", required=True)
+    parser.add_argument("--configs", nargs="+", default=["alg84", "face_cg"],
+                        choices=list(ap.VARIANTS))
+    parser.add_argument("--eps", type=float, default=1e-3, help="relative tolerance of (8.25)")
+    parser.add_argument("--target", type=float, default=1e-6, help="energy-norm error target")
+    parser.add_argument("--max-iter", type=int, default=1000)
+    parser.add_argument("--time-limit", type=float, default=300.0)
+    parser.add_argument("--kappa-exact", action="store_true",
+                        help="also kappa(S-hat^-1 S) (costly)")
+    parser.add_argument("--no-floor", action="store_true", help="skip the multigrid-PCG floor")
+    parser.add_argument("--ref-cache", default=None,
+                        help="directory for the PDAS reference (u_ref) per level, reused if present")
+    parser.add_argument("--out", required=True)
+    args = parser.parse_args(argv)
+    spec, params = scene_from_args(parser, args)
+    levels = check_levels(parser, spec, args.levels)
     rows = []
-    for level in args.levels:
-        qp = spec.make(level)
-        base = {"level": level, "N": len(qp.geometry["points"]), "NC": qp.m, "n": qp.n}
-        u_ref = _reference(qp, level, args.problem, args.ref_cache, rows, base)
+    for level in levels:
+        qp = spec.build(level, params)
+        base = {"level": level, "dim": qp.dim, "N": qp.n_nodes, "NC": qp.m, "n": qp.n}
+        u_ref = _reference(qp, level, spec.name, args.ref_cache, rows, base)
         for name in args.configs:
-            opts = CONFIGS[name]
+            variant = ap.VARIANTS[name]
             u0 = p0 = None
             t_coarse = 0.0
-            if name.startswith("nested"):
-                qps = [spec.make(k) for k in range(max(0, level - 2), level)]  # not timed
+            if variant.nested:
+                qps = [spec.build(k, params) for k in range(max(0, level - 2), level)]  # untimed
                 t0 = time.perf_counter()
                 guess = (None, None)
                 for q_c, q_f in zip(qps, qps[1:] + [qp]):
-                    r_c = solve(q_c, solver="augmented_projection", tol=1e-12, eps=args.eps,
-                                u0=guess[0], p0=guess[1], record_kkt=False, **opts)
+                    r_c = solve(q_c, solver="augmented_projection", tol=1e-12, u0=guess[0],
+                                p0=guess[1], stop="estimate", eps=args.eps, record_kkt=False,
+                                **variant.options)
                     guess = ap.nested_initial_guess(q_c, r_c, q_f)
                 u0, p0 = guess
                 t_coarse = time.perf_counter() - t0
-            row = run_config(qp, u_ref, opts, args.eps, args.target, args.max_iter,
+            row = run_config(qp, u_ref, variant.options, args.eps, args.target, args.max_iter,
                              args.time_limit, u0, p0, args.kappa_exact)
             rows.append({**base, "config": name, **row, "t_coarse_levels": t_coarse,
-                         **{f"opt_{k}": v for k, v in opts.items()}})
+                         **{f"opt_{k}": v for k, v in variant.options.items()}})
         if not args.no_floor:
             for kind in ("gmg", "sa"):
-                rows.append({**base, "config": f"amg_pcg_{kind}", **amg_pcg_floor(qp, kind, args.target)})
+                rows.append({**base, "config": f"amg_pcg_{kind}",
+                             **amg_pcg_floor(qp, kind, args.target)})
         write_csv(args.out, pd.DataFrame(rows))  # after every level: partial results survive
 
 

@@ -1,0 +1,93 @@
+"""Fields and contact state of a solved contact problem (pure; files are written at the edges)."""
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from problems.fem.elasticity import von_mises
+from problems.qp import ContactQP
+
+
+def contact_fields(qp: ContactQP, u: np.ndarray, p: np.ndarray) -> dict[str, np.ndarray]:
+    """Nodal displacement, nodal contact pressure, body id and cell von Mises stress.
+
+    Returns
+    -------
+    dict
+        ``points (N, d)``, ``cells``, ``displacement (N, d)``, ``contact_pressure (N,)``
+        (``p / contact mass`` at the constrained nodes, zero elsewhere),
+        ``body (N,)`` and ``von_mises (n_cells,)``.
+    """
+    mesh = qp.mesh
+    disp = qp.full_displacement(u)
+    pressure = np.zeros(mesh.n_nodes)
+    if qp.contact is not None:
+        pressure[qp.contact.nodes] = np.asarray(p) / qp.contact.mass
+    vm = von_mises(mesh.points, mesh.cells, disp, mesh.E_cell, mesh.nu_cell)
+    return {"points": mesh.points, "cells": mesh.cells, "displacement": disp,
+            "contact_pressure": pressure, "body": mesh.body_of_node, "von_mises": vm}
+
+
+def contact_state(qp: ContactQP, u: np.ndarray, p: np.ndarray,
+                  active_tol: float = 1e-8) -> dict[str, Any]:
+    """Per-constraint state: position, multiplier, pressure, gap, activity; total force.
+
+    ``force`` is ``sum_i p_i n_i``: the total force the constrained body exerts on
+    the opposing one (the constrained body feels its negative). A constraint is
+    ``active`` when ``p > 0`` and its slack is below ``active_tol`` times the
+    gap scale.
+    """
+    p = np.asarray(p, dtype=float)
+    slack = qp.g - qp.B @ u + (qp.C @ p if qp.C is not None else 0.0)
+    scale = max(float(np.max(np.abs(qp.g))) if qp.m else 0.0, 1e-300)
+    out: dict[str, Any] = {"p": p, "gap": slack, "active": (p > 0) & (slack <= active_tol * scale)}
+    if qp.contact is not None:
+        out["x"] = qp.constrained_points()
+        out["pressure"] = p / qp.contact.mass
+        out["force"] = (p[:, None] * qp.contact.direction).sum(axis=0)
+    return out
+
+
+def in_plane(qp: ContactQP) -> np.ndarray:
+    """Positions of the constrained nodes in the contact plane: the coordinates
+    orthogonal to the mean contact direction, ``(m, d - 1)``."""
+    x = qp.constrained_points()
+    n = qp.contact.direction.mean(axis=0)
+    n = n / np.linalg.norm(n)
+    _, _, vt = np.linalg.svd(n[None, :])
+    return x @ vt[1:].T
+
+
+def hertz_comparison(qp: ContactQP, p: np.ndarray) -> dict[str, float]:
+    """The measured contact zone against Hertz for the measured total force.
+
+    Three estimators of the size ``a`` and the peak ``p0``: the moments of the
+    nodal forces (robust), a least-squares fit of ``p^2`` against ``r^2`` and
+    the single nodal maximum; deviations ``dev_* = measured / Hertz - 1``.
+    ``P`` is the total contact force (``sum p``: the constraints' rows carry a
+    unit direction), per unit thickness in 2D.
+    """
+    from reference import hertz
+
+    if qp.hertz is None:
+        raise ValueError(f"{qp.name or 'this problem'} has no Hertz reference (qp.hertz)")
+    kind, R, E_star = qp.hertz.kind, qp.hertz.radius, qp.hertz.E_star
+    p = np.asarray(p, dtype=float)
+    pressure = p / qp.contact.mass
+    x = in_plane(qp)
+    P = float(p.sum())
+    a_h = hertz.contact_size(kind, P, R, E_star)
+    p0_h = hertz.peak_pressure(kind, P, a_h)
+    xbar, a_m, p0_m = hertz.moment_estimate(kind, x, p)
+    r = np.linalg.norm(x - xbar, axis=1)
+    a_f, p0_f = hertz.fit_ellipse(r, pressure)
+    h = float(np.median(cKDTree(x).query(x, k=2)[0][:, 1]))   # nodal spacing
+    return {"force": P, **{f"center_s{i}": float(c) for i, c in enumerate(xbar)},
+            "a_hertz": a_h, "p0_hertz": p0_h, "a_moment": a_m, "p0_moment": p0_m,
+            "a_fit": a_f, "p0_fit": p0_f, "p0_nodal_max": float(pressure.max()),
+            "n_active": int((p > 0).sum()), "h": h, "a_over_h": a_m / h,
+            "dev_a_moment": a_m / a_h - 1, "dev_p0_moment": p0_m / p0_h - 1,
+            "dev_a_fit": a_f / a_h - 1, "dev_p0_fit": p0_f / p0_h - 1,
+            "dev_p0_nodal_max": float(pressure.max()) / p0_h - 1}

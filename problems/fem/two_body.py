@@ -1,0 +1,226 @@
+"""Two elastic bodies in contact: from meshes and supports to a :class:`ContactQP`.
+
+Dimension-generic (2D plane strain, 3D), so a scene supplies only its geometry:
+each body's nested meshes and material (:class:`Body`), its supports and loads,
+which nodes form the constrained surface and which facets the opposing one
+(:class:`TwoBodyScene`). :func:`assemble_two_body` then
+
+1. stacks both bodies in one node numbering (the second body's ids offset),
+2. assembles the P1 stiffness and the loads (Sect. 2.1, Sect. 5.1),
+3. splits off the prescribed DOFs (Dirichlet lift),
+4. builds the nodal contact constraints of Alg. 7.1 and the lumped contact mass,
+5. restricts everything to the free DOFs,
+6. collects the multilevel data: prolongations on the free DOFs of every
+   level, rigid-body modes per body, the constrained surface on every level.
+
+Pure functions: no files, no clocks.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+import scipy.sparse as sp
+
+from problems.fem.contact import contact_constraints, orient_facets
+from problems.fem.elasticity import (body_force_vector, boundary_facets, dirichlet_split,
+                                     lumped_surface_mass, rigid_body_modes, stiffness_matrix,
+                                     traction_vector)
+from problems.fem.mesh import Hierarchy, dof_prolongation
+from problems.fem.surface import facet_sizes, surface_levels
+from problems.qp import ContactQP, ContactSurface, HertzSetup, Mesh, Multilevel
+
+#: ``dirichlet(points, body_of_node) -> (fixed_dofs, values)`` on one level's stacked mesh.
+Supports = Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]
+#: ``selector(points) -> bool mask`` (nodes or facet centroids).
+Selector = Callable[[np.ndarray], np.ndarray]
+
+
+@dataclass
+class Body:
+    """One elastic body: its nested meshes (coarse to fine) and material.
+
+    Attributes
+    ----------
+    name : str
+    meshes : Hierarchy
+        ``points[k], cells[k]`` on level ``k``; ``prolongations[k]`` the nodal
+        P1 prolongation from level ``k`` to ``k + 1``.
+    E, nu : float
+        Young's modulus and Poisson's ratio.
+    body_force : (d,) array
+        Force per unit volume (area in 2D).
+    """
+
+    name: str
+    meshes: Hierarchy
+    E: float
+    nu: float
+    body_force: np.ndarray
+
+
+@dataclass
+class Traction:
+    """A constant traction on the boundary facets of one body selected by centroid."""
+
+    body: int
+    on: Selector
+    traction: np.ndarray
+
+
+@dataclass
+class TwoBodyScene:
+    """What a scene supplies; :func:`assemble_two_body` does the rest.
+
+    Attributes
+    ----------
+    bodies : (Body, Body)
+        In memory order (a solution must not depend on it).
+    constrained_body : int
+        Index of the body whose surface carries one inequality per node
+        (thesis: surface ``l``); the other body is the opposing one.
+    supports : Supports
+        Prescribed DOFs and values on a level's stacked mesh.
+    on_constrained : Selector
+        Boundary nodes of the constrained body that form the constrained surface.
+    on_opposing : Selector
+        Boundary facets (by centroid) of the opposing body that may come into contact.
+    direction : (d,) array
+        Contact direction ``n`` (case b), from the constrained towards the opposing body.
+    search : {"b", "a"}
+    surface_coarsening : callable, optional
+        ``coarsening(points of the constrained nodes on level 0)`` returns
+        coarser surface levels ``(prolongations, masses)`` below the coarsest
+        mesh (e.g. :func:`problems.fem.surface.tensor_coarsening`).
+    tractions : list of Traction
+    hertz : HertzSetup, optional
+    units : str
+    """
+
+    bodies: tuple
+    constrained_body: int
+    supports: Supports
+    on_constrained: Selector
+    on_opposing: Selector
+    direction: np.ndarray
+    search: str = "b"
+    surface_coarsening: Callable | None = None
+    tractions: list = field(default_factory=list)
+    hertz: HertzSetup | None = None
+    units: str = "dimensionless"
+
+
+def stack(meshes: list[tuple[np.ndarray, np.ndarray]]):
+    """One node numbering for several bodies: ``(points, cells, body_of_node, offsets)``."""
+    points = np.vstack([p for p, _ in meshes])
+    offsets = np.concatenate([[0], np.cumsum([len(p) for p, _ in meshes])])
+    cells = np.vstack([c + off for (_, c), off in zip(meshes, offsets[:-1])])
+    body_of_node = np.repeat(np.arange(len(meshes)), np.diff(offsets))
+    return points, cells, body_of_node, offsets
+
+
+def _level(scene: TwoBodyScene, k: int):
+    """Stacked mesh of level ``k`` and its free DOFs."""
+    points, cells, body_of_node, offsets = stack(
+        [(b.meshes.points[k], b.meshes.cells[k]) for b in scene.bodies])
+    dim = points.shape[1]
+    fixed, values = scene.supports(points, body_of_node)
+    free, u_fixed = dirichlet_split(dim * len(points), fixed, values)
+    return points, cells, body_of_node, offsets, free, u_fixed
+
+
+def _constrained_surface(scene: TwoBodyScene, points, cells, body_of_node):
+    """Constrained nodes (sorted lexicographically), their facets, lumped mass and local
+    mesh size."""
+    dim = points.shape[1]
+    body = scene.constrained_body
+    facets = boundary_facets(cells[body_of_node[cells[:, 0]] == body], points)
+    on = np.zeros(len(points), dtype=bool)
+    cand = np.unique(facets)
+    on[cand] = scene.on_constrained(points[cand])
+    surface_facets = facets[np.all(on[facets], axis=1)]
+    nodes = np.flatnonzero(on)
+    nodes = nodes[np.lexsort(points[nodes].T[::-1])]       # sorted by x, then y (then z)
+    mass = lumped_surface_mass(points, surface_facets, len(points))[nodes]
+    if np.any(mass <= 0):
+        raise ValueError("a constrained node lies on no constrained facet: on_constrained "
+                         "must select whole boundary facets")
+    return nodes, surface_facets, mass, facet_sizes(points, surface_facets, nodes)
+
+
+def _opposing_facets(scene: TwoBodyScene, points, cells, body_of_node):
+    body = 1 - scene.constrained_body
+    body_cells = cells[body_of_node[cells[:, 0]] == body]
+    facets = boundary_facets(body_cells, points)
+    keep = scene.on_opposing(points[facets].mean(axis=1))
+    return orient_facets(points, facets[keep], body_cells)
+
+
+def assemble_two_body(scene: TwoBodyScene, level: int, name: str = "") -> ContactQP:
+    """The ContactQP of ``scene`` on mesh level ``level`` (see the module docstring).
+
+    Returns
+    -------
+    ContactQP
+        With ``mesh``, ``contact``, ``multilevel`` (prolongations on the free
+        DOFs from level 0 up, rigid-body modes per body, body of each DOF, the
+        constrained surface on every level) and ``hertz``.
+    """
+    levels = [_level(scene, k) for k in range(level + 1)]
+    points, cells, body_of_node, offsets, free, u_fixed = levels[-1]
+    dim = points.shape[1]
+    n_nodes = len(points)
+    body_of_cell = body_of_node[cells[:, 0]]
+    E_cell = np.array([scene.bodies[b].E for b in body_of_cell], dtype=float)
+    nu_cell = np.array([scene.bodies[b].nu for b in body_of_cell], dtype=float)
+    A_full = stiffness_matrix(points, cells, E_cell, nu_cell)
+    force = np.array([scene.bodies[b].body_force for b in range(len(scene.bodies))], dtype=float)
+    f_full = body_force_vector(points, cells, force[body_of_cell])
+    for tr in scene.tractions:
+        facets = boundary_facets(cells[body_of_cell == tr.body], points)
+        facets = facets[tr.on(points[facets].mean(axis=1))]
+        f_full += traction_vector(points, facets, np.asarray(tr.traction, dtype=float))
+
+    nodes, surface_facets, mass, size = _constrained_surface(scene, points, cells, body_of_node)
+    opposing = _opposing_facets(scene, points, cells, body_of_node)
+    cc = contact_constraints(points, nodes, opposing, direction=np.asarray(scene.direction, float),
+                             search=scene.search, n_nodes=n_nodes)
+    if cc.m < nodes.size:
+        missing = nodes[~cc.found]
+        raise ValueError(f"{nodes.size - cc.m} constrained nodes found no opposing facet "
+                         f"(first at {points[missing[0]].tolist()}): widen on_opposing")
+
+    A = A_full[free][:, free].tocsr()
+    f = f_full[free] - (A_full @ u_fixed)[free]
+    B = cc.B[:, free].tocsr()
+    g = cc.g - cc.B @ u_fixed
+
+    body_of_dof = np.repeat(body_of_node, dim)[free]
+    modes = np.vstack([rigid_body_modes(points[a:b]) for a, b in zip(offsets[:-1], offsets[1:])])
+    rbm = np.hstack([modes[free] * (body_of_dof == b)[:, None] for b in range(len(scene.bodies))])
+
+    node_P = [sp.block_diag([b.meshes.prolongations[k] for b in scene.bodies], format="csr")
+              for k in range(level)]
+    prolongations = [dof_prolongation(node_P[k], dim, levels[k + 1][4], levels[k][4])
+                     for k in range(level)]
+    surf = [(nodes, None, mass, size) if k == level else
+            _constrained_surface(scene, pts_k, cells_k, body_k)
+            for k, (pts_k, cells_k, body_k, *_rest) in enumerate(levels)]
+    coarsening = None
+    if scene.surface_coarsening is not None:
+        coarsening = scene.surface_coarsening(levels[0][0][surf[0][0]])
+    surface = surface_levels(node_P, [s[0] for s in surf], [s[2] for s in surf],
+                             [s[3] for s in surf], coarsening)
+
+    return ContactQP(
+        A=A, f=f, B=B, g=g, free_dofs=free, u_fixed=u_fixed, dim=dim,
+        mesh=Mesh(points=points, cells=cells, body_of_node=body_of_node, E_cell=E_cell,
+                  nu_cell=nu_cell, bodies=tuple(b.name for b in scene.bodies)),
+        contact=ContactSurface(nodes=cc.rows, mass=mass, direction=cc.direction,
+                               facets=surface_facets, opposing_facets=opposing,
+                               search=scene.search),
+        multilevel=Multilevel(prolongations=prolongations, rigid_body_modes=rbm,
+                              body_of_dof=body_of_dof, surface=surface),
+        hertz=scene.hertz, name=name, units=scene.units, level=level,
+    )

@@ -1,0 +1,384 @@
+"""The neutral core: the algebraic contact problem and how an answer is judged.
+
+Both sides of the data flow import this module and nothing above it: a scene
+(``problems/<name>.py``) builds a :class:`ContactQP`; every solver
+(``solvers/<name>.py``) receives one; :func:`kkt_residuals` and
+:func:`energy_error` judge any ``(u, p)`` the same way whoever produced it.
+
+Conventions (thesis Ch. 7-8, DESIGN.md)::
+
+    minimise 1/2 u^T A u - f^T u   subject to   B u - C p <= g,   p >= 0
+    KKT:  A u + B^T p = f,  B u - C p <= g,  p >= 0,  p^T (g - B u + C p) = 0
+
+``C`` is the stabilisation block of Sect. 7.5 (``None``: zero). Everything a
+multilevel solver or the output needs from the discretisation travels inside
+the ContactQP as typed, optional data (:class:`Mesh`, :class:`ContactSurface`,
+:class:`Multilevel`, :class:`HertzSetup`); a solver never knows which scene it
+solves.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+
+
+class QPValidationError(ValueError):
+    """A ContactQP failed its consistency checks (the message says which)."""
+
+
+@dataclass
+class Mesh:
+    """The discretisation behind a ContactQP (for output and estimators).
+
+    Attributes
+    ----------
+    points : (N, d) array
+        Node coordinates of both bodies (one global numbering).
+    cells : (n_cells, d + 1) int array
+        Simplices (triangles in 2D, tetrahedra in 3D).
+    body_of_node : (N,) int array
+        Index into ``bodies`` of each node.
+    E_cell, nu_cell : (n_cells,) arrays
+        Young's modulus and Poisson's ratio per cell.
+    bodies : tuple of str
+        Body names, e.g. ``("square", "circle")``.
+    """
+
+    points: np.ndarray
+    cells: np.ndarray
+    body_of_node: np.ndarray
+    E_cell: np.ndarray
+    nu_cell: np.ndarray
+    bodies: tuple = ()
+
+    @property
+    def n_nodes(self) -> int:
+        return len(self.points)
+
+    @property
+    def dim(self) -> int:
+        return self.points.shape[1]
+
+
+@dataclass
+class ContactSurface:
+    """The constrained surface (thesis: surface ``l``) and its constraints' geometry.
+
+    Attributes
+    ----------
+    nodes : (m,) int array
+        Global node behind each row of ``B`` (the constrained nodes).
+    mass : (m,) array
+        Lumped surface mass at those nodes: the pressure is ``p / mass`` (Sect. 8.6).
+    direction : (m, d) array
+        Unit direction ``n`` of each constraint (case b) or the closest-point
+        direction (case a), pointing from the constrained towards the opposing body.
+    facets : (k, d) int array
+        Facets of the constrained surface (segments in 2D, triangles in 3D).
+    opposing_facets : (k', d) int array
+        Facets of the opposing surface (thesis: surface ``l-1``) the search used.
+    search : str
+        ``"a"`` (closest point, (7.12)) or ``"b"`` (fixed direction, (7.13)).
+    """
+
+    nodes: np.ndarray
+    mass: np.ndarray
+    direction: np.ndarray
+    facets: np.ndarray
+    opposing_facets: np.ndarray
+    search: str = "b"
+
+
+@dataclass
+class SurfaceHierarchy:
+    """Nested meshes of the constrained surface, coarse to fine (for a multilevel S-hat).
+
+    Attributes
+    ----------
+    prolongations : list of sparse
+        ``prolongations[k]`` maps nodal values on surface level ``k`` to level
+        ``k+1`` (P1/Q1 interpolation); the last ends on the ContactQP's rows,
+        in their order.
+    masses : list of arrays
+        Lumped surface masses per level; ``masses[-1]`` is the contact mass.
+    sizes : list of arrays
+        Local mesh size at each node per level: the largest adjacent facet
+        (its length in 2D, ``sqrt(2 area)`` in 3D).
+    """
+
+    prolongations: list
+    masses: list
+    sizes: list
+
+    @property
+    def n_levels(self) -> int:
+        return len(self.masses)
+
+
+@dataclass
+class Multilevel:
+    """What a multilevel solver needs from the refinement hierarchy.
+
+    Attributes
+    ----------
+    prolongations : list of sparse
+        ``prolongations[k]`` maps level ``k`` to ``k+1`` on the free DOFs; the
+        last ends on the ContactQP's unknowns.
+    rigid_body_modes : (n, r) array
+        Rigid-body motions of each body restricted to the free DOFs (near-null
+        space for algebraic multigrid).
+    body_of_dof : (n,) int array
+        Body of each unknown.
+    surface : SurfaceHierarchy or None
+        Nested constrained-surface meshes, supplied by the scene.
+    """
+
+    prolongations: list = field(default_factory=list)
+    rigid_body_modes: np.ndarray | None = None
+    body_of_dof: np.ndarray | None = None
+    surface: SurfaceHierarchy | None = None
+
+
+@dataclass(frozen=True)
+class HertzSetup:
+    """The analytic Hertz reference of a scene (K. L. Johnson, Contact Mechanics, Ch. 4).
+
+    Attributes
+    ----------
+    kind : {"line", "point"}
+        Plane-strain cylinder contact (2D) or sphere contact (3D).
+    radius : float
+        Effective radius ``R`` of the contacting curvature.
+    E_star : float
+        Effective modulus ``1/E* = (1 - nu1^2)/E1 + (1 - nu2^2)/E2``.
+    """
+
+    kind: str
+    radius: float
+    E_star: float
+
+
+@dataclass
+class ContactQP:
+    """The algebraic contact problem ``min 1/2 u'Au - f'u  s.t.  Bu - Cp <= g``.
+
+    Attributes
+    ----------
+    A : (n, n) sparse, symmetric positive definite
+        Stiffness of both bodies on the free DOFs (block diagonal for two bodies).
+    f : (n,) array
+        Load vector (body force, tractions, minus the Dirichlet lift).
+    B : (m, n) sparse
+        One row per constrained node (Alg. 7.1, (7.14)).
+    g : (m,) array
+        Gaps along the contact direction, same units as ``u``.
+    C : (m, m) sparse, optional
+        Stabilisation block (Sect. 7.5); ``None`` means zero.
+    free_dofs : (n,) int array, optional
+        Position of each unknown in the full nodal vector (node-major,
+        ``node * dim + component``).
+    u_fixed : (N * dim,) array, optional
+        Full nodal vector with the prescribed values, zero elsewhere;
+        ``u_full = u_fixed; u_full[free_dofs] = u``.
+    dim : int
+        Spatial dimension (2 or 3).
+    mesh : Mesh, optional
+    contact : ContactSurface, optional
+    multilevel : Multilevel
+    hertz : HertzSetup, optional
+    name : str
+        Scene and level, for reports.
+    units : str
+        Units of length and force, e.g. ``"dimensionless"`` or ``"m, N"``.
+    level : int
+        Refinement level the scene built it at.
+    """
+
+    A: sp.spmatrix
+    f: np.ndarray
+    B: sp.spmatrix
+    g: np.ndarray
+    C: sp.spmatrix | None = None
+    free_dofs: np.ndarray | None = None
+    u_fixed: np.ndarray | None = None
+    dim: int = 2
+    mesh: Mesh | None = None
+    contact: ContactSurface | None = None
+    multilevel: Multilevel = field(default_factory=Multilevel)
+    hertz: HertzSetup | None = None
+    name: str = ""
+    units: str = "dimensionless"
+    level: int = 0
+
+    def __post_init__(self):
+        self.A = sp.csr_matrix(self.A, dtype=float)
+        self.B = sp.csr_matrix(self.B, dtype=float)
+        self.f = np.asarray(self.f, dtype=float).ravel()
+        self.g = np.asarray(self.g, dtype=float).ravel()
+        if self.C is not None:
+            self.C = sp.csr_matrix(self.C, dtype=float)
+        self.validate()
+
+    @property
+    def n(self) -> int:
+        """Number of unknowns (free DOFs)."""
+        return self.A.shape[0]
+
+    @property
+    def m(self) -> int:
+        """Number of constraints (constrained nodes, N^C)."""
+        return self.B.shape[0]
+
+    @property
+    def n_nodes(self) -> int:
+        """Number of mesh nodes N (``n / dim`` without a mesh)."""
+        return self.mesh.n_nodes if self.mesh is not None else self.n // self.dim
+
+    def validate(self, symmetry_tol: float = 1e-10) -> None:
+        """Check shapes, finiteness, symmetry of A and non-empty rows of B.
+
+        Raises
+        ------
+        QPValidationError
+            Naming the offending field.
+        """
+        n, m = self.A.shape[0], self.B.shape[0]
+        if self.A.shape != (n, n) or n == 0:
+            raise QPValidationError(f"A must be square and non-empty, got shape {self.A.shape}")
+        if self.f.shape != (n,):
+            raise QPValidationError(f"f must have shape ({n},), got {self.f.shape}")
+        if self.B.shape[1] != n:
+            raise QPValidationError(f"B must have {n} columns (one per unknown), got {self.B.shape[1]}")
+        if self.g.shape != (m,):
+            raise QPValidationError(f"g must have shape ({m},), got {self.g.shape}")
+        for name in ("A", "B", "C"):
+            mat = getattr(self, name)
+            if mat is not None and not np.all(np.isfinite(mat.data)):
+                raise QPValidationError(f"{name} has non-finite entries")
+        for name in ("f", "g"):
+            if not np.all(np.isfinite(getattr(self, name))):
+                raise QPValidationError(f"{name} has non-finite entries")
+        asym = abs(self.A - self.A.T)
+        scale = abs(self.A).max() if self.A.nnz else 1.0
+        if asym.nnz and asym.max() > symmetry_tol * scale:
+            raise QPValidationError(f"A is not symmetric: max |A - A^T| = {asym.max():.3e} "
+                                    f"(scale {scale:.3e})")
+        if m:
+            row_nnz = np.diff(self.B.indptr)
+            rownorm = np.sqrt(np.asarray(self.B.multiply(self.B).sum(axis=1)).ravel())
+            empty = np.flatnonzero((row_nnz == 0) | (rownorm == 0))
+            if empty.size:
+                raise QPValidationError(f"B has {empty.size} empty rows (first: {empty[:5].tolist()})")
+        if self.C is not None and self.C.shape != (m, m):
+            raise QPValidationError(f"C must have shape ({m}, {m}), got {self.C.shape}")
+        if self.free_dofs is not None and np.shape(self.free_dofs) != (n,):
+            raise QPValidationError(f"free_dofs must have shape ({n},), got {np.shape(self.free_dofs)}")
+        if self.contact is not None:
+            c = self.contact
+            for name, shape in (("nodes", (m,)), ("mass", (m,)), ("direction", (m, self.dim))):
+                if np.shape(getattr(c, name)) != shape:
+                    raise QPValidationError(f"contact.{name} must have shape {shape}, "
+                                            f"got {np.shape(getattr(c, name))}")
+            if np.any(np.asarray(c.mass) <= 0):
+                raise QPValidationError("contact.mass must be positive")
+        if self.mesh is not None and self.mesh.dim != self.dim:
+            raise QPValidationError(f"mesh.points is {self.mesh.dim}D but dim = {self.dim}")
+        ml = self.multilevel
+        if ml.prolongations and ml.prolongations[-1].shape[0] != n:
+            raise QPValidationError(f"multilevel.prolongations[-1] must end on the {n} unknowns, "
+                                    f"got shape {ml.prolongations[-1].shape}")
+        if ml.surface is not None:
+            s = ml.surface
+            if len(s.masses) != len(s.sizes) or len(s.prolongations) != len(s.masses) - 1:
+                raise QPValidationError("multilevel.surface: masses, sizes and prolongations "
+                                        "do not describe the same levels")
+            if len(s.masses[-1]) != m or len(s.sizes[-1]) != m:
+                raise QPValidationError(f"multilevel.surface must end on the {m} constraints, "
+                                        f"got {len(s.masses[-1])}")
+
+    def full_displacement(self, u: np.ndarray) -> np.ndarray:
+        """Nodal displacement array ``(n_nodes, dim)`` including prescribed values."""
+        if self.free_dofs is None or self.u_fixed is None:
+            raise QPValidationError("this ContactQP has no free_dofs/u_fixed to expand u")
+        full = np.array(self.u_fixed, dtype=float, copy=True)
+        full[self.free_dofs] = u
+        return full.reshape(-1, self.dim)
+
+    def energy(self, u: np.ndarray) -> float:
+        """J(u) = 1/2 u'Au - f'u."""
+        return 0.5 * float(u @ (self.A @ u)) - float(self.f @ u)
+
+    def constrained_points(self) -> np.ndarray:
+        """Coordinates of the constrained nodes, one row per constraint."""
+        if self.mesh is None or self.contact is None:
+            raise QPValidationError("this ContactQP has no mesh/contact surface")
+        return self.mesh.points[self.contact.nodes]
+
+
+@dataclass
+class KKTResiduals:
+    """The four KKT residuals, scaled to be comparable across meshes and units.
+
+    ``stationarity = ||Au + B'p - f||_inf / max(||f||_inf, ||Au||_inf, ||B'p||_inf)``,
+    ``primal = max(Bu - Cp - g)_+ / max(||Bu||_inf, ||g||_inf)``,
+    ``dual = max(-p)_+ / ||p||_inf``,
+    ``complementarity = sum_i |p_i (g - Bu + Cp)_i| / (||p||_1 max(||Bu||_inf, ||g||_inf))``
+    (entrywise, so that violations of opposite sign cannot cancel).
+    Every denominator is floored at the tiny number ``1e-300``; ``raw`` holds the
+    unscaled values.
+    """
+
+    stationarity: float
+    primal: float
+    dual: float
+    complementarity: float
+    raw: dict = field(default_factory=dict)
+
+    @property
+    def max(self) -> float:
+        return max(self.stationarity, self.primal, self.dual, self.complementarity)
+
+    def as_dict(self, prefix: str = "kkt_") -> dict:
+        return {f"{prefix}stationarity": self.stationarity, f"{prefix}primal": self.primal,
+                f"{prefix}dual": self.dual, f"{prefix}complementarity": self.complementarity}
+
+
+def kkt_residuals(qp: ContactQP, u: np.ndarray, p: np.ndarray) -> KKTResiduals:
+    """Verified KKT residuals of ``(u, p)`` for ``qp`` (same formula for every solver)."""
+    tiny = 1e-300
+    u = np.asarray(u, dtype=float)
+    p = np.asarray(p, dtype=float)
+    Au = qp.A @ u
+    Btp = qp.B.T @ p
+    Bu = qp.B @ u
+    slack = qp.g - Bu + (qp.C @ p if qp.C is not None else 0.0)
+    inf = lambda v: float(np.max(np.abs(v))) if np.size(v) else 0.0
+    r_stat = inf(Au + Btp - qp.f)
+    r_primal = max(0.0, float(np.max(-slack))) if slack.size else 0.0  # 0.0 first: never -0.0
+    r_dual = max(0.0, float(np.max(-p))) if p.size else 0.0
+    r_comp = float(np.sum(np.abs(p * slack)))
+    disp_scale = max(inf(Bu), inf(qp.g), tiny)
+    return KKTResiduals(
+        stationarity=r_stat / max(inf(qp.f), inf(Au), inf(Btp), tiny),
+        primal=r_primal / disp_scale,
+        dual=r_dual / max(inf(p), tiny),
+        complementarity=r_comp / max(float(np.sum(np.abs(p))) * disp_scale, tiny),
+        raw={"stationarity": r_stat, "primal": r_primal, "dual": r_dual, "complementarity": r_comp},
+    )
+
+
+def energy_error(qp: ContactQP, u: np.ndarray, u_ref: np.ndarray) -> float:
+    """Relative energy-norm error ``||u - u_ref||_A / ||u_ref||_A``.
+
+    ``inf`` for a non-finite or mis-shaped ``u``; the absolute error if
+    ``u_ref`` is zero.
+    """
+    u = np.asarray(u, dtype=float)
+    if u.shape != (qp.n,) or not np.all(np.isfinite(u)):
+        return float("inf")
+    e = u - u_ref
+    ref = float(u_ref @ (qp.A @ u_ref))
+    err = max(float(e @ (qp.A @ e)), 0.0)
+    return float(np.sqrt(err / ref)) if ref > 0 else float(np.sqrt(err))

@@ -1,0 +1,187 @@
+"""Figures and tables of the contact_solution study (thesis Sects. 9.1, 9.2).
+
+``hertz``: the per-level Hertz rows in one table. ``fields``: the reference
+mesh with the deformed configuration and the von Mises stress near the contact
+(2D: the whole section; 3D: the vertical cut through the contact point).
+``pressure``: the nodal contact pressure against the in-plane position (2D) or
+the distance from the contact centre (3D), each level, with the Hertz curve
+for the measured force of the finest level.
+"""
+from __future__ import annotations
+
+import argparse
+import re
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import pandas as pd  # noqa: E402
+from matplotlib.tri import Triangulation  # noqa: E402
+
+from report.figures import save_figure  # noqa: E402
+from workflows.io import write_csv  # noqa: E402
+
+
+def hertz_table(inputs: list[str], out: str) -> None:
+    """Concatenate the per-level rows, sorted by level."""
+    write_csv(out, pd.concat([pd.read_csv(f) for f in inputs]).sort_values("level"))
+
+
+def _read(vtu: str):
+    import meshio
+
+    m = meshio.read(vtu)
+    kind = "triangle" if "triangle" in m.cells_dict else "tetra"
+    return (m.points, m.cells_dict[kind], m.point_data["displacement"],
+            m.cell_data_dict["von_mises"][kind], m.point_data["contact_pressure"])
+
+
+def _contact_window(points, pressure, dims=(0, 1)):
+    """A window around the contact zone: centre and half-size in the two plotted axes."""
+    loaded = pressure > 0
+    if not loaded.any():
+        c = points.mean(axis=0)
+        return c, np.ptp(points, axis=0).max() / 2
+    pts = points[loaded]
+    c = pts.mean(axis=0)
+    size = max(3.0 * np.ptp(pts[:, list(dims)], axis=0).max(), 0.1 * np.ptp(points, axis=0).max())
+    return c, size
+
+
+def fields_figure(vtu: str, path: str, magnify: float = 5.0) -> None:
+    """Left: mesh and deformed configuration; right: von Mises stress near the contact."""
+    pts, cells, u, vm, pressure = _read(vtu)
+    fig, axes = plt.subplots(1, 2, figsize=(11, 5.2))
+    if cells.shape[1] == 3:
+        xy, uv, tri, vm_tri = pts[:, :2], u[:, :2], cells, vm
+        labels = ("x", "y")
+        where = "the plane-strain section"
+    else:
+        xy, uv, tri, vm_tri, where = _vertical_cut(pts, cells, u, vm, pressure)
+        labels = ("x", "z")
+    ax = axes[0]
+    ax.triplot(Triangulation(xy[:, 0], xy[:, 1], tri), color="0.8", lw=0.2)
+    d = xy + magnify * uv
+    ax.triplot(Triangulation(d[:, 0], d[:, 1], tri), color="tab:blue", lw=0.25)
+    ax.set_aspect("equal")
+    ax.set_title(f"{where}: reference mesh (grey) and deformed (blue, x{magnify:g})", fontsize=9)
+    ax.set_xlabel(labels[0])
+    ax.set_ylabel(labels[1])
+    ax = axes[1]
+    true = xy + uv
+    im = ax.tripcolor(Triangulation(true[:, 0], true[:, 1], tri), facecolors=vm_tri,
+                      cmap="viridis", shading="flat")
+    loaded = pressure > 0
+    c, size = _contact_window(pts, pressure, (0, 1) if cells.shape[1] == 3 else (0, 1))
+    cx, cy = (c[0], c[1]) if cells.shape[1] == 3 else (c[0], c[2])
+    ax.set_xlim(cx - size, cx + size)
+    ax.set_ylim(cy - size, cy + size)
+    ax.set_aspect("equal")
+    ax.set_title(f"von Mises stress near the contact (deformed, true scale; "
+                 f"{int(loaded.sum())} loaded nodes)", fontsize=9)
+    ax.set_xlabel(labels[0])
+    fig.colorbar(im, ax=ax, label="von Mises stress (units of the scene's E)")
+    save_figure(fig, path)
+
+
+def _vertical_cut(pts, cells, u, vm, pressure):
+    """The cut y = y_c through the contact centre: triangles of the tetrahedra's
+    intersections (each cut tetrahedron gives a triangle or a quadrilateral = two
+    triangles), with the tetrahedron's von Mises value."""
+    loaded = pressure > 0
+    yc = pts[loaded, 1].mean() if loaded.any() else pts[:, 1].mean()
+    side = pts[:, 1] - yc
+    s = side[cells]
+    cut = np.flatnonzero((s.min(axis=1) < 0) & (s.max(axis=1) > 0))
+    nodes, disp, tris, values = [], [], [], []
+    for c in cut:
+        verts = cells[c]
+        sv = side[verts]
+        cross = []
+        for i in range(4):
+            for j in range(i + 1, 4):
+                if sv[i] * sv[j] < 0:
+                    t = sv[i] / (sv[i] - sv[j])
+                    cross.append(((1 - t) * pts[verts[i]] + t * pts[verts[j]],
+                                  (1 - t) * u[verts[i]] + t * u[verts[j]]))
+        if len(cross) < 3:
+            continue
+        P = np.array([x for x, _ in cross])
+        U = np.array([d for _, d in cross])
+        ang = np.arctan2(P[:, 2] - P[:, 2].mean(), P[:, 0] - P[:, 0].mean())
+        order = np.argsort(ang)
+        base = len(nodes)
+        nodes.extend(P[order][:, [0, 2]])
+        disp.extend(U[order][:, [0, 2]])
+        for k in range(1, len(order) - 1):
+            tris.append([base, base + k, base + k + 1])
+            values.append(vm[c])
+    return (np.array(nodes), np.array(disp), np.array(tris), np.array(values),
+            f"vertical cut y = {yc:.3g} through the contact")
+
+
+def pressure_figure(contacts: list[str], hertz_rows: list[str], path: str) -> None:
+    """Contact pressure per level against position (2D) or radius (3D), with the
+    Hertz curve for the measured total force of the finest level."""
+    fig, ax = plt.subplots(figsize=(7.5, 4.6))
+    rows = pd.concat([pd.read_csv(f) for f in hertz_rows]).sort_values("level")
+    by_level = {int(re.search(r"_L(\d+)\.csv$", f).group(1)): f for f in contacts}
+    point = any(c.startswith("s1") for c in pd.read_csv(contacts[0], nrows=1).columns)
+    for _, row in rows.iterrows():
+        c = pd.read_csv(by_level[int(row["level"])])
+        if "center_s0" not in row or not np.isfinite(row.get("center_s0", np.nan)):
+            continue
+        if point:
+            r = np.hypot(c["s0"] - row["center_s0"], c["s1"] - row["center_s1"])
+            order = np.argsort(r.to_numpy())
+            ax.plot(r.to_numpy()[order], c["pressure"].to_numpy()[order], "o", ms=2.5,
+                    label=f"level {int(row['level'])} ({int(row['nodes'])} nodes): "
+                          f"a {row['dev_a_moment']:+.1%}, p0 {row['dev_p0_moment']:+.1%} vs Hertz")
+        else:
+            ax.plot(c["s0"] - row["center_s0"], c["pressure"], "o-", ms=3, lw=0.8,
+                    label=f"level {int(row['level'])} ({int(row['nodes'])} nodes): "
+                          f"a {row['dev_a_moment']:+.1%}, p0 {row['dev_p0_moment']:+.1%} vs Hertz")
+    last = rows.iloc[-1]
+    if "a_hertz" in last and np.isfinite(last["a_hertz"]):
+        a, p0 = last["a_hertz"], last["p0_hertz"]
+        r = np.linspace(0 if point else -1.5 * a, 1.5 * a, 400)
+        ax.plot(r, p0 * np.sqrt(np.clip(1 - (r / a) ** 2, 0, None)), "k--", lw=1.2,
+                label=f"Hertz ({'sphere' if point else 'plane strain'}), P = {last['force']:.4g}")
+        ax.set_xlim(r[0], r[-1])
+    ax.set_xlabel("distance r from the contact centre" if point
+                  else "position on the constrained surface, relative to the contact centre")
+    ax.set_ylabel("contact pressure p / lumped mass (units of the scene's E)")
+    ax.set_title("Contact pressure against Hertz (deviations: moment estimates of a, p0)",
+                 fontsize=9)
+    ax.legend(fontsize=7)
+    ax.grid(alpha=0.3)
+    save_figure(fig, path)
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    sub = ap.add_subparsers(dest="what", required=True)
+    h = sub.add_parser("hertz")
+    h.add_argument("--inputs", nargs="+", required=True)
+    h.add_argument("--out", required=True)
+    f = sub.add_parser("fields")
+    f.add_argument("--vtu", required=True)
+    f.add_argument("--out", required=True)
+    p = sub.add_parser("pressure")
+    p.add_argument("--contacts", nargs="+", required=True)
+    p.add_argument("--hertz", nargs="+", required=True)
+    p.add_argument("--out", required=True)
+    args = ap.parse_args(argv)
+    if args.what == "hertz":
+        hertz_table(args.inputs, args.out)
+    elif args.what == "fields":
+        fields_figure(args.vtu, args.out)
+    else:
+        pressure_figure(args.contacts, args.hertz, args.out)
+
+
+if __name__ == "__main__":
+    main()

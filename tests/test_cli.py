@@ -1,0 +1,180 @@
+"""The command line: every registered solver on every contact scene, the installed command,
+and bad input (exit code 2, a message naming the parameter, nothing written)."""
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from problems.qp import energy_error, kkt_residuals
+from problems.spec import Parameter, ParameterError, problems, resolve_parameters
+from solvers.interface import solve, solvers
+from workflows.cli import main
+
+CONTACT_SCENES = sorted(n for n, s in problems().items() if s.kind == "contact")
+SOLVERS = sorted(solvers())
+
+
+def test_problem_registry_finds_modules_with_a_problem_spec():
+    reg = problems()
+    assert {"laplace_nonmatching", "circle_square"} <= set(reg)
+    assert all(spec.name == name for name, spec in reg.items())
+    assert "spec" not in reg and "fem" not in reg and "qp" not in reg  # machinery
+
+
+def test_parameter_validation_messages():
+    p = Parameter("load", 0.01, "body force", low=0.0, low_open=True)
+    assert p.validate("0.5") == 0.5
+    with pytest.raises(ParameterError, match=r"'load'.*\(0.0, inf\)"):
+        p.validate("-1")
+    with pytest.raises(ParameterError, match="'load'"):
+        p.validate("abc")
+    with pytest.raises(ParameterError, match="not finite"):
+        p.validate("nan")
+    with pytest.raises(ParameterError, match="known parameters: load"):
+        resolve_parameters((p,), {"lod": 1}, "problem 'x'")
+
+
+def test_cli_list(capsys):
+    assert main(["list"]) == 0
+    out = capsys.readouterr().out
+    for name in [*problems(), *solvers(), "solver_comparison", "tolerance presets",
+                 "--set ahat.sweeps=..."]:
+        assert name in out
+
+
+def test_cli_solves_the_linear_problem(tmp_path):
+    out = tmp_path / "run.json"
+    rc = main(["solve", "--problem", "laplace_nonmatching", "--level", "1", "--set", "case=linear",
+               "--set", "variant=conforming", "--out", str(out)])
+    assert rc == 0
+    data = json.loads(out.read_text())
+    assert data["status"] == "converged" and data["err_h1"] < 1e-11
+    assert data["provenance"]["packages"]["scikit-fem"]
+
+
+@pytest.fixture(scope="module")
+def references():
+    """The exact solution of every contact scene at level 1."""
+    out = {}
+    for name in CONTACT_SCENES:
+        qp = problems()[name].make(1)
+        ref = solve(qp, "pdas", tol=1e-12)
+        assert ref.status == "converged"
+        out[name] = (qp, ref)
+    return out
+
+
+@pytest.mark.parametrize("scene", CONTACT_SCENES)
+@pytest.mark.parametrize("solver", SOLVERS)
+def test_every_solver_runs_through_the_cli(tmp_path, references, scene, solver):
+    qp, ref = references[scene]
+    out = tmp_path / "run.json"
+    assert main(["solve", "--problem", scene, "--level", "1", "--solver", solver,
+                 "--out", str(out)]) == 0
+    data = json.loads(out.read_text())
+    assert data["solver"] == solver and data["m"] == qp.m and data["n"] == qp.n
+    # the recorded status is the verified one: the same solve from Python (deterministic)
+    res = solve(qp, solver, tol="mid")
+    assert data["status"] == res.status
+    assert data["kkt_max"] == pytest.approx(res.kkt.max, rel=1e-6, abs=1e-14)
+    assert (data["status"] == "converged") == (data["claimed_status"] == "converged"
+                                              and data["kkt_max"] <= 1e-6)
+    p = np.asarray(data["contact"]["p"])
+    assert np.allclose(p, res.p, rtol=1e-8, atol=1e-12 * np.abs(res.p).max())
+    if data["status"] == "converged":
+        assert energy_error(qp, res.u, ref.u) < 1e-4
+        assert np.max(np.abs(p - ref.p)) < 1e-3 * np.max(ref.p)
+    assert kkt_residuals(qp, res.u, res.p).max == pytest.approx(res.kkt.max)
+
+
+def test_the_installed_command_runs_the_thesis_solver(tmp_path):
+    """The command that once ended in a traceback (dict.update got 'n' twice)."""
+    exe = Path(sys.executable).parent / "contactbench"
+    assert exe.exists(), "the README's setup installs the contactbench command"
+    out, vtu = tmp_path / "x.json", tmp_path / "x.vtu"
+    proc = subprocess.run([str(exe), "solve", "--problem", "circle_square", "--level", "2",
+                           "--solver", "augmented_projection", "--set", "schur=multilevel",
+                           "--set", "ahat.sweeps=2", "--out", str(out), "--vtu", str(vtu)],
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    assert "Traceback" not in proc.stderr
+    data = json.loads(out.read_text())
+    assert data["status"] == "converged" and data["kkt_max"] <= 1e-6
+    assert data["solver_options"]["ahat.sweeps"] == 2
+    assert data["n_nodes"] == 16636 and data["contact"]["force"][1] > 0
+    import meshio
+    mesh = meshio.read(vtu)
+    assert {"displacement", "contact_pressure"} <= set(mesh.point_data)
+    assert mesh.point_data["contact_pressure"].max() > 0 and "von_mises" in mesh.cell_data
+
+
+BAD_INPUTS = [
+    (["--problem", "nope"], "unknown problem 'nope'; allowed: "),
+    (["--problem", "circle_square", "--solver", "gurobi"], "unknown solver 'gurobi'; allowed:"),
+    (["--problem", "circle_square", "--level", "99"], "'level': 99 is out of range"),
+    (["--problem", "circle_square", "--level", "1.5"], "'level': cannot use '1.5'"),
+    (["--problem", "circle_square", "--level", "-1"], "'level': -1 is out of range"),
+    (["--problem", "circle_square", "--set", "radius"], "'--set': 'radius' is not allowed; allowed: key=value"),
+    (["--problem", "circle_square", "--set", "=3"], "'--set': '=3' is not allowed"),
+    (["--problem", "circle_square", "--set", "E1=2", "--set", "E1=3"], "'E1' is given twice"),
+    (["--problem", "circle_square", "--set", "alpha=1"], "has no parameter 'alpha'"),
+    (["--problem", "circle_square", "--set", "nu1=0.5"], "'nu1': 0.5 is out of range"),
+    (["--problem", "circle_square", "--set", "E1=nan"], "'E1': nan is not finite"),
+    (["--problem", "circle_square", "--set", "load=inf"], "'load': inf is not finite"),
+    (["--problem", "circle_square", "--set", "search=c"], "'search': 'c' is not allowed; allowed: one of a, b"),
+    (["--problem", "circle_square", "--tol", "-1"], "'tol': '-1' is not allowed"),
+    (["--problem", "circle_square", "--tol", "nan"], "'tol': 'nan' is not allowed"),
+    (["--problem", "circle_square", "--tol", "2"], "'tol': '2' is not allowed"),
+    (["--problem", "circle_square", "--max-iter", "0"], "'max_iter': 0 is out of range"),
+    (["--problem", "circle_square", "--max-iter", "many"], "'max_iter': cannot use 'many'"),
+    (["--problem", "circle_square", "--time-limit", "-5"], "'time_limit': -5.0 is out of range"),
+    (["--problem", "circle_square", "--solver", "osqp", "--set", "polish=maybe"], "'polish': cannot use 'maybe'"),
+    (["--problem", "circle_square", "--solver", "augmented_projection", "--set", "ahat=amg"], "'ahat': 'amg' is not allowed"),
+    (["--problem", "circle_square", "--solver", "augmented_projection", "--set", "ahat=gmg",
+      "--set", "ahat.max_coarse=100"], "has no option 'ahat.max_coarse'"),
+    (["--problem", "laplace_nonmatching", "--solver", "osqp"], "'--solver' does not apply to the linear problem"),
+    (["--problem", "laplace_nonmatching", "--tol", "low"], "'--tol' does not apply to the linear problem"),
+    (["--problem", "laplace_nonmatching", "--set", "ratio=0:3"], "'ratio': '0:3' is not allowed"),
+]
+
+
+@pytest.mark.parametrize("argv, needle", BAD_INPUTS)
+def test_bad_input_is_a_clear_error_and_writes_nothing(tmp_path, capsys, argv, needle):
+    out = tmp_path / "x.json"
+    assert main(["solve", *argv, "--level", "0", "--out", str(out)] if "--level" not in argv
+                else ["solve", *argv, "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert needle in err, err
+    assert err.count("\n") == 1 and "Traceback" not in err
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_output_paths_are_checked_before_any_work(tmp_path, capsys, monkeypatch):
+    base = ["solve", "--problem", "circle_square", "--level", "0"]
+    (tmp_path / "dir.json").mkdir()
+    cases = [(["--out", str(tmp_path / "dir.json")], "is a directory"),
+             (["--out", str(tmp_path / "missing" / "x.json")], "does not exist"),
+             (["--out", str(tmp_path / "x.txt")], "ending in .json"),
+             (["--out", str(tmp_path / "x.json"), "--vtu", str(tmp_path / "x.vt")], "ending in .vtu")]
+    for extra, needle in cases:
+        assert main([*base, *extra]) == 2
+        assert needle in capsys.readouterr().err
+    existing = tmp_path / "old.json"
+    existing.write_text("precious")
+    assert main([*base, "--out", str(existing)]) == 2
+    assert "exists" in capsys.readouterr().err and existing.read_text() == "precious"
+    assert main([*base, "--out", str(existing), "--force"]) == 0
+    assert json.loads(existing.read_text())["status"] == "converged"
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    real_access = os.access
+    monkeypatch.setattr(os, "access", lambda p, mode: False if Path(p) == ro else real_access(p, mode))
+    assert main([*base, "--out", str(ro / "x.json")]) == 2
+    assert "is not writable" in capsys.readouterr().err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["dir.json", "old.json", "ro"]

@@ -1,0 +1,200 @@
+"""Every workflow script's and report builder's main() on small levels into a temporary
+directory, and the Snakemake workflow: dry run, lint, config validation, scenes by config."""
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pandas as pd
+import pytest
+import yaml
+
+from workflows.studies import STUDIES, all_targets, check_config, ConfigError
+
+ROOT = Path(__file__).resolve().parent.parent
+SNAKEMAKE = Path(sys.executable).parent / "snakemake"
+SCENE = ["--problem", "circle_square"]
+
+
+def run(module: str, *argv: str) -> None:
+    __import__(module, fromlist=["main"]).main(list(argv))
+
+
+@pytest.fixture(scope="module")
+def contact(tmp_path_factory):
+    out = tmp_path_factory.mktemp("contact")
+    for level in ("0", "1"):
+        run("workflows.scripts.contact_solution", *SCENE, "--level", level, "--outdir", str(out))
+    return out
+
+
+def test_contact_solution_and_its_report(contact, tmp_path):
+    for level in (0, 1):
+        c = pd.read_csv(contact / f"contact_L{level}.csv")
+        assert {"x0", "x1", "s0", "p", "pressure", "gap", "active"} <= set(c.columns)
+        assert (contact / f"fields_L{level}.vtu").stat().st_size > 0
+    rows = [str(contact / f"hertz_L{k}.csv") for k in (0, 1)]
+    run("report.contact", "hertz", "--inputs", *rows, "--out", str(tmp_path / "hertz.csv"))
+    h = pd.read_csv(tmp_path / "hertz.csv")
+    assert list(h["level"]) == [0, 1] and (h["status"] == "converged").all()
+    assert (h[["dev_a_moment", "dev_p0_moment"]].abs() < 0.1).all().all()
+    run("report.contact", "fields", "--vtu", str(contact / "fields_L1.vtu"),
+        "--out", str(tmp_path / "fields.png"))
+    run("report.contact", "pressure", "--contacts", *[str(contact / f"contact_L{k}.csv")
+                                                      for k in (0, 1)],
+        "--hertz", *rows, "--out", str(tmp_path / "pressure.png"))
+    for name in ("fields.png", "pressure.png"):
+        assert (tmp_path / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_solver_comparison_and_its_report(tmp_path):
+    run("workflows.scripts.solver_comparison", *SCENE, "--level", "0", "--presets", "mid",
+        "--time-limit", "60", "--out", str(tmp_path / "solvers_L0.csv"))
+    t = pd.read_csv(tmp_path / "solvers_L0.csv")
+    from solvers.interface import solvers
+    assert set(t["solver"]) == set(solvers())      # every registered solver, the exact one as reference
+    assert {"status", "kkt_max", "energy_error", "peak_mem_mb", "wall_time"} <= set(t.columns)
+    ref = t[t.preset == "reference"]
+    assert len(ref) == 1 and ref["kkt_max"].iloc[0] < 1e-10
+    ok = t[t.status == "converged"]
+    assert (ok["kkt_max"] <= ok["tol"]).all() and (ok["energy_error"] < 1e-3).all()
+    outs = {k: str(tmp_path / f"{k}.{'csv' if k in ('table', 'presets') else 'png'}")
+            for k in ("table", "presets", "times", "work")}
+    run("report.solvers", "--inputs", str(tmp_path / "solvers_L0.csv"),
+        *[a for k, v in outs.items() for a in (f"--{k}", v)])
+    assert len(pd.read_csv(outs["table"])) == len(t)
+    presets = pd.read_csv(outs["presets"])
+    assert set(presets["solver"]) == set(solvers()) and presets["options"].notna().all()
+
+
+def test_augmented_projection_study_and_its_report(tmp_path):
+    study = tmp_path / "study.csv"
+    run("workflows.scripts.augmented_projection_study", *SCENE, "--levels", "0", "1",
+        "--configs", "alg84", "nested_face_cg", "--kappa-exact", "--time-limit", "60",
+        "--out", str(study))
+    s = pd.read_csv(study)
+    assert set(s["config"]) == {"pdas", "alg84", "nested_face_cg", "amg_pcg_gmg", "amg_pcg_sa"}
+    runs = s[s.config == "alg84"]
+    assert list(runs["NC"]) == [17, 33] and runs["stop_8_25"].all()
+    assert (runs["energy_error"] < 1e-2).all() and (runs["kappa_SinvS"] < 10).all()
+    outs = [str(tmp_path / n) for n in ("table.csv", "claims.csv", "time.png", "kappa.png")]
+    run("report.augmented_projection", "--study", str(study), "--thesis",
+        str(ROOT / "reference" / "table_9_1.csv"), "--table", outs[0], "--claims", outs[1],
+        "--fig-time", outs[2], "--fig-kappa", outs[3])
+    table = pd.read_csv(outs[0])
+    assert list(table["thesis_nodes"]) == [4226, 16642][: len(table) - 1] + [] or \
+        table["thesis_nodes"].iloc[1] == 4226     # level 1 = the thesis's first row
+    claims = pd.read_csv(outs[1])
+    assert {"claim", "measured", "bar", "pass"} <= set(claims.columns) and len(claims) >= 2
+
+
+def test_laplace_scripts_and_reports(tmp_path):
+    runs = []
+    for case in ("sin10x", "linear"):
+        for side in ("coarse", "fine"):
+            runs.append(str(tmp_path / f"{case}_{side}.csv"))
+            run("workflows.scripts.laplace_errors", "--case", case, "--constrained", side,
+                "--levels", "0", "1", "2", "--out", runs[-1])
+    outs = {k: str(tmp_path / f"{k}.csv") for k in ("errors", "by-side", "rates")}
+    run("report.laplace", "tables", "--inputs", *runs, "--default-side", "coarse",
+        *[a for k, v in outs.items() for a in (f"--{k}", v)])
+    rates = pd.read_csv(outs["rates"])
+    row = rates[(rates.case == "linear") & (rates.variant == "nodal")
+                & (rates.constrained == "coarse")]
+    assert abs(row["rate_h1"].iloc[0] - 0.5) < 0.1      # Theorem 6.17's O(h^1/2), patch test
+    run("report.laplace", "convergence", "--errors", outs["by-side"], "--rates", outs["rates"],
+        "--case", "sin10x", "--out", str(tmp_path / "conv.png"))
+    run("report.laplace", "mesh", "--level", "0", "--ratio", "2:3", "--out", str(tmp_path / "m.png"))
+    assert (tmp_path / "conv.png").stat().st_size > 0 and (tmp_path / "m.png").stat().st_size > 0
+
+
+def test_assembly_benchmark_script(tmp_path, capsys):
+    out = tmp_path / "assembly.csv"
+    assert run("workflows.scripts.bench_assembly", "--n", "6", "--repeat", "1", "--out",
+               str(out)) is None
+    t = pd.read_csv(out)
+    assert set(t["case"]) == {"ours", "skfem", "ngsolve", "amg"}
+    assert t["check"].fillna("").str.contains("max|K-K").any()
+
+
+def test_scripts_reject_bad_arguments(capsys):
+    with pytest.raises(SystemExit) as err:
+        run("workflows.scripts.contact_solution", "--problem", "circle_square", "--set", "E1=-1",
+            "--level", "0", "--outdir", "/nonexistent")
+    assert err.value.code == 2 and "'E1'" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as err:
+        run("workflows.scripts.solver_comparison", "--problem", "laplace_nonmatching",
+            "--level", "0", "--out", "x.csv")
+    assert err.value.code == 2 and "not a contact problem" in capsys.readouterr().err
+
+
+# --------------------------------------------------------------------------- Snakemake
+def snakemake(*args: str, cwd: Path = ROOT) -> subprocess.CompletedProcess:
+    return subprocess.run([str(SNAKEMAKE), *args], cwd=cwd, capture_output=True, text=True,
+                          timeout=300)
+
+
+def test_snakemake_dry_run_plans_every_study():
+    out = snakemake("-n", "--forceall", "--quiet", "rules")
+    assert out.returncode == 0, out.stderr[-2000:]
+    for rule in ("contact_level", "solver_comparison", "augmented_projection_study",
+                 "laplace_errors", "all"):
+        assert rule in out.stdout
+
+
+def test_snakemake_lint_is_clean():
+    out = snakemake("--lint")
+    text = out.stdout + out.stderr
+    assert out.returncode == 0 and "Lints for" not in text, text[-3000:]
+    assert "Congratulations, your workflow is in a good condition" in text
+
+
+def test_a_new_scene_joins_a_study_by_config_alone(tmp_path):
+    """Adding a scene is a config change only: its jobs land under results/<scene>/."""
+    config = yaml.safe_load((ROOT / "workflows/config/quick.yaml").read_text())
+    config["scenes"]["circle_square_stiff"] = {"problem": "circle_square", "params": {"E2": 10.0}}
+    config["solver_comparison"]["scenes"]["circle_square_stiff"] = [1]
+    path = tmp_path / "config.yaml"
+    path.write_text(yaml.safe_dump(config))
+    out = snakemake("-n", "-p", "--forceall", "--configfile", str(path))
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert "results/circle_square_stiff/solvers_L1.csv" in out.stdout
+    assert "results/circle_square_stiff/solvers.csv" in all_targets(config)
+    assert "--problem circle_square --set E2=10.0 --level 1" in out.stdout
+
+
+@pytest.mark.parametrize("change, needle", [
+    (lambda c: c["scenes"].update(bad={"problem": "nope"}), "'scenes.bad.problem': 'nope'"),
+    (lambda c: c["scenes"].update(bad={"problem": "circle_square", "params": {"E1": -1}}),
+     "'scenes.bad.params'"),
+    (lambda c: c["solver_comparison"]["scenes"].update(ghost=[1]),
+     "'solver_comparison.scenes.ghost': no such scene"),
+    (lambda c: c["contact_solution"]["scenes"].update(circle_square=[7]), "levels [7]"),
+    (lambda c: c["augmented_projection"].update(configs=["alg85"]), "'alg85' is not allowed"),
+])
+def test_config_errors_name_the_key(change, needle):
+    config = yaml.safe_load((ROOT / "workflows/config/quick.yaml").read_text())
+    change(config)
+    with pytest.raises(ConfigError, match=needle.replace("[", r"\[").replace("]", r"\]")):
+        check_config(config)
+
+
+def test_config_schema_rejects_unknown_keys(tmp_path):
+    config = yaml.safe_load((ROOT / "workflows/config/quick.yaml").read_text())
+    config["solver_comparison"]["timelimit"] = 5
+    path = tmp_path / "config.yaml"
+    path.write_text(yaml.safe_dump(config))
+    out = snakemake("-n", "--configfile", str(path))
+    assert out.returncode != 0 and "timelimit" in out.stdout + out.stderr
+
+
+def test_studies_declare_their_outputs_once():
+    config = yaml.safe_load((ROOT / "workflows/config/quick.yaml").read_text())
+    targets = all_targets(config)
+    assert len(targets) == len(set(targets))
+    assert "results/circle_square/augmented_projection_table.csv" in targets
+    assert {s for s in STUDIES} == {"laplace_nonmatching", "contact_solution",
+                                     "solver_comparison", "augmented_projection"}
+    smk = "".join(p.read_text() for p in (ROOT / "workflows").glob("*.smk"))
+    assert "results/" not in smk          # every path comes from workflows/studies.py

@@ -1,0 +1,38 @@
+# Study augmented_projection: the thesis's solver (Alg. 8.4) level by level in one process,
+# alone on the machine (threads: 2 keeps snakemake from running anything beside it), with
+# the multigrid-PCG linear solve as the floor; the thesis's table beside ours.
+AP = config.get("augmented_projection", {})
+
+rule augmented_projection_study:
+    output: PATHS["ap_study"]
+    log: log_path("augmented_projection_study")
+    benchmark: bench_path("augmented_projection_study")
+    threads: 2
+    conda: ENV
+    params:
+        py=PY, scene=lambda w: set_args(config, w.scene),
+        levels=lambda w: " ".join(map(str, scenes_of(config, "augmented_projection")[w.scene])),
+        configs=" ".join(AP.get("configs", [])), limit=AP.get("time_limit", 120)
+    shell:
+        "{params.py} -m workflows.scripts.augmented_projection_study {params.scene} "
+        "--levels {params.levels} --configs {params.configs} --time-limit {params.limit} "
+        "--kappa-exact --out {output} > {log} 2>&1"
+
+rule augmented_projection_report:
+    input: PATHS["ap_study"]
+    output:
+        table=PATHS["ap_table"], claims=PATHS["ap_claims"],
+        time=report(PATHS["ap_time"], caption="../report/captions/ap_time.rst",
+                    category="{scene}", subcategory="augmented projection"),
+        kappa=report(PATHS["ap_kappa"], caption="../report/captions/ap_kappa.rst",
+                     category="{scene}", subcategory="augmented projection")
+    log: log_path("augmented_projection_report")
+    conda: ENV
+    params:
+        py=PY,
+        thesis=lambda w: (lambda t: f"--thesis {t}" if t else "")(
+            thesis_table(config, w.scene, "augmented_projection"))
+    shell:
+        "{params.py} -m report.augmented_projection --study {input} {params.thesis} "
+        "--table {output.table} --claims {output.claims} --fig-time {output.time} "
+        "--fig-kappa {output.kappa} > {log} 2>&1"

@@ -1,0 +1,46 @@
+# Study contact_solution: each scene solved exactly per level, checked against Hertz,
+# fields and figures (thesis Sects. 9.1, 9.2). Paths: workflows/studies.py.
+
+rule contact_level:
+    output:
+        contact=PATHS["contact_level"], hertz=PATHS["hertz_level"], vtu=PATHS["fields_level"]
+    log: log_path("contact_level", "{scene}_L{level}")
+    wildcard_constraints: level=r"\d+"
+    conda: ENV
+    params:
+        py=PY, scene=lambda w: set_args(config, w.scene),
+        outdir=lambda w, output: os.path.dirname(output.contact)
+    shell:
+        "{params.py} -m workflows.scripts.contact_solution {params.scene} --level {wildcards.level} "
+        "--outdir {params.outdir} > {log} 2>&1"
+
+rule contact_hertz_table:
+    input:
+        lambda w: expand(PATHS["hertz_level"], scene=w.scene,
+                         level=scenes_of(config, "contact_solution")[w.scene])
+    output: PATHS["hertz"]
+    log: log_path("contact_hertz_table")
+    conda: ENV
+    params: py=PY
+    shell: "{params.py} -m report.contact hertz --inputs {input} --out {output} > {log} 2>&1"
+
+rule contact_figures:
+    input:
+        vtu=lambda w: PATHS["fields_level"].format(
+            scene=w.scene, level=max(scenes_of(config, "contact_solution")[w.scene])),
+        contacts=lambda w: expand(PATHS["contact_level"], scene=w.scene,
+                                  level=scenes_of(config, "contact_solution")[w.scene]),
+        hertz=lambda w: expand(PATHS["hertz_level"], scene=w.scene,
+                               level=scenes_of(config, "contact_solution")[w.scene])
+    output:
+        fields=report(PATHS["fields_figure"], caption="../report/captions/fields.rst",
+                      category="{scene}", subcategory="contact solution"),
+        pressure=report(PATHS["pressure_figure"], caption="../report/captions/pressure.rst",
+                        category="{scene}", subcategory="contact solution")
+    log: log_path("contact_figures")
+    conda: ENV
+    params: py=PY
+    shell:
+        "({params.py} -m report.contact fields --vtu {input.vtu} --out {output.fields} && "
+        "{params.py} -m report.contact pressure --contacts {input.contacts} "
+        "--hertz {input.hertz} --out {output.pressure}) > {log} 2>&1"

@@ -1,0 +1,35 @@
+# Study solver_comparison: every registered solver at every preset on identical QPs of
+# each configured scene and level, against the exact reference. Paths: workflows/studies.py.
+SC = config.get("solver_comparison", {})
+
+rule solver_comparison:
+    output: PATHS["solver_runs"]
+    log: log_path("solver_comparison", "{scene}_L{level}")
+    benchmark: bench_path("solver_comparison", "{scene}_L{level}")
+    wildcard_constraints: level=r"\d+"
+    threads: 2  # timings: nothing else runs beside it
+    conda: ENV
+    params:
+        py=PY, scene=lambda w: set_args(config, w.scene), limit=SC.get("time_limit", 120),
+        presets=" ".join(SC.get("presets", []))
+    shell:
+        "{params.py} -m workflows.scripts.solver_comparison {params.scene} "
+        "--level {wildcards.level} --presets {params.presets} --time-limit {params.limit} "
+        "--out {output} > {log} 2>&1"
+
+rule solver_comparison_report:
+    input:
+        lambda w: expand(PATHS["solver_runs"], scene=w.scene,
+                         level=scenes_of(config, "solver_comparison")[w.scene])
+    output:
+        table=PATHS["solver_table"], presets=PATHS["solver_presets"],
+        times=report(PATHS["solver_times"], caption="../report/captions/solver_times.rst",
+                     category="{scene}", subcategory="solver comparison"),
+        work=report(PATHS["solver_work"], caption="../report/captions/solver_work.rst",
+                    category="{scene}", subcategory="solver comparison")
+    log: log_path("solver_comparison_report")
+    conda: ENV
+    params: py=PY
+    shell:
+        "{params.py} -m report.solvers --inputs {input} --table {output.table} "
+        "--presets {output.presets} --times {output.times} --work {output.work} > {log} 2>&1"
