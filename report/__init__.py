@@ -1,1 +1,3 @@
-"""Table and figure builders; they read result files and write figures."""
+"""Table and figure builders: they read result files and write tables and figures
+(atomically); :mod:`report.rates` holds every fitted rate and slope; ``captions/``
+the captions of the HTML report."""

@@ -1,1 +1,7 @@
-"""Contact solvers, one module each, all behind :mod:`solvers.interface`."""
+"""Contact solvers, one module each (``SOLVER = SolverSpec(...)``), all behind
+:mod:`solvers.interface`, which verifies every answer with the same KKT check.
+
+Machinery shared by solvers lives in modules without a ``SOLVER``
+(:mod:`solvers.preconditioners`) or with a leading underscore (:mod:`solvers._scaling`).
+Numerics only: nothing here writes a file (checked by the tests).
+"""
