@@ -29,7 +29,7 @@ def _study(t_of_n, n_outer, kappa):
     rows = [{"level": i + 1, "N": n, "NC": 33 * 2 ** i, "n": 2 * n, "config": "alg84",
              "n_outer": n_outer[i], "n_inner_mean": 3.0, "t_setup": 0.0, "t_solve": t_of_n(n),
              "t_proj": 0.01, "kappa_S": kappa[i], "energy_error": 1e-3, "kkt_max": 1e-3,
-             "stop_8_25": True, "status": "converged",
+             "stop_8_25": True, "status": "converged", "n_outer_1e-03": n_outer[i],
              "t_to_target": 2 * t_of_n(n)} for i, n in enumerate(N)]
     rows += [{"level": i + 1, "N": n, "config": "amg_pcg_gmg", "t_to_target": t_of_n(n) / 2}
              for i, n in enumerate(N)]
@@ -51,8 +51,12 @@ def test_table_9_1_sits_beside_the_thesis():
     thesis = read_thesis("reference/table_9_1.csv")
     assert list(thesis["nodes"]) == [4226, 16642, 66050, 263170]
     t = thesis_table(_study(lambda n: 1e-5 * n, [8] * 4, [34, 68, 136, 272]), thesis)
-    assert list(t["thesis_n_outer"]) == [19, 19, 20, 21]
-    assert list(t["NC"]) == [33, 66, 132, 264]
+    assert list(t["thesis_n_outer_1e-03"]) == [19, 19, 20, 21]
+    assert list(t["n_outer_1e-03"]) == [8] * 4 and list(t["NC"]) == [33, 66, 132, 264]
+    t3 = thesis_table(_study(lambda n: 1e-5 * n, [8] * 4, [34, 68, 136, 272]),
+                      read_thesis("reference/table_9_3.csv"))
+    assert list(t3["thesis_n_outer_1e-02"][:3]) == [107, 112, 115]
+    assert t3["thesis_nodes"].isna().iloc[3]              # the thesis has no fourth level
 
 
 def test_claims_ignore_runs_that_stopped_short():

@@ -1,11 +1,20 @@
 """Simplex meshes and nested uniform refinement hierarchies.
 
-Meshes are plain arrays: ``points`` (n_nodes, d) and ``cells`` (n_cells, d+1).
-Uniform refinement (red refinement via scikit-fem) returns the nodal
+Meshes are plain arrays: ``points`` (n_nodes, d) and ``cells`` (n_cells, d+1),
+tetrahedra positively oriented. Uniform (red) refinement returns the nodal
 prolongation matrix with it, so a multilevel solver can use the hierarchy
-(Sect. 8.6, Alg. 8.5). Curved boundaries are kept on the curve by projecting
-new boundary nodes (``project``) after each refinement; the prolongation stays
-the plain P1 one (midpoint averaging), which is what nested iteration needs.
+(Sect. 8.6, Alg. 8.5): triangles via scikit-fem, tetrahedra by
+:func:`red_refine_tets` (the inner octahedron split along its shortest
+diagonal; scikit-fem 12 measures that diagonal in x and y only, which lets the
+quality decay level by level, and its fine-mesh boundary search costs more than
+the refinement). Curved boundaries are kept on the curve by projecting new
+boundary nodes (``project``) after each refinement; the prolongation stays the
+plain P1 one (midpoint averaging), which is what nested iteration needs.
+
+Generators: structured squares and cubes (Kuhn/Freudenthal: 6 tetrahedra per
+hexahedron sharing its main diagonal; the cube with 2n cells per edge is the
+Freudenthal refinement of the one with n, so :func:`nested_prolongation` is the
+exact P1 interpolation), netgen disks and balls (OCC geometry).
 """
 from __future__ import annotations
 
@@ -63,16 +72,26 @@ def refine(points: np.ndarray, cells: np.ndarray,
            project: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None):
     """One uniform (red) refinement: ``(points, cells, prolongation)``.
 
-    New nodes are edge midpoints (scikit-fem's ordering: old nodes first, then
-    one per edge); ``prolongation`` is the P1 interpolation from the old to the
-    new nodes. ``project(points, is_boundary)`` may move new boundary nodes
-    (e.g. onto a circle) and returns the corrected points.
+    New nodes are edge midpoints (old nodes first, then one per edge);
+    ``prolongation`` is the P1 interpolation from the old to the new nodes.
+    ``project(points, is_boundary)`` may move new boundary nodes (e.g. onto a
+    circle or a sphere) and returns the corrected points.
     """
     d = points.shape[1]
-    mesh = (MeshTri if d == 2 else MeshTet)(np.ascontiguousarray(points.T), np.ascontiguousarray(cells.T))
+    if d == 3:
+        new_pts, new_cells, edges = red_refine_tets(points, cells)
+        n_old = len(points)
+        prolongation = _edge_prolongation(n_old, edges)
+        if project is not None:
+            is_boundary = np.zeros(len(new_pts), dtype=bool)
+            is_boundary[_refined_boundary_nodes(cells, n_old, edges)] = True
+            new_pts = project(new_pts, is_boundary)
+            new_cells = orient_positive(new_pts, new_cells)
+        return new_pts, new_cells, prolongation
+    mesh = MeshTri(np.ascontiguousarray(points.T), np.ascontiguousarray(cells.T))
     fine = mesh.refined()
     n_old = points.shape[0]
-    edges = mesh.edges if d == 3 else mesh.facets
+    edges = mesh.facets
     new_pts = fine.p.T.copy()
     n_new = new_pts.shape[0]
     n_edges = edges.shape[1]
@@ -81,10 +100,7 @@ def refine(points: np.ndarray, cells: np.ndarray,
     mid = 0.5 * (points[edges[0]] + points[edges[1]])
     if not np.allclose(new_pts[n_old:], mid, atol=1e-12 * max(1.0, np.abs(points).max())):
         raise RuntimeError("scikit-fem's refined() no longer numbers midpoints by edge")
-    rows = np.concatenate([np.arange(n_old), np.repeat(np.arange(n_old, n_new), 2)])
-    cols = np.concatenate([np.arange(n_old), edges.T.ravel()])
-    vals = np.concatenate([np.ones(n_old), np.full(2 * n_edges, 0.5)])
-    prolongation = sp.csr_matrix((vals, (rows, cols)), shape=(n_new, n_old))
+    prolongation = _edge_prolongation(n_old, edges.T)
     if project is not None:
         is_boundary = np.zeros(n_new, dtype=bool)
         is_boundary[fine.boundary_nodes()] = True
@@ -104,8 +120,9 @@ def uniform_hierarchy(points: np.ndarray, cells: np.ndarray, levels: int,
     return h
 
 
-def project_to_circle(center, radius: float, only_outside_of: float | None = None):
-    """A ``project`` callback for :func:`refine` that puts boundary nodes on a circle."""
+def project_to_circle(center, radius: float):
+    """A ``project`` callback for :func:`refine` that puts boundary nodes on a circle
+    (2D) or a sphere (3D) about ``center``."""
     c = np.asarray(center, dtype=float)
 
     def project(points: np.ndarray, is_boundary: np.ndarray) -> np.ndarray:
@@ -156,3 +173,144 @@ def nested_prolongation(points: np.ndarray, cells: np.ndarray, fine_points: np.n
     cols = np.concatenate([idx[is_node], e.ravel()])
     vals = np.concatenate([np.ones(is_node.sum()), np.full(2 * len(e), 0.5)])
     return sp.csr_matrix((vals, (rows, cols)), shape=(len(fine_points), n))
+
+
+# --------------------------------------------------------------------------- 3D
+#: Local edges of a tetrahedron (scikit-fem's order) and the opposite-edge pairs of the
+#: octahedron left after cutting off the four corner tetrahedra.
+TET_EDGES = np.array([[0, 1], [1, 2], [0, 2], [0, 3], [1, 3], [2, 3]])
+_OPPOSITE = np.array([[0, 5], [1, 3], [2, 4]])
+_TET_FACES = np.array([[1, 2, 3], [0, 2, 3], [0, 1, 3], [0, 1, 2]])
+
+
+def signed_volumes(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
+    """Signed volume of each tetrahedron (positive: (x1-x0, x2-x0, x3-x0) right-handed)."""
+    a = points[cells[:, 0]]
+    return np.einsum("ij,ij->i", np.cross(points[cells[:, 1]] - a, points[cells[:, 2]] - a),
+                     points[cells[:, 3]] - a) / 6.0
+
+
+def orient_positive(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
+    """Tetrahedra with vertices 2 and 3 swapped where the volume is negative."""
+    cells = np.array(cells, dtype=np.int64)
+    neg = signed_volumes(points, cells) < 0
+    cells[neg, 2], cells[neg, 3] = cells[neg, 3], cells[neg, 2].copy()
+    return cells
+
+
+def tet_edges(cells: np.ndarray, n_nodes: int):
+    """Unique edges ``(n_edges, 2)`` (sorted pairs, lexicographic) and each cell's six
+    edges ``(n_cells, 6)`` in the local order :data:`TET_EDGES`."""
+    a = cells[:, TET_EDGES[:, 0]].astype(np.int64)
+    b = cells[:, TET_EDGES[:, 1]].astype(np.int64)
+    key = np.minimum(a, b) * n_nodes + np.maximum(a, b)
+    del a, b
+    uniq, inv = np.unique(key.ravel(), return_inverse=True)
+    return np.stack([uniq // n_nodes, uniq % n_nodes], axis=1), inv.reshape(cells.shape[0], 6)
+
+
+def boundary_triangles(cells: np.ndarray, n_nodes: int) -> np.ndarray:
+    """Boundary faces ``(n_faces, 3)`` of a tetrahedral mesh (faces of one cell; unoriented)."""
+    f = np.sort(cells[:, _TET_FACES].reshape(-1, 3).astype(np.int64), axis=1)
+    key = (f[:, 0] * n_nodes + f[:, 1]) * n_nodes + f[:, 2]
+    _, idx, cnt = np.unique(key, return_index=True, return_counts=True)
+    return f[idx[cnt == 1]]
+
+
+def red_refine_tets(points: np.ndarray, cells: np.ndarray):
+    """One red refinement of a tetrahedral mesh (Bey): ``(points, cells, edges)``.
+
+    Fine nodes: the old nodes, then the midpoint of ``edges[k]`` as node
+    ``n_old + k``. Each tetrahedron gives its four corner tetrahedra and four
+    around the shortest diagonal of the inner octahedron (which keeps the
+    quality bounded under repeated refinement). Cells positively oriented.
+    """
+    n_old = points.shape[0]
+    edges, ce = tet_edges(cells, n_old)
+    new_points = np.vstack([points, 0.5 * (points[edges[:, 0]] + points[edges[:, 1]])])
+    e = ce + n_old                                     # global ids of the six midpoints
+    d2 = np.empty((cells.shape[0], 3))
+    for k, (i, j) in enumerate(_OPPOSITE):
+        diff = new_points[e[:, i]] - new_points[e[:, j]]
+        d2[:, k] = np.einsum("ij,ij->i", diff, diff)
+    choice = np.argmin(d2, axis=1)
+    nc = cells.shape[0]
+    out = np.empty((8, nc, 4), dtype=np.int64)
+    out[0] = np.stack([cells[:, 0], e[:, 0], e[:, 2], e[:, 3]], axis=1)
+    out[1] = np.stack([cells[:, 1], e[:, 0], e[:, 1], e[:, 4]], axis=1)
+    out[2] = np.stack([cells[:, 2], e[:, 1], e[:, 2], e[:, 5]], axis=1)
+    out[3] = np.stack([cells[:, 3], e[:, 3], e[:, 4], e[:, 5]], axis=1)
+    for k in range(3):
+        sel = choice == k
+        d0, d1 = e[sel][:, _OPPOSITE[k, 0]], e[sel][:, _OPPOSITE[k, 1]]
+        (p0, p1), (q0, q1) = (e[sel][:, _OPPOSITE[m]].T for m in range(3) if m != k)
+        ring = [p0, q0, p1, q1]                        # the equator: opposite pairs alternate
+        for r in range(4):
+            out[4 + r, sel] = np.stack([d0, d1, ring[r], ring[(r + 1) % 4]], axis=1)
+    return new_points, orient_positive(new_points, out.reshape(8 * nc, 4)), edges
+
+
+def _refined_boundary_nodes(cells: np.ndarray, n_old: int, edges: np.ndarray) -> np.ndarray:
+    """Boundary nodes of the red refinement, from the coarse boundary faces: their
+    vertices and the midpoints (``n_old + k``) of their edges."""
+    bf = boundary_triangles(cells, n_old)
+    pairs = np.sort(bf[:, [[0, 1], [1, 2], [0, 2]]].reshape(-1, 2), axis=1)
+    key = np.unique(pairs[:, 0] * n_old + pairs[:, 1])
+    new = n_old + np.searchsorted(edges[:, 0] * n_old + edges[:, 1], key)
+    return np.concatenate([np.unique(bf), new])
+
+
+def _edge_prolongation(n_old: int, edges: np.ndarray) -> sp.csr_matrix:
+    """P1 prolongation for old nodes followed by one midpoint per edge ``(n_edges, 2)``."""
+    ne = edges.shape[0]
+    rows = np.concatenate([np.arange(n_old), np.repeat(np.arange(n_old, n_old + ne), 2)])
+    cols = np.concatenate([np.arange(n_old), np.asarray(edges).ravel()])
+    vals = np.concatenate([np.ones(n_old), np.full(2 * ne, 0.5)])
+    return sp.csr_matrix((vals, (rows, cols)), shape=(n_old + ne, n_old))
+
+
+def structured_cube(n: int, origin=(0.0, 0.0, 0.0), size: float = 1.0):
+    """Cube ``origin + [0, size]^3`` with n^3 hexahedra, 6 Kuhn tetrahedra each.
+
+    Returns ``(points, cells)``; cells positively oriented.
+    """
+    if n < 1:
+        raise ValueError(f"parameter 'n': {n!r} is not allowed; allowed: an integer >= 1")
+    m = MeshTet.init_tensor(*(np.linspace(o, o + size, n + 1) for o in origin))
+    pts = m.p.T.copy()
+    return pts, orient_positive(pts, m.t.T)
+
+
+def netgen_ball(center, radius: float, maxh: float, grading: float = 0.3):
+    """Unstructured tetrahedra of a ball by netgen (OCC geometry): ``(points, cells)``.
+
+    The OCC sphere has its poles on the z axis, so a node sits at the ball's
+    lowest point at every refinement level.
+    """
+    from netgen.meshing import MeshingParameters
+    from netgen.occ import OCCGeometry, Pnt, Sphere
+
+    if not (radius > 0 and maxh > 0):
+        raise ValueError("parameters 'radius' and 'maxh' must be positive")
+    geo = OCCGeometry(Sphere(Pnt(*map(float, center)), float(radius)))
+    ngmesh = geo.GenerateMesh(MeshingParameters(maxh=float(maxh), grading=float(grading)))
+    points = np.array(ngmesh.Coordinates(), dtype=float)
+    cells = ngmesh.Elements3D().NumPy()["nodes"][:, :4].astype(np.int64) - 1
+    return points, orient_positive(points, cells)
+
+
+def tet_quality(points: np.ndarray, cells: np.ndarray) -> dict:
+    """Smallest signed volume and smallest/largest dihedral angle (degrees)."""
+    x = points[cells]
+    J = (x[:, 1:] - x[:, :1]).transpose(0, 2, 1)
+    G = np.linalg.inv(J)
+    g = np.concatenate([-G.sum(axis=1, keepdims=True), G], axis=1)
+    gn = g / np.linalg.norm(g, axis=2, keepdims=True)
+    angles = []
+    for i, j in TET_EDGES:
+        k, m = (r for r in range(4) if r not in (i, j))
+        angles.append(np.degrees(np.arccos(np.clip(-np.einsum("ij,ij->i", gn[:, k], gn[:, m]),
+                                                   -1, 1))))
+    angles = np.concatenate(angles)
+    return {"min_volume": float(signed_volumes(points, cells).min()),
+            "min_dihedral": float(angles.min()), "max_dihedral": float(angles.max())}

@@ -23,7 +23,7 @@ from typing import Callable
 import numpy as np
 import scipy.sparse as sp
 
-from problems.fem.contact import contact_constraints, orient_facets
+from problems.fem.contact import contact_constraints
 from problems.fem.elasticity import (body_force_vector, boundary_facets, dirichlet_split,
                                      lumped_surface_mass, rigid_body_modes, stiffness_matrix,
                                      traction_vector)
@@ -150,11 +150,11 @@ def _constrained_surface(scene: TwoBodyScene, points, cells, body_of_node):
 
 
 def _opposing_facets(scene: TwoBodyScene, points, cells, body_of_node):
+    """Boundary facets of the opposing body selected by centroid, oriented outward
+    (as case a of Alg. 7.1 needs)."""
     body = 1 - scene.constrained_body
-    body_cells = cells[body_of_node[cells[:, 0]] == body]
-    facets = boundary_facets(body_cells, points)
-    keep = scene.on_opposing(points[facets].mean(axis=1))
-    return orient_facets(points, facets[keep], body_cells)
+    facets = boundary_facets(cells[body_of_node[cells[:, 0]] == body], points)
+    return facets[scene.on_opposing(points[facets].mean(axis=1))]
 
 
 def assemble_two_body(scene: TwoBodyScene, level: int, name: str = "") -> ContactQP:
