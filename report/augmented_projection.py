@@ -85,7 +85,7 @@ def claims(study: pd.DataFrame, config: str = MAIN) -> pd.DataFrame:
     floor = finest[finest.config.str.startswith("amg_pcg")]
     if len(floor) and np.isfinite(floor["t_to_target"]).any():
         t_floor = floor["t_to_target"].min()
-        runs = finest[~finest.config.str.startswith("amg_pcg") & (finest.config != "pdas")]
+        runs = finest[~finest.config.str.startswith("amg_pcg") & (finest.config != "reference")]
         best = runs.loc[[runs["t_total"].idxmin()]] if runs["t_total"].notna().any() else runs.iloc[:0]
         for label, row in ((config + " (Alg. 8.4 as written)", runs[runs.config == config]),
                            ("best configuration", best)):
@@ -104,7 +104,7 @@ def figure_time(study: pd.DataFrame, thesis: pd.DataFrame | None, path: str) -> 
     """T_solve against N (log-log; Figs. 9.1, 9.6): our configurations, the multigrid-PCG
     floor, the thesis."""
     fig, ax = plt.subplots(figsize=(7.5, 4.8))
-    for config, grp in study[study.config != "pdas"].groupby("config"):
+    for config, grp in study[study.config != "reference"].groupby("config"):
         grp = grp.sort_values("N")
         if config.startswith("amg_pcg"):
             t, style = time_to_target(grp), "k:" if config.endswith("gmg") else "k-."

@@ -5,7 +5,10 @@ mesh with the deformed configuration and the von Mises stress near the contact
 (2D: the whole section; 3D: the vertical cut through the contact point).
 ``pressure``: the nodal contact pressure against the in-plane position (2D) or
 the distance from the contact centre (3D), each level, with the Hertz curve
-for the measured force of the finest level.
+for the measured force of the finest level. ``surface``: the two contact
+surfaces' meshes near the contact (Fig. 9.9): the constrained surface coloured
+by the contact pressure and the opposing surface's facets over it (3D: seen
+from above; 2D: the nodes of both surfaces along the contact).
 """
 from __future__ import annotations
 
@@ -46,7 +49,7 @@ def _contact_window(points, pressure, dims=(0, 1)):
         return c, np.ptp(points, axis=0).max() / 2
     pts = points[loaded]
     c = pts.mean(axis=0)
-    size = max(3.0 * np.ptp(pts[:, list(dims)], axis=0).max(), 0.1 * np.ptp(points, axis=0).max())
+    size = max(1.0 * np.ptp(pts[:, list(dims)], axis=0).max(), 0.05 * np.ptp(points, axis=0).max())
     return c, size
 
 
@@ -66,7 +69,7 @@ def fields_figure(vtu: str, path: str, magnify: float = 5.0) -> None:
     d = xy + magnify * uv
     ax.triplot(Triangulation(d[:, 0], d[:, 1], tri), color="tab:blue", lw=0.25)
     ax.set_aspect("equal")
-    ax.set_title(f"{where}: reference mesh (grey) and deformed (blue, x{magnify:g})", fontsize=9)
+    ax.set_title(f"{where}:\nreference mesh (grey), deformed (blue, x{magnify:g})", fontsize=9)
     ax.set_xlabel(labels[0])
     ax.set_ylabel(labels[1])
     ax = axes[1]
@@ -79,7 +82,7 @@ def fields_figure(vtu: str, path: str, magnify: float = 5.0) -> None:
     ax.set_xlim(cx - size, cx + size)
     ax.set_ylim(cy - size, cy + size)
     ax.set_aspect("equal")
-    ax.set_title(f"von Mises stress near the contact (deformed, true scale; "
+    ax.set_title(f"von Mises stress near the contact\n(deformed, true scale; "
                  f"{int(loaded.sum())} loaded nodes)", fontsize=9)
     ax.set_xlabel(labels[0])
     fig.colorbar(im, ax=ax, label="von Mises stress (units of the scene's E)")
@@ -92,6 +95,7 @@ def _vertical_cut(pts, cells, u, vm, pressure):
     triangles), with the tetrahedron's von Mises value."""
     loaded = pressure > 0
     yc = pts[loaded, 1].mean() if loaded.any() else pts[:, 1].mean()
+    yc += 1e-7 * np.ptp(pts[:, 1])    # off any grid plane: every cut is a proper polygon
     side = pts[:, 1] - yc
     s = side[cells]
     cut = np.flatnonzero((s.min(axis=1) < 0) & (s.max(axis=1) > 0))
@@ -119,7 +123,7 @@ def _vertical_cut(pts, cells, u, vm, pressure):
             tris.append([base, base + k, base + k + 1])
             values.append(vm[c])
     return (np.array(nodes), np.array(disp), np.array(tris), np.array(values),
-            f"vertical cut y = {yc:.3g} through the contact")
+            f"vertical cut y = {yc:.3g} through the contact")  # the thesis's Fig. 9.5
 
 
 def pressure_figure(contacts: list[str], hertz_rows: list[str], path: str) -> None:
@@ -160,6 +164,66 @@ def pressure_figure(contacts: list[str], hertz_rows: list[str], path: str) -> No
     save_figure(fig, path)
 
 
+def surface_figure(vtu: str, path: str) -> None:
+    """The constrained and the opposing surface near the contact (thesis Fig. 9.9)."""
+    import meshio
+
+    from problems.fem.elasticity import boundary_facets
+
+    m = meshio.read(vtu)
+    kind = "triangle" if "triangle" in m.cells_dict else "tetra"
+    cells, pts = m.cells_dict[kind], m.points
+    pressure, body = m.point_data["contact_pressure"], m.point_data["body"].astype(int)
+    loaded = pressure > 0
+    constrained_body = int(np.bincount(body[loaded]).argmax()) if loaded.any() else 0
+    cell_body = body[cells[:, 0]]
+    c, size = _contact_window(pts, pressure)
+    fig, ax = plt.subplots(figsize=(7, 6.2) if kind == "tetra" else (9, 3.2))
+    if kind == "tetra":
+        n = np.zeros(3)
+        n[2] = 1.0
+        surf = {}
+        for b in (0, 1):
+            f = boundary_facets(cells[cell_body == b], pts[:, :3])
+            cen = pts[f].mean(axis=1)
+            near = (np.abs(cen[:, 0] - c[0]) < 1.2 * size) & (np.abs(cen[:, 1] - c[1]) < 1.2 * size)
+            # the faces looking at the other body: the constrained body's facing up, the other's down
+            normal = np.cross(pts[f[:, 1]] - pts[f[:, 0]], pts[f[:, 2]] - pts[f[:, 0]])
+            facing = normal[:, 2] > 0 if b == constrained_body else normal[:, 2] < 0
+            surf[b] = f[near & facing & (np.abs(cen[:, 2] - c[2]) < 0.5 * size + 0.05)]
+        con = surf[constrained_body]
+        tri = Triangulation(pts[:, 0], pts[:, 1], con)
+        im = ax.tripcolor(tri, pressure, shading="gouraud", cmap="viridis")
+        ax.triplot(tri, color="k", lw=0.3)
+        opp = surf[1 - constrained_body]
+        ax.triplot(Triangulation(pts[:, 0], pts[:, 1], opp), color="tab:red", lw=0.4, alpha=0.8)
+        fig.colorbar(im, ax=ax, label="contact pressure (units of the scene's E)")
+        ax.set_xlim(c[0] - size, c[0] + size)
+        ax.set_ylim(c[1] - size, c[1] + size)
+        ax.set_aspect("equal")
+        ax.set_xlabel("x")
+        ax.set_ylabel("y")
+        ax.set_title("Contact surfaces seen from above (cf. Fig. 9.9):\nconstrained surface "
+                     "(black, coloured by pressure), opposing facets (red)", fontsize=9)
+    else:
+        f = {b: np.unique(boundary_facets(cells[cell_body == b])) for b in (0, 1)}
+        for b, y, style in ((constrained_body, 0.0, "ks"), (1 - constrained_body, 1.0, "ro")):
+            nodes = f[b][np.abs(pts[f[b], 0] - c[0]) < size]
+            nodes = nodes[np.abs(pts[nodes, 1] - c[1]) < 0.25 * size]
+            ax.plot(pts[nodes, 0], np.full(len(nodes), y), style, ms=3,
+                    label="constrained surface nodes" if y == 0 else "opposing surface nodes")
+        on = loaded & (np.abs(pts[:, 0] - c[0]) < size)
+        ax.vlines(pts[on, 0], 0, pressure[on] / pressure.max() * 0.8, color="tab:blue", lw=1,
+                  label="contact pressure (scaled)")
+        ax.set_xlim(c[0] - size, c[0] + size)
+        ax.set_yticks([0, 1], ["constrained", "opposing"])
+        ax.set_xlabel("x")
+        ax.set_title("Nodes of both contact surfaces near the contact: opposing nodes between "
+                     "constrained ones 'hang' (Sect. 7.4)", fontsize=8)
+        ax.legend(fontsize=7, loc="upper right")
+    save_figure(fig, path)
+
+
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -170,6 +234,9 @@ def main(argv=None) -> None:
     f = sub.add_parser("fields")
     f.add_argument("--vtu", required=True)
     f.add_argument("--out", required=True)
+    s = sub.add_parser("surface")
+    s.add_argument("--vtu", required=True)
+    s.add_argument("--out", required=True)
     p = sub.add_parser("pressure")
     p.add_argument("--contacts", nargs="+", required=True)
     p.add_argument("--hertz", nargs="+", required=True)
@@ -179,6 +246,8 @@ def main(argv=None) -> None:
         hertz_table(args.inputs, args.out)
     elif args.what == "fields":
         fields_figure(args.vtu, args.out)
+    elif args.what == "surface":
+        surface_figure(args.vtu, args.out)
     else:
         pressure_figure(args.contacts, args.hertz, args.out)
 

@@ -215,3 +215,25 @@ def verify(qp: ContactQP, result: SolveResult, tol: float) -> SolveResult:
     else:
         result.status = result.claimed_status
     return result
+
+
+#: Largest number of unknowns for which the exact reference factorises the KKT matrix
+#: (PDAS with sparse LU), per dimension: 2D level 4 (525k unknowns) takes ~2 min here,
+#: 3D level 1 (7k) ~1 s but level 2 (51k) ~35-60 s (3D fill-in).
+DIRECT_REFERENCE_LIMIT = {2: 600_000, 3: 10_000}
+
+
+def reference_solve(qp: ContactQP, tol: float = 1e-10,
+                    time_limit: float | None = None) -> SolveResult:
+    """The suite's reference solution of ``qp`` (DESIGN.md, performance conventions).
+
+    The exact PDAS (a direct factorisation per active-set step) where that is
+    affordable (:data:`DIRECT_REFERENCE_LIMIT`); otherwise, where a direct
+    factorisation no longer fits, an iterative solve to verified KKT residuals
+    ``<= tol``: the augmented projection with face-CG acceleration. The result's
+    ``solver`` says which; its ``status`` is verified against ``tol`` either way.
+    """
+    if qp.n <= DIRECT_REFERENCE_LIMIT.get(qp.dim, 0):
+        return solve(qp, "pdas", tol=tol, time_limit=time_limit)
+    return solve(qp, "augmented_projection", tol=tol, time_limit=time_limit, max_iter=5000,
+                 accelerate="face_cg")

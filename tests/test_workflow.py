@@ -44,7 +44,30 @@ def test_contact_solution_and_its_report(contact, tmp_path):
     run("report.contact", "pressure", "--contacts", *[str(contact / f"contact_L{k}.csv")
                                                       for k in (0, 1)],
         "--hertz", *rows, "--out", str(tmp_path / "pressure.png"))
-    for name in ("fields.png", "pressure.png"):
+    run("report.contact", "surface", "--vtu", str(contact / "fields_L1.vtu"),
+        "--out", str(tmp_path / "surface.png"))
+    for name in ("fields.png", "pressure.png", "surface.png"):
+        assert (tmp_path / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_contact_solution_in_3d(tmp_path):
+    """The same script and builders on the cube-sphere scene (3D cut, point-contact Hertz)."""
+    for level in ("0", "1"):
+        run("workflows.scripts.contact_solution", "--problem", "cube_sphere", "--level", level,
+            "--outdir", str(tmp_path))
+    c = pd.read_csv(tmp_path / "contact_L1.csv")
+    assert {"x0", "x1", "x2", "s0", "s1"} <= set(c.columns) and len(c) == 81
+    rows = [str(tmp_path / f"hertz_L{k}.csv") for k in (0, 1)]
+    run("report.contact", "hertz", "--inputs", *rows, "--out", str(tmp_path / "hertz.csv"))
+    h = pd.read_csv(tmp_path / "hertz.csv")
+    assert (h["status"] == "converged").all() and (h["a_hertz"] > 0.2).all()
+    run("report.contact", "pressure", "--contacts", *[str(tmp_path / f"contact_L{k}.csv")
+                                                      for k in (0, 1)],
+        "--hertz", *rows, "--out", str(tmp_path / "pressure.png"))
+    for what in ("fields", "surface"):
+        run("report.contact", what, "--vtu", str(tmp_path / "fields_L1.vtu"),
+            "--out", str(tmp_path / f"{what}.png"))
+    for name in ("fields.png", "pressure.png", "surface.png"):
         assert (tmp_path / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
@@ -54,6 +77,7 @@ def test_solver_comparison_and_its_report(tmp_path):
     t = pd.read_csv(tmp_path / "solvers_L0.csv")
     from solvers.interface import solvers
     assert set(t["solver"]) == set(solvers())      # every registered solver, the exact one as reference
+    assert (t.loc[t.preset == "reference", "solver"] == "pdas").all()
     assert {"status", "kkt_max", "energy_error", "peak_mem_mb", "wall_time"} <= set(t.columns)
     ref = t[t.preset == "reference"]
     assert len(ref) == 1 and ref["kkt_max"].iloc[0] < 1e-10
@@ -74,7 +98,8 @@ def test_augmented_projection_study_and_its_report(tmp_path):
         "--configs", "alg84", "nested_face_cg", "--kappa-exact", "--time-limit", "60",
         "--out", str(study))
     s = pd.read_csv(study)
-    assert set(s["config"]) == {"pdas", "alg84", "nested_face_cg", "amg_pcg_gmg", "amg_pcg_sa"}
+    assert set(s["config"]) == {"reference", "alg84", "nested_face_cg", "amg_pcg_gmg", "amg_pcg_sa"}
+    assert set(s.loc[s.config == "reference", "reference"]) == {"pdas"}
     runs = s[s.config == "alg84"]
     assert list(runs["NC"]) == [17, 33] and runs["stop_8_25"].all()
     assert (runs["energy_error"] < 1e-2).all() and (runs["kappa_SinvS"] < 10).all()

@@ -36,11 +36,14 @@ rule contact_figures:
         fields=report(PATHS["fields_figure"], caption="../report/captions/fields.rst",
                       category="{scene}", subcategory="contact solution"),
         pressure=report(PATHS["pressure_figure"], caption="../report/captions/pressure.rst",
-                        category="{scene}", subcategory="contact solution")
+                        category="{scene}", subcategory="contact solution"),
+        surface=report(PATHS["surface_figure"], caption="../report/captions/surface.rst",
+                       category="{scene}", subcategory="contact solution")
     log: log_path("contact_figures")
     conda: ENV
     params: py=PY
     shell:
         "({params.py} -m report.contact fields --vtu {input.vtu} --out {output.fields} && "
+        "{params.py} -m report.contact surface --vtu {input.vtu} --out {output.surface} && "
         "{params.py} -m report.contact pressure --contacts {input.contacts} "
         "--hertz {input.hertz} --out {output.pressure}) > {log} 2>&1"

@@ -29,6 +29,7 @@ PATHS = {
     "hertz": "results/{scene}/hertz.csv",
     "fields_figure": "results/{scene}/fields.png",
     "pressure_figure": "results/{scene}/pressure.png",
+    "surface_figure": "results/{scene}/contact_surfaces.png",
     # solver_comparison
     "solver_runs": "results/{scene}/solvers_L{level}.csv",
     "solver_table": "results/{scene}/solvers.csv",
@@ -124,8 +125,8 @@ STUDIES = {
             name="contact_solution",
             summary="exact contact solution per level of each scene: Hertz check (2D line or 3D "
                     "point contact), fields (VTU), von Mises stress and contact pressure figures",
-            thesis="Sects. 9.1, 9.2 (Figs. 9.5)",
-            outputs=("hertz", "fields_figure", "pressure_figure"),
+            thesis="Sects. 9.1, 9.2 (Figs. 9.5, 9.9)",
+            outputs=("hertz", "fields_figure", "pressure_figure", "surface_figure"),
         ),
         Study(
             name="solver_comparison",
