@@ -11,7 +11,11 @@ Sects. 4.2-4.3):
 
 * point contact, total load ``P``::
 
-      a^3 = 3 P R / (4 E*),    p0 = 3 P / (2 pi a^2),   p(r) = p0 sqrt(1 - r^2/a^2).
+      a^3 = 3 P R / (4 E*),    p0 = 3 P / (2 pi a^2),   p(r) = p0 sqrt(1 - r^2/a^2);
+
+* two parallel cylinders (radii ``R1``, ``R2``) under a line load ``q``: the line
+  contact with the effective radius ``1/R = 1/R1 + 1/R2`` (Johnson, Sect. 4.2),
+  :func:`two_cylinders`.
 
 The contact size depends only on the local geometry and the total force, so it
 is the yardstick for a FE contact zone that is small against the bodies.
@@ -33,6 +37,47 @@ MOMENT = {"line": 4.0, "point": 2.5}
 def effective_modulus(E1: float, nu1: float, E2: float, nu2: float) -> float:
     """Effective modulus E* of two bodies (plane strain in 2D)."""
     return 1.0 / ((1 - nu1 ** 2) / E1 + (1 - nu2 ** 2) / E2)
+
+
+def two_cylinders(q, R1: float, R2: float, E_star: float) -> tuple[np.ndarray, np.ndarray]:
+    """Half-width ``b`` and peak pressure ``p0`` of two parallel cylinders under line load ``q``.
+
+    Plane-strain Hertz line contact (Johnson 1985, Sect. 4.2) with
+    the effective radius ``1/R = 1/R1 + 1/R2``::
+
+        b = sqrt(4 q R / (pi E*)),    p0 = 2 q / (pi b) = sqrt(q E* / (pi R)).
+
+    Parameters
+    ----------
+    q : float or array
+        Load per unit length of the cylinders, ``q >= 0`` (finite).
+    R1, R2 : float
+        The cylinders' radii, ``> 0`` (convex bodies; a flat body is ``R2 = inf``).
+    E_star : float
+        Effective modulus, :func:`effective_modulus`, ``> 0``.
+
+    Returns
+    -------
+    b, p0 : ndarray
+        With the shape of ``q``; both are 0 where ``q == 0``.
+
+    Raises
+    ------
+    ValueError
+        Naming ``q``, ``R1``, ``R2`` or ``E_star`` if outside the allowed range.
+    """
+    for name, value, upper in (("R1", R1, "inf]"), ("R2", R2, "inf]"), ("E_star", E_star, "inf)")):
+        if not (value > 0) or (upper == "inf)" and not np.isfinite(value)):
+            raise ValueError(f"parameter '{name}': {value!r} is not allowed; "
+                             f"allowed: a number in (0, {upper}")
+    q = np.asarray(q, dtype=float)
+    if not np.all(np.isfinite(q) & (q >= 0)):
+        raise ValueError("parameter 'q': negative or non-finite line load is not allowed; "
+                         "allowed: numbers in [0, inf)")
+    R = 1.0 / (1.0 / R1 + 1.0 / R2)
+    b = np.sqrt(4.0 * q * R / (np.pi * E_star))
+    p0 = np.sqrt(q * E_star / (np.pi * R))
+    return b, p0
 
 
 def _check(kind: str) -> None:
