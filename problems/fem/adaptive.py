@@ -57,7 +57,8 @@ def mark_doerfler(eta_sq, theta: float = 0.5) -> np.ndarray:
     ``sum_{T in M} eta_T^2 >= theta sum_T eta_T^2``. Returns a bool mask."""
     e = _check_eta(eta_sq)
     if not (0 < theta <= 1):
-        raise ValueError(f"parameter 'theta': {theta!r} is not allowed; allowed: a number in (0, 1]")
+        raise ValueError(f"parameter 'theta': {theta!r} is not allowed; "
+                         "allowed: a number in (0, 1]")
     out = np.zeros(len(e), dtype=bool)
     total = e.sum()
     if total <= 0:
@@ -132,7 +133,6 @@ def prolongate_solution(qp_coarse: ContactQP, u: np.ndarray, p: np.ndarray, qp_f
     p0 = np.maximum(P_s @ (np.asarray(p) / qp_coarse.contact.mass), 0.0) * qp_fine.contact.mass
     if node_prolongation is None:
         return ml.prolongations[-1] @ u, p0
-    d = qp_fine.dim
     full = qp_coarse.full_displacement(u)
     fine = (node_prolongation @ full).ravel()
     return fine[qp_fine.free_dofs], p0

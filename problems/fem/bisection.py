@@ -213,7 +213,7 @@ def bisect(points: np.ndarray, cells: np.ndarray, marked, rule: str = "newest_ve
         child1, child2 = c.copy(), c.copy()
         child1[r, lj] = mid                         # keeps vertex a
         child2[r, li] = mid                         # keeps vertex b
-        if rule == "newest_vertex":                 # (t0, t1, m) -> (m, t0, t1); (t0, m, t2) -> (m, t2, t0)
+        if rule == "newest_vertex":   # new node first: (m, t0, t1) and (m, t2, t0)
             child1 = child1[:, [2, 0, 1]]
             child2 = child2[:, [1, 2, 0]]
         t[todo] = child1
