@@ -26,6 +26,7 @@ point, netgen's square / box of the same size for ``netgen``.
 Usage::
 
     python workflows/scripts/bench_adaptive_refinement.py [--repeat 3] [--steps 5]
+        [--square 16] [--cube 4]
 """
 from __future__ import annotations
 
@@ -187,6 +188,8 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--steps", type=int, default=5)
+    ap.add_argument("--square", type=int, default=16, help="cells per edge of the square")
+    ap.add_argument("--cube", type=int, default=4, help="cells per edge of the cube")
     args = ap.parse_args(argv)
     rows = []
     from problems.fem.mesh import netgen_ball, netgen_disk, project_to_circle
@@ -218,10 +221,11 @@ def main(argv=None):
                          "conforming": check_curved(meshes, center, radius), "nested": ""})
     for dim in (2, 3):
         x0 = np.array([0.5, 1.0]) if dim == 2 else np.array([0.5, 0.5, 1.0])
-        p, c = structured_square(16) if dim == 2 else structured_cube(4)
+        n = args.square if dim == 2 else args.cube
+        p, c = structured_square(n) if dim == 2 else structured_cube(n)
         cands = {"leb": lambda: run_ours(p, c, x0, args.steps, "longest_edge"),
                  "skfem": lambda: run_skfem(p, c, x0, args.steps),
-                 "netgen": lambda: run_netgen(dim, x0, args.steps, 1 / 16 if dim == 2 else 0.25)}
+                 "netgen": lambda: run_netgen(dim, x0, args.steps, 1 / n)}
         if dim == 2:
             cands = {"nvb": lambda: run_ours(p, c, x0, args.steps, "newest_vertex"), **cands}
         for name, fn in cands.items():
