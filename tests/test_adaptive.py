@@ -266,7 +266,10 @@ def test_adaptive_loop_refines_near_the_contact_zone(cs_run):
     assert all(b.N > a.N for a, b in zip(recs[:-1], recs[1:]))
     assert recs[-1].NC > recs[0].NC                        # the top edge got finer too
     assert recs[-1].sum_eta2 < 0.5 * recs[0].sum_eta2
-    a = 0.1                                                # Hertz half-width at the default indent
+    qp, (_, p) = run.qps[-1], run.solutions[-1]
+    x_active = qp.mesh.points[qp.contact.nodes[p > 0], 0]
+    a = 0.5 * np.ptp(x_active)                             # contact half-width, measured
+    assert 0.05 < a < 0.2 and np.mean(x_active) == pytest.approx(0.5, abs=0.02)
     for qp, m in zip(run.qps[:-1], run.marked[:-1]):
         cen = qp.mesh.points[qp.mesh.cells[m]].mean(axis=1)
         near = np.linalg.norm(cen - [0.5, 1.0], axis=1) < 3 * a
