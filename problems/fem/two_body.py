@@ -70,6 +70,20 @@ class Traction:
 
 
 @dataclass
+class Springs:
+    """Weak grounded springs on selected nodes of one body (removing its rigid motion
+    where only the contact holds it, e.g. the roll stack's work roll).
+
+    ``stiffness`` is per node and component (force per length); the spring
+    forces are reported by :func:`spring_forces`.
+    """
+
+    body: int
+    on: Selector
+    stiffness: np.ndarray
+
+
+@dataclass
 class TwoBodyScene:
     """What a scene supplies; :func:`assemble_two_body` does the rest.
 
@@ -94,6 +108,9 @@ class TwoBodyScene:
         coarser surface levels ``(prolongations, masses)`` below the coarsest
         mesh (e.g. :func:`problems.fem.surface.tensor_coarsening`).
     tractions : list of Traction
+    springs : list of Springs
+        Grounded springs, added to the stiffness (multigrid's Galerkin coarse
+        operators inherit them).
     hertz : HertzSetup, optional
     units : str
     """
@@ -107,6 +124,7 @@ class TwoBodyScene:
     search: str = "b"
     surface_coarsening: Callable | None = None
     tractions: list = field(default_factory=list)
+    springs: list = field(default_factory=list)
     hertz: HertzSetup | None = None
     units: str = "dimensionless"
 
@@ -157,6 +175,24 @@ def _opposing_facets(scene: TwoBodyScene, points, cells, body_of_node):
     return facets[scene.on_opposing(points[facets].mean(axis=1))]
 
 
+def spring_matrix(scene: TwoBodyScene, points: np.ndarray, body_of_node: np.ndarray):
+    """Diagonal stiffness of the scene's grounded springs on the full DOFs."""
+    dim = points.shape[1]
+    diag = np.zeros(points.size)
+    for spring in scene.springs:
+        nodes = np.flatnonzero((body_of_node == spring.body) & spring.on(points))
+        k = np.broadcast_to(np.asarray(spring.stiffness, dtype=float), (dim,))
+        diag[(nodes[:, None] * dim + np.arange(dim)).ravel()] += np.tile(k, len(nodes))
+    return sp.diags(diag, format="csr")
+
+
+def spring_forces(scene: TwoBodyScene, qp: ContactQP, u: np.ndarray) -> np.ndarray:
+    """Total force ``(d,)`` the springs exert on the bodies for the displacement ``u``."""
+    mesh = qp.mesh
+    K = spring_matrix(scene, mesh.points, mesh.body_of_node)
+    return -(K @ qp.full_displacement(u).ravel()).reshape(-1, qp.dim).sum(axis=0)
+
+
 def assemble_two_body(scene: TwoBodyScene, level: int, name: str = "") -> ContactQP:
     """The ContactQP of ``scene`` on mesh level ``level`` (see the module docstring).
 
@@ -174,7 +210,8 @@ def assemble_two_body(scene: TwoBodyScene, level: int, name: str = "") -> Contac
     body_of_cell = body_of_node[cells[:, 0]]
     E_cell = np.array([scene.bodies[b].E for b in body_of_cell], dtype=float)
     nu_cell = np.array([scene.bodies[b].nu for b in body_of_cell], dtype=float)
-    A_full = stiffness_matrix(points, cells, E_cell, nu_cell)
+    A_full = stiffness_matrix(points, cells, E_cell, nu_cell) + spring_matrix(scene, points,
+                                                                             body_of_node)
     force = np.array([scene.bodies[b].body_force for b in range(len(scene.bodies))], dtype=float)
     f_full = body_force_vector(points, cells, force[body_of_cell])
     for tr in scene.tractions:

@@ -213,8 +213,13 @@ def main(argv=None) -> None:
         qp = spec.build(level, params)
         base = {"level": level, "dim": qp.dim, "N": qp.n_nodes, "NC": qp.m, "n": qp.n}
         u_ref = _reference(qp, level, spec.name, args.ref_cache, rows, base)
+        measured = set()   # kappa(S-hat^-1 S) costs a PCG solve per product: once per S-hat kind
         for name in args.configs:
             variant = ap.VARIANTS[name]
+            schur = ap.resolve_kinds(qp, *(ap.SOLVER.options(**variant.options)[k]
+                                           for k in ("ahat", "schur")))[1]
+            kappa_exact = args.kappa_exact and schur not in measured
+            measured.add(schur)
             u0 = p0 = None
             t_coarse = 0.0
             if variant.nested:
@@ -229,7 +234,7 @@ def main(argv=None) -> None:
                 u0, p0 = guess
                 t_coarse = time.perf_counter() - t0
             row = run_config(qp, u_ref, variant.options, args.eps, args.target, args.max_iter,
-                             args.time_limit, u0, p0, args.kappa_exact)
+                             args.time_limit, u0, p0, kappa_exact)
             rows.append({**base, "config": name, **row, "t_coarse_levels": t_coarse,
                          **{f"opt_{k}": v for k, v in variant.options.items()}})
         if not args.no_floor:
