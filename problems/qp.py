@@ -19,6 +19,7 @@ solves.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Callable
 
 import numpy as np
 import scipy.sparse as sp
@@ -194,6 +195,9 @@ class ContactQP:
         Units of length and force, e.g. ``"dimensionless"`` or ``"m, N"``.
     level : int
         Refinement level the scene built it at.
+    cache : dict
+        Derived, solver-independent data computed on demand (e.g. the linear
+        solver the verification's duality gap uses); not part of the problem.
     """
 
     A: sp.spmatrix
@@ -211,6 +215,7 @@ class ContactQP:
     name: str = ""
     units: str = "dimensionless"
     level: int = 0
+    cache: dict = field(default_factory=dict, repr=False, compare=False)
 
     def __post_init__(self):
         self.A = sp.csr_matrix(self.A, dtype=float)
@@ -382,3 +387,169 @@ def energy_error(qp: ContactQP, u: np.ndarray, u_ref: np.ndarray) -> float:
     ref = float(u_ref @ (qp.A @ u_ref))
     err = max(float(e @ (qp.A @ e)), 0.0)
     return float(np.sqrt(err / ref)) if ref > 0 else float(np.sqrt(err))
+
+
+@dataclass
+class DualityGap:
+    """A certified bound on the energy error of ``u`` by weak duality.
+
+    For a feasible ``u_f`` (``B u_f <= g``) and any ``p~ >= 0`` the duality gap with
+    the exact dual function ``q(p~) = min_v L(v, p~)`` bounds the energy error:
+    ``J(u_f) - q(p~) >= J(u_f) - J(u*) >= 1/2 ||u_f - u*||_A^2``, so
+    ``||u - u*||_A <= ||u - u_f||_A + sqrt(2 gap)``. :func:`duality_gap` tries a few
+    pairs ``(u_f, p~)`` built from the solver's ``(u, p)`` and keeps the smallest
+    bound (each is valid).
+
+    Attributes
+    ----------
+    gap : float
+        The duality gap of the best pair (>= 0 up to round-off).
+    relative_gap : float
+        ``gap / |J(u_f)|``: dimensionless.
+    shift : float
+        ``||u - u_f||_A``: the correction making ``u`` feasible.
+    energy_bound : float
+        Certified ``||u - u*||_A <= shift + sqrt(2 gap)``.
+    relative_energy_bound : float
+        ``energy_bound / (||u_f||_A - sqrt(2 gap))``: a certified bound on the
+        relative energy error ``||u - u*||_A / ||u*||_A`` (inf if not positive).
+    floor : float
+        The bound's floating-point floor (relative): the gap is a sum of terms
+        known to about machine precision, so bounds below ``~sqrt(eps)`` cannot be
+        certified.
+    pair_gap : float
+        The relative gap of the solver's own pair ``(u_f, p)``: with its
+        multipliers as they are (their complementarity and S-norm error,
+        ``1/2 ||p - p*||_S^2 <= gap``).
+    certified : bool
+        False if no feasible ``u_f`` was found (then the bounds are inf).
+    """
+
+    gap: float
+    relative_gap: float
+    shift: float
+    energy_bound: float
+    relative_energy_bound: float
+    floor: float
+    pair_gap: float
+    certified: bool
+
+    def as_dict(self) -> dict:
+        return {"energy_bound": self.relative_energy_bound, "energy_bound_floor": self.floor,
+                "relative_gap": self.relative_gap, "pair_gap": self.pair_gap,
+                "feasibility_shift": self.shift, "certified": self.certified}
+
+    def meets(self, tol: float) -> bool:
+        """The certified relative energy bound is <= ``tol`` (or at its floor)."""
+        return self.certified and self.relative_energy_bound <= max(tol, 4.0 * self.floor)
+
+
+def _pivots(qp: ContactQP) -> tuple[np.ndarray, np.ndarray]:
+    """One unknown per constraint to move it with: the constrained node's component
+    along the row's direction if free (a contact code would move the constrained
+    surface), else the row's largest entry. Returns ``(pivot, coefficient)``."""
+    B = qp.B.tocsr()
+    pivot = np.asarray(abs(B).argmax(axis=1)).ravel()
+    if qp.contact is not None and qp.free_dofs is not None and qp.u_fixed is not None:
+        pos = -np.ones(len(qp.u_fixed), dtype=np.int64)
+        pos[qp.free_dofs] = np.arange(qp.n)
+        comp = np.abs(qp.contact.direction).argmax(axis=1)
+        own = pos[qp.contact.nodes * qp.dim + comp]
+        pivot = np.where(own >= 0, own, pivot)
+    return pivot, np.asarray(B[np.arange(qp.m), pivot]).ravel()
+
+
+def feasible_point(qp: ContactQP, u: np.ndarray, tight: np.ndarray | None = None,
+                   sweeps: int = 3) -> tuple[np.ndarray, bool]:
+    """``u_f = u + delta`` with ``B u_f <= g``, and ``B u_f = g`` on the rows ``tight``.
+
+    Each violated (or, in ``tight``, slack) row is moved on its pivot unknown
+    (:func:`_pivots`); rows sharing unknowns interact, so up to ``sweeps``
+    passes. Returns ``(u_f, feasible)``.
+    """
+    u_f = np.array(u, dtype=float)
+    if qp.m == 0:
+        return u_f, True
+    pivot, coef = _pivots(qp)
+    tight = np.zeros(qp.m, dtype=bool) if tight is None else np.asarray(tight, dtype=bool)
+    scale = max(float(np.max(np.abs(qp.B @ u_f))), float(np.max(np.abs(qp.g))), 1e-300)
+    for _ in range(sweeps):
+        res = qp.B @ u_f - qp.g
+        move = (res > 0) | (tight & (res < 0))
+        if not move.any():
+            break
+        np.subtract.at(u_f, pivot[move], res[move] / coef[move])
+    return u_f, bool(np.all(qp.B @ u_f - qp.g <= 1e-14 * scale))
+
+
+def duality_gap(qp: ContactQP, u: np.ndarray, p: np.ndarray,
+                solve_A: Callable[[np.ndarray], np.ndarray],
+                target: float | None = None) -> DualityGap:
+    """The certified energy-error bound of ``u`` (:class:`DualityGap`).
+
+    ``solve_A(r)`` returns ``A^{-1} r`` (the bound is certified up to that solve's
+    accuracy, which the caller drives far below the gap). For a pair
+    ``(u_f, p~)`` with ``x = A^{-1}(f - B'p~)`` the gap is a sum of non-negative
+    terms, computed without cancellation::
+
+        J(u_f) - q(p~) = 1/2 ||u_f - x||_A^2 + p~'(g - B u_f)
+
+    Pairs tried: the solver's ``(u, p_+)`` made feasible; and, for thresholds
+    ``theta`` in (1e-8, 1e-4), ``u`` made feasible and tight on the rows with
+    ``p > theta max p`` with ``p~`` = ``p`` there and 0 elsewhere (a solver's
+    complementarity error would otherwise dominate the bound of its ``u``).
+    Each pair costs one linear solve; with ``target`` the search stops at the
+    first pair whose bound meets it. With a stabilisation block ``C`` (Sect. 7.5;
+    diagonal) the primal function ``P(u) = J(u) + 1/2 v'C^{-1}v``,
+    ``v = (Bu - g)_+``, needs no feasible point:
+    ``P(u) - q(p) = 1/2 ||u - x||_A^2 + p'(g - Bu) + 1/2 p'Cp + 1/2 v'C^{-1}v``.
+    """
+    eps = np.finfo(float).eps
+    u = np.asarray(u, dtype=float)
+    p_plus = np.maximum(np.asarray(p, dtype=float), 0.0)
+    inf = float("inf")
+
+    def pair(u_f, p_t, extra=0.0):
+        x = solve_A(qp.f - qp.B.T @ p_t)
+        e = u_f - x
+        slack = qp.g - qp.B @ u_f
+        gap = 0.5 * float(e @ (qp.A @ e)) + float(p_t @ slack) + extra
+        d = u_f - u
+        shift = float(np.sqrt(max(d @ (qp.A @ d), 0.0)))
+        norm = float(np.sqrt(max(u_f @ (qp.A @ u_f), 0.0)))
+        root = np.sqrt(2.0 * max(gap, 0.0))
+        rel = (shift + root) / (norm - root) if norm > root else inf
+        noise = 8 * eps * (float(p_t @ (np.abs(qp.g) + abs(qp.B) @ np.abs(u_f))) + norm ** 2
+                           + abs(float(qp.f @ u_f)))
+        floor = np.sqrt(2 * noise) / norm if norm > 0 else inf
+        return gap, shift, shift + root, rel, floor, gap / max(abs(qp.energy(u_f)), 1e-300)
+
+    if qp.C is not None:
+        c = qp.C.diagonal()
+        if abs(qp.C - sp.diags(c)).max() > 0 or np.any(c <= 0):
+            return DualityGap(inf, inf, 0.0, inf, inf, inf, inf, False)
+        v = np.maximum(qp.B @ u - qp.g, 0.0)
+        gap, shift, bound, rel, floor, relgap = pair(
+            u, p_plus, 0.5 * float(p_plus @ (c * p_plus)) + 0.5 * float(v @ (v / c)))
+        return DualityGap(gap, relgap, shift, bound, rel, floor, relgap, True)
+    u_f, feasible = feasible_point(qp, u)
+    if not feasible:
+        return DualityGap(inf, inf, inf, inf, inf, inf, inf, False)
+    best = pair(u_f, p_plus)
+    pair_gap = best[5]
+    top = float(p_plus.max()) if qp.m else 0.0
+    for theta in (1e-8, 1e-4):
+        if target is not None and best[3] <= max(target, 4.0 * best[4]):
+            break
+        active = p_plus > theta * top
+        if top == 0 or active.all() and theta > 1e-8:
+            continue
+        u_t, ok = feasible_point(qp, u, tight=active)
+        if ok:
+            cand = pair(u_t, np.where(active, p_plus, 0.0))
+            if cand[3] < best[3]:
+                best = cand
+    gap, shift, bound, rel, floor, relgap = best
+    return DualityGap(gap=float(gap), relative_gap=float(relgap), shift=shift,
+                      energy_bound=float(bound), relative_energy_bound=float(rel),
+                      floor=float(floor), pair_gap=float(pair_gap), certified=True)

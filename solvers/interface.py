@@ -20,7 +20,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from problems.qp import ContactQP, KKTResiduals, kkt_residuals
+from problems.qp import ContactQP, DualityGap, KKTResiduals, duality_gap, kkt_residuals
 from problems.spec import (Options, Parameter, ParameterError, discover, lookup,
                            resolve_parameters)
 
@@ -44,9 +44,10 @@ class SolveResult:
         ``time_limit``, ``failed``, or ``inaccurate`` when the solver itself
         knows it stopped short of its tolerance (e.g. Clarabel ``AlmostSolved``).
     status : str
-        After verification (:func:`solve`): ``converged`` only if the solver
-        claimed it *and* every verified KKT residual is <= tol; a claimed
-        convergence that fails verification becomes ``inaccurate``.
+        After verification (:func:`verify`): ``converged`` only if the solver
+        claimed it *and* every verified KKT residual is <= tol *and* the
+        certified duality gap is (relative gap <= tol); a claimed convergence
+        that fails verification becomes ``inaccurate``.
     message : str
         Solver's own words (its status string, exception text, ...).
     iterations : int
@@ -72,6 +73,7 @@ class SolveResult:
     tol: float = float("nan")
     status: str = ""
     kkt: KKTResiduals | None = None
+    gap: DualityGap | None = None
     options: dict = field(default_factory=dict)
 
     @property
@@ -87,6 +89,8 @@ class SolveResult:
         if self.kkt is not None:
             out.update(self.kkt.as_dict())
             out["kkt_max"] = self.kkt.max
+        if self.gap is not None:
+            out.update(self.gap.as_dict())
         # solver statistics never overwrite the common columns above
         out.update({k: v for k, v in self.stats.items() if np.isscalar(v) and k not in out})
         return out
@@ -198,8 +202,61 @@ def solve(qp: ContactQP, solver: str = "pdas", tol: float | str = "mid",
     return verify(qp, result, tol)
 
 
+#: Largest number of unknowns for which :func:`linear_solver` factorises A (per dimension);
+#: beyond, multigrid-preconditioned CG.
+DIRECT_LINEAR_LIMIT = {2: 400_000, 3: 60_000}
+
+
+def linear_solver(qp: ContactQP) -> Callable[[np.ndarray], np.ndarray]:
+    """``r -> A^{-1} r`` for the verification's duality gap, built once per problem
+    (``qp.cache``): a sparse LU of ``A`` up to :data:`DIRECT_LINEAR_LIMIT`, else CG
+    preconditioned by one V-cycle (geometric multigrid on the problem's hierarchy,
+    pyamg SA without one) to a relative residual of 1e-14.
+    """
+    if "linear_solver" in qp.cache:
+        return qp.cache["linear_solver"]
+    import scipy.sparse.linalg as spla
+
+    if qp.n <= DIRECT_LINEAR_LIMIT.get(qp.dim, 0):
+        lu = spla.splu(qp.A.tocsc(), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                       options={"SymmetricMode": True})
+
+        def solve_A(r):
+            x = lu.solve(r)
+            return x + lu.solve(r - qp.A @ x)          # one step of iterative refinement
+    else:
+        from solvers import preconditioners as pc
+        from solvers.augmented_projection import SOLVER as AP
+        kind = "gmg" if qp.multilevel.prolongations else "sa"
+        opts = {**AP.options(ahat=kind).ahat.options, "lanczos_steps": 5}
+        vc = pc.scaled_vcycle(qp.A, kind, qp.multilevel, qp.dim, qp.free_dofs, **opts)
+        M = spla.LinearOperator(qp.A.shape, matvec=vc.raw)
+
+        def solve_A(r):
+            x, info = spla.cg(qp.A, r, M=M, rtol=1e-14, atol=0.0, maxiter=3000)
+            if info != 0:
+                raise RuntimeError("multigrid PCG for the duality gap did not converge")
+            return x
+    qp.cache["linear_solver"] = solve_A
+    return solve_A
+
+
+def certify(qp: ContactQP, u: np.ndarray, p: np.ndarray, tol: float | None = None) -> DualityGap:
+    """The certified bound of ``(u, p)`` (one to three linear solves with A; with
+    ``tol``, as few as meet it)."""
+    return duality_gap(qp, u, p, linear_solver(qp), target=tol)
+
+
 def verify(qp: ContactQP, result: SolveResult, tol: float) -> SolveResult:
-    """Fill in ``kkt`` and the verified ``status`` (qpbenchmark's rule)."""
+    """Fill in ``kkt``, ``gap`` and the verified ``status``.
+
+    qpbenchmark's rule, strengthened: ``converged`` only if the solver claims it,
+    every scaled KKT residual is <= ``tol`` and the certified bound on the relative
+    energy error (from the duality gap, :func:`problems.qp.duality_gap`) is <=
+    ``tol`` (or at the bound's floating-point floor, ~1e-8: below it the KKT
+    residuals decide). A scaled residual alone can pass a wrong answer when A is
+    ill-conditioned; the certified bound cannot.
+    """
     if result.claimed_status not in STATUSES:
         raise ValueError(f"solver returned unknown status {result.claimed_status!r}")
     u_ok = np.shape(result.u) == (qp.n,) and np.all(np.isfinite(result.u))
@@ -210,8 +267,10 @@ def verify(qp: ContactQP, result: SolveResult, tol: float) -> SolveResult:
         result.message = (result.message + "; " if result.message else "") + "non-finite or mis-shaped result"
         return result
     result.kkt = kkt_residuals(qp, result.u, result.p)
+    result.gap = certify(qp, result.u, result.p, tol)
     if result.claimed_status == "converged":
-        result.status = "converged" if result.kkt.max <= tol else "inaccurate"
+        accurate = result.kkt.max <= tol and result.gap.meets(tol)
+        result.status = "converged" if accurate else "inaccurate"
     else:
         result.status = result.claimed_status
     return result

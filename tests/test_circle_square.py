@@ -65,9 +65,12 @@ def test_contact_matches_hertz_on_level2():
 def test_reference_solvers_agree_with_exact_solution(level1, solver):
     qp, ref = level1
     res = solve(qp, solver=solver, tol="mid")
-    # the verified status is exactly "claimed and every scaled KKT residual <= tol"
-    assert (res.status == "converged") == (res.claimed_status == "converged" and res.kkt.max <= 1e-6)
+    # the verified status is exactly "claimed, every scaled KKT residual <= tol and the
+    # certified energy bound <= tol"; the bound holds
+    assert (res.status == "converged") == (res.claimed_status == "converged"
+                                           and res.kkt.max <= 1e-6 and res.gap.meets(1e-6))
     assert res.status in ("converged", "inaccurate"), (res.status, res.message)
+    assert energy_error(qp, res.u, ref.u) <= res.gap.relative_energy_bound * (1 + 1e-6)
     # within its tolerance: energy error at most ~100 tol (Clarabel's complementarity
     # stays near 1e-5 at "mid" here and is reported "inaccurate" -- the table shows it)
     assert energy_error(qp, res.u, ref.u) < 1e-4

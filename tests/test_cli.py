@@ -84,7 +84,9 @@ def test_every_solver_runs_through_the_cli(tmp_path, references, scene, solver):
     assert data["status"] == res.status
     assert data["kkt_max"] == pytest.approx(res.kkt.max, rel=1e-6, abs=1e-14)
     assert (data["status"] == "converged") == (data["claimed_status"] == "converged"
-                                              and data["kkt_max"] <= 1e-6)
+                                              and data["kkt_max"] <= 1e-6
+                                              and res.gap.meets(1e-6))
+    assert energy_error(qp, res.u, ref.u) <= data["energy_bound"] * (1 + 1e-6)
     p = np.asarray(data["contact"]["p"])
     assert np.allclose(p, res.p, rtol=1e-8, atol=1e-12 * np.abs(res.p).max())
     if data["status"] == "converged":

@@ -113,3 +113,52 @@ def test_component_errors_name_the_option(given, needle):
     decl = (COMPONENT, Parameter("update", "multiplicative"))
     with pytest.raises(ParameterError, match=needle.replace("(", r"\(").replace(")", r"\)")):
         resolve_parameters(decl, given, "solver 'x'")
+
+
+def _direct(qp):
+    import scipy.sparse.linalg as spla
+    lu = spla.splu(qp.A.tocsc())
+    return lu.solve
+
+
+def test_duality_gap_is_exact_on_known_pairs():
+    """tiny QP: u* = (0.5, 1), p* = 0.5, S = B A^-1 B' = 1."""
+    from problems.qp import duality_gap
+    qp, solve_A = tiny_qp(), None
+    solve_A = _direct(qp)
+    exact = duality_gap(qp, np.array([0.5, 1.0]), np.array([0.5]), solve_A)
+    assert abs(exact.gap) < 1e-15 and exact.relative_energy_bound < 1e-7 and exact.meets(1e-9)
+    # a wrong multiplier: gap = 1/2 dp' S dp = 0.02, the S-norm error bound is exact
+    wrong_p = duality_gap(qp, np.array([0.5, 1.0]), np.array([0.7]), solve_A)
+    assert wrong_p.pair_gap * abs(qp.energy(np.array([0.5, 1.0]))) == pytest.approx(0.02)
+    # an infeasible u (u1 = 0.6 > 0.5): the correction moves it back, shift = ||du||_A = 0.1
+    infeasible = duality_gap(qp, np.array([0.6, 1.0]), np.array([0.5]), solve_A)
+    assert infeasible.shift == pytest.approx(0.1) and infeasible.gap == pytest.approx(0.0, abs=1e-15)
+    assert infeasible.energy_bound == pytest.approx(0.1)        # = ||u - u*||_A exactly
+    assert not infeasible.meets(1e-3)
+
+
+def test_certified_bound_holds_for_perturbed_solutions():
+    """On a random two-body QP, perturbed (u, p) pairs: the bound always exceeds the error."""
+    from problems.qp import duality_gap
+    from solvers.interface import solve
+    rng = np.random.default_rng(5)
+    n1, n2, m = 30, 40, 12
+    M1, M2 = (sp.random(k, k, density=0.15, random_state=rng) for k in (n1, n2))
+    A = sp.block_diag([M1 @ M1.T + sp.eye(n1), M2 @ M2.T + sp.eye(n2)], format="csr")
+    B = np.zeros((m, n1 + n2))
+    for i in range(m):
+        B[i, i] = 1.0
+        B[i, n1 + rng.choice(n2, 2, replace=False)] = -0.5
+    f = rng.normal(size=n1 + n2)
+    qp = ContactQP(A=A, f=f, B=sp.csr_matrix(B), g=np.full(m, -0.1))
+    ref = solve(qp, "pdas", tol=1e-12)
+    assert ref.status == "converged" and (ref.p > 0).sum() > 2
+    solve_A = _direct(qp)
+    for scale in (1e-8, 1e-5, 1e-2):
+        for _ in range(5):
+            u = ref.u + scale * rng.normal(size=qp.n)
+            p = np.maximum(ref.p + scale * rng.normal(size=m), 0)
+            b = duality_gap(qp, u, p, solve_A)
+            assert b.certified
+            assert energy_error(qp, u, ref.u) <= b.relative_energy_bound * (1 + 1e-9)

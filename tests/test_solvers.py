@@ -238,15 +238,15 @@ def test_reference_solver_agrees_with_pdas_at_mid(references, name, solver):
     tol = TOLERANCES["mid"]
     res = solve(qp, solver, "mid")
     assert res.claimed_status == "converged", res.message
-    if name == "weakly-active":
-        # degenerate (p_i = 0 = slack_i): interior point / ADMM iterates approach it at
-        # the rate sqrt(mu); Clarabel claims Solved with a complementarity of ~2e-6 here,
-        # which verification honestly reports as inaccurate
-        assert res.status in ("converged", "inaccurate") and res.kkt.max <= 10 * tol
-    else:
-        assert res.status == "converged" and res.kkt.max <= tol
-    # energy-norm error <= sqrt(2 * relative duality gap): sqrt(tol) is the natural scale
-    assert energy_error(qp, res.u, ref.u) <= np.sqrt(tol)
+    err = energy_error(qp, res.u, ref.u)
+    # the verified status is exactly: claimed, KKT <= tol and certified energy bound <= tol
+    assert (res.status == "converged") == (res.kkt.max <= tol and res.gap.meets(tol))
+    assert res.status in ("converged", "inaccurate") and res.kkt.max <= 10 * tol
+    # the certificate is a true bound on the error, and a converged run is accurate
+    assert res.gap.certified and err <= res.gap.relative_energy_bound * (1 + 1e-6) + 1e-12
+    if res.status == "converged":
+        assert err <= tol
+    assert err <= np.sqrt(tol)
     assert np.max(np.abs(res.p - ref.p)) <= 1e-2 * np.max(np.abs(ref.p))
     assert res.iterations >= 1 and solver in res.message
 
@@ -269,7 +269,7 @@ def test_multiplier_sign_convention(references, solver):
     """At convergence A u + B'p = f with p >= 0 (no flipped sign anywhere)."""
     qp, _ = references["two-body"]
     res = solve(qp, solver, "mid")
-    assert res.status == "converged", res.message
+    assert res.claimed_status == "converged", res.message
     scale = np.abs(qp.f).max()
     assert np.max(np.abs(qp.A @ res.u + qp.B.T @ res.p - qp.f)) <= 1e-6 * scale
     assert res.p.min() >= -1e-6 * res.p.max() and res.p.max() > 0
@@ -304,8 +304,11 @@ def test_tiny_time_limit_is_reported(solver):
 def test_no_constraints(solver):
     qp = ContactQP(A=2 * sp.eye(3), f=np.ones(3), B=sp.csr_matrix((0, 3)), g=np.zeros(0))
     res = solve(qp, solver, "mid")
-    assert res.status == "converged"
+    assert res.claimed_status == "converged" and res.gap.certified
     np.testing.assert_allclose(res.u, 0.5, rtol=1e-5)
+    # no constraints: the certificate is the energy error of A u = f itself
+    err = np.sqrt((res.u - 0.5) @ (qp.A @ (res.u - 0.5)) / (0.5 * 0.5 * 2 * 3))
+    assert err <= res.gap.relative_energy_bound * (1 + 1e-9) + 1e-15
 
 
 @pytest.mark.parametrize("solver", ALL_SOLVERS)
