@@ -23,6 +23,7 @@ include: "workflows/laplace.smk"
 include: "workflows/contact_solution.smk"
 include: "workflows/solver_comparison.smk"
 include: "workflows/augmented_projection.smk"
+include: "workflows/hard_cases.smk"
 
 rule all:
     input:

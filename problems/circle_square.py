@@ -41,38 +41,42 @@ from __future__ import annotations
 import numpy as np
 
 from problems.fem.mesh import (Hierarchy, nested_prolongation, netgen_disk, project_to_circle,
-                               structured_square, uniform_hierarchy)
+                               structured_rectangle, uniform_hierarchy)
 from problems.fem.surface import tensor_coarsening
 from problems.fem.two_body import Body, TwoBodyScene, assemble_two_body
 from problems.qp import ContactQP, HertzSetup
 from problems.spec import Options, Parameter, ProblemSpec
 from reference.hertz import effective_modulus
 
-COARSE_SQUARE_CELLS = 16
 DISK_MAXH = 0.05
 
 
-def square_meshes(level: int) -> Hierarchy:
-    """Structured squares with 16 * 2^k cells per edge, k = 0..level, nested.
+def square_meshes(level: int, cells: int = 16, height: float = 1.0) -> Hierarchy:
+    """Structured rectangles (1 x ``height``) with ``cells * 2^k`` cells along x and
+    as many along y as keep them about square (at least one), k = 0..level, nested.
 
     Level k+1 is not numbered as the red refinement of level k, so the
     prolongation is found by matching coordinates.
     """
-    pts, cells = zip(*[structured_square(COARSE_SQUARE_CELLS * 2 ** k) for k in range(level + 1)])
+    nx = [cells * 2 ** k for k in range(level + 1)]
+    ny = [max(1, round(cells * height)) * 2 ** k for k in range(level + 1)]
+    pts, cells = zip(*[structured_rectangle(a, b, width=1.0, height=height) for a, b in zip(nx, ny)])
     P = [nested_prolongation(pts[k], cells[k], pts[k + 1]) for k in range(level)]
     return Hierarchy(list(pts), list(cells), P)
 
 
 def disk_meshes(level: int, center, radius: float) -> Hierarchy:
-    """Netgen disk (maxh 0.05 at R = 0.707) refined ``level`` times, boundary on the circle."""
-    return uniform_hierarchy(*netgen_disk(center, radius, DISK_MAXH * min(1.0, radius / 0.707)),
+    """Netgen disk (maxh 0.05 R / 0.707: ~810 nodes whatever the radius) refined
+    ``level`` times, boundary on the circle."""
+    return uniform_hierarchy(*netgen_disk(center, radius, DISK_MAXH * radius / 0.707),
                              level, project_to_circle(center, radius))
 
 
 def scene(level: int, p: Options) -> TwoBodyScene:
     """The circle-square scene up to mesh level ``level`` (see the module docstring)."""
-    center = np.array([0.5, 1.0 + p.radius + p.gap])
-    square = Body("square", square_meshes(level), p.E1, p.nu1, np.zeros(2))
+    H = p.height
+    center = np.array([p.offset, H + p.radius + p.gap])
+    square = Body("square", square_meshes(level, p.square_cells, H), p.E1, p.nu1, np.zeros(2))
     circle = Body("circle", disk_meshes(level, center, p.radius), p.E2, p.nu2,
                   np.array([0.0, -p.load]))
     bodies = (square, circle) if p.order == "square_first" else (circle, square)
@@ -92,7 +96,7 @@ def scene(level: int, p: Options) -> TwoBodyScene:
 
     return TwoBodyScene(
         bodies=bodies, constrained_body=sq, supports=supports,
-        on_constrained=lambda x: np.isclose(x[:, 1], 1.0),          # the square's top edge
+        on_constrained=lambda x: np.isclose(x[:, 1], H),            # the square's top edge
         on_opposing=lambda c: c[:, 1] < center[1],                   # the circle's lower half
         direction=np.array([0.0, 1.0]), search=p.search,
         surface_coarsening=lambda x: tensor_coarsening(x[:, :1]),   # the top edge is a line
@@ -114,15 +118,22 @@ PROBLEM = ProblemSpec(
     default_level=1,
     parameters=(
         Parameter("radius", 0.707, "circle radius", low=0.05, high=5.0),
-        Parameter("gap", 0.0, "initial gap between circle and square at the closest point", low=0.0,
-                  high=0.5),
+        Parameter("gap", 0.0, "initial gap between circle and square at the closest point "
+                  "(negative: initial penetration)", low=-0.05, high=0.5),
+        Parameter("offset", 0.5, "x of the circle's centre (1.0: grazing contact at the end of "
+                  "the constrained edge)", low=-0.5, high=1.5),
+        Parameter("height", 1.0, "height of the square (0.02: a thin plate, aspect ratio 1:50)",
+                  low=0.01, high=2.0),
+        Parameter("square_cells", 16, "the square's cells per unit length at level 0 (mesh-size "
+                  "ratio across the contact: 16 ~ the circle's; 2 ~ 8x coarser)", low=2,
+                  high=256, kind=int),
         Parameter("E1", 1.0, "Young's modulus of the square", low=0.0, low_open=True),
         Parameter("nu1", 0.3, "Poisson ratio of the square", low=-1.0, high=0.5, low_open=True,
                   high_open=True),
         Parameter("E2", 1.0, "Young's modulus of the circle", low=0.0, low_open=True),
         Parameter("nu2", 0.3, "Poisson ratio of the circle", low=-1.0, high=0.5, low_open=True,
                   high_open=True),
-        Parameter("load", 0.01, "body-force magnitude on the circle (acts in -y)", low=0.0, high=10.0),
+        Parameter("load", 0.01, "body-force magnitude on the circle (acts in -y)", low=0.0),
         Parameter("indent", 0.017, "prescribed downward displacement of the circle's held arc",
                   low=0.0, high=0.2),
         Parameter("held_arc", 60.0, "half-angle (degrees) of the circle's held upper arc", low=5.0,

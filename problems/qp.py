@@ -82,6 +82,9 @@ class ContactSurface:
         Facets of the opposing surface (thesis: surface ``l-1``) the search used.
     search : str
         ``"a"`` (closest point, (7.12)) or ``"b"`` (fixed direction, (7.13)).
+    dropped : int
+        Nodes of the constrained surface that found no opposing facet (e.g. beyond
+        the opposing body's reach in grazing contact) and carry no constraint.
     """
 
     nodes: np.ndarray
@@ -90,6 +93,7 @@ class ContactSurface:
     facets: np.ndarray
     opposing_facets: np.ndarray
     search: str = "b"
+    dropped: int = 0
 
 
 @dataclass
@@ -518,10 +522,13 @@ def duality_gap(qp: ContactQP, u: np.ndarray, p: np.ndarray,
         shift = float(np.sqrt(max(d @ (qp.A @ d), 0.0)))
         norm = float(np.sqrt(max(u_f @ (qp.A @ u_f), 0.0)))
         root = np.sqrt(2.0 * max(gap, 0.0))
-        rel = (shift + root) / (norm - root) if norm > root else inf
         noise = 8 * eps * (float(p_t @ (np.abs(qp.g) + abs(qp.B) @ np.abs(u_f))) + norm ** 2
                            + abs(float(qp.f @ u_f)))
-        floor = np.sqrt(2 * noise) / norm if norm > 0 else inf
+        if norm > 0:
+            rel = (shift + root) / (norm - root) if norm > root else inf
+            floor = np.sqrt(2 * noise) / norm
+        else:            # u_f = 0: certified exactly if the bound is zero (e.g. no load)
+            rel, floor = (0.0 if shift + root == 0 else inf), 0.0
         return gap, shift, shift + root, rel, floor, gap / max(abs(qp.energy(u_f)), 1e-300)
 
     if qp.C is not None:

@@ -85,9 +85,11 @@ def main(argv=None) -> None:
     ap.add_argument("--work", required=True)
     args = ap.parse_args(argv)
     table = pd.concat([pd.read_csv(f) for f in args.inputs], ignore_index=True)
-    keep = ["level", "n", "m", "solver", "preset", "tol", "status", "claimed_status", "iterations",
-            "setup_time", "solve_time", "total_time", "kkt_stationarity", "kkt_primal", "kkt_dual",
-            "kkt_complementarity", "kkt_max", "energy_error", "peak_mem_mb", "message"]
+    keep = ["level", "N", "n", "m", "solver", "preset", "tol", "status", "claimed_status",
+            "iterations", "setup_time", "solve_time", "total_time", "wall_time",
+            "kkt_stationarity", "kkt_primal", "kkt_dual", "kkt_complementarity", "kkt_max",
+            "energy_bound", "energy_bound_floor", "pair_gap", "energy_error", "peak_mem_mb",
+            "message"]
     table = table[[c for c in keep if c in table.columns]]
     write_csv(args.table, table)
     write_csv(args.presets, preset_table())

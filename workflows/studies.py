@@ -49,6 +49,10 @@ PATHS = {
     "laplace_rates": "results/laplace_nonmatching/rates.csv",
     "laplace_convergence": "results/laplace_nonmatching/convergence_{case}.png",
     "laplace_mesh": "results/laplace_nonmatching/mesh.png",
+    # hard_cases: every solver on the hard scenes; one table and heat map across them
+    "hard_case_runs": "results/{scene}/hard_case_L{level}.csv",
+    "hard_table": "results/hard_cases/hard_cases.csv",
+    "hard_heatmap": "results/hard_cases/hard_cases.png",
     # logs and benchmarks of every rule
     "log": "results/logs/{rule}/{name}.log",
     "benchmark": "results/benchmarks/{rule}/{name}.tsv",
@@ -59,26 +63,31 @@ PATHS = {
 class Study:
     """One study: what it shows, the thesis it regenerates, its final outputs.
 
-    ``outputs`` are keys of :data:`PATHS`; per-scene studies expand them over the
-    scenes their config entry lists.
+    ``outputs`` are keys of :data:`PATHS`: a template with ``{scene}`` is expanded
+    over the scenes the study's config entry lists, one with ``{case}`` over its
+    cases; any other is one file (e.g. a table across scenes).
     """
 
     name: str
     summary: str
     thesis: str
     outputs: tuple[str, ...]
-    per_scene: bool = True
 
     def targets(self, config: dict) -> list[str]:
         """The files this study produces under ``config``."""
         if self.name not in config:
             return []
-        if not self.per_scene:
-            cases = config[self.name].get("cases", ["sin10x", "linear"])
-            return [PATHS[k].format(case=c) for k in self.outputs
-                    for c in (cases if "{case}" in PATHS[k] else [None])]
-        return [PATHS[k].format(scene=s) for s in scenes_of(config, self.name)
-                for k in self.outputs]
+        out = []
+        for key in self.outputs:
+            template = PATHS[key]
+            if "{scene}" in template:
+                out += [template.format(scene=s) for s in scenes_of(config, self.name)]
+            elif "{case}" in template:
+                out += [template.format(case=c) for c in
+                        config[self.name].get("cases", ["sin10x", "linear"])]
+            else:
+                out.append(template)
+        return out
 
 
 def scenes_of(config: dict, study: str) -> dict[str, list[int]]:
@@ -119,7 +128,6 @@ STUDIES = {
             thesis="Ch. 6, Figs. 6.3, 6.5, 6.6, Theorems 6.17/6.24",
             outputs=("laplace_errors", "laplace_errors_by_side", "laplace_rates",
                      "laplace_convergence", "laplace_mesh"),
-            per_scene=False,
         ),
         Study(
             name="contact_solution",
@@ -142,6 +150,16 @@ STUDIES = {
                     "tested against the multigrid-PCG linear solve as the floor",
             thesis="Ch. 8, Tables 9.1/9.3, Figs. 9.1/9.6, 9.3/9.8",
             outputs=("ap_table", "ap_claims", "ap_time", "ap_kappa"),
+        ),
+        Study(
+            name="hard_cases",
+            summary="every registered solver at the mid preset, each in its own process with a "
+                    "hard time limit, on hard variants of the scenes (stiffness contrast, near "
+                    "incompressibility, mesh ratio, single-node and whole-edge contact, no "
+                    "contact, initial penetration, SI units, grazing contact, a thin body): "
+                    "verified status, certified bound, errors against the reference, time",
+            thesis="Ch. 8 solvers on variants of Sects. 9.1, 9.2",
+            outputs=("hard_table", "hard_heatmap"),
         ),
     )
 }
@@ -176,9 +194,7 @@ def check_config(config: dict) -> None:
             registry[problem].options(**(entry.get("params") or {}))
         except ParameterError as err:
             raise ConfigError(f"config 'scenes.{scene}.params': {err}") from None
-    for name, study in STUDIES.items():
-        if not study.per_scene:
-            continue
+    for name in STUDIES:
         for scene, levels in scenes_of(config, name).items():
             if scene not in config.get("scenes", {}):
                 raise ConfigError(f"config '{name}.scenes.{scene}': no such scene; defined: "

@@ -41,9 +41,17 @@ class Hierarchy:
 
 def structured_square(n: int, x0: float = 0.0, y0: float = 0.0, size: float = 1.0):
     """Structured triangulation of a square with n x n cells: ``(points, cells)``."""
-    if n < 1:
-        raise ValueError(f"parameter 'n': {n!r} is not allowed; allowed: an integer >= 1")
-    m = MeshTri.init_tensor(np.linspace(x0, x0 + size, n + 1), np.linspace(y0, y0 + size, n + 1))
+    return structured_rectangle(n, n, x0, y0, size, size)
+
+
+def structured_rectangle(nx: int, ny: int, x0: float = 0.0, y0: float = 0.0,
+                         width: float = 1.0, height: float = 1.0):
+    """Structured triangulation of a rectangle with nx x ny cells: ``(points, cells)``."""
+    for name, n in (("nx", nx), ("ny", ny)):
+        if n < 1:
+            raise ValueError(f"parameter '{name}': {n!r} is not allowed; allowed: an integer >= 1")
+    m = MeshTri.init_tensor(np.linspace(x0, x0 + width, nx + 1),
+                            np.linspace(y0, y0 + height, ny + 1))
     return m.p.T.copy(), m.t.T.copy()
 
 

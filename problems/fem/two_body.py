@@ -223,10 +223,9 @@ def assemble_two_body(scene: TwoBodyScene, level: int, name: str = "") -> Contac
     opposing = _opposing_facets(scene, points, cells, body_of_node)
     cc = contact_constraints(points, nodes, opposing, direction=np.asarray(scene.direction, float),
                              search=scene.search, n_nodes=n_nodes)
-    if cc.m < nodes.size:
-        missing = nodes[~cc.found]
-        raise ValueError(f"{nodes.size - cc.m} constrained nodes found no opposing facet "
-                         f"(first at {points[missing[0]].tolist()}): widen on_opposing")
+    if cc.m == 0:
+        raise ValueError("no constrained node finds an opposing facet: the bodies never face "
+                         "each other along the contact direction (check on_opposing)")
 
     A = A_full[free][:, free].tocsr()
     f = f_full[free] - (A_full @ u_fixed)[free]
@@ -249,14 +248,19 @@ def assemble_two_body(scene: TwoBodyScene, level: int, name: str = "") -> Contac
         coarsening = scene.surface_coarsening(levels[0][0][surf[0][0]])
     surface = surface_levels(node_P, [s[0] for s in surf], [s[2] for s in surf],
                              [s[3] for s in surf], coarsening)
+    # nodes whose ray misses the opposing surface (grazing contact) carry no constraint
+    # (Alg. 7.1 drops them): the finest surface level keeps the rows that exist
+    surface.prolongations[-1] = surface.prolongations[-1][cc.found].tocsr()
+    surface.masses[-1] = surface.masses[-1][cc.found]
+    surface.sizes[-1] = surface.sizes[-1][cc.found]
 
     return ContactQP(
         A=A, f=f, B=B, g=g, free_dofs=free, u_fixed=u_fixed, dim=dim,
         mesh=Mesh(points=points, cells=cells, body_of_node=body_of_node, E_cell=E_cell,
                   nu_cell=nu_cell, bodies=tuple(b.name for b in scene.bodies)),
-        contact=ContactSurface(nodes=cc.rows, mass=mass, direction=cc.direction,
+        contact=ContactSurface(nodes=cc.rows, mass=mass[cc.found], direction=cc.direction,
                                facets=surface_facets, opposing_facets=opposing,
-                               search=scene.search),
+                               search=scene.search, dropped=int(nodes.size - cc.m)),
         multilevel=Multilevel(prolongations=prolongations, rigid_body_modes=rbm,
                               body_of_dof=body_of_dof, surface=surface),
         hertz=scene.hertz, name=name, units=scene.units, level=level,

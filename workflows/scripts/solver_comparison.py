@@ -1,8 +1,10 @@
 """Every registered solver at every tolerance preset on one scene at one level.
 
 The exact reference (PDAS to 1e-12) gives ``u_ref``; each run records its
-verified status, KKT residuals, time, peak memory, iterations and the
-energy-norm error ``||u - u_ref||_A / ||u_ref||_A``. Failures and time-outs
+verified status, KKT residuals, the certified energy bound, time, peak memory,
+iterations and the energy-norm error ``||u - u_ref||_A / ||u_ref||_A``. Every
+run is a child process with a hard wall-clock limit
+(:func:`workflows.isolation.solve_isolated`): failures, crashes and time-outs
 are rows, not gaps. Called by the rule ``solver_comparison``.
 
 Example::
@@ -20,9 +22,9 @@ import pandas as pd
 from tqdm import tqdm
 
 from problems.qp import energy_error
-from solvers.interface import TOLERANCES, reference_solve, solve, solvers
+from solvers.interface import TOLERANCES, reference_solve, solvers
 from workflows.io import write_csv
-from workflows.measure import peak_rss
+from workflows.isolation import solve_isolated
 from workflows.scene_args import add_scene_arguments, check_levels, scene_from_args
 
 
@@ -59,12 +61,11 @@ def main(argv=None) -> None:
     for solver, preset in tqdm([(s, p) for s in names for p in args.presets],
                                desc=f"solvers on {qp.name}"):
         t0 = time.perf_counter()
-        with peak_rss() as mem:
-            res = solve(qp, solver=solver, tol=preset, time_limit=args.time_limit)
+        res = solve_isolated(qp, solver, preset, time_limit=args.time_limit)
         rows.append({**base, "preset": preset, **res.summary(),
                      "energy_error": energy_error(qp, res.u, ref.u)
-                     if res.status != "failed" else np.nan,
-                     "wall_time": time.perf_counter() - t0, "peak_mem_mb": mem["peak_mb"]})
+                     if res.kkt is not None else np.nan,
+                     "wall_time": time.perf_counter() - t0})
     write_csv(args.out, pd.DataFrame(rows))
 
 

@@ -1,0 +1,90 @@
+"""The hard-case table and heat map (study hard_cases): per case and solver the verified
+status, the worst KKT residual, the energy error against the reference and the time.
+
+The table also checks the study's two promises on every row: a ``converged`` run
+has KKT residuals and a certified energy bound within the tolerance
+(``claim_ok``), and its answer is accurate against the reference
+(``accurate``: energy error and S-norm multiplier error <= tolerance).
+"""
+from __future__ import annotations
+
+import argparse
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import pandas as pd  # noqa: E402
+from matplotlib.colors import ListedColormap  # noqa: E402
+
+from report.figures import save_figure  # noqa: E402
+from workflows.io import write_csv  # noqa: E402
+
+STATUS_ORDER = ("converged", "inaccurate", "max_iter", "time_limit", "failed")
+STATUS_COLORS = ("#2ca02c", "#ff7f0e", "#9467bd", "#8c564b", "#d62728")
+
+
+def table(inputs: list[str]) -> pd.DataFrame:
+    """All rows, with the two promises checked per row."""
+    t = pd.concat([pd.read_csv(f) for f in inputs], ignore_index=True)
+    conv = t["status"] == "converged"
+    bound_ok = t["energy_bound"] <= np.maximum(t["tol"], 4 * t["energy_bound_floor"])
+    t["claim_ok"] = ~conv | ((t["kkt_max"] <= t["tol"]) & bound_ok)
+    t["accurate"] = (t["energy_error"] <= t["tol"] * 1.001) & (
+        t["multiplier_error_S"] <= t["tol"] * 1.001)
+    return t
+
+
+def heatmap(t: pd.DataFrame, path: str) -> None:
+    """Four panels: status, worst KKT residual, energy error, wall time."""
+    cases = list(dict.fromkeys(t["case"]))
+    solvers = sorted(t["solver"].unique())
+
+    def grid(col):
+        g = t.pivot_table(index="case", columns="solver", values=col, aggfunc="first")
+        return g.reindex(index=cases, columns=solvers)
+
+    status = grid("status").apply(lambda c: c.map({s: i for i, s in enumerate(STATUS_ORDER)}))
+    fig, axes = plt.subplots(1, 4, figsize=(17, 0.42 * len(cases) + 2.4), sharey=True)
+    panels = [(status, "verified status", ListedColormap(STATUS_COLORS), (0, len(STATUS_ORDER) - 1)),
+              (np.log10(grid("kkt_max").astype(float).clip(lower=1e-16)),
+               "log10 worst scaled KKT residual", "viridis", (-16, 0)),
+              (np.log10(grid("energy_error").astype(float).clip(lower=1e-16)),
+               "log10 energy error vs the reference", "viridis", (-16, 0)),
+              (np.log10(grid("wall_time").astype(float).clip(lower=1e-3)),
+               "log10 wall time [s]", "magma_r", None)]
+    for ax, (data, title, cmap, lim) in zip(axes, panels):
+        vals = data.to_numpy(dtype=float)
+        im = ax.imshow(vals, cmap=cmap, aspect="auto",
+                       vmin=None if lim is None else lim[0], vmax=None if lim is None else lim[1])
+        ax.set_xticks(range(len(solvers)), solvers, rotation=40, ha="right", fontsize=7)
+        ax.set_yticks(range(len(cases)), cases, fontsize=7)
+        ax.set_title(title, fontsize=9)
+        for (i, j), v in np.ndenumerate(vals):
+            if np.isfinite(v):
+                text = STATUS_ORDER[int(v)][:5] if data is status else f"{v:.0f}" \
+                    if title.startswith("log10 w") is False else f"{10 ** v:.2g}"
+                ax.text(j, i, text, ha="center", va="center", fontsize=6, color="w")
+        if data is not status:
+            fig.colorbar(im, ax=ax, fraction=0.046, pad=0.02)
+    preset = t["preset"].iloc[0]
+    fig.suptitle(f"Hard cases, preset {preset} (tol {t['tol'].iloc[0]:g}): every solver in its "
+                 "own process with a hard time limit", fontsize=10)
+    save_figure(fig, path)
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--inputs", nargs="+", required=True)
+    ap.add_argument("--table", required=True)
+    ap.add_argument("--heatmap", required=True)
+    args = ap.parse_args(argv)
+    t = table(args.inputs)
+    write_csv(args.table, t)
+    heatmap(t, args.heatmap)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,89 @@
+"""Solver runs in a child process with a hard wall-clock limit.
+
+A hung solver (ProxSuite cannot be interrupted; OSQP's limit does not cover its
+factorisation), one that exhausts the memory or one that crashes (a segfault in
+a library) must cost a study a row, never the study. :func:`solve_isolated`
+forks, runs :func:`solvers.interface.solve` (with its verification) in the
+child and sends the result back through a pipe; past the hard limit the child
+is killed and the row says so.
+"""
+from __future__ import annotations
+
+import multiprocessing as mp
+import signal
+import time
+import traceback
+
+import numpy as np
+
+from problems.qp import ContactQP
+from solvers.interface import SolveResult, solve
+from workflows.measure import peak_rss
+
+#: Extra wall seconds beyond the solver's own time limit before the child is killed
+#: (verification, teardown): ``hard = GRACE_FACTOR * time_limit + GRACE_SECONDS``.
+GRACE_FACTOR, GRACE_SECONDS = 1.25, 30.0
+
+
+def _child(conn, qp, solver, tol, time_limit, options):
+    try:
+        with peak_rss() as mem:
+            res = solve(qp, solver=solver, tol=tol, time_limit=time_limit, **options)
+        res.stats["peak_mem_mb"] = mem["peak_mb"]
+        conn.send(("ok", res))
+    except BaseException as err:  # noqa: BLE001 -- anything the parent must turn into a row
+        conn.send(("error", f"{type(err).__name__}: {err}\n{traceback.format_exc(limit=3)}"))
+    finally:
+        conn.close()
+
+
+def _row(qp: ContactQP, solver: str, tol: float, status: str, message: str,
+         elapsed: float) -> SolveResult:
+    res = SolveResult(u=np.zeros(qp.n), p=np.zeros(qp.m), claimed_status=status,
+                      message=message, solve_time=elapsed, solver=solver, tol=tol)
+    res.status = status
+    return res
+
+
+def solve_isolated(qp: ContactQP, solver: str, tol, time_limit: float,
+                   **options) -> SolveResult:
+    """:func:`solvers.interface.solve` in a forked child, killed past the hard limit.
+
+    Returns the child's verified :class:`SolveResult` (with ``stats['peak_mem_mb']``),
+    or a row with status ``time_limit`` (killed) or ``failed`` (the child raised
+    or died, e.g. by a signal) and a message saying which. ``u`` and ``p`` of such
+    a row are zeros; its ``kkt`` and ``gap`` are None.
+    """
+    from solvers.interface import parse_tolerance
+
+    tol_value = parse_tolerance(tol)
+    hard = GRACE_FACTOR * time_limit + GRACE_SECONDS
+    ctx = mp.get_context("fork")
+    receive, send = ctx.Pipe(duplex=False)
+    proc = ctx.Process(target=_child, args=(send, qp, solver, tol, time_limit, options),
+                       daemon=True)
+    t0 = time.perf_counter()
+    proc.start()
+    send.close()
+    try:
+        if receive.poll(hard):
+            kind, payload = receive.recv()
+            proc.join(10.0)
+            if kind == "ok":
+                return payload
+            return _row(qp, solver, tol_value, "failed", f"failed: {payload.splitlines()[0]}",
+                        time.perf_counter() - t0)
+    except EOFError:       # the child died before sending (killed, segfault, out of memory)
+        proc.join(10.0)
+        code = proc.exitcode
+        name = signal.Signals(-code).name if code is not None and code < 0 else f"exit code {code}"
+        return _row(qp, solver, tol_value, "failed", f"solver process died ({name})",
+                    time.perf_counter() - t0)
+    finally:
+        receive.close()
+        if proc.is_alive():
+            proc.kill()
+            proc.join(10.0)
+    return _row(qp, solver, tol_value, "time_limit",
+                f"killed after the hard wall-clock limit of {hard:.0f} s "
+                f"(solver time limit {time_limit:g} s)", time.perf_counter() - t0)
