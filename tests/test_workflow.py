@@ -219,7 +219,8 @@ def test_studies_declare_their_outputs_once():
     targets = all_targets(config)
     assert len(targets) == len(set(targets))
     assert "results/circle_square/augmented_projection_table.csv" in targets
-    assert {s for s in STUDIES} == {"laplace_nonmatching", "contact_solution",
-                                     "solver_comparison", "augmented_projection"}
+    assert {s for s in STUDIES} >= {"laplace_nonmatching", "contact_solution",
+                                     "solver_comparison", "augmented_projection", "hard_cases"}
+    assert "results/hard_cases/hard_cases.csv" in targets           # one table across scenes
     smk = "".join(p.read_text() for p in (ROOT / "workflows").glob("*.smk"))
     assert "results/" not in smk          # every path comes from workflows/studies.py
