@@ -3,10 +3,14 @@
 #   snakemake --cores 2 --configfile workflows/config/full.yaml   (the thesis's sizes, hours)
 # Studies, their outputs and every path template are declared once in workflows/studies.py;
 # each study's rules live in workflows/<study>.smk and run on the scenes its config lists.
+import hashlib
+import json
 import os
 import sys
 
 from snakemake.utils import validate
+
+from workflows.io import sweep_results
 
 from workflows.studies import (PATHS, all_targets, bench_path, check_config, log_path,
                                scenes_of, set_args, thesis_table)
@@ -14,6 +18,14 @@ from workflows.studies import (PATHS, all_targets, bench_path, check_config, log
 configfile: "workflows/config/quick.yaml"
 validate(config, "workflows/config.schema.yaml")
 check_config(config)   # scenes exist, problems and parameters valid, variant names known
+
+# provenance of every result names the config; corrupted results and partial files of a
+# killed run are removed here, so that they are rebuilt (workflows/io.py)
+CONFIG_SHA256 = hashlib.sha256(json.dumps(config, sort_keys=True).encode()).hexdigest()
+shell.prefix(f"export CONTACTBENCH_CONFIGFILE={','.join(map(str, workflow.configfiles))} "
+             f"CONTACTBENCH_CONFIG_SHA256={CONFIG_SHA256}; ")
+for removed in sweep_results("results"):
+    print(f"removed a corrupted or partial result, to be rebuilt: {removed}", file=sys.stderr)
 
 PY = sys.executable  # the interpreter snakemake runs under (the venv's, via `make run`)
 ENV = "envs/contactbench.yaml"

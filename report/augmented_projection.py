@@ -21,7 +21,7 @@ import pandas as pd  # noqa: E402
 
 from report.figures import save_figure  # noqa: E402
 from report.rates import fitted_slope as slope  # noqa: E402
-from workflows.io import write_csv  # noqa: E402
+from workflows.io import read_csv, write_csv  # noqa: E402
 
 MAIN = "alg84"
 
@@ -164,7 +164,7 @@ def main(argv=None) -> None:
     ap.add_argument("--fig-time", required=True, dest="fig_time")
     ap.add_argument("--fig-kappa", required=True, dest="fig_kappa")
     args = ap.parse_args(argv)
-    study = pd.read_csv(args.study)
+    study = read_csv(args.study)
     thesis = read_thesis(args.thesis)
     write_csv(args.table, thesis_table(study, thesis))
     write_csv(args.claims, claims(study))

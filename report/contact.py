@@ -24,18 +24,18 @@ import pandas as pd  # noqa: E402
 from matplotlib.tri import Triangulation  # noqa: E402
 
 from report.figures import save_figure  # noqa: E402
-from workflows.io import write_csv  # noqa: E402
+from workflows.io import read_checked, read_csv, write_csv  # noqa: E402
 
 
 def hertz_table(inputs: list[str], out: str) -> None:
     """Concatenate the per-level rows, sorted by level."""
-    write_csv(out, pd.concat([pd.read_csv(f) for f in inputs]).sort_values("level"))
+    write_csv(out, pd.concat([read_csv(f) for f in inputs]).sort_values("level"))
 
 
 def _read(vtu: str):
     import meshio
 
-    m = meshio.read(vtu)
+    m = meshio.read(read_checked(vtu))
     kind = "triangle" if "triangle" in m.cells_dict else "tetra"
     return (m.points, m.cells_dict[kind], m.point_data["displacement"],
             m.cell_data_dict["von_mises"][kind], m.point_data["contact_pressure"])
@@ -130,11 +130,11 @@ def pressure_figure(contacts: list[str], hertz_rows: list[str], path: str) -> No
     """Contact pressure per level against position (2D) or radius (3D), with the
     Hertz curve for the measured total force of the finest level."""
     fig, ax = plt.subplots(figsize=(7.5, 4.6))
-    rows = pd.concat([pd.read_csv(f) for f in hertz_rows]).sort_values("level")
+    rows = pd.concat([read_csv(f) for f in hertz_rows]).sort_values("level")
     by_level = {int(re.search(r"_L(\d+)\.csv$", f).group(1)): f for f in contacts}
-    point = any(c.startswith("s1") for c in pd.read_csv(contacts[0], nrows=1).columns)
+    point = any(c.startswith("s1") for c in read_csv(contacts[0]).columns)
     for _, row in rows.iterrows():
-        c = pd.read_csv(by_level[int(row["level"])])
+        c = read_csv(by_level[int(row["level"])])
         if "center_s0" not in row or not np.isfinite(row.get("center_s0", np.nan)):
             continue
         if point:
@@ -170,7 +170,7 @@ def surface_figure(vtu: str, path: str) -> None:
 
     from problems.fem.elasticity import boundary_facets
 
-    m = meshio.read(vtu)
+    m = meshio.read(read_checked(vtu))
     kind = "triangle" if "triangle" in m.cells_dict else "tetra"
     cells, pts = m.cells_dict[kind], m.points
     pressure, body = m.point_data["contact_pressure"], m.point_data["body"].astype(int)

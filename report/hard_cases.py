@@ -19,7 +19,7 @@ import pandas as pd  # noqa: E402
 from matplotlib.colors import ListedColormap  # noqa: E402
 
 from report.figures import save_figure  # noqa: E402
-from workflows.io import write_csv  # noqa: E402
+from workflows.io import read_csv, write_csv  # noqa: E402
 
 STATUS_ORDER = ("converged", "inaccurate", "max_iter", "time_limit", "failed")
 STATUS_COLORS = ("#2ca02c", "#ff7f0e", "#9467bd", "#8c564b", "#d62728")
@@ -27,7 +27,7 @@ STATUS_COLORS = ("#2ca02c", "#ff7f0e", "#9467bd", "#8c564b", "#d62728")
 
 def table(inputs: list[str]) -> pd.DataFrame:
     """All rows, with the two promises checked per row."""
-    t = pd.concat([pd.read_csv(f) for f in inputs], ignore_index=True)
+    t = pd.concat([read_csv(f) for f in inputs], ignore_index=True)
     conv = t["status"] == "converged"
     bound_ok = t["energy_bound"] <= np.maximum(t["tol"], 4 * t["energy_bound_floor"])
     t["claim_ok"] = ~conv | ((t["kkt_max"] <= t["tol"]) & bound_ok)

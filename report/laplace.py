@@ -12,7 +12,7 @@ import pandas as pd  # noqa: E402
 
 from report.figures import save_figure  # noqa: E402
 from report.rates import rate_table  # noqa: E402
-from workflows.io import write_csv  # noqa: E402
+from workflows.io import read_csv, write_csv  # noqa: E402
 
 STYLE = {"conforming": ("k", "o", "-"), "nodal": ("tab:red", "s", "--"),
          "stabilised_a0.5": ("tab:orange", "^", "-."), "stabilised_a1": ("tab:blue", "D", "-"),
@@ -95,7 +95,7 @@ def tables(inputs: list[str], default_side: str, errors_path: str, by_side_path:
     ``constrained``) and ``rates.csv`` (case, variant, rate_h1, rate_l2 for the
     default side first, then the other side).
     """
-    both = pd.concat([pd.read_csv(p) for p in inputs], ignore_index=True)
+    both = pd.concat([read_csv(p) for p in inputs], ignore_index=True)
     both = both.sort_values(["constrained", "case", "variant", "level"], kind="stable")
     columns = ["case", "variant", "level", "h", "ndof", "err_h1", "err_l2"]
     write_csv(by_side_path, both)
@@ -130,7 +130,7 @@ def main(argv=None) -> None:
     if args.what == "tables":
         tables(args.inputs, args.default_side, args.errors, args.by_side, args.rates)
     elif args.what == "convergence":
-        convergence_figure(pd.read_csv(args.errors), pd.read_csv(args.rates), args.case, args.out)
+        convergence_figure(read_csv(args.errors), read_csv(args.rates), args.case, args.out)
     else:
         mesh_figure(args.level, args.ratio, args.out)
 

@@ -12,7 +12,7 @@ import pandas as pd  # noqa: E402
 
 from solvers.interface import TOLERANCES, solvers  # noqa: E402
 from report.figures import save_figure  # noqa: E402
-from workflows.io import write_csv  # noqa: E402
+from workflows.io import read_csv, write_csv  # noqa: E402
 
 MARKERS = {"converged": "o", "inaccurate": "x", "max_iter": "s", "time_limit": ">", "failed": "X"}
 LINES = {"low": ":", "mid": "--", "high": "-"}
@@ -84,7 +84,7 @@ def main(argv=None) -> None:
     ap.add_argument("--times", required=True)
     ap.add_argument("--work", required=True)
     args = ap.parse_args(argv)
-    table = pd.concat([pd.read_csv(f) for f in args.inputs], ignore_index=True)
+    table = pd.concat([read_csv(f) for f in args.inputs], ignore_index=True)
     keep = ["level", "N", "n", "m", "solver", "preset", "tol", "status", "claimed_status",
             "iterations", "setup_time", "solve_time", "total_time", "wall_time",
             "kkt_stationarity", "kkt_primal", "kkt_dual", "kkt_complementarity", "kkt_max",

@@ -179,4 +179,5 @@ def test_output_paths_are_checked_before_any_work(tmp_path, capsys, monkeypatch)
     monkeypatch.setattr(os, "access", lambda p, mode: False if Path(p) == ro else real_access(p, mode))
     assert main([*base, "--out", str(ro / "x.json")]) == 2
     assert "is not writable" in capsys.readouterr().err
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["dir.json", "old.json", "ro"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["dir.json", "old.json",
+                                                          "old.json.meta.json", "ro"]

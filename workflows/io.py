@@ -1,16 +1,24 @@
-"""Files at the edges: atomic writes and run provenance.
+"""Files at the edges: atomic writes, checksummed results and run provenance.
 
-Every result file is written to a temporary file in the target directory and
-moved into place with ``os.replace``, so a crash never leaves a half-written
-file behind (and Snakemake never sees one).
+Every result file is written to a temporary file in the target directory
+(``.<name>.partial-XXXX``) and moved into place with ``os.replace``, so a crash
+or a failed write never leaves a half-written file behind and the previous
+version survives. Beside every result ``<file>`` a sidecar ``<file>.meta.json``
+records its size, its SHA-256 and where it came from (:func:`provenance`: commit,
+packages, CPU, cores and threads, the workflow's config). Readers check the
+checksum (:func:`read_checked`); the workflow sweeps corrupted or truncated
+results and stale partial files before it plans (:func:`sweep_results`), so they
+are rebuilt, never silently read.
 """
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 import platform
 import subprocess
 import tempfile
+from functools import lru_cache
 from contextlib import contextmanager
 from datetime import datetime, timezone
 from importlib import metadata
@@ -23,30 +31,109 @@ PACKAGES = ("numpy", "scipy", "scikit-fem", "ngsolve", "pyamg", "osqp", "proxsui
             "pandas", "meshio", "matplotlib", "snakemake")
 
 
+#: Marker of the temporary files :func:`atomic_path` writes (swept if a process died).
+PARTIAL = ".partial-"
+META = ".meta.json"
+
+
 @contextmanager
-def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[Path]:
-    """Yield a temporary path next to ``path``; on success move it into place.
+def atomic_path(path: str | os.PathLike, suffix: str | None = None,
+                meta: bool = True) -> Iterator[Path]:
+    """Yield a temporary path next to ``path``; on success move it into place and
+    write the checksummed sidecar ``path.meta.json`` (unless ``meta`` is False).
 
     On an exception the temporary file is removed and ``path`` is untouched.
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=suffix or path.suffix)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}{PARTIAL}",
+                               suffix=suffix or path.suffix)
     os.close(fd)
     umask = os.umask(0)
     os.umask(umask)
     os.chmod(tmp, 0o666 & ~umask)  # mkstemp's 0600 would make results private
     try:
         yield Path(tmp)
+        digest, size = _sha256(Path(tmp))
         os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+    if meta:
+        write_text(str(path) + META, json.dumps(
+            {"file": path.name, "bytes": size, "sha256": digest, "provenance": provenance()},
+            indent=1) + "\n", meta=False)
 
 
-def write_text(path: str | os.PathLike, text: str) -> None:
-    """Atomically write ``text`` to ``path``."""
-    with atomic_path(path) as tmp:
+def _sha256(path: Path) -> tuple[str, int]:
+    h = hashlib.sha256()
+    size = 0
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+            size += len(block)
+    return h.hexdigest(), size
+
+
+class CorruptedResult(RuntimeError):
+    """A result file does not match its checksummed sidecar (truncated or altered)."""
+
+
+def check_result(path: str | os.PathLike) -> bool:
+    """True if ``path`` matches its sidecar (size and SHA-256); True without a sidecar
+    (a file the suite did not write); False if it is missing or does not match."""
+    path = Path(path)
+    side = Path(str(path) + META)
+    if not side.exists():
+        return True
+    if not path.exists():
+        return False
+    try:
+        meta = json.loads(side.read_text())
+    except (OSError, ValueError):
+        return False
+    if path.stat().st_size != meta.get("bytes"):
+        return False
+    return _sha256(path)[0] == meta.get("sha256")
+
+
+def read_checked(path: str | os.PathLike) -> Path:
+    """``path`` after checking it against its sidecar.
+
+    Raises
+    ------
+    CorruptedResult
+        Naming the file: delete it (``snakemake`` then rebuilds it).
+    """
+    if not check_result(path):
+        raise CorruptedResult(f"result file {str(path)!r} does not match its checksum "
+                              f"({Path(str(path) + META).name}): truncated or altered; delete "
+                              "it and rerun snakemake to rebuild it")
+    return Path(path)
+
+
+def sweep_results(root: str | os.PathLike = "results") -> list[str]:
+    """Remove corrupted results (with their sidecars) and stale partial files below
+    ``root``, so that the workflow rebuilds them. Returns the removed paths."""
+    removed = []
+    root = Path(root)
+    if not root.exists():
+        return removed
+    for side in root.rglob("*" + META):
+        target = Path(str(side)[: -len(META)])
+        if target.exists() and not check_result(target):
+            target.unlink()
+            side.unlink()
+            removed.append(str(target))
+    for partial in root.rglob(f"*{PARTIAL}*"):
+        partial.unlink(missing_ok=True)
+        removed.append(str(partial))
+    return removed
+
+
+def write_text(path: str | os.PathLike, text: str, meta: bool = True) -> None:
+    """Atomically write ``text`` to ``path`` (with its checksummed sidecar)."""
+    with atomic_path(path, meta=meta) as tmp:
         tmp.write_text(text)
 
 
@@ -78,6 +165,13 @@ def write_csv(path: str | os.PathLike, frame) -> None:
         frame.to_csv(tmp, index=False)
 
 
+def read_csv(path: str | os.PathLike):
+    """A result CSV, after checking it against its sidecar (:func:`read_checked`)."""
+    import pandas as pd
+
+    return pd.read_csv(read_checked(path))
+
+
 def git_commit() -> str:
     """Commit of the working tree (with ``+dirty`` if modified), or ``unknown``."""
     root = Path(__file__).resolve().parent.parent
@@ -91,8 +185,9 @@ def git_commit() -> str:
     return (rev or "unknown") + ("+dirty" if dirty else "")
 
 
-def provenance(seed: int | None = None) -> dict:
-    """Where a result came from: commit, package versions, machine, threads, seed."""
+@lru_cache(maxsize=1)
+def _static_provenance() -> dict:
+    """The parts of :func:`provenance` that do not change within a process."""
     versions = {}
     for name in PACKAGES:
         try:
@@ -101,10 +196,41 @@ def provenance(seed: int | None = None) -> dict:
             versions[name] = None
     threads = {k: os.environ.get(k) for k in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS",
                                               "MKL_NUM_THREADS")}
-    return {"commit": git_commit(), "created": datetime.now(timezone.utc).isoformat(timespec="seconds"),
-            "python": platform.python_version(), "machine": platform.machine(),
-            "processor": platform.processor(), "node": platform.node(), "cpu_count": os.cpu_count(),
-            "threads": threads, "packages": versions, "seed": seed}
+    return {"commit": git_commit(), "python": platform.python_version(),
+            "machine": platform.machine(), "cpu_model": cpu_model(), "node": platform.node(),
+            "cpu_count": os.cpu_count(), "threads": threads, "blas": blas_threads(),
+            "packages": versions,
+            "configfile": os.environ.get("CONTACTBENCH_CONFIGFILE"),
+            "config_sha256": os.environ.get("CONTACTBENCH_CONFIG_SHA256")}
+
+
+def cpu_model() -> str:
+    """The CPU's model name (``/proc/cpuinfo``), or the platform's processor string."""
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or "unknown"
+
+
+def blas_threads() -> dict:
+    """Thread counts of the loaded BLAS/OpenMP libraries (threadpoolctl if present)."""
+    try:
+        from threadpoolctl import threadpool_info
+    except ImportError:
+        return {}
+    return {f"{i.get('internal_api')}:{Path(i.get('filepath', '')).name}": i.get("num_threads")
+            for i in threadpool_info()}
+
+
+def provenance(seed: int | None = None) -> dict:
+    """Where a result came from: commit (``+dirty`` if the tree was modified), package
+    versions, CPU model, cores and BLAS/OpenMP threads, the workflow's config file and
+    hash (from the Snakefile's environment), time and seed."""
+    return {**_static_provenance(), "seed": seed,
+            "created": datetime.now(timezone.utc).isoformat(timespec="seconds")}
 
 
 def write_vtu(path: str | os.PathLike, fields: dict) -> None:

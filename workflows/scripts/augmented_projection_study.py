@@ -33,7 +33,7 @@ from problems.qp import energy_error, kkt_residuals
 from solvers import augmented_projection as ap
 from solvers import preconditioners as pc
 from solvers.interface import reference_solve, solve, verify
-from workflows.io import atomic_path, write_csv
+from workflows.io import atomic_path, check_result, write_csv
 from workflows.scene_args import add_scene_arguments, check_levels, scene_from_args
 
 
@@ -167,7 +167,7 @@ def _reference(qp, level, problem, cache, rows, base):
     """The reference displacement (:func:`reference_solve`; cached as
     ``<cache>/<problem>_L<level>.npz``)."""
     path = Path(cache) / f"{problem}_L{level}.npz" if cache else None
-    if path is not None and path.exists():
+    if path is not None and path.exists() and check_result(path):
         data = np.load(path)
         kkt = kkt_residuals(qp, data["u"], data["p"]) if data["u"].shape == (qp.n,) else None
         if kkt is not None and kkt.max <= 1e-10:  # a stale cache (other parameters) fails this
