@@ -20,7 +20,8 @@ from solvers import _scaling
 from problems.qp import ContactQP, QPValidationError, kkt_residuals
 from solvers.interface import TOLERANCES, solve, solvers
 
-REFERENCE_SOLVERS = ("osqp", "proxsuite", "clarabel")
+#: Every library adapter in the registry (role "reference"): adding one adds it here.
+REFERENCE_SOLVERS = tuple(sorted(n for n, s in solvers().items() if s.role == "reference"))
 ALL_SOLVERS = ("pdas",) + REFERENCE_SOLVERS
 
 
