@@ -22,7 +22,7 @@ from solvers.interface import TOLERANCES, solve, solvers
 
 #: Every library adapter in the registry (role "reference"): adding one adds it here.
 REFERENCE_SOLVERS = tuple(sorted(n for n, s in solvers().items() if s.role == "reference"))
-ALL_SOLVERS = ("pdas",) + REFERENCE_SOLVERS
+ALL_SOLVERS = ("pdas", "semismooth_newton") + REFERENCE_SOLVERS
 
 
 # --------------------------------------------------------------------------- problems
