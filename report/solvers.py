@@ -1,4 +1,6 @@
-"""Solver comparison report: one tidy table, the preset mapping, two figures."""
+"""Solver comparison report for one scene: one tidy table, the preset mapping, the cost
+growth (fitted exponents of time and memory against N, and the ratio to the linear
+floor per level), two figures."""
 from __future__ import annotations
 
 import argparse
@@ -10,12 +12,38 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from solvers.interface import TOLERANCES, solvers  # noqa: E402
 from report.figures import save_figure  # noqa: E402
+from report.rates import fitted_slope  # noqa: E402
+from solvers.interface import TOLERANCES, solvers  # noqa: E402
 from workflows.io import read_csv, write_csv  # noqa: E402
 
 MARKERS = {"converged": "o", "inaccurate": "x", "max_iter": "s", "time_limit": ">", "failed": "X"}
 LINES = {"low": ":", "mid": "--", "high": "-"}
+
+
+FLOOR = "linear_floor"
+
+
+def cost_table(table: pd.DataFrame) -> pd.DataFrame:
+    """Per solver and preset: the fitted exponents of wall time and of peak memory
+    against N over the levels it solved (verified or not, but not failed or cut
+    short), and its time as a ratio to the linear floor at each level."""
+    floor = table[table.solver == FLOOR].set_index(["level", "preset"])["total_time"]
+    runs = table[~table.solver.isin([FLOOR]) & (table.preset != "reference")]
+    rows = []
+    for (solver, preset), grp in runs.groupby(["solver", "preset"]):
+        ok = grp[~grp.status.isin(["failed", "time_limit"])].sort_values("N")
+        row = {"solver": solver, "preset": preset, "levels": len(ok),
+               "converged": int((grp.status == "converged").sum()), "runs": len(grp),
+               "time_exponent": fitted_slope(ok["N"], ok["total_time"], last=len(ok)),
+               "memory_exponent": fitted_slope(ok["N"], ok["peak_mem_mb"], last=len(ok))
+               if "peak_mem_mb" in ok else np.nan}
+        for _, r in grp.iterrows():
+            key = (r["level"], preset)
+            if key in floor.index and floor[key] > 0:
+                row[f"floor_ratio_L{int(r['level'])}"] = r["total_time"] / floor[key]
+        rows.append(row)
+    return pd.DataFrame(rows)
 
 
 def preset_table() -> pd.DataFrame:
@@ -36,7 +64,9 @@ def times_figure(table: pd.DataFrame, path: str) -> None:
     colors = dict(zip(sorted(runs.solver.unique()), plt.cm.tab10.colors))
     for (solver, preset), grp in runs.groupby(["solver", "preset"]):
         grp = grp.sort_values("n")
-        ax.loglog(grp["n"], grp["total_time"], LINES.get(preset, "-"), color=colors[solver], lw=1,
+        style = dict(color="k", lw=2, alpha=0.5) if solver == FLOOR else dict(color=colors[solver],
+                                                                             lw=1)
+        ax.loglog(grp["n"], grp["total_time"], LINES.get(preset, "-"), **style,
                   label=f"{solver} ({preset})")
         for _, r in grp.iterrows():
             ax.loglog(r["n"], r["total_time"], MARKERS.get(r["status"], "?"), color=colors[solver],
@@ -57,7 +87,8 @@ def times_figure(table: pd.DataFrame, path: str) -> None:
 def work_precision_figure(table: pd.DataFrame, path: str) -> None:
     """Energy-norm error against time, one curve per solver and level (points = presets)."""
     fig, ax = plt.subplots(figsize=(7.5, 4.8))
-    runs = table[(table.preset != "reference") & np.isfinite(table.energy_error)]
+    runs = table[(table.preset != "reference") & (table.solver != FLOOR)
+                 & np.isfinite(table.energy_error)]
     colors = dict(zip(sorted(runs.solver.unique()), plt.cm.tab10.colors))
     levels = sorted(runs.level.unique())
     styles = dict(zip(levels, ["-", "--", ":", "-.", (0, (1, 3))]))
@@ -83,9 +114,11 @@ def main(argv=None) -> None:
     ap.add_argument("--presets", required=True)
     ap.add_argument("--times", required=True)
     ap.add_argument("--work", required=True)
+    ap.add_argument("--costs", required=True)
     args = ap.parse_args(argv)
     table = pd.concat([read_csv(f) for f in args.inputs], ignore_index=True)
-    keep = ["level", "N", "n", "m", "solver", "preset", "tol", "status", "claimed_status",
+    keep = ["scene_problem", "level", "N", "n", "m", "solver", "preset", "tol", "status",
+            "claimed_status",
             "iterations", "setup_time", "solve_time", "total_time", "wall_time",
             "kkt_stationarity", "kkt_primal", "kkt_dual", "kkt_complementarity", "kkt_max",
             "energy_bound", "energy_bound_floor", "pair_gap", "energy_error", "peak_mem_mb",
@@ -93,6 +126,7 @@ def main(argv=None) -> None:
     table = table[[c for c in keep if c in table.columns]]
     write_csv(args.table, table)
     write_csv(args.presets, preset_table())
+    write_csv(args.costs, cost_table(table))
     times_figure(table, args.times)
     work_precision_figure(table, args.work)
 

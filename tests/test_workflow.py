@@ -76,20 +76,32 @@ def test_solver_comparison_and_its_report(tmp_path):
         "--time-limit", "60", "--out", str(tmp_path / "solvers_L0.csv"))
     t = pd.read_csv(tmp_path / "solvers_L0.csv")
     from solvers.interface import solvers
-    assert set(t["solver"]) == set(solvers())      # every registered solver, the exact one as reference
+    assert set(t["solver"]) == set(solvers()) | {"linear_floor"}   # every solver and the floor
     assert (t.loc[t.preset == "reference", "solver"] == "pdas").all()
     assert {"status", "kkt_max", "energy_error", "peak_mem_mb", "wall_time"} <= set(t.columns)
     ref = t[t.preset == "reference"]
     assert len(ref) == 1 and ref["kkt_max"].iloc[0] < 1e-10
-    ok = t[t.status == "converged"]
+    ok = t[(t.status == "converged") & (t.solver != "linear_floor")]
     assert (ok["kkt_max"] <= ok["tol"]).all() and (ok["energy_error"] < 1e-3).all()
-    outs = {k: str(tmp_path / f"{k}.{'csv' if k in ('table', 'presets') else 'png'}")
-            for k in ("table", "presets", "times", "work")}
+    assert set(t.loc[t.solver == "linear_floor", "preset"]) == {"mid"}     # the floor row
+    outs = {k: str(tmp_path / f"{k}.{'csv' if k in ('table', 'presets', 'costs') else 'png'}")
+            for k in ("table", "presets", "times", "work", "costs")}
     run("report.solvers", "--inputs", str(tmp_path / "solvers_L0.csv"),
         *[a for k, v in outs.items() for a in (f"--{k}", v)])
     assert len(pd.read_csv(outs["table"])) == len(t)
     presets = pd.read_csv(outs["presets"])
     assert set(presets["solver"]) == set(solvers()) and presets["options"].notna().all()
+    costs = pd.read_csv(outs["costs"])
+    assert set(costs["solver"]) == set(solvers()) - {"pdas"}      # the reference is its own row
+    assert (costs["floor_ratio_L0"] > 0).all()
+    run("report.solver_summary", "--inputs", outs["table"], "--time-limit", "60",
+        "--summary", str(tmp_path / "summary.csv"), "--profiles", str(tmp_path / "prof.png"))
+    summary = pd.read_csv(tmp_path / "summary.csv")
+    assert set(summary["solver"]) == set(costs["solver"])
+    assert ((summary["converged"] + summary["inaccurate"] + summary["max_iter"]
+             + summary["time_limit"] + summary["failed"]) == summary["runs"]).all()
+    conv = summary.set_index("solver")["success_rate"]
+    assert conv["semismooth_newton"] == 1.0 and conv["augmented_projection"] == 1.0
 
 
 def test_augmented_projection_study_and_its_report(tmp_path):

@@ -1,8 +1,22 @@
-"""Measurement helpers at the edges: peak memory of a block of code."""
+"""Measurement helpers at the edges: peak memory of a block of code, and the linear floor.
+
+The floor of a contact solve (DESIGN.md, performance conventions) is one linear
+solve of the same elasticity system without contact, to the same energy
+accuracy, timed in the same process: :func:`amg_pcg_floor` (geometric-multigrid
+PCG on the refinement hierarchy, or pyamg SA-PCG as the black-box alternative)
+against :func:`linear_solution`.
+"""
 from __future__ import annotations
 
 import threading
+import time
 from contextlib import contextmanager
+
+import numpy as np
+import scipy.sparse.linalg as spla
+
+from solvers import augmented_projection as ap
+from solvers import preconditioners as pc
 
 
 @contextmanager
@@ -31,3 +45,63 @@ def peak_rss(interval: float = 0.005):
     finally:
         stop.set()
         thread.join()
+
+
+def _gmg_vcycle(qp, lanczos_steps: int = 5):
+    gmg = {**ap.SOLVER.options(ahat="gmg").ahat.options, "lanczos_steps": lanczos_steps}
+    return pc.scaled_vcycle(qp.A, "gmg", qp.multilevel, qp.dim, qp.free_dofs, **gmg)
+
+
+def linear_solution(qp, rtol: float = 1e-13, max_iter: int = 2000) -> np.ndarray:
+    """``A^{-1} f`` (no contact) by geometric-multigrid PCG to a relative residual of
+    ``rtol`` (untimed; the yardstick of the floor, scalable to 3D where a direct
+    factorisation is not)."""
+    vc = _gmg_vcycle(qp)
+    M = spla.LinearOperator(qp.A.shape, matvec=vc.raw)
+    u, info = spla.cg(qp.A, qp.f, M=M, rtol=rtol, atol=0.0, maxiter=max_iter)
+    if info != 0:
+        raise RuntimeError(f"multigrid PCG for the linear solution did not reach {rtol:g}")
+    return u
+
+
+def amg_pcg_floor(qp, kind: str, target: float, u_exact: np.ndarray,
+                  max_iter: int = 500) -> dict:
+    """PCG for ``A u = f`` (no contact) with one V-cycle, to energy error ``target``
+    against ``u_exact`` (:func:`linear_solution`), timed with its setup."""
+    norm = np.sqrt(u_exact @ (qp.A @ u_exact))
+    t0, cpu0 = time.perf_counter(), time.process_time()
+    if kind == "sa":  # pyamg defaults + rigid-body modes, node blocks
+        ml = pc.sa_hierarchy(qp.A, qp.multilevel.rigid_body_modes, qp.dim, qp.free_dofs,
+                             smoother="block_gs", sweeps=1, max_coarse=500)
+        M = ml.aspreconditioner(cycle="V")
+    else:
+        vc = _gmg_vcycle(qp)
+        M = spla.LinearOperator(qp.A.shape, matvec=vc.raw)
+    t_setup = time.perf_counter() - t0
+    rec = {"t": [], "err": [], "overhead": 0.0, "cpu": [], "cpu_overhead": 0.0}
+    t_start = time.perf_counter()
+
+    def cb(x):
+        t1, c1 = time.perf_counter(), time.process_time()
+        e = x - u_exact
+        rec["err"].append(np.sqrt(max(e @ (qp.A @ e), 0.0)) / norm)
+        rec["overhead"] += time.perf_counter() - t1
+        rec["cpu_overhead"] += time.process_time() - c1
+        rec["t"].append(time.perf_counter() - t_start - rec["overhead"])
+        rec["cpu"].append(time.process_time() - cpu0 - rec["cpu_overhead"])
+        if rec["err"][-1] <= target:
+            raise StopIteration
+
+    try:
+        spla.cg(qp.A, qp.f, M=M, rtol=1e-14, atol=0.0, maxiter=max_iter, callback=cb)
+    except StopIteration:
+        pass
+    ok = rec["err"] and rec["err"][-1] <= target
+    return {"n": qp.n, "n_outer": len(rec["err"]), "t_setup": t_setup,
+            "t_solve": rec["t"][-1] if rec["t"] else np.nan,
+            "t_to_target": t_setup + rec["t"][-1] if ok else np.nan,
+            "n_to_target": len(rec["err"]) if ok else -1,
+            "cpu_total": rec["cpu"][-1] if rec["cpu"] else np.nan,
+            "cpu_to_target": rec["cpu"][-1] if ok else np.nan,
+            "energy_error": rec["err"][-1] if rec["err"] else np.nan,
+            "status": "converged" if ok else "max_iter"}

@@ -36,6 +36,9 @@ PATHS = {
     "solver_presets": "results/{scene}/solver_presets.csv",
     "solver_times": "results/{scene}/solver_times.png",
     "solver_work": "results/{scene}/solver_error_vs_time.png",
+    "solver_costs": "results/{scene}/solver_costs.csv",
+    "solver_summary": "results/solver_summary/summary.csv",
+    "solver_profiles": "results/solver_summary/performance_profiles.png",
     # augmented_projection
     "ap_study": "results/{scene}/augmented_projection_study.csv",
     "ap_table": "results/{scene}/augmented_projection_table.csv",
@@ -139,9 +142,12 @@ STUDIES = {
         Study(
             name="solver_comparison",
             summary="every registered solver at three tolerance presets on identical QPs: "
-                    "verified status, KKT residuals, time, memory, energy error",
+                    "verified status, KKT residuals, certified bound, time, memory, energy "
+                    "error; cost exponents and the ratio to the linear floor per scene; a "
+                    "qpbenchmark-style summary and performance profiles across scenes",
             thesis="Ch. 8 (solvers) on the scenes of Ch. 9",
-            outputs=("solver_table", "solver_presets", "solver_times", "solver_work"),
+            outputs=("solver_table", "solver_presets", "solver_times", "solver_work",
+                     "solver_costs", "solver_summary", "solver_profiles"),
         ),
         Study(
             name="augmented_projection",

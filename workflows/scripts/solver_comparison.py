@@ -1,8 +1,12 @@
 """Every registered solver at every tolerance preset on one scene at one level.
 
-The exact reference (PDAS to 1e-12) gives ``u_ref``; each run records its
+The reference (:func:`solvers.interface.reference_solve`: the exact PDAS, or in 3D
+beyond a factorisation's reach the iterative reference to verified KKT residuals
+<= 1e-10) gives ``u_ref``; each run records its
 verified status, KKT residuals, the certified energy bound, time, peak memory,
-iterations and the energy-norm error ``||u - u_ref||_A / ||u_ref||_A``. Every
+iterations and the energy-norm error ``||u - u_ref||_A / ||u_ref||_A``. Beside them,
+the linear floor per preset: geometric-multigrid PCG for the same system without
+contact to the preset's energy accuracy (``solver`` = ``linear_floor``). Every
 run is a child process with a hard wall-clock limit
 (:func:`workflows.isolation.solve_isolated`): failures, crashes and time-outs
 are rows, not gaps. Called by the rule ``solver_comparison``.
@@ -25,6 +29,7 @@ from problems.qp import energy_error
 from solvers.interface import TOLERANCES, reference_solve, solvers
 from workflows.io import write_csv
 from workflows.isolation import solve_isolated
+from workflows.measure import amg_pcg_floor, linear_solution
 from workflows.scene_args import add_scene_arguments, check_levels, scene_from_args
 
 
@@ -58,6 +63,17 @@ def main(argv=None) -> None:
     base = {"scene_problem": spec.name, "level": level, "n": qp.n, "m": qp.m, "N": qp.n_nodes}
     rows = [{**base, "preset": "reference", **ref.summary(), "energy_error": 0.0,
              "wall_time": t_ref}]
+    # the linear floor: geometric-multigrid PCG for the same system without contact, to the
+    # preset's relative energy error, in this process (the study's yardstick for costs)
+    u_lin = linear_solution(qp)
+    for preset in args.presets:
+        floor = amg_pcg_floor(qp, "gmg", TOLERANCES[preset], u_lin)
+        rows.append({**base, "solver": "linear_floor", "preset": preset,
+                     "tol": TOLERANCES[preset], "status": floor["status"],
+                     "iterations": floor["n_to_target"], "setup_time": floor["t_setup"],
+                     "solve_time": floor["t_to_target"] - floor["t_setup"],
+                     "total_time": floor["t_to_target"], "energy_error": floor["energy_error"],
+                     "message": "multigrid PCG for A u = f without contact (the floor)"})
     for solver, preset in tqdm([(s, p) for s in names for p in args.presets],
                                desc=f"solvers on {qp.name}"):
         t0 = time.perf_counter()
