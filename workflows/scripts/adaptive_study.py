@@ -34,22 +34,22 @@ solution (Alg. 8.5).
   In 3D the bodies are bisected by longest edges with ties broken by node numbers,
   so meshes of different runs are not nested: no energy errors there.
 
-Writes into ``--outdir``: ``adaptive_steps.csv`` (one row per run and step, the
-uniform levels and the reference), and per variant the last step's fields
-(``adaptive_<variant>.vtu``) and its contact surfaces (``adaptive_<variant>_surface.csv``:
-both surfaces' nodes, constrained pressure and activity). Variant names map to file
-names by :func:`slug`.
+Writes ``--steps`` (one row per run and step, the uniform levels and the
+reference), and per variant (in the order of ``--variants``) the last step's fields
+(``--fields``, VTU) and its contact surfaces (``--surfaces``: both surfaces' nodes,
+the constrained nodes' pressure and activity).
 
 Example::
 
     python -m workflows.scripts.adaptive_study --problem circle_square --start-level 0 \\
-        --max-nodes 10000 --uniform-levels 0 1 2 --outdir results/circle_square
+        --max-nodes 10000 --uniform-levels 0 1 2 --variants eta1 eta1+eta2 \\
+        --steps out/adaptive_steps.csv --fields out/eta1.vtu out/eta1_eta2.vtu \\
+        --surfaces out/eta1_surface.csv out/eta1_eta2_surface.csv
 """
 from __future__ import annotations
 
 import argparse
 import time
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -72,11 +72,6 @@ from workflows.scene_args import add_scene_arguments, check_levels, scene_from_a
 
 #: The tolerances of (8.25) at which the thesis's tables count outer steps and time.
 TABLE_EPS = (1e-2, 1e-3)
-
-
-def slug(variant: str) -> str:
-    """File-name form of a variant name (``eta1+eta2`` -> ``eta1_eta2``)."""
-    return variant.replace("+", "_")
 
 
 # --------------------------------------------------------------------------- solvers
@@ -438,7 +433,12 @@ def run_study(spec, params, start_level: int, variants: list[str], max_nodes: in
         log(f"reference solved by {info['solver']}: {info['status']}, kkt {info['kkt_max']:.1e}, "
             f"{info['t_solve']:.1f} s")
         ref = Reference(qref, u_ref, p_ref, info)
-        rows.append({**ref.row, "max_nodes_compared": error_max_nodes})
+        sc = make(ref_meshes)
+        est = estimate(qref, u_ref, "eta1+eta2", body_force=body_force_per_cell(sc, qref),
+                       tractions=sc.tractions, direction=sc.direction, eta2_weight=0.0)
+        rows.append({**ref.row, "max_nodes_compared": error_max_nodes,
+                     "sum_eta1_sq": float(est["eta1_sq"].sum()),
+                     "sum_eta2_sq": float(est["eta2_sq"].sum())})
         index = {(r["variant"], r["step"]): i for i, r in enumerate(rows)}
         for L, (meshes, qp, u, p) in uniform.items():
             rows[index[("uniform", L)]].update(ref.compare(qp, u, p))
@@ -489,8 +489,14 @@ def main(argv=None) -> None:
     parser.add_argument("--tol", type=float, default=1e-8,
                         help="verified KKT target where Alg. 8.4 must finish without PDAS")
     parser.add_argument("--time-limit", type=float, default=120.0, help="seconds per solve")
-    parser.add_argument("--outdir", required=True)
+    parser.add_argument("--steps", required=True, help="output: the per-step table (CSV)")
+    parser.add_argument("--fields", nargs="+", required=True,
+                        help="output: the last step's fields per variant (VTU), same order")
+    parser.add_argument("--surfaces", nargs="+", required=True,
+                        help="output: the last step's contact surfaces per variant (CSV)")
     args = parser.parse_args(argv)
+    if not len(args.variants) == len(args.fields) == len(args.surfaces):
+        parser.error("--variants, --fields and --surfaces need one entry per variant")
     spec, params = scene_from_args(parser, args)
     (start_level,) = check_levels(parser, spec, [args.start_level])
     if args.eta2_weight != "calibrated":
@@ -510,14 +516,14 @@ def main(argv=None) -> None:
                              args.error_max_nodes or args.max_nodes, args.table_variant,
                              args.tol, args.time_limit, args.max_steps,
                              log=lambda s: print(s, flush=True))
-    out = Path(args.outdir)
-    for variant, (qp, u, p) in finals.items():
-        write_vtu(out / f"adaptive_{slug(variant)}.vtu", contact_fields(qp, u, p))
-        write_csv(out / f"adaptive_{slug(variant)}_surface.csv", surface_table(qp, p))
+    for variant, vtu, surf in zip(args.variants, args.fields, args.surfaces):
+        qp, u, p = finals[variant]
+        write_vtu(vtu, contact_fields(qp, u, p))
+        write_csv(surf, surface_table(qp, p))
     frame = pd.DataFrame(rows)
     frame.insert(0, "scene", spec.name)
     frame["wall_time_study"] = time.perf_counter() - t0
-    write_csv(out / "adaptive_steps.csv", frame)
+    write_csv(args.steps, frame)
     print(f"{spec.name}: {len(rows)} rows, {time.perf_counter() - t0:.1f} s")
 
 
