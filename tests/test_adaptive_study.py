@@ -6,6 +6,7 @@ import numpy as np
 import pandas as pd
 import pytest
 import scipy.sparse as sp
+import scipy.sparse.linalg  # noqa: F401  (sp.linalg)
 
 from problems import circle_square, flat_blocks
 from problems.fem import accuracy as acc
@@ -296,3 +297,21 @@ def test_patch_scripts(tmp_path):
     with pytest.raises(SystemExit):
         patch_test.main(["--problem", "circle_square", "--levels", "0", "--out", "x", "--pressure",
                          "y"])
+
+
+def test_bound_weight_follows_the_thesis_bound(tmp_path):
+    """--eta2-weight bound: c sum eta_T2^2 = E^(3/2) ||p||_* (sum eta_T2^2)^(1/2) per step."""
+    from workflows.scripts import adaptive_study
+
+    steps = tmp_path / "s.csv"
+    adaptive_study.main(["--problem", "circle_square", "--start-level", "0", "--max-nodes",
+                         "1150", "--eta2-weight", "bound", "--variants", "eta1+eta2",
+                         "--table-variant", "none", "--steps", str(steps), "--fields",
+                         str(tmp_path / "f.vtu"), "--surfaces", str(tmp_path / "s2.csv")])
+    s = pd.read_csv(steps)
+    qp = circle_square.PROBLEM.make(0)
+    res = solve(qp, "pdas", tol=1e-10)
+    pstar = np.sqrt(res.p @ (qp.B @ sp.linalg.spsolve(qp.A.tocsc(), qp.B.T @ res.p)))
+    first = s.sort_values("step").iloc[0]
+    assert first["eta2_weight"] == pytest.approx(pstar / np.sqrt(first["sum_eta2_sq"]), rel=1e-6)
+    assert s["eta2_weight"].nunique() > 1                  # chosen anew at every step

@@ -16,7 +16,11 @@ solution (Alg. 8.5).
   verified KKT residuals <= ``--tol``. The other variants are solved exactly.
 * The constant in front of eta_T2^2 (``--eta2-weight``): ``calibrated`` = the ratio
   sum eta_T1^2 / sum eta_T2^2 on the start mesh, fixed for the run (both parts
-  of the estimate equally large where the run starts), or a number.
+  of the estimate equally large where the run starts), or a number, or (for
+  comparison) ``bound``: at every step the thesis's bound of the penetration term,
+  ``||p||_Q ||w_h||``, in the units of eta_1^2: ``c = E^(3/2) ||p||_* / (sum eta_T2^2)^(1/2)``
+  with ``||p||_*^2 = p' B A^-1 B' p`` (one solve) and E the constrained body's modulus,
+  so that ``c sum eta_T2^2 = E^(3/2) ||p||_* (sum eta_T2^2)^(1/2)``.
 * Per step: N, N^C, the estimates, the contact force, Hertz deviations (moment
   estimates), the nodal pressure's zig-zag (:func:`problems.fem.accuracy.zigzag`)
   and its rms deviation from Hertz in the contact zone, and the nodes of both
@@ -327,10 +331,17 @@ def run_study(spec, params, start_level: int, variants: list[str], max_nodes: in
     project = circle_projection(scene0)
     rows, finals, runs = [], {}, {}
     calibrated = {}
+    dual_norm = {}                   # ||p||_* and E per step of the run being solved
 
     def weight_for(variant):
         if STUDY_VARIANTS[variant][0] == "eta1":
             return 0.0
+        if weight_spec == "bound":
+            def bound(step, est):
+                e2 = float(est["eta2_sq"].sum())
+                pstar, E = dual_norm[step]
+                return E ** 1.5 * pstar / np.sqrt(e2) if e2 > 0 else 0.0
+            return bound
         if weight_spec != "calibrated":
             return float(weight_spec)
 
@@ -356,6 +367,11 @@ def run_study(spec, params, start_level: int, variants: list[str], max_nodes: in
                 res = exact_solve(qp, u0, p0, tol, time_limit)
             timing.append({"t_solve_total": time.perf_counter() - t0,
                            "t_other": t0 - clock["t"]})
+            if weight_spec == "bound":             # ||p||_*^2 = p' B A^-1 B' p, untimed
+                x = spla.spsolve(qp.A.tocsc(), qp.B.T @ res.p)
+                body = qp.mesh.body_of_node[qp.contact.nodes[0]]
+                E = float(qp.mesh.E_cell[qp.mesh.body_of_node[qp.mesh.cells[:, 0]] == body][0])
+                dual_norm[len(timing) - 1] = (float(np.sqrt(max(res.p @ (qp.B @ x), 0.0))), E)
             clock["t"] = time.perf_counter()
             log(f"{_v}: N = {qp.n_nodes}, N^C = {qp.m}, {res.status}, "
                 f"kkt {res.kkt.max:.1e}, {timing[-1]['t_solve_total']:.2f} s")
@@ -389,8 +405,8 @@ def run_study(spec, params, start_level: int, variants: list[str], max_nodes: in
     if uniform_levels:
         t0 = time.perf_counter()
         uniform = {}
-        weight = next(iter(calibrated.values()), 0.0) if weight_spec == "calibrated" \
-            else float(weight_spec)
+        weight = (next(iter(calibrated.values()), 0.0) if weight_spec == "calibrated" else
+                  float("nan") if weight_spec == "bound" else float(weight_spec))
         for L in uniform_levels:
             meshes = acc.refine_to_depth(start, start, 2 * L, project)
             qp = assemble_two_body(make(meshes), len(meshes[0].points) - 1,
@@ -484,12 +500,14 @@ def main(argv=None) -> None:
     parser.add_argument("--max-steps", type=int, default=60)
     parser.add_argument("--theta", type=float, default=0.5, help="Doerfler's bulk parameter")
     parser.add_argument("--eta2-weight", default="calibrated",
-                        help="'calibrated' or a number >= 0 (module docstring)")
+                        help="'calibrated', 'bound' or a number >= 0 (module docstring)")
     parser.add_argument("--uniform-levels", type=int, nargs="*", default=[],
                         help="uniform levels (2L bisections) for the accuracy comparison (2D)")
     parser.add_argument("--error-max-nodes", type=int, default=None,
                         help="compare adaptive steps up to this many nodes (default: all)")
-    parser.add_argument("--table-variant", default="eta1+eta2")
+    parser.add_argument("--table-variant", default="eta1+eta2",
+                        help="the variant solved by Alg. 8.4 for the thesis's table; 'none': "
+                             "every variant exact")
     parser.add_argument("--tol", type=float, default=1e-8,
                         help="verified KKT target where Alg. 8.4 must finish without PDAS")
     parser.add_argument("--time-limit", type=float, default=120.0, help="seconds per solve")
@@ -503,14 +521,14 @@ def main(argv=None) -> None:
         parser.error("--variants, --fields and --surfaces need one entry per variant")
     spec, params = scene_from_args(parser, args)
     (start_level,) = check_levels(parser, spec, [args.start_level])
-    if args.eta2_weight != "calibrated":
+    if args.eta2_weight not in ("calibrated", "bound"):
         try:
             if not float(args.eta2_weight) >= 0:
                 raise ValueError
         except ValueError:
             parser.error(f"--eta2-weight: {args.eta2_weight!r} is not allowed; allowed: "
-                         "'calibrated' or a number >= 0")
-    if args.table_variant not in args.variants:
+                         "'calibrated', 'bound' or a number >= 0")
+    if args.table_variant not in args.variants + ["none"]:
         parser.error(f"--table-variant: {args.table_variant!r} is not among --variants")
     if args.uniform_levels and spec.make(0).dim != 2:
         parser.error("--uniform-levels: the accuracy comparison needs nested meshes (2D only)")
