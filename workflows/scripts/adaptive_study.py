@@ -4,7 +4,10 @@ From the scene's level ``--start-level`` mesh, one adaptive run per variant
 (:data:`problems.fem.adaptive.STUDY_VARIANTS`: the estimator that marks and the
 discretisation): solve, estimate, mark (Doerfler, theta = ``--theta``), bisect, until
 the mesh has ``--max-nodes`` nodes. Every step is solved from the previous step's
-solution (Alg. 8.5).
+solution (Alg. 8.5). The scene's module supplies ``scene(level, params)`` (its
+:class:`problems.fem.two_body.TwoBodyScene`). A variant whose discretisation is not the
+scene's own nodal one (the stabilised formulation (7.10)/(7.11), to come) is the place
+where that discretisation plugs in: ``run_study`` raises NotImplementedError for it.
 
 * The run of ``--table-variant`` (eta_1 + eta_2, as in the thesis's tables) is solved
   by Alg. 8.4 (``alg84``: geometric multigrid A-hat on the adaptive hierarchy,
@@ -301,9 +304,10 @@ class Reference:
 
 # --------------------------------------------------------------------------- the study
 def circle_projection(scene) -> tuple:
-    """Per body: the boundary projection of its curved boundary (circle/sphere), from the
-    scene's held supports: a body whose finest uniform boundary lies on a sphere about the
-    point where the scene's Hertz radius puts it gets ``project_to_circle``."""
+    """Per body: where to put new boundary nodes. A body whose boundary nodes all lie on
+    one circle (sphere) - found by a least-squares fit - gets
+    :func:`problems.fem.mesh.project_to_circle` onto it; any other body (polygonal
+    boundaries) gets None (midpoints stay where they are)."""
     out = []
     for body in scene.bodies:
         pts = body.meshes.points[-1]
