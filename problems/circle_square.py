@@ -144,5 +144,5 @@ PROBLEM = ProblemSpec(
                   choices=("square_first", "circle_first")),
     ),
     build=build,
-    thesis_tables={"augmented_projection": "table_9_1"},
+    thesis_tables={"augmented_projection": "table_9_1", "adaptive": "table_9_2"},
 )

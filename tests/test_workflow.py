@@ -176,7 +176,7 @@ def test_snakemake_dry_run_plans_every_study():
     out = snakemake("-n", "--forceall", "--quiet", "rules")
     assert out.returncode == 0, out.stderr[-2000:]
     for rule in ("contact_level", "solver_comparison", "augmented_projection_study",
-                 "laplace_errors", "all"):
+                 "laplace_errors", "adaptive_study", "adaptive_figures", "patch_test", "all"):
         assert rule in out.stdout
 
 
@@ -209,6 +209,11 @@ def test_a_new_scene_joins_a_study_by_config_alone(tmp_path):
      "'solver_comparison.scenes.ghost': no such scene"),
     (lambda c: c["contact_solution"]["scenes"].update(circle_square=[7]), "levels [7]"),
     (lambda c: c["augmented_projection"].update(configs=["alg85"]), "'alg85' is not allowed"),
+    (lambda c: c["adaptive"].update(variants=["eta3"]), "'adaptive.variants': 'eta3'"),
+    (lambda c: c["adaptive"]["scenes"].update(circle_square=[0, 1]), "one start level"),
+    (lambda c: c["adaptive"]["max_nodes"].pop("cube_sphere"), "no node budget"),
+    (lambda c: c["adaptive"]["patch_test"]["scenes"].update(circle_square=[0]),
+     "no 'coupling' parameter"),
 ])
 def test_config_errors_name_the_key(change, needle):
     config = yaml.safe_load((ROOT / "workflows/config/quick.yaml").read_text())
@@ -232,7 +237,11 @@ def test_studies_declare_their_outputs_once():
     assert len(targets) == len(set(targets))
     assert "results/circle_square/augmented_projection_table.csv" in targets
     assert {s for s in STUDIES} >= {"laplace_nonmatching", "contact_solution",
-                                     "solver_comparison", "augmented_projection", "hard_cases"}
+                                     "solver_comparison", "augmented_projection", "hard_cases",
+                                     "adaptive"}
     assert "results/hard_cases/hard_cases.csv" in targets           # one table across scenes
+    assert "results/circle_square/adaptive_table.csv" in targets
+    assert "results/flat_blocks/patch_test.png" in targets          # the patch test's extra
+    assert not any(t.startswith("results/flat_blocks/adaptive") for t in targets)
     smk = "".join(p.read_text() for p in (ROOT / "workflows").glob("*.smk"))
     assert "results/" not in smk          # every path comes from workflows/studies.py

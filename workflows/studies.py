@@ -45,6 +45,24 @@ PATHS = {
     "ap_claims": "results/{scene}/augmented_projection_claims.csv",
     "ap_time": "results/{scene}/augmented_projection_time.png",
     "ap_kappa": "results/{scene}/augmented_projection_kappa.png",
+    # adaptive (Sect. 7.4): runs per variant, accuracy against a common refinement
+    "adaptive_steps": "results/{scene}/adaptive_steps.csv",
+    "adaptive_fields": "results/{scene}/adaptive_{variant}.vtu",
+    "adaptive_surface": "results/{scene}/adaptive_{variant}_surface.csv",
+    "adaptive_table": "results/{scene}/adaptive_table.csv",
+    "adaptive_accuracy": "results/{scene}/adaptive_accuracy.csv",
+    "adaptive_pileup": "results/{scene}/adaptive_pileup.csv",
+    "adaptive_convergence": "results/{scene}/adaptive_convergence.csv",
+    "adaptive_meshes": "results/{scene}/adaptive_meshes.png",
+    "adaptive_snapshot": "results/{scene}/adaptive_snapshot.png",
+    "adaptive_eta": "results/{scene}/adaptive_eta.png",
+    "adaptive_error": "results/{scene}/adaptive_error.png",
+    "adaptive_pressure": "results/{scene}/adaptive_pressure.png",
+    # adaptive: the contact patch test
+    "patch_runs": "results/{scene}/patch_test_runs.csv",
+    "patch_pressure": "results/{scene}/patch_test_pressure.csv",
+    "patch_table": "results/{scene}/patch_test.csv",
+    "patch_figure": "results/{scene}/patch_test.png",
     # laplace_nonmatching (Ch. 6)
     "laplace_runs": "results/laplace_nonmatching/runs/{case}_{side}.csv",
     "laplace_errors": "results/laplace_nonmatching/errors.csv",
@@ -75,6 +93,9 @@ class Study:
     summary: str
     thesis: str
     outputs: tuple[str, ...]
+    #: ``(config key, outputs)``: further per-scene outputs for the scenes listed under
+    #: ``config[name][key]["scenes"]`` (e.g. the adaptive study's patch test).
+    extra: tuple = ()
 
     def targets(self, config: dict) -> list[str]:
         """The files this study produces under ``config``."""
@@ -90,6 +111,9 @@ class Study:
                         config[self.name].get("cases", ["sin10x", "linear"])]
             else:
                 out.append(template)
+        for key, outputs in self.extra:
+            scenes = config[self.name].get(key, {}).get("scenes", {})
+            out += [PATHS[k].format(scene=s) for s in scenes for k in outputs]
         return out
 
 
@@ -167,8 +191,44 @@ STUDIES = {
             thesis="Ch. 8 solvers on variants of Sects. 9.1, 9.2",
             outputs=("hard_table", "hard_heatmap"),
         ),
+        Study(
+            name="adaptive",
+            summary="adaptive refinement by eta_1 and eta_1 + eta_2 (Sect. 7.4): the thesis's "
+                    "adaptive tables beside its values, meshes near the contact, max eta_T "
+                    "against N, accuracy per node against a common finer reference (energy, "
+                    "force, Hertz), the hanging-node pile-up quantified, Sect. 7.3 rates; the "
+                    "contact patch test on non-matching meshes",
+            thesis="Sects. 7.3-7.5, Tables 9.2/9.4, Figs. 7.3/7.4, 9.2, 9.4, 9.7",
+            outputs=("adaptive_table", "adaptive_accuracy", "adaptive_pileup",
+                     "adaptive_convergence", "adaptive_meshes", "adaptive_snapshot",
+                     "adaptive_eta", "adaptive_error", "adaptive_pressure"),
+            extra=(("patch_test", ("patch_table", "patch_figure")),),
+        ),
     )
 }
+
+
+def adaptive_variant_file(variant: str) -> str:
+    """The ``{variant}`` of an adaptive output path: ``eta1+eta2`` -> ``eta1_eta2``."""
+    return variant.replace("+", "_")
+
+
+def adaptive_args(config: dict, scene: str) -> str:
+    """A scene's settings of the adaptive study as arguments of
+    ``workflows/scripts/adaptive_study.py`` (start level, node budget, marking, the
+    eta_2 constant, variants; uniform levels of the accuracy comparison, if any)."""
+    ad = config["adaptive"]
+    args = [f"--start-level {scenes_of(config, 'adaptive')[scene][0]}",
+            f"--max-nodes {ad['max_nodes'][scene]}", f"--theta {ad.get('theta', 0.5)}",
+            f"--eta2-weight {ad['eta2_weight']}", f"--time-limit {ad.get('time_limit', 120)}",
+            f"--tol {ad.get('tol', 1e-8)}",
+            "--variants " + " ".join(f"'{v}'" for v in ad["variants"])]
+    acc = ad.get("accuracy", {}).get(scene)
+    if acc:
+        args.append("--uniform-levels " + " ".join(map(str, acc["uniform"])))
+        if acc.get("max_nodes"):
+            args.append(f"--error-max-nodes {acc['max_nodes']}")
+    return " ".join(args)
 
 
 class ConfigError(ValueError):
@@ -214,6 +274,46 @@ def check_config(config: dict) -> None:
         if variant not in VARIANTS:
             raise ConfigError(f"config 'augmented_projection.configs': {variant!r} is not "
                               f"allowed; allowed: {', '.join(VARIANTS)}")
+    _check_adaptive(config, registry)
+
+
+def _check_adaptive(config: dict, registry: dict) -> None:
+    """The adaptive study: known variants, one start level per scene, every per-scene
+    setting and the patch test naming defined scenes."""
+    from problems.fem.adaptive import STUDY_VARIANTS
+
+    ad = config.get("adaptive")
+    if not ad:
+        return
+    for variant in ad.get("variants", []):
+        if variant not in STUDY_VARIANTS:
+            raise ConfigError(f"config 'adaptive.variants': {variant!r} is not allowed; "
+                              f"allowed: {', '.join(STUDY_VARIANTS)}")
+    runs = scenes_of(config, "adaptive")
+    for scene, levels in runs.items():
+        if len(levels) != 1:
+            raise ConfigError(f"config 'adaptive.scenes.{scene}': {levels} is not allowed; "
+                              "allowed: one start level, e.g. [0]")
+        if scene not in ad.get("max_nodes", {}):
+            raise ConfigError(f"config 'adaptive.max_nodes': no node budget for scene {scene!r}")
+    for key in ("max_nodes", "accuracy"):
+        for scene in ad.get(key, {}):
+            if scene not in runs:
+                raise ConfigError(f"config 'adaptive.{key}.{scene}': not among "
+                                  f"adaptive.scenes ({', '.join(runs)})")
+    for scene, levels in ad.get("patch_test", {}).get("scenes", {}).items():
+        if scene not in config.get("scenes", {}):
+            raise ConfigError(f"config 'adaptive.patch_test.scenes.{scene}': no such scene; "
+                              f"defined: {', '.join(config.get('scenes', {}))}")
+        spec = registry[config["scenes"][scene]["problem"]]
+        if "coupling" not in {p.name for p in spec.parameters}:
+            raise ConfigError(f"config 'adaptive.patch_test.scenes.{scene}': problem "
+                              f"{spec.name!r} has no 'coupling' parameter (a patch-test scene)")
+        lo, hi = spec.levels
+        bad = [lv for lv in levels if not lo <= lv <= hi]
+        if bad:
+            raise ConfigError(f"config 'adaptive.patch_test.scenes.{scene}': levels {bad} are "
+                              f"not allowed; allowed: {lo}..{hi}")
 
 
 def log_path(rule: str, name: str = "{scene}") -> str:

@@ -35,6 +35,13 @@ from problems.fem.two_body import TwoBodyScene, assemble_two_body
 from problems.qp import ContactQP, kkt_residuals
 
 
+#: The adaptive study's variants (Sects. 7.4, 7.5): ``name -> (estimator, discretisation)``.
+#: ``"nodal"`` is the scene's own ContactQP (the nodal constraints of Alg. 7.1). The
+#: stabilised two-sided formulation (7.10)/(7.11) marked by eta_1 (Fig. 7.5) joins as
+#: ``"stabilised": ("eta1", "stabilised")`` together with that discretisation.
+STUDY_VARIANTS = {"eta1": ("eta1", "nodal"), "eta1+eta2": ("eta1+eta2", "nodal")}
+
+
 # --------------------------------------------------------------------------- marking
 def _check_eta(eta_sq) -> np.ndarray:
     e = np.asarray(eta_sq, dtype=float)
@@ -146,7 +153,8 @@ class StepRecord:
     ``N`` nodes, ``NC`` constraints (N^C), ``n_cells``, ``sum_eta2`` the sum
     of ``eta_T^2``, ``max_eta`` the largest ``eta_T`` (Fig. 9.2 plots it),
     ``n_marked`` cells marked for the next step (0 on the last), ``kkt_max``
-    the verified KKT residual of the solution, ``iterations`` of the solver.
+    the verified KKT residual of the solution, ``iterations`` of the solver,
+    ``eta2_weight`` the constant in front of ``eta_T2^2`` at this step.
     """
 
     step: int
@@ -159,6 +167,7 @@ class StepRecord:
     n_marked: int
     kkt_max: float
     iterations: int = -1
+    eta2_weight: float = float("nan")
 
 
 @dataclass
@@ -184,7 +193,8 @@ SolveCallback = Callable[[ContactQP, "np.ndarray | None", "np.ndarray | None"], 
 def adaptive_loop(make_scene: Callable, meshes, solve: SolveCallback, *,
                   estimator: str = "eta1+eta2", marking: Callable | None = None,
                   tol: float | None = None, max_nodes: int | None = None, max_steps: int = 5,
-                  project=None, rule: str | None = None, eta2_weight: float = 1.0,
+                  project=None, rule: str | None = None,
+                  eta2_weight: float | Callable[[int, dict], float] = 1.0,
                   nested: bool = True, name: str = "adaptive") -> AdaptiveRun:
     """Sect. 7.4's loop: solve, estimate, mark, refine, until a stopping rule holds.
 
@@ -212,8 +222,10 @@ def adaptive_loop(make_scene: Callable, meshes, solve: SolveCallback, *,
     rule : str, optional
         Bisection rule (default per dimension,
         :func:`problems.fem.bisection.default_rule`).
-    eta2_weight : float
-        Constant in front of ``eta_T2^2``.
+    eta2_weight : float or callable
+        Constant in front of ``eta_T2^2``, or ``eta2_weight(step, estimate) -> float``
+        with the step's unweighted parts (``eta1_sq``, ``eta2_sq``): a constant
+        chosen from the run itself (e.g. calibrated on the start mesh).
     nested : bool
         Start each solve from the previous solution (Alg. 8.5); else from zero.
 
@@ -249,8 +261,12 @@ def adaptive_loop(make_scene: Callable, meshes, solve: SolveCallback, *,
         res = solve(qp, u0, p0)
         u, p = (res.u, res.p) if hasattr(res, "u") else res
         est = estimate(qp, u, estimator, body_force=body_force_per_cell(scene, qp),
-                       tractions=scene.tractions, direction=scene.direction,
-                       eta2_weight=eta2_weight)
+                       tractions=scene.tractions, direction=scene.direction, eta2_weight=0.0)
+        weight = float(eta2_weight(step, est) if callable(eta2_weight) else eta2_weight)
+        if not weight >= 0:
+            raise ValueError(f"parameter 'eta2_weight': {weight!r} is not allowed; "
+                             "allowed: a number >= 0")
+        est["eta2"] = est["eta1_sq"] + weight * est["eta2_sq"]
         eta_sq = est["eta2"]
         total = float(eta_sq.sum())
         reason = ""
@@ -269,7 +285,8 @@ def adaptive_loop(make_scene: Callable, meshes, solve: SolveCallback, *,
         run.records.append(StepRecord(
             step=step, level=level, N=qp.n_nodes, NC=qp.m, n_cells=len(qp.mesh.cells),
             sum_eta2=total, max_eta=float(np.sqrt(eta_sq.max())), n_marked=int(marked.sum()),
-            kkt_max=kkt_residuals(qp, u, p).max, iterations=int(getattr(res, "iterations", -1))))
+            kkt_max=kkt_residuals(qp, u, p).max, iterations=int(getattr(res, "iterations", -1)),
+            eta2_weight=weight))
         if reason:
             run.stop_reason = reason
             break

@@ -1,0 +1,97 @@
+# Study adaptive (thesis Sects. 7.3-7.5): adaptive runs per variant from each scene's start
+# level, Tables 9.2/9.4 beside the thesis, Figs. 7.3/7.4, 9.2/9.4/9.7, accuracy per node
+# against a common finer reference (2D), the pile-up quantified; and the contact patch test.
+# The study times Alg. 8.4 (Tables 9.2/9.4), so it runs alone (threads: 2).
+# Paths: workflows/studies.py.
+AD = config.get("adaptive", {})
+AD_VARIANTS = AD.get("variants", [])
+AD_FILES = [adaptive_variant_file(v) for v in AD_VARIANTS]
+
+
+rule adaptive_study:
+    output:
+        steps=PATHS["adaptive_steps"],
+        fields=expand(PATHS["adaptive_fields"], variant=AD_FILES, allow_missing=True),
+        surfaces=expand(PATHS["adaptive_surface"], variant=AD_FILES, allow_missing=True)
+    log: log_path("adaptive_study")
+    benchmark: bench_path("adaptive_study")
+    threads: 2
+    conda: ENV
+    params:
+        py=PY, scene=lambda w: set_args(config, w.scene),
+        args=lambda w: adaptive_args(config, w.scene)
+    shell:
+        "{params.py} -m workflows.scripts.adaptive_study {params.scene} {params.args} "
+        "--steps {output.steps} --fields {output.fields} --surfaces {output.surfaces} "
+        "> {log} 2>&1"
+
+rule adaptive_tables:
+    input: PATHS["adaptive_steps"]
+    output:
+        table=PATHS["adaptive_table"], accuracy=PATHS["adaptive_accuracy"],
+        pileup=PATHS["adaptive_pileup"], convergence=PATHS["adaptive_convergence"]
+    log: log_path("adaptive_tables")
+    conda: ENV
+    params:
+        py=PY,
+        thesis=lambda w: (lambda t: f"--thesis {t}" if t else "")(
+            thesis_table(config, w.scene, "adaptive"))
+    shell:
+        "{params.py} -m report.adaptive tables --steps {input} {params.thesis} "
+        "--table {output.table} --accuracy {output.accuracy} --pileup {output.pileup} "
+        "--convergence {output.convergence} > {log} 2>&1"
+
+rule adaptive_figures:
+    input:
+        steps=PATHS["adaptive_steps"], accuracy=PATHS["adaptive_accuracy"],
+        fields=expand(PATHS["adaptive_fields"], variant=AD_FILES, allow_missing=True),
+        surfaces=expand(PATHS["adaptive_surface"], variant=AD_FILES, allow_missing=True)
+    output:
+        meshes=report(PATHS["adaptive_meshes"], caption="../report/captions/adaptive_meshes.rst",
+                      category="{scene}", subcategory="adaptive"),
+        snapshot=report(PATHS["adaptive_snapshot"],
+                        caption="../report/captions/adaptive_snapshot.rst",
+                        category="{scene}", subcategory="adaptive"),
+        eta=report(PATHS["adaptive_eta"], caption="../report/captions/adaptive_eta.rst",
+                   category="{scene}", subcategory="adaptive"),
+        error=report(PATHS["adaptive_error"], caption="../report/captions/adaptive_error.rst",
+                     category="{scene}", subcategory="adaptive"),
+        pressure=report(PATHS["adaptive_pressure"],
+                        caption="../report/captions/adaptive_pressure.rst",
+                        category="{scene}", subcategory="adaptive")
+    log: log_path("adaptive_figures")
+    conda: ENV
+    params:
+        py=PY, variants=" ".join(f"'{v}'" for v in AD_VARIANTS)
+    shell:
+        "{params.py} -m report.adaptive figures --steps {input.steps} "
+        "--accuracy {input.accuracy} --variants {params.variants} --vtus {input.fields} "
+        "--surfaces {input.surfaces} --fig-meshes {output.meshes} "
+        "--fig-snapshot {output.snapshot} --fig-eta {output.eta} --fig-error {output.error} "
+        "--fig-pressure {output.pressure} > {log} 2>&1"
+
+rule patch_test:
+    output: runs=PATHS["patch_runs"], pressure=PATHS["patch_pressure"]
+    log: log_path("patch_test")
+    conda: ENV
+    params:
+        py=PY, scene=lambda w: set_args(config, w.scene),
+        levels=lambda w: " ".join(map(str, AD["patch_test"]["scenes"][w.scene])),
+        couplings=" ".join(AD.get("patch_test", {}).get("couplings", []))
+    shell:
+        "{params.py} -m workflows.scripts.patch_test {params.scene} --levels {params.levels} "
+        "--couplings {params.couplings} --out {output.runs} --pressure {output.pressure} "
+        "> {log} 2>&1"
+
+rule patch_report:
+    input: runs=PATHS["patch_runs"], pressure=PATHS["patch_pressure"]
+    output:
+        table=PATHS["patch_table"],
+        figure=report(PATHS["patch_figure"], caption="../report/captions/patch_test.rst",
+                      category="{scene}", subcategory="patch test")
+    log: log_path("patch_report")
+    conda: ENV
+    params: py=PY
+    shell:
+        "{params.py} -m report.adaptive patch --runs {input.runs} --pressure {input.pressure} "
+        "--table {output.table} --figure {output.figure} > {log} 2>&1"

@@ -1,0 +1,557 @@
+"""The adaptive study of Sect. 7.4 on one scene (Tables 9.2/9.4, Figs. 7.3/7.4, 9.2/9.4/9.7).
+
+From the scene's level ``--start-level`` mesh, one adaptive run per variant
+(:data:`problems.fem.adaptive.STUDY_VARIANTS`: the estimator that marks and the
+discretisation): solve, estimate, mark (Doerfler, theta = ``--theta``), bisect, until
+the mesh has ``--max-nodes`` nodes. Every step is solved from the previous step's
+solution (Alg. 8.5). The scene's module supplies ``scene(level, params)`` (its
+:class:`problems.fem.two_body.TwoBodyScene`). A variant whose discretisation is not the
+scene's own nodal one (the stabilised formulation (7.10)/(7.11), to come) is the place
+where that discretisation plugs in: ``run_study`` raises NotImplementedError for it.
+
+* The run of ``--table-variant`` (eta_1 + eta_2, as in the thesis's tables) is solved
+  by Alg. 8.4 (``alg84``: geometric multigrid A-hat on the adaptive hierarchy,
+  multilevel S-hat, MPRGP), and the thesis's columns are read off its history:
+  n_o(eps) by (8.25) at eps = 1e-2 and 1e-3, the mean inner steps, T_solve (setup
+  included) and T_proj at each eps, kappa(S-hat). The solution is then made exact
+  (PDAS from the Alg. 8.4 iterate) where a factorisation is affordable
+  (:data:`solvers.interface.DIRECT_REFERENCE_LIMIT`), else Alg. 8.4 continues to
+  verified KKT residuals <= ``--tol``. The other variants are solved exactly.
+* The constant in front of eta_T2^2 (``--eta2-weight``): ``calibrated`` = the ratio
+  sum eta_T1^2 / sum eta_T2^2 on the start mesh, fixed for the run (both parts
+  of the estimate equally large where the run starts), or a number, or (for
+  comparison) ``bound``: at every step the thesis's bound of the penetration term,
+  ``||p||_Q ||w_h||``, in the units of eta_1^2: ``c = E^(3/2) ||p||_* / (sum eta_T2^2)^(1/2)``
+  with ``||p||_*^2 = p' B A^-1 B' p`` (one solve) and E the constrained body's modulus,
+  so that ``c sum eta_T2^2 = E^(3/2) ||p||_* (sum eta_T2^2)^(1/2)``.
+* Per step: N, N^C, the estimates, the contact force, Hertz deviations (moment
+  estimates), the nodal pressure's zig-zag (:func:`problems.fem.accuracy.zigzag`)
+  and its rms deviation from Hertz in the contact zone, and the nodes of both
+  contact surfaces in the zone (the pile-up of Fig. 7.3).
+* Accuracy (``--uniform-levels``, 2D): the uniform levels are the start mesh bisected
+  2L times (the nodes of the red levels), solved exactly. The reference is the common
+  refinement of the finest uniform level and of every run's last step with at most
+  ``--error-max-nodes`` nodes, bisected twice more (:func:`problems.fem.accuracy.common_refinement`),
+  solved exactly; every compared mesh is nested in it. Per compared mesh:
+  ``||u_ref - u_h||_A / ||u_ref||_A`` (full displacement, Dirichlet values included),
+  its split into the contact zone (within 2a of the contact centre), the
+  neighbourhoods (radius 2a) of the boundary points where a fully prescribed facet
+  meets a free one (singular points: clamped corners, ends of a held arc) and the
+  rest; the pressure error in L2 on the constrained surface and the force error.
+  In 3D the bodies are bisected by longest edges with ties broken by node numbers,
+  so meshes of different runs are not nested: no energy errors there.
+
+Writes ``--steps`` (one row per run and step, the uniform levels and the
+reference), and per variant (in the order of ``--variants``) the last step's fields
+(``--fields``, VTU) and its contact surfaces (``--surfaces``: both surfaces' nodes,
+the constrained nodes' pressure and activity).
+
+Example::
+
+    python -m workflows.scripts.adaptive_study --problem circle_square --start-level 0 \\
+        --max-nodes 10000 --uniform-levels 0 1 2 --variants eta1 eta1+eta2 \\
+        --steps out/adaptive_steps.csv --fields out/eta1.vtu out/eta1_eta2.vtu \\
+        --surfaces out/eta1_surface.csv out/eta1_eta2_surface.csv
+"""
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+import pandas as pd
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from problems.fem import accuracy as acc
+from problems.fem.adaptive import (STUDY_VARIANTS, adaptive_loop, adaptive_start,
+                                   body_force_per_cell, mark_doerfler, truncated)
+from problems.fem.elasticity import boundary_facets, stiffness_matrix
+from problems.fem.estimators import estimate
+from problems.fem.fields import contact_fields, hertz_comparison, in_plane
+from problems.fem.mesh import project_to_circle
+from problems.fem.two_body import assemble_two_body
+from problems.qp import ContactQP, kkt_residuals
+from solvers import augmented_projection as ap
+from solvers.interface import DIRECT_REFERENCE_LIMIT, solve, verify
+from workflows.io import write_csv, write_vtu
+from workflows.scene_args import add_scene_arguments, check_levels, scene_from_args
+
+#: The tolerances of (8.25) at which the thesis's tables count outer steps and time.
+TABLE_EPS = (1e-2, 1e-3)
+
+
+# --------------------------------------------------------------------------- solvers
+def exact_solve(qp: ContactQP, u0=None, p0=None, tol: float = 1e-8,
+                time_limit: float | None = None):
+    """PDAS (a factorisation per active-set step, exact) where a factorisation is
+    affordable (:data:`solvers.interface.DIRECT_REFERENCE_LIMIT`), else Alg. 8.4 with
+    face-CG steps to verified KKT residuals <= ``tol``; warm-started either way."""
+    if qp.n <= DIRECT_REFERENCE_LIMIT.get(qp.dim, 0):
+        return solve(qp, "pdas", tol=1e-10, u0=u0, p0=p0)
+    return solve(qp, "augmented_projection", tol=tol, u0=u0, p0=p0, time_limit=time_limit,
+                 accelerate="face_cg")
+
+
+def dual_reference(qp: ContactQP, block: int = 64, tol: float = 1e-10):
+    """The exact solution through the dual problem (7.3): ``A`` factorised once (sparse
+    LU), ``S = B A^-1 B'`` formed for a working set of constraints (those with a gap
+    below the largest prescribed displacement, plus any found violated), the bound-
+    constrained ``min 1/2 p'Sp - p'(B A^-1 f - g), p >= 0`` solved by PDAS on the
+    dense ``S``, ``u = A^-1 (f - B'p)``. Verified by the KKT residuals of ``qp``.
+
+    Returns
+    -------
+    (u, p, info) with ``info``: solver name, status, KKT max, size of the working set,
+    seconds.
+    """
+    t0 = time.perf_counter()
+    lu = spla.splu(qp.A.tocsc(), permc_spec="COLAMD")
+    y = lu.solve(qp.f)
+    scale = max(float(np.abs(qp.u_fixed).max()) if qp.u_fixed is not None else 0.0,
+                float(np.abs(qp.B @ y).max()))
+    work = np.flatnonzero(qp.g <= scale)
+    Bt = qp.B.T.tocsc()
+    p = np.zeros(qp.m)
+    for _ in range(10):
+        X = np.empty((qp.n, len(work)))
+        for s in range(0, len(work), block):
+            X[:, s:s + block] = lu.solve(np.asarray(Bt[:, work[s:s + block]].todense()))
+        S = np.asarray(qp.B[work] @ X)
+        small = ContactQP(A=sp.csr_matrix(0.5 * (S + S.T)), f=qp.B[work] @ y - qp.g[work],
+                          B=-sp.identity(len(work), format="csr"), g=np.zeros(len(work)))
+        r = solve(small, "pdas", tol=1e-13)
+        p[:] = 0.0
+        p[work] = np.maximum(r.u, 0.0)
+        u = y - X @ p[work]
+        for _ in range(2):                                  # iterative refinement
+            u += lu.solve(qp.f - qp.B.T @ p - qp.A @ u)
+        violated = np.setdiff1d(np.flatnonzero(qp.B @ u - qp.g > 1e-12 * scale), work)
+        if not violated.size:
+            break
+        work = np.union1d(work, violated)
+    kkt = kkt_residuals(qp, u, p)
+    return u, p, {"solver": "dual_schur", "status": "converged" if kkt.max <= tol else "inaccurate",
+                  "kkt_max": kkt.max, "n_work": len(work), "t_solve": time.perf_counter() - t0}
+
+
+def table_solve(qp: ContactQP, u0, p0, tol: float, time_limit: float):
+    """Alg. 8.4 (``alg84``) until (8.25) <= 1e-3 with the thesis's columns read off its
+    history, then exact (PDAS) where affordable, else on to KKT <= ``tol``."""
+    direct = qp.n <= DIRECT_REFERENCE_LIMIT.get(qp.dim, 0)
+    eps_min = min(TABLE_EPS)
+
+    def stop(step):
+        return step.eta_rel <= eps_min and (direct or kkt_residuals(qp, step.u, step.p).max <= tol)
+
+    opts = ap.SOLVER.options(**ap.VARIANTS["alg84"].options, stop="estimate", eps=1e-14,
+                             record_kkt=False)
+    res = ap.solve(qp, 1e-12, 2000, time_limit, u0, p0, opts, callback=stop)
+    if res.history["eta_rel"] and res.history["eta_rel"][-1] <= eps_min and (
+            direct or kkt_residuals(qp, res.u, res.p).max <= tol):
+        res.claimed_status = "converged"               # our stopping rule was met
+        res.message = f"(8.25) <= {eps_min:g} and verified KKT <= {tol:g}: " + res.message
+    res = verify(qp, res, 1.0 if direct else tol)
+    h, s = res.history, res.stats
+    eta = np.asarray(h["eta_rel"])
+    sizes = [P.shape[1] for P in qp.multilevel.prolongations] + [qp.n]
+    row = {"solver": "alg84", "n_outer_total": res.iterations, "t_setup": s["t_setup"],
+           "kappa_S": s["kappa_S"], "mg_levels": len(sizes),
+           # smoothing work of one V-cycle relative to the finest level: 4/3 on a uniform
+           # hierarchy, ~ the number of levels on an adaptive one (every level in full)
+           "mg_work_ratio": float(np.sum(sizes)) / qp.n,
+           "t_vcycle": s["t_vcycle"], "n_vcycles": s["n_vcycles"], "ap_status": res.status}
+    for e in TABLE_EPS:
+        hit = np.flatnonzero(eta <= e)
+        k = int(hit[0]) if hit.size else -1
+        ok = hit.size > 0
+        row.update({f"n_outer_{e:.0e}": k + 1 if ok else -1,
+                    f"n_inner_mean_{e:.0e}": float(np.mean(h["n_inner"][:k + 1])) if ok else np.nan,
+                    f"t_solve_{e:.0e}": float(s["t_setup"] + h["time"][k]) if ok else np.nan,
+                    f"t_proj_{e:.0e}": float(np.sum(h["t_proj"][:k + 1])) if ok else np.nan})
+    if direct:
+        res = exact_solve(qp, res.u, res.p)
+        row["solver"] = "alg84 + pdas"
+    res.stats = {**res.stats, "table": row}
+    return res
+
+
+# --------------------------------------------------------------------------- measures
+def _sizes_in_zone(points, facets, s_of, center, radius):
+    """Mean facet size of a contact surface inside the zone."""
+    if not len(facets):
+        return np.nan
+    x = points[facets]
+    size = (np.linalg.norm(x[:, 1] - x[:, 0], axis=1) if x.shape[1] == 2
+            else np.sqrt(2 * 0.5 * np.linalg.norm(np.cross(x[:, 1] - x[:, 0], x[:, 2] - x[:, 0]),
+                                                  axis=1)))
+    inside = np.linalg.norm(s_of(x.mean(axis=1)) - center, axis=1) <= radius
+    return float(size[inside].mean()) if inside.any() else np.nan
+
+
+def contact_measures(qp: ContactQP, u: np.ndarray, p: np.ndarray) -> dict:
+    """Force, Hertz deviations, zone (pile-up), zig-zag, rms deviation from Hertz."""
+    from reference import hertz
+
+    row = {"force": float(np.sum(p)), "kkt_max": kkt_residuals(qp, u, p).max,
+           "n_active": int(np.sum(p > 0))}
+    if qp.hertz is None or np.sum(p) <= 0:
+        return row
+    row.update(hertz_comparison(qp, p))
+    n = qp.contact.direction.mean(axis=0)
+    n /= np.linalg.norm(n)
+    basis = np.linalg.svd(n[None, :])[2][1:]
+    s_of = lambda x: np.asarray(x).reshape(-1, qp.dim) @ basis.T      # in-plane coordinates
+    s = in_plane(qp)
+    center = np.array([row[f"center_s{i}"] for i in range(qp.dim - 1)])
+    a = row["a_hertz"]
+    opp = np.unique(qp.contact.opposing_facets)
+    row.update(acc.pileup(s, s_of(qp.mesh.points[opp]), center, a))
+    row["h_zone_constrained"] = _sizes_in_zone(qp.mesh.points, qp.contact.facets, s_of, center, a)
+    row["h_zone_opposing"] = _sizes_in_zone(qp.mesh.points, qp.contact.opposing_facets, s_of,
+                                            center, a)
+    pressure = p / qp.contact.mass
+    r = np.linalg.norm(s - center, axis=1)
+    zone = r <= a
+    p0 = row["p0_hertz"]
+    dev = (pressure[zone] - hertz.pressure(qp.hertz.kind, r[zone], row["force"], qp.hertz.radius,
+                                           qp.hertz.E_star)) / p0
+    row["dev_hertz_rms"] = float(np.sqrt(np.mean(dev ** 2))) if zone.any() else np.nan
+    if qp.dim == 2:
+        z = acc.zigzag(s[:, 0], pressure, p > 0) / p0
+        row["zigzag_rms"] = float(np.sqrt(np.mean(z ** 2))) if z.size else np.nan
+        row["zigzag_max"] = float(np.abs(z).max()) if z.size else np.nan
+    return row
+
+
+def singular_points(qp: ContactQP) -> np.ndarray:
+    """Boundary points where a facet with every DOF prescribed meets one without: the
+    ends of Dirichlet parts (clamped corners, ends of a held arc)."""
+    d = qp.dim
+    fixed = np.ones(qp.n_nodes * d, dtype=bool)
+    fixed[qp.free_dofs] = False
+    node_fixed = fixed.reshape(-1, d).all(axis=1)
+    f = boundary_facets(qp.mesh.cells)
+    full = node_fixed[f].all(axis=1)
+    touched = np.zeros(qp.n_nodes, dtype=int)
+    np.add.at(touched, f[full].ravel(), 1)
+    loose = np.zeros(qp.n_nodes, dtype=bool)
+    loose[f[~full].ravel()] = True
+    return qp.mesh.points[(touched > 0) & loose]
+
+
+class Reference:
+    """The reference solution on the common refinement and the comparisons with it."""
+
+    def __init__(self, qp: ContactQP, u: np.ndarray, p: np.ndarray, info: dict):
+        self.qp, self.info = qp, info
+        m = qp.mesh
+        self.A = stiffness_matrix(m.points, m.cells, m.E_cell, m.nu_cell)
+        self.U = qp.full_displacement(u)
+        self.norm = float(np.sqrt(self.U.ravel() @ (self.A @ self.U.ravel())))
+        self.p = p
+        self.force = float(np.sum(p))
+        self.s = in_plane(qp)
+        self.pressure = p / qp.contact.mass
+        meas = contact_measures(qp, u, p)
+        a = meas.get("a_hertz", np.nan)
+        center = (p @ qp.constrained_points()) / p.sum() if p.sum() > 0 else None
+        cen = m.points[m.cells].mean(axis=1)
+        self.regions = {}
+        if center is not None and np.isfinite(a):
+            self.regions["contact"] = np.linalg.norm(cen - center, axis=1) <= 2 * a
+            sing = singular_points(qp)
+            near = np.zeros(len(cen), dtype=bool)
+            for x in sing:
+                near |= np.linalg.norm(cen - x, axis=1) <= 2 * a
+            self.regions["singular"] = near & ~self.regions["contact"]
+            self.regions["rest"] = ~(self.regions["contact"] | self.regions["singular"])
+        self.row = {"variant": "reference", "step": -1, "N": qp.n_nodes, "NC": qp.m,
+                    "n_cells": len(m.cells), **meas, "solver": info["solver"],
+                    "status": info["status"], "t_solve": info["t_solve"],
+                    "n_singular_points": len(singular_points(qp))}
+
+    def prolongation(self, qp: ContactQP) -> sp.csr_matrix:
+        """Nodal P1 interpolation from ``qp``'s mesh to the reference's (per body)."""
+        m, r = qp.mesh, self.qp.mesh
+        return acc.interpolation_matrix(m.points, m.cells, r.points,
+                                        m.body_of_node[m.cells[:, 0]], r.body_of_node)
+
+    def compare(self, qp: ContactQP, u: np.ndarray, p: np.ndarray,
+                P: sp.csr_matrix | None = None) -> dict:
+        """The errors of ``(u, p)`` on ``qp`` against the reference (module docstring)."""
+        P = self.prolongation(qp) if P is None else P
+        E = (P @ qp.full_displacement(u)) - self.U
+        m = self.qp.mesh
+        by_cell = acc.energy_norm_by_cell(m.points, m.cells, E, m.E_cell, m.nu_cell)
+        total = float(by_cell.sum())
+        row = {"err_energy": float(np.sqrt(max(total, 0.0))) / self.norm,
+               "err_force": abs(float(np.sum(p)) - self.force) / self.force}
+        for name, mask in self.regions.items():
+            row[f"err_share_{name}"] = float(by_cell[mask].sum()) / total if total > 0 else np.nan
+            row[f"err_energy_{name}"] = float(np.sqrt(max(by_cell[mask].sum(), 0.0))) / self.norm
+        s_h = in_plane(qp)
+        lam_h = p / qp.contact.mass
+        facets = None
+        if qp.dim == 3:
+            index = {n: i for i, n in enumerate(qp.contact.nodes)}
+            facets = np.vectorize(index.get)(qp.contact.facets)
+        diff = acc.surface_interpolate(s_h, lam_h, self.s, facets) - self.pressure
+        w = self.qp.contact.mass
+        row["err_pressure"] = float(np.sqrt(np.sum(w * diff ** 2) / np.sum(w * self.pressure ** 2)))
+        return row
+
+
+# --------------------------------------------------------------------------- the study
+def circle_projection(scene) -> tuple:
+    """Per body: where to put new boundary nodes. A body whose boundary nodes all lie on
+    one circle (sphere) - found by a least-squares fit - gets
+    :func:`problems.fem.mesh.project_to_circle` onto it; any other body (polygonal
+    boundaries) gets None (midpoints stay where they are)."""
+    out = []
+    for body in scene.bodies:
+        pts = body.meshes.points[-1]
+        f = np.unique(boundary_facets(body.meshes.cells[-1]))
+        x = pts[f]
+        # least-squares sphere through the boundary nodes: |x|^2 = 2 c.x + (r^2 - |c|^2)
+        M = np.hstack([2 * x, np.ones((len(x), 1))])
+        sol, *_ = np.linalg.lstsq(M, np.sum(x ** 2, axis=1), rcond=None)
+        c = sol[:-1]
+        r = np.sqrt(sol[-1] + c @ c)
+        on = np.abs(np.linalg.norm(x - c, axis=1) - r) <= 1e-9 * max(r, 1.0)
+        out.append(project_to_circle(c, r) if on.all() else None)
+    return tuple(out)
+
+
+def run_study(spec, params, start_level: int, variants: list[str], max_nodes: int,
+              theta: float, weight_spec: str, uniform_levels: list[int], error_max_nodes: int,
+              table_variant: str, tol: float, time_limit: float, max_steps: int,
+              log=print):
+    """Everything of one scene (module docstring). Returns ``(rows, finals)`` with
+    ``finals[variant] = (qp, u, p)`` of the last step."""
+    module = __import__(f"problems.{spec.name}", fromlist=["scene"])
+    scene0 = module.scene(start_level, params)
+    make, start = adaptive_start(scene0, start_level)
+    project = circle_projection(scene0)
+    rows, finals, runs = [], {}, {}
+    calibrated = {}
+    dual_norm = {}                   # ||p||_* and E per step of the run being solved
+
+    def weight_for(variant):
+        if STUDY_VARIANTS[variant][0] == "eta1":
+            return 0.0
+        if weight_spec == "bound":
+            def bound(step, est):
+                e2 = float(est["eta2_sq"].sum())
+                pstar, E = dual_norm[step]
+                return E ** 1.5 * pstar / np.sqrt(e2) if e2 > 0 else 0.0
+            return bound
+        if weight_spec != "calibrated":
+            return float(weight_spec)
+
+        def calibrate(step, est):
+            e1, e2 = float(est["eta1_sq"].sum()), float(est["eta2_sq"].sum())
+            if variant not in calibrated and e2 > 0:
+                calibrated[variant] = e1 / e2
+            return calibrated.get(variant, 0.0)
+        return calibrate
+
+    for variant in variants:
+        estimator, discretisation = STUDY_VARIANTS[variant]
+        if discretisation != "nodal":
+            raise NotImplementedError(f"discretisation {discretisation!r} of variant {variant!r}")
+        clock = {"t": time.perf_counter()}
+        timing = []
+
+        def solver(qp, u0, p0, _v=variant):
+            t0 = time.perf_counter()
+            if _v == table_variant:
+                res = table_solve(qp, u0, p0, tol, time_limit)
+            else:
+                res = exact_solve(qp, u0, p0, tol, time_limit)
+            timing.append({"t_solve_total": time.perf_counter() - t0,
+                           "t_other": t0 - clock["t"]})
+            if weight_spec == "bound":             # ||p||_*^2 = p' B A^-1 B' p, untimed
+                x = spla.spsolve(qp.A.tocsc(), qp.B.T @ res.p)
+                body = qp.mesh.body_of_node[qp.contact.nodes[0]]
+                E = float(qp.mesh.E_cell[qp.mesh.body_of_node[qp.mesh.cells[:, 0]] == body][0])
+                dual_norm[len(timing) - 1] = (float(np.sqrt(max(res.p @ (qp.B @ x), 0.0))), E)
+            clock["t"] = time.perf_counter()
+            log(f"{_v}: N = {qp.n_nodes}, N^C = {qp.m}, {res.status}, "
+                f"kkt {res.kkt.max:.1e}, {timing[-1]['t_solve_total']:.2f} s")
+            return res
+
+        t0 = time.perf_counter()
+        run = adaptive_loop(make, start, solver, estimator=estimator,
+                            marking=lambda e: mark_doerfler(e, theta), max_nodes=max_nodes,
+                            max_steps=max_steps, project=project, eta2_weight=weight_for(variant),
+                            name=variant)
+        log(f"{variant}: {len(run.records)} steps, {time.perf_counter() - t0:.1f} s, "
+            f"stopped by {run.stop_reason}")
+        runs[variant] = run
+        for rec, qp, (u, p), est, res, tm in zip(run.records, run.qps, run.solutions,
+                                                run.estimates, run.results, timing):
+            row = {"variant": variant, "estimator": estimator, "discretisation": discretisation,
+                   "step": rec.step, "level": rec.level, "N": rec.N, "NC": rec.NC,
+                   "n_cells": rec.n_cells, "eta2_weight": rec.eta2_weight,
+                   "sum_eta1_sq": float(est["eta1_sq"].sum()),
+                   "sum_eta2_sq": float(est["eta2_sq"].sum()), "sum_eta_sq": rec.sum_eta2,
+                   "max_eta": rec.max_eta,
+                   "max_eta1_plus_eta2": float(np.max(np.sqrt(est["eta1_sq"])
+                                                      + np.sqrt(rec.eta2_weight * est["eta2_sq"]))),
+                   "n_marked": rec.n_marked, "status": res.status, "iterations": rec.iterations,
+                   **tm, **res.stats.get("table", {"solver": res.solver}),
+                   **contact_measures(qp, u, p)}
+            rows.append(row)
+        finals[variant] = (run.qps[-1], *run.solutions[-1])
+
+    # ---------------------------------------------------------------- accuracy (2D)
+    if uniform_levels:
+        t0 = time.perf_counter()
+        uniform = {}
+        weight = (next(iter(calibrated.values()), 0.0) if weight_spec == "calibrated" else
+                  float("nan") if weight_spec == "bound" else float(weight_spec))
+        for L in uniform_levels:
+            meshes = acc.refine_to_depth(start, start, 2 * L, project)
+            qp = assemble_two_body(make(meshes), len(meshes[0].points) - 1,
+                                   name=f"{spec.name} uniform {L}")
+            res = exact_solve(qp)
+            sc = make(meshes)
+            est = estimate(qp, res.u, "eta1+eta2", body_force=body_force_per_cell(sc, qp),
+                           tractions=sc.tractions, direction=sc.direction, eta2_weight=0.0)
+            eta_sq = est["eta1_sq"] + weight * est["eta2_sq"]
+            uniform[L] = (meshes, qp, res.u, res.p)
+            rows.append({"variant": "uniform", "estimator": "", "discretisation": "nodal",
+                         "step": L, "level": L, "N": qp.n_nodes, "NC": qp.m,
+                         "n_cells": len(qp.mesh.cells), "eta2_weight": weight,
+                         "sum_eta1_sq": float(est["eta1_sq"].sum()),
+                         "sum_eta2_sq": float(est["eta2_sq"].sum()), "sum_eta_sq": float(eta_sq.sum()),
+                         "max_eta": float(np.sqrt(eta_sq.max())),
+                         "max_eta1_plus_eta2": float(np.max(np.sqrt(est["eta1_sq"])
+                                                            + np.sqrt(weight * est["eta2_sq"]))),
+                         "status": res.status, "solver": res.solver,
+                         **contact_measures(qp, res.u, res.p)})
+            log(f"uniform level {L} (2L bisections): N = {qp.n_nodes}, {res.status}")
+        compared = {}
+        for variant, run in runs.items():
+            last = max(i for i, r in enumerate(run.records)
+                       if r.N <= error_max_nodes or i == 0)
+            compared[variant] = last
+        targets = [uniform[max(uniform_levels)][0]]
+        targets += [tuple(truncated(h, runs[v].records[k].level) for h in runs[v].meshes)
+                    for v, k in compared.items()]
+        ref_meshes = acc.common_refinement(start, targets, project, extra=2)
+        qref = assemble_two_body(make(ref_meshes), len(ref_meshes[0].points) - 1,
+                                 name=f"{spec.name} reference")
+        log(f"reference mesh: N = {qref.n_nodes}, N^C = {qref.m} "
+            f"({time.perf_counter() - t0:.1f} s so far)")
+        if qref.n <= DIRECT_REFERENCE_LIMIT.get(qref.dim, 0):
+            u_ref, p_ref, info = dual_reference(qref)
+        else:
+            from solvers.interface import reference_solve
+            t1 = time.perf_counter()
+            r = reference_solve(qref, tol=1e-10)
+            u_ref, p_ref = r.u, r.p
+            info = {"solver": r.solver, "status": r.status, "kkt_max": r.kkt.max,
+                    "t_solve": time.perf_counter() - t1}
+        log(f"reference solved by {info['solver']}: {info['status']}, kkt {info['kkt_max']:.1e}, "
+            f"{info['t_solve']:.1f} s")
+        ref = Reference(qref, u_ref, p_ref, info)
+        sc = make(ref_meshes)
+        est = estimate(qref, u_ref, "eta1+eta2", body_force=body_force_per_cell(sc, qref),
+                       tractions=sc.tractions, direction=sc.direction, eta2_weight=0.0)
+        rows.append({**ref.row, "max_nodes_compared": error_max_nodes,
+                     "sum_eta1_sq": float(est["eta1_sq"].sum()),
+                     "sum_eta2_sq": float(est["eta2_sq"].sum())})
+        index = {(r["variant"], r["step"]): i for i, r in enumerate(rows)}
+        for L, (meshes, qp, u, p) in uniform.items():
+            rows[index[("uniform", L)]].update(ref.compare(qp, u, p))
+        for variant, run in runs.items():
+            last = compared[variant]
+            qp_last = run.qps[last]
+            P_last = ref.prolongation(qp_last)
+            for k in range(last + 1):
+                # nested prolongation through the run's own hierarchy to its compared last step
+                lk, ll = run.records[k].level, run.records[last].level
+                P = sp.identity(run.qps[k].n_nodes, format="csr")
+                for j in range(lk, ll):
+                    P = sp.block_diag([h.prolongations[j] for h in run.meshes], format="csr") @ P
+                qp, (u, p) = run.qps[k], run.solutions[k]
+                rows[index[(variant, k)]].update(ref.compare(qp, u, p, P_last @ P))
+        log(f"accuracy: {time.perf_counter() - t0:.1f} s")
+    return rows, finals
+
+
+def surface_table(qp: ContactQP, p: np.ndarray) -> pd.DataFrame:
+    """Both contact surfaces' nodes: kind, coordinates, pressure and activity (constrained)."""
+    opp = np.unique(qp.contact.opposing_facets)
+    x = np.vstack([qp.constrained_points(), qp.mesh.points[opp]])
+    kind = ["constrained"] * qp.m + ["opposing"] * len(opp)
+    pressure = np.concatenate([p / qp.contact.mass, np.full(len(opp), np.nan)])
+    active = np.concatenate([p > 0, np.zeros(len(opp), dtype=bool)])
+    return pd.DataFrame({"kind": kind, **{f"x{i}": x[:, i] for i in range(x.shape[1])},
+                         "pressure": pressure, "active": active})
+
+
+def main(argv=None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    add_scene_arguments(parser)
+    parser.add_argument("--start-level", type=int, required=True)
+    parser.add_argument("--variants", nargs="+", default=list(STUDY_VARIANTS),
+                        choices=list(STUDY_VARIANTS))
+    parser.add_argument("--max-nodes", type=int, required=True)
+    parser.add_argument("--max-steps", type=int, default=60)
+    parser.add_argument("--theta", type=float, default=0.5, help="Doerfler's bulk parameter")
+    parser.add_argument("--eta2-weight", default="calibrated",
+                        help="'calibrated', 'bound' or a number >= 0 (module docstring)")
+    parser.add_argument("--uniform-levels", type=int, nargs="*", default=[],
+                        help="uniform levels (2L bisections) for the accuracy comparison (2D)")
+    parser.add_argument("--error-max-nodes", type=int, default=None,
+                        help="compare adaptive steps up to this many nodes (default: all)")
+    parser.add_argument("--table-variant", default="eta1+eta2",
+                        help="the variant solved by Alg. 8.4 for the thesis's table; 'none': "
+                             "every variant exact")
+    parser.add_argument("--tol", type=float, default=1e-8,
+                        help="verified KKT target where Alg. 8.4 must finish without PDAS")
+    parser.add_argument("--time-limit", type=float, default=120.0, help="seconds per solve")
+    parser.add_argument("--steps", required=True, help="output: the per-step table (CSV)")
+    parser.add_argument("--fields", nargs="+", required=True,
+                        help="output: the last step's fields per variant (VTU), same order")
+    parser.add_argument("--surfaces", nargs="+", required=True,
+                        help="output: the last step's contact surfaces per variant (CSV)")
+    args = parser.parse_args(argv)
+    if not len(args.variants) == len(args.fields) == len(args.surfaces):
+        parser.error("--variants, --fields and --surfaces need one entry per variant")
+    spec, params = scene_from_args(parser, args)
+    (start_level,) = check_levels(parser, spec, [args.start_level])
+    if args.eta2_weight not in ("calibrated", "bound"):
+        try:
+            if not float(args.eta2_weight) >= 0:
+                raise ValueError
+        except ValueError:
+            parser.error(f"--eta2-weight: {args.eta2_weight!r} is not allowed; allowed: "
+                         "'calibrated', 'bound' or a number >= 0")
+    if args.table_variant not in args.variants + ["none"]:
+        parser.error(f"--table-variant: {args.table_variant!r} is not among --variants")
+    if args.uniform_levels and spec.make(0).dim != 2:
+        parser.error("--uniform-levels: the accuracy comparison needs nested meshes (2D only)")
+    t0 = time.perf_counter()
+    rows, finals = run_study(spec, params, start_level, args.variants, args.max_nodes,
+                             args.theta, args.eta2_weight, args.uniform_levels,
+                             args.error_max_nodes or args.max_nodes, args.table_variant,
+                             args.tol, args.time_limit, args.max_steps,
+                             log=lambda s: print(s, flush=True))
+    for variant, vtu, surf in zip(args.variants, args.fields, args.surfaces):
+        qp, u, p = finals[variant]
+        write_vtu(vtu, contact_fields(qp, u, p))
+        write_csv(surf, surface_table(qp, p))
+    frame = pd.DataFrame(rows)
+    frame.insert(0, "scene", spec.name)
+    frame["wall_time_study"] = time.perf_counter() - t0
+    write_csv(args.steps, frame)
+    print(f"{spec.name}: {len(rows)} rows, {time.perf_counter() - t0:.1f} s")
+
+
+if __name__ == "__main__":
+    main()
