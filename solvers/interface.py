@@ -204,26 +204,27 @@ def solve(qp: ContactQP, solver: str = "pdas", tol: float | str = "mid",
 
 #: Largest number of unknowns for which :func:`linear_solver` factorises A (per dimension);
 #: beyond, multigrid-preconditioned CG.
-DIRECT_LINEAR_LIMIT = {2: 400_000, 3: 60_000}
+DIRECT_LINEAR_LIMIT = {2: 2_500_000, 3: 150_000}
 
 
 def linear_solver(qp: ContactQP) -> Callable[[np.ndarray], np.ndarray]:
     """``r -> A^{-1} r`` for the verification's duality gap, built once per problem
-    (``qp.cache``): a sparse LU of ``A`` up to :data:`DIRECT_LINEAR_LIMIT`, else CG
-    preconditioned by one V-cycle (geometric multigrid on the problem's hierarchy,
-    pyamg SA without one) to a relative residual of 1e-14.
+    (``qp.cache``): a sparse Cholesky of ``A`` (:func:`solvers.cholesky.factorize`) up
+    to :data:`DIRECT_LINEAR_LIMIT`, else CG preconditioned by one V-cycle (geometric
+    multigrid on the problem's hierarchy, pyamg SA without one) to a relative residual
+    of 1e-14.
     """
     if "linear_solver" in qp.cache:
         return qp.cache["linear_solver"]
     import scipy.sparse.linalg as spla
 
     if qp.n <= DIRECT_LINEAR_LIMIT.get(qp.dim, 0):
-        lu = spla.splu(qp.A.tocsc(), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
-                       options={"SymmetricMode": True})
+        from solvers.cholesky import factorize
+        chol = factorize(qp.A)
 
         def solve_A(r):
-            x = lu.solve(r)
-            return x + lu.solve(r - qp.A @ x)          # one step of iterative refinement
+            x = chol.solve(r)
+            return x + chol.solve(r - qp.A @ x)        # one step of iterative refinement
     else:
         from solvers import preconditioners as pc
         from solvers.augmented_projection import SOLVER as AP
@@ -267,7 +268,14 @@ def verify(qp: ContactQP, result: SolveResult, tol: float) -> SolveResult:
         result.message = (result.message + "; " if result.message else "") + "non-finite or mis-shaped result"
         return result
     result.kkt = kkt_residuals(qp, result.u, result.p)
-    result.gap = certify(qp, result.u, result.p, tol)
+    from solvers.cholesky import FactorizationError
+    try:
+        result.gap = certify(qp, result.u, result.p, tol)
+    except FactorizationError as err:          # A not positive definite: no certificate
+        inf = float("inf")
+        result.gap = DualityGap(inf, inf, inf, inf, inf, inf, inf, False)
+        result.message = (result.message + "; " if result.message else "") + (
+            f"no certificate: {err}")
     if result.claimed_status == "converged":
         accurate = result.kkt.max <= tol and result.gap.meets(tol)
         result.status = "converged" if accurate else "inaccurate"
@@ -276,23 +284,27 @@ def verify(qp: ContactQP, result: SolveResult, tol: float) -> SolveResult:
     return result
 
 
-#: Largest number of unknowns for which the exact reference factorises the KKT matrix
-#: (PDAS with sparse LU), per dimension: 2D level 4 (525k unknowns) takes ~2 min here,
-#: 3D level 1 (7k) ~1 s but level 2 (51k) ~35-60 s (3D fill-in).
-DIRECT_REFERENCE_LIMIT = {2: 600_000, 3: 10_000}
+#: Largest number of unknowns for which the exact reference factorises ``A`` (PDAS through
+#: the dual problem on the contact rows), per dimension. Measured with one thread: 2D
+#: level 4 (523k unknowns) factorises in ~3 s; in 3D, 104k unknowns take ~7 s and
+#: 1 GB, 346k ~90 s and 4-5 GB (nested-dissection fill grows like N^(4/3) in 3D), where
+#: the iterative reference takes ~9 s.
+DIRECT_REFERENCE_LIMIT = {2: 2_500_000, 3: 150_000}
 
 
 def reference_solve(qp: ContactQP, tol: float = 1e-10,
                     time_limit: float | None = None) -> SolveResult:
     """The suite's reference solution of ``qp`` (DESIGN.md, performance conventions).
 
-    The exact PDAS (a direct factorisation per active-set step) where that is
-    affordable (:data:`DIRECT_REFERENCE_LIMIT`); otherwise, where a direct
-    factorisation no longer fits, an iterative solve to verified KKT residuals
-    ``<= tol``: the augmented projection with face-CG acceleration. The result's
-    ``solver`` says which; its ``status`` is verified against ``tol`` either way.
+    The exact PDAS (``A`` factorised once, the dual problem on the contact rows solved
+    by active sets; :mod:`solvers.pdas`) where a factorisation is affordable
+    (:data:`DIRECT_REFERENCE_LIMIT`); otherwise an iterative solve to verified KKT
+    residuals ``<= tol``: the augmented projection with face-CG acceleration. The
+    result's ``solver`` says which; its ``status`` is verified against ``tol`` either way.
     """
-    if qp.n <= DIRECT_REFERENCE_LIMIT.get(qp.dim, 0):
-        return solve(qp, "pdas", tol=tol, time_limit=time_limit)
+    from solvers.pdas import SCHUR_MAX_M
+
+    if qp.n <= DIRECT_REFERENCE_LIMIT.get(qp.dim, 0) and qp.m <= SCHUR_MAX_M:
+        return solve(qp, "pdas", tol=tol, time_limit=time_limit, method="schur")
     return solve(qp, "augmented_projection", tol=tol, time_limit=time_limit, max_iter=5000,
                  accelerate="face_cg")

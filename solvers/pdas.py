@@ -8,10 +8,15 @@ equality-constrained problem of the current active set ``I`` exactly,
     [ A     B_I^T ] [ u   ]   [ f   ]
     [ B_I  -C_II  ] [ p_I ] = [ g_I ],      p_i = 0 for i not in I,
 
-by a sparse LU factorisation (``method="kkt"``: the reduced KKT matrix,
-``scipy.sparse.linalg.splu``; ``method="schur"``: ``A`` factorised once and the
-dense Schur complement ``S = B A^{-1} B^T``, cheap when there are few
-constraints), followed by iterative refinement. The active set is then updated
+either by a sparse LU of the reduced KKT matrix per step (``method="kkt"``,
+``scipy.sparse.linalg.splu``) or through the dual problem (7.3) on the contact
+rows (``method="schur"``, the default up to 5000 constraints): ``A`` factorised
+once by a sparse Cholesky (:mod:`solvers.cholesky`: MKL PARDISO with METIS,
+partial solves on the support of ``B``), the dense ``S = B A^{-1} B^T`` formed
+once (``N^C`` columns), each step a dense Cholesky of ``S_II`` and one solve
+with ``A`` for ``u``; iterative refinement after every solve with ``A``. At
+circle-square level 4 (262k nodes) the ``schur`` route takes seconds where the
+``kkt`` route took ~170 s; ``kkt`` stays as the cross-check (tests compare them). The active set is then updated
 by the PDAS rule ``I = {i : p_i + c (Bu - Cp - g)_i > 0}``. After the first
 step ``p_i = 0`` off ``I`` and ``(Bu - Cp - g)_i = 0`` on ``I``, so the rule
 keeps ``i`` in ``I`` while ``p_i >= 0`` and adds ``i`` when it is violated; ``c``
@@ -37,6 +42,7 @@ import scipy.sparse.linalg as spla
 
 from problems.qp import ContactQP, kkt_residuals
 from problems.spec import Options, Parameter
+from solvers.cholesky import factorize
 from solvers.interface import SolveResult, SolverSpec
 
 #: Columns of ``A^{-1} B^T`` computed at once when forming the Schur complement.
@@ -44,7 +50,7 @@ _SCHUR_BLOCK = 64
 
 #: Largest number of constraints for ``method="schur"`` (dense m x m complement,
 #: one solve with A per constraint).
-_SCHUR_MAX_M = 5000
+SCHUR_MAX_M = 5000
 
 
 def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
@@ -81,7 +87,9 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
     t_start = time.perf_counter()
     _check_positive_diagonal(qp.A)
     c_eff = opts.c * _stiffness_scale(qp)
-    system = _ActiveSetSystem(qp, opts.method, opts.refine)
+    method = opts.method if opts.method != "auto" else (
+        "schur" if qp.m <= SCHUR_MAX_M else "kkt")
+    system = _ActiveSetSystem(qp, method, opts.refine, opts.factorization)
     setup_time = time.perf_counter() - t_start
 
     t_solve = time.perf_counter()
@@ -130,7 +138,8 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
             break
 
     stats = {"n_active": n_active, "factor_time": system.factor_time,
-             "n_factorisations": system.n_factorisations, "method": opts.method, "c_eff": c_eff,
+             "n_factorisations": system.n_factorisations, "method": method,
+             "factorization": getattr(system, "chol", None) and system.chol.backend, "c_eff": c_eff,
              "damped": limit is not None, "damping_limit": -1 if limit is None else limit}
     return SolveResult(u=u, p=p, claimed_status=status, message=message,
                        iterations=iterations, setup_time=setup_time,
@@ -242,12 +251,15 @@ class _ActiveSetSystem:
     method : {"kkt", "schur"}
     refine : int
         Iterative refinement steps.
+    factorization : str
+        Backend of :func:`solvers.cholesky.factorize` (``method="schur"``).
     """
 
-    def __init__(self, qp: ContactQP, method: str, refine: int):
+    def __init__(self, qp: ContactQP, method: str, refine: int, factorization: str = "auto"):
         self.qp = qp
         self.method = method
         self.refine = refine
+        self.factorization = factorization
         self.factor_time = 0.0
         self.n_factorisations = 0
         self.A = sp.csc_matrix(qp.A)
@@ -294,29 +306,29 @@ class _ActiveSetSystem:
 
     # -- Schur complement -----------------------------------------------------
     def _prepare_schur(self) -> None:
-        """Factorise ``A`` once and form the dense ``S = B A^{-1} B^T``."""
-        if self.qp.m > _SCHUR_MAX_M:
+        """Factorise ``A`` once (:func:`solvers.cholesky.factorize`) and form the dense
+        ``S = B A^{-1} B^T`` by partial solves on the support of ``B``."""
+        if self.qp.m > SCHUR_MAX_M:
             raise ValueError(f"method='schur' forms a dense {self.qp.m} x {self.qp.m} Schur "
                              f"complement (one solve with A per constraint); it is meant for "
-                             f"at most {_SCHUR_MAX_M} constraints: use method='kkt'")
+                             f"at most {SCHUR_MAX_M} constraints: use method='kkt'")
         t0 = time.perf_counter()
-        self.lu_A = spla.splu(self.A, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
-                              options={"SymmetricMode": True})
+        self.chol = factorize(self.A, self.factorization, components=self.B.indices)
         m = self.qp.m
         S = np.empty((m, m))
         Bt = sp.csc_matrix(self.B.T)
         for start in range(0, m, _SCHUR_BLOCK):
-            cols = Bt[:, start:start + _SCHUR_BLOCK].toarray()
-            S[:, start:start + cols.shape[1]] = self.B @ self._solve_A(cols, refine=1)
+            cols = Bt[:, start:start + _SCHUR_BLOCK]
+            S[:, start:start + cols.shape[1]] = self.B @ self.chol.solve(cols, partial=True)
         self.S = 0.5 * (S + S.T)
         self.w = self._solve_A(self.qp.f)  # unconstrained solution A^{-1} f
         self.factor_time += time.perf_counter() - t0
         self.n_factorisations += 1
 
-    def _solve_A(self, rhs: np.ndarray, refine: int | None = None) -> np.ndarray:
-        x = self.lu_A.solve(rhs)
-        for _ in range(self.refine if refine is None else min(refine, self.refine)):
-            x = x + self.lu_A.solve(rhs - self.A @ x)
+    def _solve_A(self, rhs: np.ndarray) -> np.ndarray:
+        x = self.chol.solve(rhs)
+        for _ in range(self.refine):
+            x = x + self.chol.solve(rhs - self.A @ x)
         return x
 
     def _solve_schur(self, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -336,14 +348,19 @@ class _ActiveSetSystem:
 
 SOLVER = SolverSpec(
     name="pdas",
-    summary="primal-dual active set (semismooth Newton, Hintermüller-Ito-Kunisch) with "
-            "sparse LU; exact reference",
+    summary="primal-dual active set (semismooth Newton, Hintermüller-Ito-Kunisch), exact: "
+            "A factorised once and the dual problem on the contact rows (or a KKT LU per "
+            "step); the exact reference",
     solve=solve,
     parameters=(
         Parameter("c", 1.0, "PDAS parameter relative to the stiffness scale (only matters "
                   "with an initial guess)", low=0.0, low_open=True),
-        Parameter("method", "kkt", "linear algebra: reduced KKT LU per step, or A factorised "
-                  "once + dense Schur complement (few constraints)", choices=("kkt", "schur")),
+        Parameter("method", "auto", "linear algebra: reduced KKT LU per step, or A factorised "
+                  "once + dense Schur complement (the dual problem on the contact rows); "
+                  f"auto: schur up to {SCHUR_MAX_M} constraints", choices=("auto", "kkt", "schur")),
+        Parameter("factorization", "auto", "sparse Cholesky backend of method='schur' "
+                  "(solvers/cholesky.py; auto: MKL PARDISO where installed, else SuperLU)",
+                  choices=("auto", "pardiso", "splu")),
         Parameter("refine", 3, "iterative refinement steps per direct solve", low=0, high=20),
         Parameter("flip_tol", 1e-13, "relative size below which a sign change does not "
                   "change the active set", low=0.0, high=1e-6),

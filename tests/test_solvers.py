@@ -145,7 +145,7 @@ def references():
     out = {}
     for name, build in PROBLEMS.items():
         qp = build()
-        out[name] = (qp, solve(qp, "pdas", "high"))
+        out[name] = (qp, solve(qp, "pdas", "high", method="kkt"))
     return out
 
 
@@ -173,7 +173,9 @@ def test_pdas_tiny_problem_exact():
 def test_pdas_string_matches_analytic_contact_set():
     qp, a = string_qp()
     res = solve(qp, "pdas", "high")
-    assert res.status == "converged" and res.kkt.max <= 1e-12
+    # round-off: the raw stationarity residual is ~2e-14 with either linear algebra; the
+    # scaled one of this 1D problem (condition ~N^2) sits at ~1e-12
+    assert res.status == "converged" and res.kkt.max <= 5e-12
     h = 1.0 / (qp.n + 1)
     x = np.arange(1, qp.n + 1) * h
     contact = x[res.p > 0]
@@ -229,6 +231,8 @@ def test_pdas_with_stabilisation_block():
     res = solve(qp, "pdas", "high")
     assert res.status == "converged" and res.kkt.max <= 1e-12
     assert np.count_nonzero(res.p > 0) > 0
+    kkt = solve(qp, "pdas", "high", method="kkt")    # the other linear algebra agrees
+    np.testing.assert_allclose(res.p, kkt.p, rtol=0, atol=1e-10 * np.abs(kkt.p).max())
 
 
 # --------------------------------------------------------------------------- adapters

@@ -61,7 +61,6 @@ import time
 import numpy as np
 import pandas as pd
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
 from problems.fem import accuracy as acc
 from problems.fem.adaptive import (STUDY_VARIANTS, adaptive_loop, adaptive_start,
@@ -73,7 +72,8 @@ from problems.fem.mesh import project_to_circle
 from problems.fem.two_body import assemble_two_body
 from problems.qp import ContactQP, kkt_residuals
 from solvers import augmented_projection as ap
-from solvers.interface import DIRECT_REFERENCE_LIMIT, solve, verify
+from solvers.interface import (DIRECT_REFERENCE_LIMIT, linear_solver, reference_solve, solve,
+                               verify)
 from workflows.io import write_csv, write_vtu
 from workflows.scene_args import add_scene_arguments, check_levels, scene_from_args
 
@@ -84,55 +84,13 @@ TABLE_EPS = (1e-2, 1e-3)
 # --------------------------------------------------------------------------- solvers
 def exact_solve(qp: ContactQP, u0=None, p0=None, tol: float = 1e-8,
                 time_limit: float | None = None):
-    """PDAS (a factorisation per active-set step, exact) where a factorisation is
-    affordable (:data:`solvers.interface.DIRECT_REFERENCE_LIMIT`), else Alg. 8.4 with
+    """PDAS (exact: ``A`` factorised once, the dual problem on the contact rows) where a
+    factorisation is affordable (:data:`solvers.interface.DIRECT_REFERENCE_LIMIT`), else Alg. 8.4 with
     face-CG steps to verified KKT residuals <= ``tol``; warm-started either way."""
     if qp.n <= DIRECT_REFERENCE_LIMIT.get(qp.dim, 0):
         return solve(qp, "pdas", tol=1e-10, u0=u0, p0=p0)
     return solve(qp, "augmented_projection", tol=tol, u0=u0, p0=p0, time_limit=time_limit,
                  accelerate="face_cg")
-
-
-def dual_reference(qp: ContactQP, block: int = 64, tol: float = 1e-10):
-    """The exact solution through the dual problem (7.3): ``A`` factorised once (sparse
-    LU), ``S = B A^-1 B'`` formed for a working set of constraints (those with a gap
-    below the largest prescribed displacement, plus any found violated), the bound-
-    constrained ``min 1/2 p'Sp - p'(B A^-1 f - g), p >= 0`` solved by PDAS on the
-    dense ``S``, ``u = A^-1 (f - B'p)``. Verified by the KKT residuals of ``qp``.
-
-    Returns
-    -------
-    (u, p, info) with ``info``: solver name, status, KKT max, size of the working set,
-    seconds.
-    """
-    t0 = time.perf_counter()
-    lu = spla.splu(qp.A.tocsc(), permc_spec="COLAMD")
-    y = lu.solve(qp.f)
-    scale = max(float(np.abs(qp.u_fixed).max()) if qp.u_fixed is not None else 0.0,
-                float(np.abs(qp.B @ y).max()))
-    work = np.flatnonzero(qp.g <= scale)
-    Bt = qp.B.T.tocsc()
-    p = np.zeros(qp.m)
-    for _ in range(10):
-        X = np.empty((qp.n, len(work)))
-        for s in range(0, len(work), block):
-            X[:, s:s + block] = lu.solve(np.asarray(Bt[:, work[s:s + block]].todense()))
-        S = np.asarray(qp.B[work] @ X)
-        small = ContactQP(A=sp.csr_matrix(0.5 * (S + S.T)), f=qp.B[work] @ y - qp.g[work],
-                          B=-sp.identity(len(work), format="csr"), g=np.zeros(len(work)))
-        r = solve(small, "pdas", tol=1e-13)
-        p[:] = 0.0
-        p[work] = np.maximum(r.u, 0.0)
-        u = y - X @ p[work]
-        for _ in range(2):                                  # iterative refinement
-            u += lu.solve(qp.f - qp.B.T @ p - qp.A @ u)
-        violated = np.setdiff1d(np.flatnonzero(qp.B @ u - qp.g > 1e-12 * scale), work)
-        if not violated.size:
-            break
-        work = np.union1d(work, violated)
-    kkt = kkt_residuals(qp, u, p)
-    return u, p, {"solver": "dual_schur", "status": "converged" if kkt.max <= tol else "inaccurate",
-                  "kkt_max": kkt.max, "n_work": len(work), "t_solve": time.perf_counter() - t0}
 
 
 def table_solve(qp: ContactQP, u0, p0, tol: float, time_limit: float):
@@ -372,7 +330,7 @@ def run_study(spec, params, start_level: int, variants: list[str], max_nodes: in
             timing.append({"t_solve_total": time.perf_counter() - t0,
                            "t_other": t0 - clock["t"]})
             if weight_spec == "bound":             # ||p||_*^2 = p' B A^-1 B' p, untimed
-                x = spla.spsolve(qp.A.tocsc(), qp.B.T @ res.p)
+                x = linear_solver(qp)(qp.B.T @ res.p)
                 body = qp.mesh.body_of_node[qp.contact.nodes[0]]
                 E = float(qp.mesh.E_cell[qp.mesh.body_of_node[qp.mesh.cells[:, 0]] == body][0])
                 dual_norm[len(timing) - 1] = (float(np.sqrt(max(res.p @ (qp.B @ x), 0.0))), E)
@@ -445,15 +403,11 @@ def run_study(spec, params, start_level: int, variants: list[str], max_nodes: in
                                  name=f"{spec.name} reference")
         log(f"reference mesh: N = {qref.n_nodes}, N^C = {qref.m} "
             f"({time.perf_counter() - t0:.1f} s so far)")
-        if qref.n <= DIRECT_REFERENCE_LIMIT.get(qref.dim, 0):
-            u_ref, p_ref, info = dual_reference(qref)
-        else:
-            from solvers.interface import reference_solve
-            t1 = time.perf_counter()
-            r = reference_solve(qref, tol=1e-10)
-            u_ref, p_ref = r.u, r.p
-            info = {"solver": r.solver, "status": r.status, "kkt_max": r.kkt.max,
-                    "t_solve": time.perf_counter() - t1}
+        t1 = time.perf_counter()
+        r = reference_solve(qref, tol=1e-10)        # exact through the dual problem (7.3)
+        u_ref, p_ref = r.u, r.p
+        info = {"solver": r.solver, "status": r.status, "kkt_max": r.kkt.max,
+                "t_solve": time.perf_counter() - t1}
         log(f"reference solved by {info['solver']}: {info['status']}, kkt {info['kkt_max']:.1e}, "
             f"{info['t_solve']:.1f} s")
         ref = Reference(qref, u_ref, p_ref, info)

@@ -1,0 +1,104 @@
+"""The sparse Cholesky backends (solvers/cholesky.py) and the exact reference built on
+them: PDAS through the dual problem on the contact rows against PDAS with a KKT LU per
+step, on scenes."""
+import platform
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from problems import circle_square, cube_sphere
+from solvers import cholesky
+from solvers.cholesky import FactorizationError, available_backends, factorize
+from solvers.interface import reference_solve, solve
+
+BACKENDS = available_backends()
+
+
+@pytest.fixture(scope="module")
+def scene_qp():
+    return circle_square.PROBLEM.make(1)
+
+
+def test_mkl_is_installed_where_its_wheels_exist():
+    # a missing install step would otherwise silently fall back to the slow backend
+    if platform.machine() in ("x86_64", "AMD64"):
+        assert "pardiso" in BACKENDS
+    assert "splu" in BACKENDS
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_solves_agree_with_scipy(scene_qp, backend):
+    A = scene_qp.A
+    chol = factorize(A, backend)
+    assert chol.backend == backend and chol.n == A.shape[0] and chol.fill >= A.nnz // 2
+    rng = np.random.default_rng(0)
+    b = rng.standard_normal(A.shape[0])
+    x = chol.solve(b)
+    assert x.shape == b.shape
+    assert np.linalg.norm(A @ x - b) <= 1e-12 * np.linalg.norm(b) * 1e3
+    np.testing.assert_allclose(x, spla.spsolve(A.tocsc(), b), rtol=1e-9, atol=1e-12)
+    # a block wider than BLOCK, dense and sparse
+    Bm = rng.standard_normal((A.shape[0], cholesky.BLOCK + 7))
+    X = chol.solve(Bm)
+    assert X.shape == Bm.shape
+    np.testing.assert_allclose(X[:, -1], chol.solve(Bm[:, -1]), rtol=1e-12, atol=1e-14)
+    S = scene_qp.B.T.tocsc()
+    np.testing.assert_allclose(chol.solve(S), chol.solve(S.toarray()), rtol=0, atol=0)
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_partial_solves_give_the_schur_complement(scene_qp, backend):
+    qp = scene_qp
+    chol = factorize(qp.A, backend, components=qp.B.indices)
+    Bt = qp.B.T.tocsc()
+    S_partial = qp.B @ chol.solve(Bt, partial=True)
+    S_full = qp.B @ spla.spsolve(qp.A.tocsc(), Bt.toarray())
+    np.testing.assert_allclose(S_partial, S_full, rtol=0, atol=1e-11 * np.abs(S_full).max())
+    # a full solve after partial ones still works on the same factorisation
+    x = chol.solve(qp.f)
+    assert np.linalg.norm(qp.A @ x - qp.f) <= 1e-10 * np.linalg.norm(qp.f)
+    with pytest.raises(ValueError, match="components"):
+        factorize(qp.A, backend).solve(qp.f, partial=True)
+
+
+@pytest.mark.skipif("pardiso" not in BACKENDS, reason="MKL not installed (non-x86)")
+def test_pardiso_refuses_an_indefinite_matrix():
+    A = sp.diags([1.0, -1.0, 2.0]).tocsr()
+    with pytest.raises(FactorizationError, match="positive definite"):
+        factorize(A, "pardiso")
+
+
+def test_bad_backend_names_the_choices(scene_qp, monkeypatch):
+    with pytest.raises(ValueError, match="backend='lu' is not allowed; allowed: auto, pardiso"):
+        factorize(scene_qp.A, "lu")
+    monkeypatch.setattr(cholesky, "_MKL", [None])      # a machine without MKL
+    assert available_backends() == ("splu",)
+    assert factorize(scene_qp.A).backend == "splu"
+    with pytest.raises(ValueError, match="needs Intel MKL"):
+        factorize(scene_qp.A, "pardiso")
+
+
+# ------------------------------------------------------------- the exact reference
+@pytest.mark.parametrize("backend", BACKENDS)
+@pytest.mark.parametrize("problem,level", [(circle_square, 1), (circle_square, 2),
+                                           (cube_sphere, 0)])
+def test_dual_route_agrees_with_kkt_lu_to_1e10(problem, level, backend):
+    # issue 13: the fast reference agrees with the KKT-LU PDAS to 1e-10 in the multipliers
+    qp = problem.PROBLEM.make(level)
+    fast = solve(qp, "pdas", tol=1e-10, method="schur", factorization=backend)
+    slow = solve(qp, "pdas", tol=1e-10, method="kkt")
+    for r in (fast, slow):
+        assert r.status == "converged" and r.kkt.max <= 1e-10, r.message
+    assert fast.stats["factorization"] == backend and fast.stats["n_factorisations"] == 1
+    assert np.abs(fast.p - slow.p).max() <= 1e-10 * np.abs(slow.p).max()
+    e = fast.u - slow.u
+    assert np.sqrt(e @ (qp.A @ e) / (slow.u @ (qp.A @ slow.u))) <= 1e-10
+    assert np.array_equal(fast.p > 0, slow.p > 0)
+
+
+def test_reference_solve_takes_the_dual_route(scene_qp):
+    ref = reference_solve(scene_qp)
+    assert ref.solver == "pdas" and ref.stats["method"] == "schur"
+    assert ref.status == "converged" and ref.kkt.max <= 1e-10
