@@ -13,8 +13,8 @@ from snakemake.utils import validate
 from workflows.io import sweep_results
 
 from workflows.studies import (PATHS, adaptive_args, adaptive_variant_file, all_targets,
-                               bench_path, check_config, log_path, scenes_of, set_args,
-                               thesis_table)
+                               bench_path, check_config, exact_args, log_path, scenes_of,
+                               set_args, thesis_table)
 
 configfile: "workflows/config/quick.yaml"
 validate(config, "workflows/config.schema.yaml")
@@ -36,6 +36,7 @@ include: "workflows/laplace.smk"
 include: "workflows/contact_solution.smk"
 include: "workflows/solver_comparison.smk"
 include: "workflows/augmented_projection.smk"
+include: "workflows/exact_reference.smk"
 include: "workflows/hard_cases.smk"
 include: "workflows/adaptive.smk"
 

@@ -70,6 +70,11 @@ PATHS = {
     "laplace_rates": "results/laplace_nonmatching/rates.csv",
     "laplace_convergence": "results/laplace_nonmatching/convergence_{case}.png",
     "laplace_mesh": "results/laplace_nonmatching/mesh.png",
+    # exact_reference: the dual route against the KKT-LU PDAS
+    "exact_runs": "results/{scene}/exact_reference_runs.csv",
+    "exact_table": "results/{scene}/exact_reference.csv",
+    "exact_claims": "results/{scene}/exact_reference_claims.csv",
+    "exact_figure": "results/{scene}/exact_reference.png",
     # hard_cases: every solver on the hard scenes; one table and heat map across them
     "hard_case_runs": "results/{scene}/hard_case_L{level}.csv",
     "hard_table": "results/hard_cases/hard_cases.csv",
@@ -182,6 +187,15 @@ STUDIES = {
             outputs=("ap_table", "ap_claims", "ap_time", "ap_kappa"),
         ),
         Study(
+            name="exact_reference",
+            summary="the exact reference two ways, side by side: PDAS through the dual problem "
+                    "on the contact rows (A factorised once by a sparse Cholesky, partial "
+                    "solves) against PDAS with a KKT LU per active-set step; times, memory, "
+                    "agreement of the multipliers",
+            thesis="Sect. 7.1 (the dual problem (7.3)); the suite's reference for Ch. 9",
+            outputs=("exact_table", "exact_claims", "exact_figure"),
+        ),
+        Study(
             name="hard_cases",
             summary="every registered solver at the mid preset, each in its own process with a "
                     "hard time limit, on hard variants of the scenes (stiffness contrast, near "
@@ -206,6 +220,15 @@ STUDIES = {
         ),
     )
 }
+
+
+def exact_args(config: dict, scene: str) -> str:
+    """A scene's levels of the exact_reference study as script arguments."""
+    entry = config["exact_reference"]
+    levels = scenes_of(config, "exact_reference")[scene]
+    kkt = entry.get("kkt_levels", {}).get(scene, levels)
+    return (f"--levels {' '.join(map(str, levels))} --kkt-levels {' '.join(map(str, kkt))} "
+            f"--time-limit {entry['time_limit']}")
 
 
 def adaptive_variant_file(variant: str) -> str:
@@ -274,6 +297,13 @@ def check_config(config: dict) -> None:
         if variant not in VARIANTS:
             raise ConfigError(f"config 'augmented_projection.configs': {variant!r} is not "
                               f"allowed; allowed: {', '.join(VARIANTS)}")
+    runs = scenes_of(config, "exact_reference")
+    for scene, levels in config.get("exact_reference", {}).get("kkt_levels", {}).items():
+        extra = sorted(set(levels) - set(runs.get(scene, [])))
+        if extra:
+            raise ConfigError(f"config 'exact_reference.kkt_levels.{scene}': levels {extra} are "
+                              f"not allowed; allowed: among exact_reference.scenes.{scene} "
+                              f"{runs.get(scene, [])}")
     _check_adaptive(config, registry)
 
 

@@ -1,0 +1,27 @@
+# Study exact_reference: the suite's exact reference two ways on each configured scene, one
+# process, one solve after the other (threads: 2 keeps snakemake from running anything
+# beside it). Paths: workflows/studies.py.
+
+rule exact_reference:
+    output: PATHS["exact_runs"]
+    log: log_path("exact_reference")
+    benchmark: bench_path("exact_reference")
+    threads: 2
+    conda: ENV
+    params: py=PY, scene=lambda w: set_args(config, w.scene), levels=lambda w: exact_args(config, w.scene)
+    shell:
+        "{params.py} -m workflows.scripts.exact_reference {params.scene} {params.levels} "
+        "--out {output} > {log} 2>&1"
+
+rule exact_reference_report:
+    input: PATHS["exact_runs"]
+    output:
+        table=PATHS["exact_table"], claims=PATHS["exact_claims"],
+        figure=report(PATHS["exact_figure"], caption="../report/captions/exact_reference.rst",
+                      category="{scene}", subcategory="exact reference")
+    log: log_path("exact_reference_report")
+    conda: ENV
+    params: py=PY
+    shell:
+        "{params.py} -m report.exact_reference --runs {input} --table {output.table} "
+        "--claims {output.claims} --figure {output.figure} > {log} 2>&1"
