@@ -14,10 +14,14 @@ from workflows.io import sweep_results
 
 from workflows.studies import (PATHS, adaptive_args, adaptive_variant_file, all_targets,
                                bench_path, check_config, exact_args, log_path, scenes_of,
-                               set_args, thesis_table)
+                               set_args, summary_items, thesis_table)
 
-configfile: "workflows/config/quick.yaml"
-validate(config, "workflows/config.schema.yaml")
+# the quick scale unless --configfile names another (merging quick.yaml under full.yaml or
+# tiny.yaml would leave quick's scenes in them)
+if not workflow.overwrite_configfiles:
+    configfile: os.path.join(workflow.basedir, "workflows/config/quick.yaml")
+report: "report/workflow.rst"
+validate(config, os.path.join(workflow.basedir, "workflows/config.schema.yaml"))
 check_config(config)   # scenes exist, problems and parameters valid, variant names known
 
 # provenance of every result names the config; corrupted results and partial files of a
@@ -27,6 +31,10 @@ shell.prefix(f"export CONTACTBENCH_CONFIGFILE={','.join(map(str, workflow.config
              f"CONTACTBENCH_CONFIG_SHA256={CONFIG_SHA256}; ")
 for removed in sweep_results("results"):
     print(f"removed a corrupted or partial result, to be rebuilt: {removed}", file=sys.stderr)
+
+# the configuration's name(s), e.g. "quick", for the summary page
+SCALE = "+".join(os.path.splitext(os.path.basename(str(f)))[0]
+                 for f in workflow.configfiles) or "command-line"
 
 PY = sys.executable  # the interpreter snakemake runs under (the venv's, via `make run`)
 ENV = "envs/contactbench.yaml"
@@ -38,9 +46,10 @@ include: "workflows/solver_comparison.smk"
 include: "workflows/augmented_projection.smk"
 include: "workflows/exact_reference.smk"
 include: "workflows/hard_cases.smk"
+include: "workflows/summary.smk"
 include: "workflows/adaptive.smk"
 
 rule all:
     input:
-        all_targets(config)
+        all_targets(config), PATHS["summary_html"], PATHS["summary_claims"]
     default_target: True

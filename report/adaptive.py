@@ -523,6 +523,41 @@ def figure_pressure(steps: pd.DataFrame, surfaces: dict, path: str) -> None:
 
 
 # --------------------------------------------------------------------------- patch test
+def claims(accuracy: pd.DataFrame | None = None, pileup: pd.DataFrame | None = None,
+           patch: pd.DataFrame | None = None) -> pd.DataFrame:
+    """The adaptive study's claims, measured (claim, measured, bar, pass): adaptivity
+    saves nodes (issue 9: at least 3x for the uniform finest level's energy error),
+    eta_2 removes the pile-up of Fig. 7.3, and the contact patch test."""
+    rows = []
+    if accuracy is not None and "node_saving_factor" in accuracy:
+        for _, r in accuracy.dropna(subset=["node_saving_factor"]).iterrows():
+            rows.append({"claim": f"adaptive {r.variant}: nodes saved for the energy error of "
+                                  f"uniform N = {int(r.uniform_N)}",
+                         "measured": float(r.node_saving_factor), "bar": ">= 3",
+                         "pass": bool(r.node_saving_factor >= 3.0)})
+    if pileup is not None and {"variant", "zone_ratio"} <= set(pileup.columns):
+        common = pileup[pileup["at"].astype(str).str.startswith("N ~")]   # comparable N
+        z = common.groupby("variant")["zone_ratio"].last()
+        if {"eta1", "eta1+eta2"} <= set(z.index):
+            rows.append({"claim": "eta_2 removes the pile-up (Figs. 7.3/7.4): opposing / "
+                                  "constrained surface nodes in the contact zone at "
+                                  f"{common['at'].iloc[0]}",
+                         "measured": f"eta1 {z['eta1']:.2f}, eta1+eta2 {z['eta1+eta2']:.2f}",
+                         "bar": "eta1+eta2 < eta1",
+                         "pass": bool(z["eta1+eta2"] < z["eta1"])})
+    if patch is not None and len(patch):
+        for coupling, expect in (("mortar", True), ("nodal", False)):
+            g = patch[patch.coupling == coupling]
+            if len(g):
+                worst = float(g["dev_max_finest"].abs().max())
+                rows.append({"claim": f"patch test, {coupling} coupling: "
+                                      + ("transmits the uniform pressure" if expect else
+                                         "cannot transmit it on non-matching meshes (Ch. 6)"),
+                             "measured": worst, "bar": "< 1e-8" if expect else ">= 1e-3",
+                             "pass": bool(worst < 1e-8) if expect else bool(worst >= 1e-3)})
+    return pd.DataFrame(rows)
+
+
 def patch_table(runs: pd.DataFrame) -> pd.DataFrame:
     """Per coupling and constrained side: the finest level's deviations, how they change
     with refinement (rate of the rms deviation in h) and whether the uniform pressure is

@@ -27,6 +27,33 @@ from report.figures import save_figure  # noqa: E402
 from workflows.io import read_checked, read_csv, write_csv  # noqa: E402
 
 
+#: Relative deviation from Hertz (contact half-width, peak pressure) accepted at the finest
+#: level; the nodal pressure is resolved by ~a/h nodes, and Hertz is itself an asymptotic
+#: (small contact, half-space) model.
+HERTZ_BAR = 0.05
+
+
+def claims(hertz: pd.DataFrame) -> pd.DataFrame:
+    """Hertz at the finest level and its trend (claim, measured, bar, pass): the contact
+    half-width and peak pressure from the pressure's moments (Sects. 9.1/9.2)."""
+    h = hertz.sort_values("level")
+    f = h.iloc[-1]
+    rows = []
+    for col, name in (("dev_a_moment", "half-width a"), ("dev_p0_moment", "peak pressure p0")):
+        dev = float(f[col])
+        rows.append({"claim": f"Hertz {name}: relative deviation at the finest level "
+                              f"(level {int(f.level)}, a/h = {f.a_over_h:.1f})",
+                     "measured": dev, "bar": f"|.| <= {HERTZ_BAR}",
+                     "pass": bool(abs(dev) <= HERTZ_BAR)})
+        if len(h) >= 2:
+            first = float(h[col].iloc[0])
+            rows.append({"claim": f"Hertz {name}: deviation falls under refinement "
+                                  f"(level {int(h.level.iloc[0])} -> {int(f.level)})",
+                         "measured": f"{first:+.3f} -> {dev:+.3f}", "bar": "|finest| < |coarsest|",
+                         "pass": bool(abs(dev) < abs(first))})
+    return pd.DataFrame(rows)
+
+
 def hertz_table(inputs: list[str], out: str) -> None:
     """Concatenate the per-level rows, sorted by level."""
     write_csv(out, pd.concat([read_csv(f) for f in inputs]).sort_values("level"))

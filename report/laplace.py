@@ -19,6 +19,27 @@ STYLE = {"conforming": ("k", "o", "-"), "nodal": ("tab:red", "s", "--"),
          "mortar": ("tab:green", "v", "-")}
 
 
+def claims(rates: pd.DataFrame) -> pd.DataFrame:
+    """Ch. 6's claims, measured (claim, measured, bar, pass): nodal constraints on the
+    non-matching grid converge at least like O(h^1/2) in H^1 (Sect. 6.2), the
+    stabilised constraints with alpha = 1 (h^-2) at the optimal rates (Sect. 6.3)."""
+    rows = []
+    for (case, side), g in rates.groupby(["case", "constrained"], sort=False):
+        g = g.set_index("variant")
+        where = f"{case}, {side} side constrained"
+        if "nodal" in g.index:
+            r = float(g.loc["nodal", "rate_h1"])
+            rows.append({"claim": f"nodal constraints: H1 rate >= 1/2 (Sect. 6.2) -- {where}",
+                         "measured": r, "bar": ">= 0.45", "pass": bool(r >= 0.45)})
+        if "stabilised_a1" in g.index:
+            for col, name, bar in (("rate_h1", "H1", 0.95), ("rate_l2", "L2", 1.9)):
+                r = float(g.loc["stabilised_a1", col])
+                rows.append({"claim": f"stabilised alpha = 1: optimal {name} rate (Sect. 6.3) "
+                                      f"-- {where}",
+                             "measured": r, "bar": f">= {bar}", "pass": bool(r >= bar)})
+    return pd.DataFrame(rows)
+
+
 def add_slope(ax, h: np.ndarray, anchor: float, slope: int, label: str) -> None:
     """Reference line err = C h^slope through (h.max(), anchor), drawn dotted."""
     hh = np.array([h.min(), h.max()])

@@ -28,8 +28,14 @@ rule adaptive_study:
 rule adaptive_tables:
     input: PATHS["adaptive_steps"]
     output:
-        table=PATHS["adaptive_table"], accuracy=PATHS["adaptive_accuracy"],
-        pileup=PATHS["adaptive_pileup"], convergence=PATHS["adaptive_convergence"]
+        table=report(PATHS["adaptive_table"], caption="../report/captions/adaptive_table.rst",
+            category="{scene}", subcategory="adaptive"),
+        accuracy=report(PATHS["adaptive_accuracy"], caption="../report/captions/adaptive_accuracy.rst",
+            category="{scene}", subcategory="adaptive"),
+        pileup=report(PATHS["adaptive_pileup"], caption="../report/captions/adaptive_pileup.rst",
+            category="{scene}", subcategory="adaptive"),
+        convergence=report(PATHS["adaptive_convergence"], caption="../report/captions/adaptive_convergence.rst",
+            category="{scene}", subcategory="adaptive")
     log: log_path("adaptive_tables")
     conda: ENV
     params:
@@ -86,7 +92,8 @@ rule patch_test:
 rule patch_report:
     input: runs=PATHS["patch_runs"], pressure=PATHS["patch_pressure"]
     output:
-        table=PATHS["patch_table"],
+        table=report(PATHS["patch_table"], caption="../report/captions/patch_table.rst",
+            category="{scene}", subcategory="patch test"),
         figure=report(PATHS["patch_figure"], caption="../report/captions/patch_test.rst",
                       category="{scene}", subcategory="patch test")
     log: log_path("patch_report")

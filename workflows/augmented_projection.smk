@@ -21,7 +21,10 @@ rule augmented_projection_study:
 rule augmented_projection_report:
     input: PATHS["ap_study"]
     output:
-        table=PATHS["ap_table"], claims=PATHS["ap_claims"],
+        table=report(PATHS["ap_table"], caption="../report/captions/ap_table.rst",
+            category="{scene}", subcategory="augmented projection"),
+        claims=report(PATHS["ap_claims"], caption="../report/captions/ap_claims.rst",
+            category="{scene}", subcategory="augmented projection"),
         time=report(PATHS["ap_time"], caption="../report/captions/ap_time.rst",
                     category="{scene}", subcategory="augmented projection"),
         kappa=report(PATHS["ap_kappa"], caption="../report/captions/ap_kappa.rst",

@@ -18,7 +18,9 @@ rule contact_hertz_table:
     input:
         lambda w: expand(PATHS["hertz_level"], scene=w.scene,
                          level=scenes_of(config, "contact_solution")[w.scene])
-    output: PATHS["hertz"]
+    output:
+        report(PATHS["hertz"], caption="../report/captions/hertz_table.rst",
+               category="{scene}", subcategory="contact solution")
     log: log_path("contact_hertz_table")
     conda: ENV
     params: py=PY

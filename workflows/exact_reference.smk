@@ -16,7 +16,10 @@ rule exact_reference:
 rule exact_reference_report:
     input: PATHS["exact_runs"]
     output:
-        table=PATHS["exact_table"], claims=PATHS["exact_claims"],
+        table=report(PATHS["exact_table"], caption="../report/captions/exact_table.rst",
+            category="{scene}", subcategory="exact reference"),
+        claims=report(PATHS["exact_claims"], caption="../report/captions/exact_claims.rst",
+            category="{scene}", subcategory="exact reference"),
         figure=report(PATHS["exact_figure"], caption="../report/captions/exact_reference.rst",
                       category="{scene}", subcategory="exact reference")
     log: log_path("exact_reference_report")

@@ -22,7 +22,8 @@ rule hard_cases_report:
         [PATHS["hard_case_runs"].format(scene=s, level=lv)
          for s, levels in scenes_of(config, "hard_cases").items() for lv in levels]
     output:
-        table=PATHS["hard_table"],
+        table=report(PATHS["hard_table"], caption="../report/captions/hard_table.rst",
+            category="hard cases", subcategory="solvers"),
         heatmap=report(PATHS["hard_heatmap"], caption="../report/captions/hard_cases.rst",
                        category="hard cases", subcategory="solvers")
     log: log_path("hard_cases_report", "all")

@@ -17,7 +17,8 @@ rule laplace_summary:
     input: expand(PATHS["laplace_runs"], case=["sin10x", "linear"], side=["coarse", "fine"])
     output:
         errors=PATHS["laplace_errors"], by_side=PATHS["laplace_errors_by_side"],
-        rates=PATHS["laplace_rates"]
+        rates=report(PATHS["laplace_rates"], caption="../report/captions/laplace_rates.rst",
+            category="laplace_nonmatching", subcategory="convergence")
     log: log_path("laplace_summary", "all")
     conda: ENV
     params: py=PY, side=LAP.get("default_side")

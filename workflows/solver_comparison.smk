@@ -22,12 +22,15 @@ rule solver_comparison_report:
         lambda w: expand(PATHS["solver_runs"], scene=w.scene,
                          level=scenes_of(config, "solver_comparison")[w.scene])
     output:
-        table=PATHS["solver_table"], presets=PATHS["solver_presets"],
+        table=report(PATHS["solver_table"], caption="../report/captions/solver_table.rst",
+            category="{scene}", subcategory="solver comparison"),
+        presets=PATHS["solver_presets"],
         times=report(PATHS["solver_times"], caption="../report/captions/solver_times.rst",
                      category="{scene}", subcategory="solver comparison"),
         work=report(PATHS["solver_work"], caption="../report/captions/solver_work.rst",
                     category="{scene}", subcategory="solver comparison"),
-        costs=PATHS["solver_costs"]
+        costs=report(PATHS["solver_costs"], caption="../report/captions/solver_costs.rst",
+            category="{scene}", subcategory="solver comparison")
     log: log_path("solver_comparison_report")
     conda: ENV
     params: py=PY
@@ -41,7 +44,8 @@ rule solver_summary:
         [PATHS["solver_table"].format(scene=s) for s in scenes_of(config, "solver_comparison")]
         + ([PATHS["hard_table"]] if scenes_of(config, "hard_cases") else [])
     output:
-        summary=PATHS["solver_summary"],
+        summary=report(PATHS["solver_summary"], caption="../report/captions/solver_summary_table.rst",
+            category="solvers", subcategory="summary"),
         profiles=report(PATHS["solver_profiles"], caption="../report/captions/solver_profiles.rst",
                         category="solvers", subcategory="summary")
     log: log_path("solver_summary", "all")

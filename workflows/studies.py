@@ -17,8 +17,11 @@ its own entry.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 
 RESULTS = "results"
+#: The thesis's tables (absolute: the workflow may run in another working directory).
+REFERENCE = Path(__file__).resolve().parent.parent / "reference"
 
 #: Path templates of every file the workflow writes ({scene}, {level}, {case} wildcards).
 PATHS = {
@@ -79,6 +82,9 @@ PATHS = {
     "hard_case_runs": "results/{scene}/hard_case_L{level}.csv",
     "hard_table": "results/hard_cases/hard_cases.csv",
     "hard_heatmap": "results/hard_cases/hard_cases.png",
+    # the summary page at the top of the report (report/summary.py)
+    "summary_html": "results/summary/summary.html",
+    "summary_claims": "results/summary/claims.csv",
     # logs and benchmarks of every rule
     "log": "results/logs/{rule}/{name}.log",
     "benchmark": "results/benchmarks/{rule}/{name}.tsv",
@@ -102,24 +108,28 @@ class Study:
     #: ``config[name][key]["scenes"]`` (e.g. the adaptive study's patch test).
     extra: tuple = ()
 
-    def targets(self, config: dict) -> list[str]:
-        """The files this study produces under ``config``."""
+    def items(self, config: dict) -> list[tuple[str, str | None, str]]:
+        """``(PATHS key, scene or None, path)`` of every file this study produces."""
         if self.name not in config:
             return []
         out = []
         for key in self.outputs:
             template = PATHS[key]
             if "{scene}" in template:
-                out += [template.format(scene=s) for s in scenes_of(config, self.name)]
+                out += [(key, s, template.format(scene=s)) for s in scenes_of(config, self.name)]
             elif "{case}" in template:
-                out += [template.format(case=c) for c in
+                out += [(key, None, template.format(case=c)) for c in
                         config[self.name].get("cases", ["sin10x", "linear"])]
             else:
-                out.append(template)
-        for key, outputs in self.extra:
-            scenes = config[self.name].get(key, {}).get("scenes", {})
-            out += [PATHS[k].format(scene=s) for s in scenes for k in outputs]
+                out.append((key, None, template))
+        for extra, outputs in self.extra:
+            scenes = config[self.name].get(extra, {}).get("scenes", {})
+            out += [(k, s, PATHS[k].format(scene=s)) for s in scenes for k in outputs]
         return out
+
+    def targets(self, config: dict) -> list[str]:
+        """The files this study produces under ``config``."""
+        return [path for _, _, path in self.items(config)]
 
 
 def scenes_of(config: dict, study: str) -> dict[str, list[int]]:
@@ -140,7 +150,7 @@ def thesis_table(config: dict, scene: str, study: str) -> str | None:
 
     problem, params = scene_problem(config, scene)
     table = problems()[problem].thesis_tables.get(study)
-    return f"reference/{table}.csv" if table and not params else None
+    return str(REFERENCE / f"{table}.csv") if table and not params else None
 
 
 def set_args(config: dict, scene: str) -> str:
@@ -220,6 +230,83 @@ STUDIES = {
         ),
     )
 }
+
+
+@dataclass(frozen=True)
+class ThesisItem:
+    """A table or figure of the thesis and the output that regenerates it.
+
+    ``key`` is a :data:`PATHS` key (None: not regenerated, ``note`` says why);
+    ``problem`` picks the scene (the scene named like the problem); ``cases``
+    expands a ``{case}`` template.
+    """
+
+    item: str
+    what: str
+    key: str | None
+    problem: str | None = None
+    note: str = ""
+
+
+#: Every table and figure of the thesis's numerical chapters, and what regenerates it
+#: (the summary page lists them with their status).
+THESIS_ITEMS = (
+    ThesisItem("Fig. 6.3", "non-matching grid of the Laplace problem", "laplace_mesh"),
+    ThesisItem("Figs. 6.5/6.6", "H1 and L2 errors against h: nodal, stabilised, mortar",
+               "laplace_convergence"),
+    ThesisItem("Figs. 6.5/6.6 (rates)", "fitted convergence rates", "laplace_rates"),
+    ThesisItem("Figs. 7.3/7.4", "adaptive meshes by eta_1 and eta_1 + eta_2 (pile-up)",
+               "adaptive_meshes", "circle_square"),
+    ThesisItem("Fig. 7.5", "mesh by stabilised two-sided nodal constraints and eta_1", None,
+               note="the stabilised formulation (7.10)/(7.11) in the adaptive study: open "
+                    "(issue 9)"),
+    ThesisItem("(7.8)", "convergence rates under uniform refinement, O(h^1/2)",
+               "adaptive_convergence", "circle_square"),
+    ThesisItem("Table 9.1", "circle-square, uniform: N^C, n_o, n_i, T_solve, T_proj, kappa",
+               "ap_table", "circle_square"),
+    ThesisItem("Fig. 9.1", "circle-square: T_solve against N", "ap_time", "circle_square"),
+    ThesisItem("Table 9.2", "circle-square, adaptive (eta_1 + eta_2)", "adaptive_table",
+               "circle_square"),
+    ThesisItem("Fig. 9.2", "circle-square: max eta_T against N", "adaptive_eta",
+               "circle_square"),
+    ThesisItem("Fig. 9.3", "circle-square: kappa(S-hat) against N", "ap_kappa",
+               "circle_square"),
+    ThesisItem("Sect. 9.1 (Hertz)", "circle-square against the Hertz line contact", "hertz",
+               "circle_square"),
+    ThesisItem("Table 9.3", "cube-sphere, uniform", "ap_table", "cube_sphere"),
+    ThesisItem("Fig. 9.4", "adaptive mesh snapshot (2D view)", "adaptive_snapshot",
+               "circle_square"),
+    ThesisItem("Table 9.4", "cube-sphere, adaptive (eta_1 + eta_2)", "adaptive_table",
+               "cube_sphere"),
+    ThesisItem("Fig. 9.5", "cube-sphere: von Mises stress", "fields_figure", "cube_sphere"),
+    ThesisItem("Fig. 9.6", "cube-sphere: T_solve against N", "ap_time", "cube_sphere"),
+    ThesisItem("Fig. 9.7", "cube-sphere: max eta_T against N", "adaptive_eta", "cube_sphere"),
+    ThesisItem("Fig. 9.8", "cube-sphere: kappa(S-hat) against N", "ap_kappa", "cube_sphere"),
+    ThesisItem("Fig. 9.9", "cube-sphere: contact surface mesh of the adaptive run",
+               "adaptive_snapshot", "cube_sphere"),
+    ThesisItem("Sect. 9.2 (Hertz)", "cube-sphere against the Hertz point contact", "hertz",
+               "cube_sphere"),
+    ThesisItem("Figs. 9.10-9.16", "roll stack: pressure along the work roll, mesh, stresses, "
+               "sag curves", None, note="the roll-stack scene (issue 10): open"),
+)
+
+
+def thesis_item_files(config: dict, item: ThesisItem) -> list[str]:
+    """The files regenerating ``item`` under ``config`` (empty: not at this config)."""
+    if item.key is None:
+        return []
+    study = next(s for s in STUDIES.values() if item.key in s.outputs or any(
+        item.key in outs for _, outs in s.extra))
+    if study.name not in config:
+        return []
+    template = PATHS[item.key]
+    if "{case}" in template:
+        return [template.format(case=c) for c in
+                config[study.name].get("cases", ["sin10x", "linear"])]
+    if "{scene}" not in template:
+        return [template]
+    scenes = scenes_of(config, study.name)
+    return [template.format(scene=item.problem)] if item.problem in scenes else []
 
 
 def exact_args(config: dict, scene: str) -> str:
@@ -354,6 +441,12 @@ def log_path(rule: str, name: str = "{scene}") -> str:
 def bench_path(rule: str, name: str = "{scene}") -> str:
     """The Snakemake benchmark file of a rule's job."""
     return PATHS["benchmark"].format(rule=rule, name=name)
+
+
+def summary_items(config: dict) -> str:
+    """Every study output as ``key@scene=path`` arguments of ``report/summary.py``."""
+    return " ".join(f"{key}@{scene or '-'}={path}" for study in STUDIES.values()
+                    for key, scene, path in study.items(config))
 
 
 def all_targets(config: dict) -> list[str]:

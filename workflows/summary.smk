@@ -1,0 +1,19 @@
+# The one-page summary at the top of the HTML report: provenance, every checked claim with
+# its bar and pass/miss, every thesis table and figure with its output, ours beside the
+# thesis's, run time and peak memory per rule. Runs after every study's outputs.
+
+rule summary:
+    input: all_targets(config)
+    output:
+        html=report(PATHS["summary_html"], caption="../report/captions/summary.rst",
+                    category="0 summary", subcategory="summary"),
+        claims=report(PATHS["summary_claims"], caption="../report/captions/summary_claims.rst",
+                      category="0 summary", subcategory="claims")
+    log: log_path("summary", "all")
+    conda: ENV
+    params:
+        py=PY, outputs=summary_items(config), scale=SCALE,
+        bench=os.path.dirname(os.path.dirname(PATHS["benchmark"]))
+    shell:
+        "{params.py} -m report.summary --items {params.outputs} --benchmarks {params.bench} "
+        "--scale {params.scale} --html {output.html} --claims {output.claims} > {log} 2>&1"
