@@ -8,8 +8,12 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 SCALE  ?= quick
 CORES  ?= 2
+PROFILE ?= workflows/profiles/default
+REPORT := results/report.html
+# Debian's Chromium, for the test that opens the HTML report in a real browser
+CHROMIUM ?= /usr/bin/chromium
 
-.PHONY: setup run full test bench clean
+.PHONY: setup browser run full test bench clean
 
 $(BIN)/contactbench: pyproject.toml constraints.txt
 	@command -v $(PYTHON) >/dev/null 2>&1 || { echo "error: $(PYTHON) not found; set PYTHON=/path/to/python3.11"; exit 2; }
@@ -20,17 +24,29 @@ $(BIN)/contactbench: pyproject.toml constraints.txt
 
 setup: $(BIN)/contactbench
 
+# the regeneration, then Snakemake's HTML report of it (the summary page first)
 run: setup
-	$(BIN)/snakemake --cores $(CORES) --configfile workflows/config/$(SCALE).yaml --rerun-incomplete
+	$(BIN)/snakemake --profile $(PROFILE) --cores $(CORES) --configfile workflows/config/$(SCALE).yaml
+	$(BIN)/snakemake --profile $(PROFILE) --cores $(CORES) --configfile workflows/config/$(SCALE).yaml --report $(REPORT)
+	@echo "report: $(REPORT)"
 
 full: setup
 	$(MAKE) run SCALE=full
 
-test: setup
-	$(BIN)/python -m pytest -q
+browser: $(CHROMIUM)
 
+$(CHROMIUM):
+	@command -v apt-get >/dev/null 2>&1 || { echo "error: $(CHROMIUM) not found and no apt-get; install Chromium and set CHROMIUM=/path/to/chromium"; exit 2; }
+	apt-get install -y --no-install-recommends chromium || { apt-get update && apt-get install -y --no-install-recommends chromium; }
+
+test: setup browser
+	CONTACTBENCH_CHROMIUM=$(CHROMIUM) $(BIN)/python -m pytest -q
+
+# pytest-benchmark history in .benchmarks/ (not committed): each run saved and compared
+# with the previous one
 bench: setup
-	$(BIN)/python -m pytest -q tests --benchmark-enable --benchmark-only
+	$(BIN)/python -m pytest -q tests --benchmark-enable --benchmark-only --benchmark-autosave \
+		$$(ls .benchmarks/*/*.json >/dev/null 2>&1 && echo --benchmark-compare)
 
 clean:
 	rm -rf results/*/ .snakemake

@@ -30,7 +30,7 @@ import pandas as pd
 
 from report import adaptive, contact, hard_cases, laplace
 from workflows.io import META, provenance, read_csv, write_csv, write_text
-from workflows.studies import PATHS, STUDIES, THESIS_ITEMS
+from workflows.studies import HEAVY_RULES, PATHS, STUDIES, THESIS_ITEMS
 
 #: PATHS key -> claims of that output (a frame with claim, measured, bar, pass).
 CLAIMS: dict[str, Callable[[pd.DataFrame], pd.DataFrame]] = {
@@ -143,8 +143,7 @@ def resources(bench_dir: str | None) -> pd.DataFrame:
         if not frames:
             continue
         b = pd.concat(frames, ignore_index=True)
-        rows.append({"study": next((s for s in STUDIES if rule_dir.name.startswith(s[:8])),
-                                   "-"),
+        rows.append({"study": HEAVY_RULES.get(rule_dir.name, "-"),
                      "rule": rule_dir.name, "jobs": len(frames),
                      "wall_s_total": float(b["s"].sum()), "wall_s_max": float(b["s"].max()),
                      "max_rss_mb": float(pd.to_numeric(b["max_rss"], errors="coerce").max())})

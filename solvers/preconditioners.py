@@ -19,6 +19,7 @@ Machinery only (no ``SOLVER``): :mod:`solvers.augmented_projection` builds on it
 from __future__ import annotations
 
 import time
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Callable
 
@@ -121,6 +122,19 @@ def _as_blocked(A: sp.spmatrix, dim: int, free_dofs: np.ndarray | None):
     return sp.csr_matrix(A)
 
 
+@contextmanager
+def _seeded_global_rng(seed: int = 0):
+    """pyamg estimates spectral radii (Jacobi weights, prolongation smoothing) from
+    ``np.random.rand`` start vectors: seed the global generator while a hierarchy is
+    set up, so that two runs give the same hierarchy, and restore it afterwards."""
+    state = np.random.get_state()
+    np.random.seed(seed)
+    try:
+        yield
+    finally:
+        np.random.set_state(state)
+
+
 def sa_hierarchy(A: sp.spmatrix, near_null: np.ndarray | None, dim: int,
                  free_dofs: np.ndarray | None, smoother: str, sweeps: int, max_coarse: int):
     """pyamg smoothed aggregation with ``near_null`` (rigid-body modes per body).
@@ -132,9 +146,10 @@ def sa_hierarchy(A: sp.spmatrix, near_null: np.ndarray | None, dim: int,
     Ab = _as_blocked(A, dim, free_dofs)
     sm = _smoother(smoother, sweeps, sp.isspmatrix_bsr(Ab))
     B = None if near_null is None else np.asarray(near_null, dtype=float)
-    return pyamg.smoothed_aggregation_solver(
-        Ab, B=B, max_coarse=max_coarse, presmoother=sm, postsmoother=sm,
-        improve_candidates=None, coarse_solver="splu")
+    with _seeded_global_rng():
+        return pyamg.smoothed_aggregation_solver(
+            Ab, B=B, max_coarse=max_coarse, presmoother=sm, postsmoother=sm,
+            improve_candidates=None, coarse_solver="splu")
 
 
 def geometric_hierarchy(A: sp.spmatrix, prolongations: list, smoother: str, sweeps: int):
@@ -160,7 +175,8 @@ def geometric_hierarchy(A: sp.spmatrix, prolongations: list, smoother: str, swee
     levels.append(coarse)
     ml = MultilevelSolver(levels, coarse_solver="splu")
     sm = _smoother(smoother, sweeps, blocked=False)
-    change_smoothers(ml, presmoother=sm, postsmoother=sm)
+    with _seeded_global_rng():
+        change_smoothers(ml, presmoother=sm, postsmoother=sm)
     return ml
 
 

@@ -2,6 +2,7 @@
 directory, and the Snakemake workflow: dry run, lint, config validation, scenes by config."""
 from __future__ import annotations
 
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -245,3 +246,40 @@ def test_studies_declare_their_outputs_once():
     assert not any(t.startswith("results/flat_blocks/adaptive") for t in targets)
     smk = "".join(p.read_text() for p in (ROOT / "workflows").glob("*.smk"))
     assert "results/" not in smk          # every path comes from workflows/studies.py
+
+
+def test_slurm_profile_dry_run_plans_every_job_with_its_resources():
+    """Under workflows/profiles/slurm (the executor plugin is in the test extra) a dry run
+    plans every job; each heavy rule's jobs carry the mem_mb and runtime its config
+    declares, every other job the profile's defaults."""
+    from workflows.studies import HEAVY_RULES
+
+    config = yaml.safe_load((ROOT / "workflows/config/quick.yaml").read_text())
+    out = snakemake("-n", "--forceall", "--profile", "workflows/profiles/slurm")
+    assert out.returncode == 0, (out.stdout + out.stderr)[-3000:]
+    jobs = re.findall(r"^rule (\w+):\n(.*?)(?=^\[|\Z)", out.stdout, flags=re.M | re.S)
+    counts = dict(re.findall(r"^(\w+)\s+(\d+)$", out.stdout, flags=re.M))
+    assert len(jobs) == int(counts["total"]) and len(jobs) >= 50
+    for rule, block in jobs:
+        res = dict(re.findall(r"(\w+)=([^,\s]+)", re.search(r"resources: (.*)", block)[1]))
+        want = config["resources"][rule] if rule in HEAVY_RULES else {"mem_mb": 1000,
+                                                                     "runtime": 10}
+        assert int(res["mem_mb"]) == want["mem_mb"] and int(res["runtime"]) == want["runtime"], (
+            rule, res)
+    assert set(HEAVY_RULES) <= {rule for rule, _ in jobs}
+
+
+def test_every_heavy_rule_has_a_benchmark_and_measured_resources():
+    from workflows.studies import HEAVY_RULES
+
+    smk = {p.name: p.read_text() for p in (ROOT / "workflows").glob("*.smk")}
+    for rule in HEAVY_RULES:
+        text = next(t for t in smk.values() if f"rule {rule}:" in t)
+        block = text.split(f"rule {rule}:")[1].split("\nrule ")[0]
+        assert f'bench_path("{rule}"' in block and f'rule_resources(config, "{rule}")' in block
+    for scale in ("tiny", "quick", "full"):
+        config = yaml.safe_load((ROOT / f"workflows/config/{scale}.yaml").read_text())
+        check_config(config)                         # a configured study needs its resources
+        config["resources"].pop("contact_level")
+        with pytest.raises(ConfigError, match="'resources.contact_level'"):
+            check_config(config)

@@ -15,6 +15,7 @@ rule adaptive_study:
         surfaces=expand(PATHS["adaptive_surface"], variant=AD_FILES, allow_missing=True)
     log: log_path("adaptive_study")
     benchmark: bench_path("adaptive_study")
+    resources: **rule_resources(config, "adaptive_study")
     threads: 2
     conda: ENV
     params:
@@ -79,6 +80,8 @@ rule adaptive_figures:
 rule patch_test:
     output: runs=PATHS["patch_runs"], pressure=PATHS["patch_pressure"]
     log: log_path("patch_test")
+    benchmark: bench_path("patch_test")
+    resources: **rule_resources(config, "patch_test")
     conda: ENV
     params:
         py=PY, scene=lambda w: set_args(config, w.scene),

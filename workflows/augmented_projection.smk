@@ -7,6 +7,7 @@ rule augmented_projection_study:
     output: PATHS["ap_study"]
     log: log_path("augmented_projection_study")
     benchmark: bench_path("augmented_projection_study")
+    resources: **rule_resources(config, "augmented_projection_study")
     threads: 2
     conda: ENV
     params:

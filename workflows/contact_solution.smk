@@ -5,6 +5,8 @@ rule contact_level:
     output:
         contact=PATHS["contact_level"], hertz=PATHS["hertz_level"], vtu=PATHS["fields_level"]
     log: log_path("contact_level", "{scene}_L{level}")
+    benchmark: bench_path("contact_level", "{scene}_L{level}")
+    resources: **rule_resources(config, "contact_level")
     wildcard_constraints: level=r"\d+"
     conda: ENV
     params:

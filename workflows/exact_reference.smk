@@ -6,6 +6,7 @@ rule exact_reference:
     output: PATHS["exact_runs"]
     log: log_path("exact_reference")
     benchmark: bench_path("exact_reference")
+    resources: **rule_resources(config, "exact_reference")
     threads: 2
     conda: ENV
     params: py=PY, scene=lambda w: set_args(config, w.scene), levels=lambda w: exact_args(config, w.scene)

@@ -6,6 +6,7 @@ rule hard_case:
     output: PATHS["hard_case_runs"]
     log: log_path("hard_case", "{scene}_L{level}")
     benchmark: bench_path("hard_case", "{scene}_L{level}")
+    resources: **rule_resources(config, "hard_case")
     wildcard_constraints: level=r"\d+"
     threads: 2  # timings: nothing else runs beside it
     conda: ENV

@@ -28,7 +28,7 @@ from typing import Any, Iterator
 import numpy as np
 
 PACKAGES = ("numpy", "scipy", "scikit-fem", "ngsolve", "pyamg", "osqp", "proxsuite", "clarabel",
-            "piqp", "qpalm", "pandas", "meshio", "matplotlib", "snakemake")
+            "piqp", "qpalm", "pandas", "meshio", "matplotlib", "snakemake", "mkl")
 
 
 #: Marker of the temporary files :func:`atomic_path` writes (swept if a process died).

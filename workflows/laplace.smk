@@ -5,6 +5,8 @@ LAP = config.get("laplace_nonmatching", {})
 rule laplace_errors:
     output: PATHS["laplace_runs"]
     log: log_path("laplace_errors", "{case}_{side}")
+    benchmark: bench_path("laplace_errors", "{case}_{side}")
+    resources: **rule_resources(config, "laplace_errors")
     wildcard_constraints: case="sin10x|linear", side="coarse|fine"
     conda: ENV
     params: py=PY, levels=" ".join(map(str, LAP.get("levels", []))), ratio=LAP.get("ratio")

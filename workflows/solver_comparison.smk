@@ -6,6 +6,7 @@ rule solver_comparison:
     output: PATHS["solver_runs"]
     log: log_path("solver_comparison", "{scene}_L{level}")
     benchmark: bench_path("solver_comparison", "{scene}_L{level}")
+    resources: **rule_resources(config, "solver_comparison")
     wildcard_constraints: level=r"\d+"
     threads: 2  # timings: nothing else runs beside it
     conda: ENV

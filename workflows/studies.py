@@ -392,6 +392,11 @@ def check_config(config: dict) -> None:
                               f"not allowed; allowed: among exact_reference.scenes.{scene} "
                               f"{runs.get(scene, [])}")
     _check_adaptive(config, registry)
+    for rule, study in HEAVY_RULES.items():
+        if study in config and not {"mem_mb", "runtime"} <= set(
+                config.get("resources", {}).get(rule, {})):
+            raise ConfigError(f"config 'resources.{rule}': the study {study!r} runs, so declare "
+                              "its measured mem_mb and runtime (minutes)")
 
 
 def _check_adaptive(config: dict, registry: dict) -> None:
@@ -441,6 +446,29 @@ def log_path(rule: str, name: str = "{scene}") -> str:
 def bench_path(rule: str, name: str = "{scene}") -> str:
     """The Snakemake benchmark file of a rule's job."""
     return PATHS["benchmark"].format(rule=rule, name=name)
+
+
+#: The rules whose jobs carry a ``benchmark:`` file and measured ``resources:`` (the
+#: heavy ones), and the study each belongs to.
+HEAVY_RULES = {
+    "laplace_errors": "laplace_nonmatching",
+    "contact_level": "contact_solution",
+    "solver_comparison": "solver_comparison",
+    "augmented_projection_study": "augmented_projection",
+    "exact_reference": "exact_reference",
+    "hard_case": "hard_cases",
+    "adaptive_study": "adaptive",
+    "patch_test": "adaptive",
+}
+
+
+def rule_resources(config: dict, rule: str) -> dict:
+    """``resources:`` of a heavy rule: ``mem_mb`` and ``runtime`` (minutes) from the
+    config's ``resources`` section, measured per scale from the rules' benchmark files
+    (``check_config`` requires them for every configured study; empty otherwise)."""
+    if rule not in HEAVY_RULES:
+        raise KeyError(f"rule {rule!r} is not a heavy rule; allowed: {sorted(HEAVY_RULES)}")
+    return dict(config.get("resources", {}).get(rule, {}))
 
 
 def summary_items(config: dict) -> str:

@@ -1,0 +1,229 @@
+"""The whole regeneration, end to end, at the tiny scale (workflows/config/tiny.yaml):
+every target made, the HTML report opened in headless Chromium with every figure present,
+an interrupted run resumed without redoing finished jobs or leaving a half-written file,
+and two runs giving identical results apart from timing columns.
+
+Two regenerations run here (~1-2 minutes each on 2 cores): a plain one and one that is
+interrupted (SIGINT to the whole process group, as Ctrl-C does) and then resumed.
+"""
+from __future__ import annotations
+
+import os
+import re
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pandas as pd
+import pytest
+import yaml
+
+from workflows.io import META, PARTIAL, check_result
+from workflows.studies import PATHS, all_targets
+
+ROOT = Path(__file__).resolve().parent.parent
+SNAKEMAKE = Path(sys.executable).parent / "snakemake"
+TINY = ROOT / "workflows/config/tiny.yaml"
+PROFILE = ROOT / "workflows/profiles/default"
+
+#: Columns that measure time, memory or the machine, not the mathematics (the only
+#: ones two runs may disagree in).
+TIMING = re.compile(r"(^|_)(t|s|cpu|wall|rss|mb|peak|memory|created)($|_)|time|seconds|speedup|"
+                    r"floor_ratio|ratio_to_floor")
+
+
+#: Claims whose measured value is a time ratio or a time's growth.
+TIMING_CLAIM = re.compile(r"T_solve|time|faster|speed")
+
+
+def regenerate(cwd: Path, *extra: str, popen: bool = False):
+    cmd = [str(SNAKEMAKE), "-s", str(ROOT / "Snakefile"), "--configfile", str(TINY),
+           "--profile", str(PROFILE), "--cores", "2", *extra]
+    if popen:
+        return subprocess.Popen(cmd, cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                                text=True, start_new_session=True)
+    return subprocess.run(cmd, cwd=cwd, capture_output=True, text=True, timeout=1800)
+
+
+def targets() -> list[str]:
+    config = yaml.safe_load(TINY.read_text())
+    return all_targets(config) + [PATHS["summary_html"], PATHS["summary_claims"]]
+
+
+@pytest.fixture(scope="module")
+def tiny_run(tmp_path_factory) -> Path:
+    cwd = tmp_path_factory.mktemp("tiny")
+    out = regenerate(cwd)
+    assert out.returncode == 0, (out.stdout + out.stderr)[-4000:]
+    return cwd
+
+
+@pytest.fixture(scope="module")
+def resumed_run(tmp_path_factory):
+    """A regeneration interrupted once a few jobs have finished, then resumed."""
+    cwd = tmp_path_factory.mktemp("resumed")
+    bench = cwd / "results" / "benchmarks"
+    proc = regenerate(cwd, popen=True)
+    deadline = time.monotonic() + 900
+    while time.monotonic() < deadline and proc.poll() is None:
+        if bench.exists() and len(list(bench.rglob("*.tsv"))) >= 4:
+            break
+        time.sleep(0.5)
+    assert proc.poll() is None, "the run ended before it could be interrupted"
+    os.killpg(proc.pid, signal.SIGINT)
+    log = proc.communicate(timeout=300)[0]
+    assert proc.returncode != 0, "the interrupted run claims success"
+    after_interrupt = {p: p.stat().st_mtime_ns for p in (cwd / "results").rglob("*")
+                       if p.is_file() and Path(str(p) + META).exists()}
+    broken = [str(p) for p in after_interrupt if not check_result(p)]
+    resumed = regenerate(cwd)
+    return cwd, log, after_interrupt, broken, resumed
+
+
+def test_tiny_regeneration_makes_every_target(tiny_run):
+    missing = [t for t in targets() if not (tiny_run / t).exists()]
+    assert not missing
+    claims = pd.read_csv(tiny_run / PATHS["summary_claims"], keep_default_na=False)
+    assert len(claims) >= 10 and set(claims["result"]) <= {"pass", "miss", "n/a"}
+    out = regenerate(tiny_run, "-n")
+    assert out.returncode == 0 and "Nothing to be done" in out.stdout + out.stderr
+
+
+def test_every_result_has_provenance(tiny_run):
+    import json
+
+    for t in targets():
+        meta = json.loads(Path(str(tiny_run / t) + META).read_text())
+        prov = meta["provenance"]
+        assert prov["commit"] and prov["cpu_model"] and prov["packages"]["numpy"]
+        assert prov["configfile"].endswith("tiny.yaml") and len(prov["config_sha256"]) == 64
+
+
+#: Headless Chromium as root on a closed network (no sandbox, no background traffic).
+BROWSER_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networking",
+                "--disable-component-update", "--disable-sync", "--no-first-run"]
+
+
+def chromium() -> str | None:
+    path = os.environ.get("CONTACTBENCH_CHROMIUM") or shutil.which("chromium") or shutil.which(
+        "chromium-browser")
+    return path if path and Path(path).exists() else None
+
+
+def test_html_report_opens_in_chromium_with_every_figure(tiny_run):
+    """Snakemake's report in a real (headless) browser: the summary page's category comes
+    first, and every registered figure renders as a decoded image."""
+    if chromium() is None:
+        if os.environ.get("CONTACTBENCH_CHROMIUM"):
+            pytest.fail(f"CONTACTBENCH_CHROMIUM={os.environ['CONTACTBENCH_CHROMIUM']} not found")
+        pytest.skip("no Chromium on this machine (`make test` installs Debian's chromium)")
+    from playwright.sync_api import sync_playwright
+
+    out = regenerate(tiny_run, "--report", "report.html")
+    assert out.returncode == 0, out.stderr[-3000:]
+    figures = sorted(t for t in targets() if t.endswith(".png"))
+    assert len(figures) >= 15
+    with sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=chromium(), args=BROWSER_ARGS)
+        page = browser.new_page()
+        errors = []
+        page.on("pageerror", lambda e: errors.append(str(e)))
+        page.goto((tiny_run / "report.html").as_uri())
+        page.wait_for_selector("text=0 summary", timeout=60_000)
+        shown = report_figures(page)
+        browser.close()
+    assert not errors
+    assert sorted(shown) == figures, set(figures) ^ set(shown)
+    assert all(size[0] > 100 and size[1] > 100 for size in shown.values()), shown
+
+
+def report_figures(page) -> dict[str, tuple[int, int]]:
+    """Every PNG the report registers, found through the report's own search and opened
+    with its eye button as a reader would; returns file name -> the decoded image's
+    natural size (``img.decode()`` fails on a broken image)."""
+    registered = page.evaluate("Object.keys(results)")
+    shown = {}
+    for path in (k for k in registered if k.endswith(".png")):
+        page.locator("nav ol li a").first.click()                 # home
+        search = page.locator("input[placeholder='Search...']")
+        search.fill(path)
+        search.press("Enter")
+        page.locator(f"tr:has-text('{path}')").first.locator("a[iconname=eye]").click()
+        name = Path(path).name
+        img = page.wait_for_selector(f"img[src*='filename={name};']", timeout=20_000)
+        shown[path] = tuple(page.evaluate(
+            "i => i.decode().then(() => [i.naturalWidth, i.naturalHeight])", img))
+    return shown
+
+
+def test_summary_page_renders_in_the_report(tiny_run):
+    """The summary page (category '0 summary', first in the menu) shows its provenance
+    and the counts of checked claims."""
+    if chromium() is None:
+        pytest.skip("no Chromium on this machine (`make test` installs Debian's chromium)")
+    from playwright.sync_api import sync_playwright
+
+    report = tiny_run / "report.html"
+    if not report.exists():
+        out = regenerate(tiny_run, "--report", "report.html")
+        assert out.returncode == 0, out.stderr[-3000:]
+    with sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=chromium(), args=BROWSER_ARGS)
+        page = browser.new_page()
+        page.goto(report.as_uri())
+        page.wait_for_selector("text=0 summary", timeout=60_000)
+        menu = page.locator("nav li a").all_inner_texts()
+        page.click("text=0 summary")
+        page.click("nav >> text=summary >> nth=-1")
+        page.locator("tr:has-text('summary.html')").first.locator("a[iconname=eye]").click()
+        summary = page.frame_locator("iframe").first          # the report shows HTML framed
+        summary.locator("text=Checked claims").wait_for(timeout=20_000)
+        body = summary.locator("body").inner_text()
+        browser.close()
+    results = [m.strip() for m in menu if m.strip()]
+    assert results.index("0 summary") < results.index("circle_square")
+    assert "Provenance" in body and re.search(r"\d+ pass", body) and "Table 9.1" in body
+
+
+def test_interrupted_run_resumes_without_redoing_finished_jobs(resumed_run):
+    cwd, log, after_interrupt, broken, resumed = resumed_run
+    assert after_interrupt, "nothing had finished before the interrupt"
+    assert not broken, f"half-written results after the interrupt: {broken}"
+    assert resumed.returncode == 0, (resumed.stdout + resumed.stderr)[-4000:]
+    redone = [str(p) for p, mtime in after_interrupt.items()
+              if p.exists() and p.stat().st_mtime_ns != mtime]
+    assert not redone, f"finished results rebuilt after the resume: {redone}"
+    assert not [p for p in (cwd / "results").rglob(f"*{PARTIAL}*")]
+    assert not [t for t in targets() if not (cwd / t).exists()]
+
+
+def comparable(frame: pd.DataFrame) -> pd.DataFrame:
+    """``frame`` without what measures time or memory: timing columns, claims about time
+    (their measured value is a time ratio or slope), and the row order (tables sorted
+    by a time)."""
+    frame = frame[[c for c in frame.columns if not TIMING.search(str(c))]]
+    if "claim" in frame.columns:
+        frame = frame[~frame["claim"].astype(str).str.contains(TIMING_CLAIM)]
+    return frame.sort_values(list(frame.columns), key=lambda c: c.astype(str)).reset_index(
+        drop=True)
+
+
+def test_two_runs_agree_apart_from_timing_columns(tiny_run, resumed_run):
+    """Seeded and deterministic: every CSV of the plain run equals the resumed run's,
+    bit for bit, except what measures time or memory (:func:`comparable`)."""
+    other = resumed_run[0]
+    csvs = sorted(p.relative_to(tiny_run) for p in (tiny_run / "results").rglob("*.csv")
+                  if "benchmarks" not in p.parts)
+    assert len(csvs) >= 20
+    differing = {}
+    for rel in csvs:
+        a, b = (pd.read_csv(root / rel, keep_default_na=False) for root in (tiny_run, other))
+        assert list(a.columns) == list(b.columns) and len(a) == len(b), rel
+        a, b = comparable(a), comparable(b)
+        cols = [c for c in a.columns if not a[c].equals(b[c])]
+        if cols:
+            differing[str(rel)] = cols
+    assert not differing, differing

@@ -1,0 +1,96 @@
+"""The summary page at the top of the HTML report (report/summary.py): items, claims with
+pass/miss, the thesis's items with their status, provenance disagreements, resources."""
+from __future__ import annotations
+
+import json
+
+import pandas as pd
+import pytest
+
+from report import summary
+from workflows.io import META, write_csv
+from workflows.studies import HEAVY_RULES, PATHS, THESIS_ITEMS
+
+
+def test_parse_items_names_the_bad_item():
+    assert summary.parse_items(["hertz@circle_square=a.csv", "laplace_rates@-=b.csv"]) == [
+        ("hertz", "circle_square", "a.csv"), ("laplace_rates", None, "b.csv")]
+    for bad in ("hertz=a.csv", "nokey@x=a.csv", "hertz@x="):
+        with pytest.raises(ValueError, match="--items"):
+            summary.parse_items([bad])
+
+
+def _hertz(path, devs):
+    write_csv(path, pd.DataFrame({"level": range(1, len(devs) + 1), "a_over_h": 5.0,
+                                  "dev_a_moment": devs, "dev_p0_moment": devs}))
+
+
+def test_claims_are_judged_from_the_outputs(tmp_path):
+    good, bad = tmp_path / "good.csv", tmp_path / "bad.csv"
+    _hertz(good, [0.2, 0.01])            # within the 5 % bar and falling
+    _hertz(bad, [0.01, 0.2])             # outside the bar and rising
+    items = summary.parse_items([f"hertz@circle_square={good}", f"hertz@cube_sphere={bad}"])
+    claims = summary.collect_claims(items)
+    assert set(claims["study"]) == {"contact_solution"}
+    assert (claims[claims.scene == "circle_square"]["result"] == "pass").all()
+    assert (claims[claims.scene == "cube_sphere"]["result"] == "miss").all()
+    assert len(claims) == 8                # a and p0: the bar and the trend, per scene
+
+
+def test_thesis_rows_cover_every_item_with_its_status(tmp_path):
+    items = [("ap_table", "circle_square", "results/circle_square/augmented_projection_table.csv")]
+    rows = summary.thesis_rows(items, "quick.yaml")
+    assert len(rows) == len(THESIS_ITEMS)
+    table_9_1 = rows[rows.thesis == "Table 9.1"].iloc[0]
+    assert table_9_1.status == "regenerated" and "augmented_projection" in table_9_1.output
+    assert rows[rows.thesis == "Table 9.3"].iloc[0].status == "not in this configuration"
+    assert set(rows.status) <= {"regenerated", "not regenerated", "not in this configuration"}
+
+
+def test_provenance_disagreement_is_reported(tmp_path):
+    paths = []
+    for k, commit in enumerate(("abc", "abc", "def+dirty")):
+        p = tmp_path / f"r{k}.csv"
+        p.write_text("x\n1\n")
+        (tmp_path / f"r{k}.csv{META}").write_text(json.dumps(
+            {"provenance": {"commit": commit, "created": f"2026-11-2{k}T00:00:00"}}))
+        paths.append(str(p))
+    newest, varying = summary.read_provenance(paths)
+    assert newest["commit"] == "def+dirty"
+    assert varying["commit"] == {"abc": 2, "def+dirty": 1}
+
+
+def test_resources_per_rule_and_study(tmp_path):
+    for rule, name, s, rss in (("contact_level", "a_L1", 2.0, 100.0),
+                               ("contact_level", "a_L2", 5.0, 300.0),
+                               ("patch_test", "flat", 1.0, 50.0)):
+        (tmp_path / rule).mkdir(exist_ok=True)
+        (tmp_path / rule / f"{name}.tsv").write_text(
+            "s\th:m:s\tmax_rss\tmax_vms\n" f"{s}\t0:00:0{int(s)}\t{rss}\t1.0\n")
+    res = summary.resources(str(tmp_path)).set_index("rule")
+    assert res.loc["contact_level", "jobs"] == 2
+    assert res.loc["contact_level", "wall_s_total"] == 7.0
+    assert res.loc["contact_level", "max_rss_mb"] == 300.0
+    assert res.loc["patch_test", "study"] == HEAVY_RULES["patch_test"] == "adaptive"
+    assert summary.resources(str(tmp_path / "none")).empty
+
+
+def test_main_writes_page_and_claims(tmp_path):
+    hertz = tmp_path / "hertz.csv"
+    _hertz(hertz, [0.2, 0.01])
+    html, claims = tmp_path / "s.html", tmp_path / "c.csv"
+    summary.main(["--items", f"hertz@circle_square={hertz}", "--scale", "tiny",
+                  "--html", str(html), "--claims", str(claims)])
+    text = html.read_text()
+    assert "4 pass" in text and "0 miss" in text and "Table 9.1" in text
+    assert "No benchmark files found" in text
+    assert len(pd.read_csv(claims)) == 4
+
+
+def test_main_rejects_a_bad_item(tmp_path, capsys):
+    with pytest.raises(SystemExit) as err:
+        summary.main(["--items", "nokey@x=y.csv", "--html", str(tmp_path / "s.html"),
+                      "--claims", str(tmp_path / "c.csv")])
+    assert err.value.code == 2 and "--items" in capsys.readouterr().err
+    assert not (tmp_path / "s.html").exists()
+    assert "summary_html" in PATHS
