@@ -16,7 +16,10 @@ from problems.spec import Parameter, ParameterError, problems, resolve_parameter
 from solvers.interface import solve, solvers
 from workflows.cli import main
 
-CONTACT_SCENES = sorted(n for n, s in problems().items() if s.kind == "contact")
+#: the roll stack's floating work roll defeats pdas's Schur route and the augmented
+#: projection; tests/test_roll_stack.py asserts every solver's status on it instead
+CONTACT_SCENES = sorted(n for n, s in problems().items()
+                        if s.kind == "contact" and n != "roll_stack")
 SOLVERS = sorted(solvers())
 
 

@@ -250,7 +250,8 @@ def assemble_two_body(scene: TwoBodyScene, level: int, name: str = "") -> Contac
                              [s[3] for s in surf], coarsening)
     # nodes whose ray misses the opposing surface (grazing contact) carry no constraint
     # (Alg. 7.1 drops them): the finest surface level keeps the rows that exist
-    surface.prolongations[-1] = surface.prolongations[-1][cc.found].tocsr()
+    if surface.prolongations:            # (a single-level scene has no surface coarsening)
+        surface.prolongations[-1] = surface.prolongations[-1][cc.found].tocsr()
     surface.masses[-1] = surface.masses[-1][cc.found]
     surface.sizes[-1] = surface.sizes[-1][cc.found]
 
