@@ -287,8 +287,10 @@ THESIS_ITEMS = (
     ThesisItem("Sect. 9.2 (Hertz)", "cube-sphere against the Hertz point contact", "hertz",
                "cube_sphere"),
     ThesisItem("Figs. 9.10-9.16", "roll stack: pressure along the work roll, mesh, stresses, "
-               "sag curves", None, note="the roll-stack scene (issue 10): the scene problems/roll_stack.py and its tests "
-               "exist; the study (profiles, figures, VTU) is open"),
+               "sag curves", None,
+               note="the scene problems/roll_stack.py and its tests exist; the study (profiles, "
+                    "figures, VTU) waits for a solver that handles the floating work roll at "
+                    "the resolving level (issue 10)"),
 )
 
 
