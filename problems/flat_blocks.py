@@ -35,8 +35,11 @@ Couplings (``coupling``):
   the constrained side's P1 hats ``phi_i`` (their sum is 1 on the interface, so a
   uniform pressure is transmitted exactly), integrated exactly on the merged 1D mesh.
   The pressure is again ``p_i / m_i``.
-* The stabilised two-sided nodal constraints of Sect. 7.5 ((7.10)/(7.11)) join here as a
-  third coupling with that formulation.
+* ``stabilised``: the nodal constraints plus the stabilised reverse rows of Sect. 7.5
+  ((7.10)/(7.11), :func:`problems.fem.stabilised.stabilise` with ``alpha`` and
+  ``penalty``): the opposing side's nodes are penalised for penetrating. The pressure
+  is the total multiplier on the constrained nodes over their lumped mass
+  (:func:`problems.qp.surface_multipliers`).
 
 A discretisation that transmits the uniform pressure passes; one that does not
 shows the deviation of its nodal pressure from q (the classic node-to-segment
@@ -48,12 +51,13 @@ import numpy as np
 import scipy.sparse as sp
 
 from problems.fem.mesh import Hierarchy, nested_prolongation, structured_square
+from problems.fem.stabilised import stabilise
 from problems.fem.surface import tensor_coarsening
 from problems.fem.two_body import Body, TwoBodyScene, assemble_two_body
 from problems.qp import ContactQP
 from problems.spec import Options, Parameter, ParameterError, ProblemSpec
 
-COUPLINGS = ("nodal", "mortar")
+COUPLINGS = ("nodal", "mortar", "stabilised")
 
 
 def parse_ratio(text: str) -> tuple[int, int]:
@@ -162,6 +166,8 @@ def build(level: int, p: Options) -> ContactQP:
     sc = scene(level, p)
     qp = assemble_two_body(sc, level, name=f"flat_blocks level {level} ({p.coupling}, "
                                            f"{p.constrained} side constrained)")
+    if p.coupling == "stabilised":
+        return stabilise(qp, p.alpha, p.penalty)
     return mortar(qp, sc, p.gap) if p.coupling == "mortar" else qp
 
 
@@ -176,8 +182,12 @@ PROBLEM = ProblemSpec(
         Parameter("ratio", "2:3", "cells per unit length of the lower : upper block"),
         Parameter("constrained", "coarse", "which block carries the constraints: the coarse "
                   "one (fewer cells; the lower at 2:3) or the fine one", choices=("coarse", "fine")),
-        Parameter("coupling", "nodal", "nodal constraints (Alg. 7.1) or mortar weighted gaps",
-                  choices=COUPLINGS),
+        Parameter("coupling", "nodal", "nodal constraints (Alg. 7.1), mortar weighted gaps "
+                  "or the stabilised two-sided nodal constraints (Sect. 7.5)", choices=COUPLINGS),
+        Parameter("alpha", 1.0, "stabilised coupling: exponent alpha of h^(-2 alpha) in (7.10)",
+                  low=0.0, high=2.0),
+        Parameter("penalty", 1.0, "stabilised coupling: penalty factor (k = penalty E* "
+                  "l^(2 alpha - 1), problems/fem/stabilised.py)", low=0.0, low_open=True),
         Parameter("E", 1.0, "Young's modulus of both blocks", low=0.0, low_open=True),
         Parameter("nu", 0.3, "Poisson ratio of both blocks", low=-1.0, high=0.5, low_open=True,
                   high_open=True),

@@ -166,6 +166,46 @@ class HertzSetup:
 
 
 @dataclass
+class Stabilisation:
+    """The reverse rows of the stabilised two-sided nodal constraints (Sect. 7.5).
+
+    A stabilised ContactQP (:func:`problems.fem.stabilised.stabilise`) has the
+    nodal constraints of the constrained surface first (``qp.contact`` describes
+    them, ``C`` is zero there) and then one row per node of the opposing surface
+    that finds the constrained surface along ``-n`` (the penetrations (7.9) of
+    Fig. 7.1), penalised by ``C_ii = h_i^(2 alpha) / (k m_i)`` ((7.10)/(7.11)).
+
+    Attributes
+    ----------
+    nodes : (r,) int array
+        Opposing-surface node behind each reverse row.
+    mass : (r,) array
+        Its lumped mass on the opposing surface.
+    size : (r,) array
+        Local mesh size ``h_i`` of the opposing surface there.
+    transfer : (r, m_c) sparse
+        Barycentric weights of the constrained facet each reverse row hits, on the
+        constrained rows: the reverse multipliers act on the constrained surface as
+        ``transfer' p_r`` (:func:`surface_multipliers`).
+    alpha : float
+        Exponent of ``h`` in (7.10).
+    modulus : float
+        ``k`` (force per area times length^(2 alpha - 1)).
+    """
+
+    nodes: np.ndarray
+    mass: np.ndarray
+    size: np.ndarray
+    transfer: sp.spmatrix
+    alpha: float
+    modulus: float
+
+    @property
+    def n_rows(self) -> int:
+        return len(self.nodes)
+
+
+@dataclass
 class ContactQP:
     """The algebraic contact problem ``min 1/2 u'Au - f'u  s.t.  Bu - Cp <= g``.
 
@@ -193,6 +233,10 @@ class ContactQP:
     contact : ContactSurface, optional
     multilevel : Multilevel
     hertz : HertzSetup, optional
+    stabilisation : Stabilisation, optional
+        Set when the last ``stabilisation.n_rows`` rows of ``B`` are the reverse rows
+        of Sect. 7.5; ``contact`` and ``multilevel.surface`` describe the first
+        ``m_contact`` rows.
     name : str
         Scene and level, for reports.
     units : str
@@ -216,6 +260,7 @@ class ContactQP:
     contact: ContactSurface | None = None
     multilevel: Multilevel = field(default_factory=Multilevel)
     hertz: HertzSetup | None = None
+    stabilisation: Stabilisation | None = None
     name: str = ""
     units: str = "dimensionless"
     level: int = 0
@@ -239,6 +284,11 @@ class ContactQP:
     def m(self) -> int:
         """Number of constraints (constrained nodes, N^C)."""
         return self.B.shape[0]
+
+    @property
+    def m_contact(self) -> int:
+        """Rows of the constrained surface (all rows unless stabilised, Sect. 7.5)."""
+        return self.m - (self.stabilisation.n_rows if self.stabilisation is not None else 0)
 
     @property
     def n_nodes(self) -> int:
@@ -284,9 +334,24 @@ class ContactQP:
             raise QPValidationError(f"C must have shape ({m}, {m}), got {self.C.shape}")
         if self.free_dofs is not None and np.shape(self.free_dofs) != (n,):
             raise QPValidationError(f"free_dofs must have shape ({n},), got {np.shape(self.free_dofs)}")
+        st = self.stabilisation
+        if st is not None:
+            r = st.n_rows
+            if not 0 < r < m:
+                raise QPValidationError(f"stabilisation has {r} reverse rows; allowed: 1..{m - 1} "
+                                        f"(B has {m} rows)")
+            if self.C is None or np.any(self.C.diagonal()[m - r:] <= 0):
+                raise QPValidationError("stabilisation needs C > 0 on its reverse rows")
+            for name in ("mass", "size"):
+                if np.shape(getattr(st, name)) != (r,) or np.any(getattr(st, name) <= 0):
+                    raise QPValidationError(f"stabilisation.{name} must be {r} positive numbers")
+            if st.transfer.shape != (r, m - r):
+                raise QPValidationError(f"stabilisation.transfer must have shape {(r, m - r)}, "
+                                        f"got {st.transfer.shape}")
+        mc = self.m_contact
         if self.contact is not None:
             c = self.contact
-            for name, shape in (("nodes", (m,)), ("mass", (m,)), ("direction", (m, self.dim))):
+            for name, shape in (("nodes", (mc,)), ("mass", (mc,)), ("direction", (mc, self.dim))):
                 if np.shape(getattr(c, name)) != shape:
                     raise QPValidationError(f"contact.{name} must have shape {shape}, "
                                             f"got {np.shape(getattr(c, name))}")
@@ -303,8 +368,8 @@ class ContactQP:
             if len(s.masses) != len(s.sizes) or len(s.prolongations) != len(s.masses) - 1:
                 raise QPValidationError("multilevel.surface: masses, sizes and prolongations "
                                         "do not describe the same levels")
-            if len(s.masses[-1]) != m or len(s.sizes[-1]) != m:
-                raise QPValidationError(f"multilevel.surface must end on the {m} constraints, "
+            if len(s.masses[-1]) != mc or len(s.sizes[-1]) != mc:
+                raise QPValidationError(f"multilevel.surface must end on the {mc} constraints, "
                                         f"got {len(s.masses[-1])}")
 
     def full_displacement(self, u: np.ndarray) -> np.ndarray:
@@ -324,6 +389,48 @@ class ContactQP:
         if self.mesh is None or self.contact is None:
             raise QPValidationError("this ContactQP has no mesh/contact surface")
         return self.mesh.points[self.contact.nodes]
+
+
+def surface_multipliers(qp: ContactQP, p: np.ndarray) -> np.ndarray:
+    """The multipliers acting on the constrained surface's rows (``qp.m_contact`` of them).
+
+    ``p`` itself without a stabilisation; with one (Sect. 7.5) the reverse rows'
+    multipliers are spread onto the constrained nodes of the facet each one hits,
+    ``p_c + T' p_r`` (``T = stabilisation.transfer``): the total force on the
+    constrained surface. The pressure is this over ``contact.mass`` (Sect. 8.6).
+    """
+    p = np.asarray(p, dtype=float)
+    if qp.stabilisation is None:
+        return p
+    mc = qp.m_contact
+    return p[:mc] + qp.stabilisation.transfer.T @ p[mc:]
+
+
+def slack_form(qp: ContactQP) -> ContactQP:
+    """The equivalent QP without ``C``, for solvers that take ``Bu <= g`` only (Sect. 7.5).
+
+    With ``C = diag(c)`` (``c_i >= 0``) and one slack ``s_i`` per row with ``c_i > 0``::
+
+        min 1/2 u'Au - f'u + 1/2 s' diag(1/c) s   s.t.  B_h u <= g_h,  B_s u - s <= g_s
+
+    has the same ``u`` and the same multipliers (stationarity in ``s`` gives
+    ``s = c p``, so ``B_s u - c p <= g_s``): ``min_s`` of the slack term is the
+    penalty ``1/2 (B_s u - g_s)_+^2 / c`` of (7.10). The unknowns are ``(u, s)``;
+    ``u = x[:qp.n]``. Mesh and contact data are kept for output; the multilevel data
+    are dropped (the slack unknowns are on no mesh).
+    """
+    if qp.C is None:
+        return qp
+    c = qp.C.diagonal()
+    if abs(qp.C - sp.diags(c)).max() > 0 or np.any(c < 0):
+        raise QPValidationError("slack_form needs a diagonal C >= 0")
+    soft = np.flatnonzero(c > 0)
+    k = soft.size
+    A = sp.block_diag([qp.A, sp.diags(1.0 / c[soft])], format="csr")
+    S = sp.csr_matrix((-np.ones(k), (soft, np.arange(k))), shape=(qp.m, k))
+    return ContactQP(A=A, f=np.concatenate([qp.f, np.zeros(k)]), B=sp.hstack([qp.B, S]).tocsr(),
+                     g=qp.g, dim=qp.dim, name=qp.name + " (slack form)", units=qp.units,
+                     level=qp.level)
 
 
 @dataclass
@@ -448,11 +555,11 @@ class DualityGap:
         return self.certified and self.relative_energy_bound <= max(tol, 4.0 * self.floor)
 
 
-def _pivots(qp: ContactQP) -> tuple[np.ndarray, np.ndarray]:
-    """One unknown per constraint to move it with: the constrained node's component
-    along the row's direction if free (a contact code would move the constrained
-    surface), else the row's largest entry. Returns ``(pivot, coefficient)``."""
-    B = qp.B.tocsr()
+def _pivots(qp: ContactQP, B: sp.csr_matrix) -> tuple[np.ndarray, np.ndarray]:
+    """One unknown per row of ``B`` (the constrained surface's rows of ``qp``) to move it
+    with: the constrained node's component along the row's direction if free (a
+    contact code would move the constrained surface), else the row's largest entry.
+    Returns ``(pivot, coefficient)``."""
     pivot = np.asarray(abs(B).argmax(axis=1)).ravel()
     if qp.contact is not None and qp.free_dofs is not None and qp.u_fixed is not None:
         pos = -np.ones(len(qp.u_fixed), dtype=np.int64)
@@ -460,30 +567,34 @@ def _pivots(qp: ContactQP) -> tuple[np.ndarray, np.ndarray]:
         comp = np.abs(qp.contact.direction).argmax(axis=1)
         own = pos[qp.contact.nodes * qp.dim + comp]
         pivot = np.where(own >= 0, own, pivot)
-    return pivot, np.asarray(B[np.arange(qp.m), pivot]).ravel()
+    return pivot, np.asarray(B[np.arange(B.shape[0]), pivot]).ravel()
 
 
 def feasible_point(qp: ContactQP, u: np.ndarray, tight: np.ndarray | None = None,
                    sweeps: int = 3) -> tuple[np.ndarray, bool]:
-    """``u_f = u + delta`` with ``B u_f <= g``, and ``B u_f = g`` on the rows ``tight``.
+    """``u_f = u + delta`` with ``B u_f <= g``, and ``B u_f = g`` on the rows ``tight``,
+    on the constrained surface's rows (the first ``qp.m_contact``; a stabilised
+    problem's reverse rows are penalised, not hard).
 
     Each violated (or, in ``tight``, slack) row is moved on its pivot unknown
     (:func:`_pivots`); rows sharing unknowns interact, so up to ``sweeps``
     passes. Returns ``(u_f, feasible)``.
     """
     u_f = np.array(u, dtype=float)
-    if qp.m == 0:
+    mc = qp.m_contact
+    if mc == 0:
         return u_f, True
-    pivot, coef = _pivots(qp)
-    tight = np.zeros(qp.m, dtype=bool) if tight is None else np.asarray(tight, dtype=bool)
-    scale = max(float(np.max(np.abs(qp.B @ u_f))), float(np.max(np.abs(qp.g))), 1e-300)
+    B, g = qp.B.tocsr()[:mc], qp.g[:mc]
+    pivot, coef = _pivots(qp, B)
+    tight = np.zeros(mc, dtype=bool) if tight is None else np.asarray(tight, dtype=bool)
+    scale = max(float(np.max(np.abs(B @ u_f))), float(np.max(np.abs(g))), 1e-300)
     for _ in range(sweeps):
-        res = qp.B @ u_f - qp.g
+        res = B @ u_f - g
         move = (res > 0) | (tight & (res < 0))
         if not move.any():
             break
         np.subtract.at(u_f, pivot[move], res[move] / coef[move])
-    return u_f, bool(np.all(qp.B @ u_f - qp.g <= 1e-14 * scale))
+    return u_f, bool(np.all(B @ u_f - g <= 1e-14 * scale))
 
 
 def duality_gap(qp: ContactQP, u: np.ndarray, p: np.ndarray,
@@ -504,8 +615,9 @@ def duality_gap(qp: ContactQP, u: np.ndarray, p: np.ndarray,
     complementarity error would otherwise dominate the bound of its ``u``).
     Each pair costs one linear solve; with ``target`` the search stops at the
     first pair whose bound meets it. With a stabilisation block ``C`` (Sect. 7.5;
-    diagonal) the primal function ``P(u) = J(u) + 1/2 v'C^{-1}v``,
-    ``v = (Bu - g)_+``, needs no feasible point:
+    diagonal, zero on the hard rows, which come first) the primal function is
+    ``P(u) = J(u) + 1/2 v'C^{-1}v``, ``v = (Bu - g)_+`` on the rows with ``C > 0``;
+    ``u`` is made feasible on the hard rows only:
     ``P(u) - q(p) = 1/2 ||u - x||_A^2 + p'(g - Bu) + 1/2 p'Cp + 1/2 v'C^{-1}v``.
     """
     eps = np.finfo(float).eps
@@ -533,11 +645,18 @@ def duality_gap(qp: ContactQP, u: np.ndarray, p: np.ndarray,
 
     if qp.C is not None:
         c = qp.C.diagonal()
-        if abs(qp.C - sp.diags(c)).max() > 0 or np.any(c <= 0):
+        soft = c > 0
+        hard_rows = np.flatnonzero(~soft)
+        if (abs(qp.C - sp.diags(c)).max() > 0 or np.any(c < 0)
+                or np.any(hard_rows >= qp.m_contact)):
             return DualityGap(inf, inf, 0.0, inf, inf, inf, inf, False)
-        v = np.maximum(qp.B @ u - qp.g, 0.0)
+        u_f, feasible = feasible_point(qp, u) if hard_rows.size else (u, True)
+        if not feasible:
+            return DualityGap(inf, inf, inf, inf, inf, inf, inf, False)
+        v = np.maximum(qp.B @ u_f - qp.g, 0.0)[soft]
         gap, shift, bound, rel, floor, relgap = pair(
-            u, p_plus, 0.5 * float(p_plus @ (c * p_plus)) + 0.5 * float(v @ (v / c)))
+            u_f, p_plus, 0.5 * float(p_plus[soft] @ (c[soft] * p_plus[soft]))
+            + 0.5 * float(v @ (v / c[soft])))
         return DualityGap(gap, relgap, shift, bound, rel, floor, relgap, True)
     u_f, feasible = feasible_point(qp, u)
     if not feasible:

@@ -422,7 +422,8 @@ def resolve_kinds(qp: ContactQP, ahat: Component, schur: Component) -> tuple[str
         a = "gmg" if qp.multilevel.prolongations else "sa"
     s = schur.kind
     if s == "auto":
-        s = "multilevel" if (qp.multilevel.surface is not None and qp.m > 2) else "inexact"
+        s = ("multilevel" if (qp.multilevel.surface is not None and qp.m > 2
+                              and qp.stabilisation is None) else "inexact")
     return a, s
 
 
@@ -649,6 +650,7 @@ SOLVER = SolverSpec(
              "high": "stop when the verified KKT max <= 1e-9"},
     default_max_iter=2000,
     role="thesis",
+    handles_C=True,
 )
 
 

@@ -20,7 +20,8 @@ from typing import Any, Callable
 
 import numpy as np
 
-from problems.qp import ContactQP, DualityGap, KKTResiduals, duality_gap, kkt_residuals
+from problems.qp import (ContactQP, DualityGap, KKTResiduals, duality_gap, kkt_residuals,
+                        slack_form)
 from problems.spec import (Options, Parameter, ParameterError, discover, lookup,
                            resolve_parameters)
 
@@ -117,6 +118,10 @@ class SolverSpec:
     role : str
         ``"reference"`` (general QP solvers), ``"exact"`` (ground truth) or
         ``"thesis"`` (the augmented projection of Alg. 8.4).
+    handles_C : bool
+        The solver takes a stabilisation block ``C`` (Sect. 7.5) as it is; for the
+        others :func:`solve` hands over the equivalent slack form
+        (:func:`problems.qp.slack_form`) and maps the answer back.
     """
 
     name: str
@@ -126,6 +131,7 @@ class SolverSpec:
     presets: dict = field(default_factory=dict)
     default_max_iter: int = 10_000
     role: str = "reference"
+    handles_C: bool = False
 
     def options(self, **given: Any) -> Options:
         """The resolved options: defaults overridden by ``given``, validated."""
@@ -187,9 +193,18 @@ def solve(qp: ContactQP, solver: str = "pdas", tol: float | str = "mid",
             raise ParameterError(f"parameter '{name}': shape {np.shape(guess)} is not allowed; "
                                  f"allowed: ({size},)")
     opts = spec.options(**options)
+    target = qp
+    if qp.C is not None and not spec.handles_C:      # Sect. 7.5 through slack variables
+        target = slack_form(qp)
+        if u0 is not None:
+            soft = qp.C.diagonal() > 0
+            u0 = np.concatenate([u0, (qp.B @ u0 - qp.g)[soft]])
     t0 = time.perf_counter()
     try:
-        result = spec.solve(qp, tol, max_iter, time_limit, u0, p0, opts)
+        result = spec.solve(target, tol, max_iter, time_limit, u0, p0, opts)
+        if target is not qp:
+            result.u = np.asarray(result.u)[:qp.n]
+            result.message = (result.message + "; " if result.message else "") + "slack form"
     except (MemoryError, np.linalg.LinAlgError, RuntimeError, ValueError) as err:
         if isinstance(err, ParameterError):
             raise

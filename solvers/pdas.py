@@ -370,4 +370,5 @@ SOLVER = SolverSpec(
              "high": "exact (stops when the active set repeats); tol only judges the result"},
     default_max_iter=100,
     role="exact",
+    handles_C=True,
 )

@@ -448,6 +448,10 @@ def build_schur(kind: str, qp: ContactQP, Ainv: ScaledVCycle, lanczos_steps: int
         sh = SchurPreconditioner("jacobi", lambda q: Sj @ q, m, Sj.diagonal().copy())
     elif kind == "multilevel":
         surface = qp.multilevel.surface
+        if qp.stabilisation is not None:
+            raise ValueError("schur=multilevel covers the constrained surface's rows only; the "
+                             "stabilised problem (Sect. 7.5) has reverse rows too: use "
+                             "schur=inexact or jacobi")
         if surface is None:
             raise ValueError("schur=multilevel needs the nested constrained-surface meshes "
                              "(qp.multilevel.surface), which this problem does not supply; "

@@ -183,12 +183,13 @@ def study(tmp_path_factory):
 
     out = tmp_path_factory.mktemp("adaptive")
     files = {"steps": out / "steps.csv",
-             "fields": [out / "eta1.vtu", out / "eta1_eta2.vtu"],
-             "surfaces": [out / "eta1_surface.csv", out / "eta1_eta2_surface.csv"]}
+             "fields": [out / "eta1.vtu", out / "eta1_eta2.vtu", out / "stabilised.vtu"],
+             "surfaces": [out / "eta1_surface.csv", out / "eta1_eta2_surface.csv",
+                          out / "stabilised_surface.csv"]}
     adaptive_study.main(["--problem", "circle_square", "--start-level", "0", "--max-nodes",
                          "1600", "--error-max-nodes", "5000", "--uniform-levels", "0", "1",
-                         "--variants", "eta1",
-                         "eta1+eta2", "--steps", str(files["steps"]),
+                         "--variants", "eta1", "eta1+eta2", "stabilised",
+                         "--steps", str(files["steps"]),
                          "--fields", *map(str, files["fields"]),
                          "--surfaces", *map(str, files["surfaces"])])
     return out, files
@@ -197,7 +198,7 @@ def study(tmp_path_factory):
 def test_adaptive_study_script(study):
     out, files = study
     s = pd.read_csv(files["steps"])
-    assert set(s.variant) == {"eta1", "eta1+eta2", "uniform", "reference"}
+    assert set(s.variant) == {"eta1", "eta1+eta2", "stabilised", "uniform", "reference"}
     ref = s[s.variant == "reference"].iloc[0]
     assert ref["solver"] == "pdas" and ref["kkt_max"] < 1e-10   # the dual route
     cmp = s[s.variant != "reference"]
@@ -205,7 +206,7 @@ def test_adaptive_study_script(study):
     assert (cmp["err_energy"] < 0.3).all()
     u = s[s.variant == "uniform"].sort_values("N")
     assert list(u["N"]) == [1099, 4237] and u["err_energy"].is_monotonic_decreasing
-    for v in ("eta1", "eta1+eta2"):
+    for v in ("eta1", "eta1+eta2", "stabilised"):
         run = s[s.variant == v].sort_values("step")
         assert run["N"].is_monotonic_increasing and run["N"].iloc[-1] >= 1600
         assert run["err_energy"].iloc[-1] < 0.7 * run["err_energy"].iloc[0]
@@ -215,7 +216,13 @@ def test_adaptive_study_script(study):
     first = eta2.sort_values("step").iloc[0]
     assert first["eta2_weight"] * first["sum_eta2_sq"] == pytest.approx(first["sum_eta1_sq"])
     assert (eta2["n_outer_1e-03"] > 0).all() and (eta2["kappa_S"] > 1).all()
-    assert (s.loc[s.variant == "eta1", "eta2_weight"] == 0).all()
+    assert (s.loc[s.variant.isin(["eta1", "stabilised"]), "eta2_weight"] == 0).all()
+    stab = s[s.variant == "stabilised"]
+    assert (stab.discretisation == "stabilised").all() and (stab.estimator == "eta1").all()
+    # the contact force is the constrained surface's, reverse rows included, and stays the
+    # nodal run's to a few per cent (the same load)
+    nodal_force = s[s.variant == "eta1"].sort_values("step")["force"].iloc[0]
+    assert stab.sort_values("step")["force"].iloc[0] == pytest.approx(nodal_force, rel=0.03)
     shares = cmp[["err_share_contact", "err_share_singular", "err_share_rest"]].sum(axis=1)
     np.testing.assert_allclose(shares, 1.0)
     for f in files["fields"] + files["surfaces"]:
@@ -245,7 +252,8 @@ def test_adaptive_report(study, tmp_path):
     figs = {k: str(tmp_path / f"{k}.png") for k in ("meshes", "snapshot", "eta", "error",
                                                      "pressure")}
     rep.main(["figures", "--steps", str(files["steps"]), "--accuracy", names["accuracy"],
-              "--variants", "eta1", "eta1+eta2", "--vtus", *map(str, files["fields"]),
+              "--variants", "eta1", "eta1+eta2", "stabilised",
+              "--vtus", *map(str, files["fields"]),
               "--surfaces", *map(str, files["surfaces"]),
               *[a for k, v in figs.items() for a in (f"--fig-{k}", v)]])
     for f in figs.values():
@@ -277,12 +285,15 @@ def test_patch_scripts(tmp_path):
     patch_test.main(["--problem", "flat_blocks", "--levels", "0", "1", "--out", str(runs),
                      "--pressure", str(pressure)])
     r = pd.read_csv(runs)
-    assert len(r) == 8 and (r.status == "converged").all()
+    assert len(r) == 12 and (r.status == "converged").all()
     rep.main(["patch", "--runs", str(runs), "--pressure", str(pressure), "--table",
               str(tmp_path / "t.csv"), "--figure", str(tmp_path / "f.png")])
     t = pd.read_csv(tmp_path / "t.csv").set_index(["coupling", "constrained"])
     assert not t.loc[("nodal", "coarse"), "transmits_uniform_pressure"]
     assert t.loc[("mortar", "fine"), "transmits_uniform_pressure"]
+    for side in ("coarse", "fine"):           # stabilised: between nodal and exact
+        assert 1e-3 < t.loc[("stabilised", side), "dev_max_finest"] \
+            < t.loc[("nodal", side), "dev_max_finest"]
     with pytest.raises(SystemExit):
         patch_test.main(["--problem", "circle_square", "--levels", "0", "--out", "x", "--pressure",
                          "y"])

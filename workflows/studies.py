@@ -222,7 +222,7 @@ STUDIES = {
                     "against N, accuracy per node against a common finer reference (energy, "
                     "force, Hertz), the hanging-node pile-up quantified, Sect. 7.3 rates; the "
                     "contact patch test on non-matching meshes",
-            thesis="Sects. 7.3-7.5, Tables 9.2/9.4, Figs. 7.3/7.4, 9.2, 9.4, 9.7",
+            thesis="Sects. 7.3-7.5, Tables 9.2/9.4, Figs. 7.3-7.5, 9.2, 9.4, 9.7",
             outputs=("adaptive_table", "adaptive_accuracy", "adaptive_pileup",
                      "adaptive_convergence", "adaptive_meshes", "adaptive_snapshot",
                      "adaptive_eta", "adaptive_error", "adaptive_pressure"),
@@ -257,9 +257,8 @@ THESIS_ITEMS = (
     ThesisItem("Figs. 6.5/6.6 (rates)", "fitted convergence rates", "laplace_rates"),
     ThesisItem("Figs. 7.3/7.4", "adaptive meshes by eta_1 and eta_1 + eta_2 (pile-up)",
                "adaptive_meshes", "circle_square"),
-    ThesisItem("Fig. 7.5", "mesh by stabilised two-sided nodal constraints and eta_1", None,
-               note="the stabilised formulation (7.10)/(7.11) in the adaptive study: open "
-                    "(issue 9)"),
+    ThesisItem("Fig. 7.5", "mesh by stabilised two-sided nodal constraints and eta_1",
+               "adaptive_meshes", "circle_square"),
     ThesisItem("(7.8)", "convergence rates under uniform refinement, O(h^1/2)",
                "adaptive_convergence", "circle_square"),
     ThesisItem("Table 9.1", "circle-square, uniform: N^C, n_o, n_i, T_solve, T_proj, kappa",
@@ -329,12 +328,14 @@ def adaptive_variant_file(variant: str) -> str:
 def adaptive_args(config: dict, scene: str) -> str:
     """A scene's settings of the adaptive study as arguments of
     ``workflows/scripts/adaptive_study.py`` (start level, node budget, marking, the
-    eta_2 constant, variants; uniform levels of the accuracy comparison, if any)."""
+    eta_2 constant, the stabilisation, variants; uniform levels of the accuracy comparison, if any)."""
     ad = config["adaptive"]
     args = [f"--start-level {scenes_of(config, 'adaptive')[scene][0]}",
             f"--max-nodes {ad['max_nodes'][scene]}", f"--theta {ad.get('theta', 0.5)}",
             f"--eta2-weight {ad['eta2_weight']}", f"--time-limit {ad.get('time_limit', 120)}",
             f"--tol {ad.get('tol', 1e-8)}",
+            f"--alpha {ad.get('stabilisation', {}).get('alpha', 1.0)}",
+            f"--penalty {ad.get('stabilisation', {}).get('penalty', 1.0)}",
             "--variants " + " ".join(f"'{v}'" for v in ad["variants"])]
     acc = ad.get("accuracy", {}).get(scene)
     if acc:

@@ -32,14 +32,15 @@ from problems.fem.bisection import grow, label_longest_edge
 from problems.fem.estimators import VARIANTS, estimate
 from problems.fem.mesh import Hierarchy
 from problems.fem.two_body import TwoBodyScene, assemble_two_body
-from problems.qp import ContactQP, kkt_residuals
+from problems.qp import ContactQP, kkt_residuals, surface_multipliers
 
 
 #: The adaptive study's variants (Sects. 7.4, 7.5): ``name -> (estimator, discretisation)``.
-#: ``"nodal"`` is the scene's own ContactQP (the nodal constraints of Alg. 7.1). The
-#: stabilised two-sided formulation (7.10)/(7.11) marked by eta_1 (Fig. 7.5) joins as
-#: ``"stabilised": ("eta1", "stabilised")`` together with that discretisation.
-STUDY_VARIANTS = {"eta1": ("eta1", "nodal"), "eta1+eta2": ("eta1+eta2", "nodal")}
+#: ``"nodal"`` is the scene's own ContactQP (the nodal constraints of Alg. 7.1);
+#: ``"stabilised"`` the stabilised two-sided formulation (7.10)/(7.11)
+#: (:func:`problems.fem.stabilised.stabilise`), marked by eta_1 as in Fig. 7.5.
+STUDY_VARIANTS = {"eta1": ("eta1", "nodal"), "eta1+eta2": ("eta1+eta2", "nodal"),
+                  "stabilised": ("eta1", "stabilised")}
 
 
 # --------------------------------------------------------------------------- marking
@@ -125,7 +126,10 @@ def prolongate_solution(qp_coarse: ContactQP, u: np.ndarray, p: np.ndarray, qp_f
     ``p0 = M_L P_s (M_{L-1}^{-1} p)``: the pressure (multiplier over lumped
     contact mass) prolongated with the surface prolongation and multiplied by
     the new contact mass, clipped at 0 (as
-    :func:`solvers.augmented_projection.nested_initial_guess`). ``u0`` is the
+    :func:`solvers.augmented_projection.nested_initial_guess`). With the
+    stabilisation of Sect. 7.5 the pressure is the constrained surface's
+    (:func:`problems.qp.surface_multipliers`) and the fine reverse rows start
+    at zero. ``u0`` is the
     P1 prolongation of the full nodal displacement (prescribed values
     included) restricted to the free DOFs when ``node_prolongation`` (stacked
     nodal P, fine x coarse nodes) is given, else ``P u`` on the free DOFs.
@@ -134,10 +138,13 @@ def prolongate_solution(qp_coarse: ContactQP, u: np.ndarray, p: np.ndarray, qp_f
     if not ml.prolongations or ml.surface is None:
         raise ValueError("parameter 'qp_fine': multilevel.prolongations and .surface are required")
     P_s = ml.surface.prolongations[-1]
-    if P_s.shape != (qp_fine.m, qp_coarse.m):
+    if P_s.shape != (qp_fine.m_contact, qp_coarse.m_contact):
         raise ValueError(f"surface prolongation has shape {P_s.shape}, expected "
-                         f"{(qp_fine.m, qp_coarse.m)}: not consecutive levels of one scene")
-    p0 = np.maximum(P_s @ (np.asarray(p) / qp_coarse.contact.mass), 0.0) * qp_fine.contact.mass
+                         f"{(qp_fine.m_contact, qp_coarse.m_contact)}: not consecutive levels "
+                         "of one scene")
+    pressure = surface_multipliers(qp_coarse, p) / qp_coarse.contact.mass
+    p0 = np.maximum(P_s @ pressure, 0.0) * qp_fine.contact.mass
+    p0 = np.concatenate([p0, np.zeros(qp_fine.m - qp_fine.m_contact)])
     if node_prolongation is None:
         return ml.prolongations[-1] @ u, p0
     full = qp_coarse.full_displacement(u)
@@ -195,7 +202,8 @@ def adaptive_loop(make_scene: Callable, meshes, solve: SolveCallback, *,
                   tol: float | None = None, max_nodes: int | None = None, max_steps: int = 5,
                   project=None, rule: str | None = None,
                   eta2_weight: float | Callable[[int, dict], float] = 1.0,
-                  nested: bool = True, name: str = "adaptive") -> AdaptiveRun:
+                  nested: bool = True, discretise: Callable | None = None,
+                  name: str = "adaptive") -> AdaptiveRun:
     """Sect. 7.4's loop: solve, estimate, mark, refine, until a stopping rule holds.
 
     Parameters
@@ -228,6 +236,10 @@ def adaptive_loop(make_scene: Callable, meshes, solve: SolveCallback, *,
         chosen from the run itself (e.g. calibrated on the start mesh).
     nested : bool
         Start each solve from the previous solution (Alg. 8.5); else from zero.
+    discretise : callable, optional
+        ``discretise(qp) -> ContactQP`` applied to each step's nodal ContactQP before
+        it is solved, e.g. the stabilisation of Sect. 7.5
+        (``lambda qp: stabilise(qp, alpha)``); the estimators see the same mesh.
 
     Returns
     -------
@@ -254,6 +266,8 @@ def adaptive_loop(make_scene: Callable, meshes, solve: SolveCallback, *,
         level = len(meshes[0].points) - 1
         scene = make_scene(meshes)
         qp = assemble_two_body(scene, level, name=f"{name} step {step}")
+        if discretise is not None:
+            qp = discretise(qp)
         u0 = p0 = None
         if nested and prev is not None:
             node_P = sp.block_diag([h.prolongations[-1] for h in meshes], format="csr")
@@ -283,7 +297,7 @@ def adaptive_loop(make_scene: Callable, meshes, solve: SolveCallback, *,
         run.marked.append(np.flatnonzero(marked))
         run.results.append(res)
         run.records.append(StepRecord(
-            step=step, level=level, N=qp.n_nodes, NC=qp.m, n_cells=len(qp.mesh.cells),
+            step=step, level=level, N=qp.n_nodes, NC=qp.m_contact, n_cells=len(qp.mesh.cells),
             sum_eta2=total, max_eta=float(np.sqrt(eta_sq.max())), n_marked=int(marked.sum()),
             kkt_max=kkt_residuals(qp, u, p).max, iterations=int(getattr(res, "iterations", -1)),
             eta2_weight=weight))

@@ -7,7 +7,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from problems.fem.elasticity import von_mises
-from problems.qp import ContactQP
+from problems.qp import ContactQP, surface_multipliers
 
 
 def contact_fields(qp: ContactQP, u: np.ndarray, p: np.ndarray) -> dict[str, np.ndarray]:
@@ -17,14 +17,16 @@ def contact_fields(qp: ContactQP, u: np.ndarray, p: np.ndarray) -> dict[str, np.
     -------
     dict
         ``points (N, d)``, ``cells``, ``displacement (N, d)``, ``contact_pressure (N,)``
-        (``p / contact mass`` at the constrained nodes, zero elsewhere),
+        (``p / contact mass`` at the constrained nodes, zero elsewhere; with the
+        stabilisation of Sect. 7.5 the reverse rows' multipliers are spread onto the
+        constrained nodes first, :func:`problems.qp.surface_multipliers`),
         ``body (N,)`` and ``von_mises (n_cells,)``.
     """
     mesh = qp.mesh
     disp = qp.full_displacement(u)
     pressure = np.zeros(mesh.n_nodes)
     if qp.contact is not None:
-        pressure[qp.contact.nodes] = np.asarray(p) / qp.contact.mass
+        pressure[qp.contact.nodes] = surface_multipliers(qp, p) / qp.contact.mass
     vm = von_mises(mesh.points, mesh.cells, disp, mesh.E_cell, mesh.nu_cell)
     return {"points": mesh.points, "cells": mesh.cells, "displacement": disp,
             "contact_pressure": pressure, "body": mesh.body_of_node, "von_mises": vm}
@@ -44,9 +46,10 @@ def contact_state(qp: ContactQP, u: np.ndarray, p: np.ndarray,
     scale = max(float(np.max(np.abs(qp.g))) if qp.m else 0.0, 1e-300)
     out: dict[str, Any] = {"p": p, "gap": slack, "active": (p > 0) & (slack <= active_tol * scale)}
     if qp.contact is not None:
+        pc = surface_multipliers(qp, p)
         out["x"] = qp.constrained_points()
-        out["pressure"] = p / qp.contact.mass
-        out["force"] = (p[:, None] * qp.contact.direction).sum(axis=0)
+        out["pressure"] = pc / qp.contact.mass
+        out["force"] = (pc[:, None] * qp.contact.direction).sum(axis=0)
     return out
 
 
@@ -74,7 +77,7 @@ def hertz_comparison(qp: ContactQP, p: np.ndarray) -> dict[str, float]:
     if qp.hertz is None:
         raise ValueError(f"{qp.name or 'this problem'} has no Hertz reference (qp.hertz)")
     kind, R, E_star = qp.hertz.kind, qp.hertz.radius, qp.hertz.E_star
-    p = np.asarray(p, dtype=float)
+    p = surface_multipliers(qp, p)
     pressure = p / qp.contact.mass
     x = in_plane(qp)
     P = float(p.sum())

@@ -6,8 +6,11 @@ discretisation): solve, estimate, mark (Doerfler, theta = ``--theta``), bisect, 
 the mesh has ``--max-nodes`` nodes. Every step is solved from the previous step's
 solution (Alg. 8.5). The scene's module supplies ``scene(level, params)`` (its
 :class:`problems.fem.two_body.TwoBodyScene`). A variant whose discretisation is not the
-scene's own nodal one (the stabilised formulation (7.10)/(7.11), to come) is the place
-where that discretisation plugs in: ``run_study`` raises NotImplementedError for it.
+scene's own nodal one is built from it per step: ``stabilised`` is the stabilised
+two-sided formulation (7.10)/(7.11) (:func:`problems.fem.stabilised.stabilise` with
+``--alpha`` and ``--penalty``), marked by eta_1 as the thesis's Fig. 7.5; its pressure and
+force are those on the constrained surface (:func:`problems.qp.surface_multipliers`), its
+KKT residual that of the stabilised problem.
 
 * The run of ``--table-variant`` (eta_1 + eta_2, as in the thesis's tables) is solved
   by Alg. 8.4 (``alg84``: geometric multigrid A-hat on the adaptive hierarchy,
@@ -69,8 +72,9 @@ from problems.fem.elasticity import boundary_facets, stiffness_matrix
 from problems.fem.estimators import estimate
 from problems.fem.fields import contact_fields, hertz_comparison, in_plane
 from problems.fem.mesh import project_to_circle
+from problems.fem.stabilised import stabilise
 from problems.fem.two_body import assemble_two_body
-from problems.qp import ContactQP, kkt_residuals
+from problems.qp import ContactQP, kkt_residuals, surface_multipliers
 from solvers import augmented_projection as ap
 from solvers.interface import (DIRECT_REFERENCE_LIMIT, linear_solver, reference_solve, solve,
                                verify)
@@ -151,11 +155,12 @@ def contact_measures(qp: ContactQP, u: np.ndarray, p: np.ndarray) -> dict:
     """Force, Hertz deviations, zone (pile-up), zig-zag, rms deviation from Hertz."""
     from reference import hertz
 
-    row = {"force": float(np.sum(p)), "kkt_max": kkt_residuals(qp, u, p).max,
-           "n_active": int(np.sum(p > 0))}
+    row = {"kkt_max": kkt_residuals(qp, u, p).max}
+    p_all, p = p, surface_multipliers(qp, p)       # the force on the constrained surface
+    row.update({"force": float(np.sum(p)), "n_active": int(np.sum(p > 0))})
     if qp.hertz is None or np.sum(p) <= 0:
         return row
-    row.update(hertz_comparison(qp, p))
+    row.update(hertz_comparison(qp, p_all))
     n = qp.contact.direction.mean(axis=0)
     n /= np.linalg.norm(n)
     basis = np.linalg.svd(n[None, :])[2][1:]
@@ -239,6 +244,7 @@ class Reference:
                 P: sp.csr_matrix | None = None) -> dict:
         """The errors of ``(u, p)`` on ``qp`` against the reference (module docstring)."""
         P = self.prolongation(qp) if P is None else P
+        p = surface_multipliers(qp, p)
         E = (P @ qp.full_displacement(u)) - self.U
         m = self.qp.mesh
         by_cell = acc.energy_norm_by_cell(m.points, m.cells, E, m.E_cell, m.nu_cell)
@@ -284,7 +290,7 @@ def circle_projection(scene) -> tuple:
 def run_study(spec, params, start_level: int, variants: list[str], max_nodes: int,
               theta: float, weight_spec: str, uniform_levels: list[int], error_max_nodes: int,
               table_variant: str, tol: float, time_limit: float, max_steps: int,
-              log=print):
+              stabilisation: tuple[float, float] = (1.0, 1.0), log=print):
     """Everything of one scene (module docstring). Returns ``(rows, finals)`` with
     ``finals[variant] = (qp, u, p)`` of the last step."""
     module = __import__(f"problems.{spec.name}", fromlist=["scene"])
@@ -316,8 +322,10 @@ def run_study(spec, params, start_level: int, variants: list[str], max_nodes: in
 
     for variant in variants:
         estimator, discretisation = STUDY_VARIANTS[variant]
-        if discretisation != "nodal":
-            raise NotImplementedError(f"discretisation {discretisation!r} of variant {variant!r}")
+        discretise = None
+        if discretisation == "stabilised":
+            alpha, penalty = stabilisation
+            discretise = lambda qp, a=alpha, k=penalty: stabilise(qp, a, k)
         clock = {"t": time.perf_counter()}
         timing = []
 
@@ -343,7 +351,7 @@ def run_study(spec, params, start_level: int, variants: list[str], max_nodes: in
         run = adaptive_loop(make, start, solver, estimator=estimator,
                             marking=lambda e: mark_doerfler(e, theta), max_nodes=max_nodes,
                             max_steps=max_steps, project=project, eta2_weight=weight_for(variant),
-                            name=variant)
+                            discretise=discretise, name=variant)
         log(f"{variant}: {len(run.records)} steps, {time.perf_counter() - t0:.1f} s, "
             f"stopped by {run.stop_reason}")
         runs[variant] = run
@@ -439,8 +447,9 @@ def run_study(spec, params, start_level: int, variants: list[str], max_nodes: in
 def surface_table(qp: ContactQP, p: np.ndarray) -> pd.DataFrame:
     """Both contact surfaces' nodes: kind, coordinates, pressure and activity (constrained)."""
     opp = np.unique(qp.contact.opposing_facets)
+    p = surface_multipliers(qp, p)
     x = np.vstack([qp.constrained_points(), qp.mesh.points[opp]])
-    kind = ["constrained"] * qp.m + ["opposing"] * len(opp)
+    kind = ["constrained"] * len(p) + ["opposing"] * len(opp)
     pressure = np.concatenate([p / qp.contact.mass, np.full(len(opp), np.nan)])
     active = np.concatenate([p > 0, np.zeros(len(opp), dtype=bool)])
     return pd.DataFrame({"kind": kind, **{f"x{i}": x[:, i] for i in range(x.shape[1])},
@@ -469,6 +478,11 @@ def main(argv=None) -> None:
     parser.add_argument("--tol", type=float, default=1e-8,
                         help="verified KKT target where Alg. 8.4 must finish without PDAS")
     parser.add_argument("--time-limit", type=float, default=120.0, help="seconds per solve")
+    parser.add_argument("--alpha", type=float, default=1.0,
+                        help="the stabilised variant's exponent alpha of (7.10), in [0, 2]")
+    parser.add_argument("--penalty", type=float, default=1.0,
+                        help="the stabilised variant's penalty factor (> 0; "
+                             "problems/fem/stabilised.py)")
     parser.add_argument("--steps", required=True, help="output: the per-step table (CSV)")
     parser.add_argument("--fields", nargs="+", required=True,
                         help="output: the last step's fields per variant (VTU), same order")
@@ -488,6 +502,10 @@ def main(argv=None) -> None:
                          "'calibrated', 'bound' or a number >= 0")
     if args.table_variant not in args.variants + ["none"]:
         parser.error(f"--table-variant: {args.table_variant!r} is not among --variants")
+    if not 0.0 <= args.alpha <= 2.0:
+        parser.error(f"--alpha: {args.alpha!r} is not allowed; allowed: a number in [0, 2]")
+    if not (np.isfinite(args.penalty) and args.penalty > 0):
+        parser.error(f"--penalty: {args.penalty!r} is not allowed; allowed: a number in (0, inf)")
     if args.uniform_levels and spec.make(0).dim != 2:
         parser.error("--uniform-levels: the accuracy comparison needs nested meshes (2D only)")
     t0 = time.perf_counter()
@@ -495,7 +513,7 @@ def main(argv=None) -> None:
                              args.theta, args.eta2_weight, args.uniform_levels,
                              args.error_max_nodes or args.max_nodes, args.table_variant,
                              args.tol, args.time_limit, args.max_steps,
-                             log=lambda s: print(s, flush=True))
+                             (args.alpha, args.penalty), log=lambda s: print(s, flush=True))
     for variant, vtu, surf in zip(args.variants, args.fields, args.surfaces):
         qp, u, p = finals[variant]
         write_vtu(vtu, contact_fields(qp, u, p))

@@ -1,0 +1,117 @@
+"""The stabilised two-sided nodal constraints of thesis Sect. 7.5, (7.10)/(7.11).
+
+The nodal constraints of Alg. 7.1 keep the constrained surface's nodes out of the
+opposing body, but not the opposing surface's nodes out of the constrained body:
+those "hang" between the constrained nodes and may penetrate (Fig. 7.1, the
+penetrations (7.9) that eta_T,2 measures). Sect. 7.5 penalises that penetration,
+motivated by the stabilisation (6.18) of Ch. 6::
+
+    <A_s u, v> = <A u, v> + sum_E h_E^(-2 alpha) <I_+(Bu - G), I_+(Bv - G)>_E     (7.10)
+
+with ``I_+`` the positive part at the opposing nodes. With the lumped mass
+``m_i`` of the opposing surface the term is ``sum_i k h_i^(-2 alpha) m_i (d_i)_+^2``
+(``d_i`` the penetration of node ``i``); dualised by artificial multipliers
+``p_r >= 0`` it becomes the rows (7.11)::
+
+    B_r u - C_r p_r <= g_r,    C_r = diag(h_i^(2 alpha) / (k m_i)),
+
+appended to the nodal rows (which keep ``C = 0``). Alg. 8.4 solves this with
+``C != 0`` as written; the QP solvers see the equivalent slack form
+(:func:`problems.qp.slack_form`).
+
+The constant ``k`` makes the penalty unit-free: ``k = penalty E* l^(2 alpha - 1)``
+with ``E*`` the effective modulus of the pair (Hertz's ``1/E* = sum (1 - nu^2)/E``)
+and ``l`` the extent of the constrained surface (the largest side of its
+bounding box); with ``alpha = 1/2``, ``k h^-1 = penalty E*/h`` is Nitsche's
+scaling and ``l`` drops out. The thesis gives neither ``alpha`` nor ``k`` for its
+Fig. 7.5; Ch. 6 proves ``alpha = 1`` optimal for the Laplace problem.
+
+Deviations from the thesis: the reverse rows are the nodal constraints of Alg. 7.1
+case b along ``-n`` (``n`` the mean constraint direction, as eta_T,2 measures
+them, :func:`problems.fem.estimators.penetrations`) in the reference
+configuration, not the interpolated ``I^l(B_l u - G)`` of (7.11) (the same thing
+for P1 elements and small displacements); ``h_i`` is the local size of the
+opposing surface at node ``i`` (the thesis writes one ``h`` for a uniform mesh).
+
+Pure functions: no files, no printing.
+"""
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import scipy.sparse as sp
+
+from problems.fem.contact import contact_constraints
+from problems.fem.elasticity import lumped_surface_mass
+from problems.fem.surface import facet_sizes
+from problems.qp import ContactQP, Stabilisation
+
+
+def effective_modulus(qp: ContactQP) -> float:
+    """``E*`` with ``1/E* = (1 - nu_1^2)/E_1 + (1 - nu_2^2)/E_2`` of the two bodies
+    (the constrained body and the opposing one, from the cells next to each surface)."""
+    m = qp.mesh
+    body_of_cell = m.body_of_node[m.cells[:, 0]]
+    inv = 0.0
+    for node in (qp.contact.nodes[0], qp.contact.opposing_facets[0, 0]):
+        cell = np.flatnonzero(body_of_cell == m.body_of_node[node])[0]
+        inv += (1.0 - m.nu_cell[cell] ** 2) / m.E_cell[cell]
+    return 1.0 / inv
+
+
+def stabilise(qp: ContactQP, alpha: float = 1.0, penalty: float = 1.0) -> ContactQP:
+    """The stabilised two-sided formulation (7.10)/(7.11) of a nodal ContactQP.
+
+    Parameters
+    ----------
+    qp : ContactQP
+        The nodal constraints of a two-body scene (with ``mesh`` and ``contact``).
+    alpha : float
+        Exponent in ``h^(-2 alpha)``, in [0, 2].
+    penalty : float
+        Dimensionless factor of ``k`` (module docstring), > 0.
+
+    Returns
+    -------
+    ContactQP
+        ``B = [B_c; B_r]``, ``g = [g_c; g_r]``, ``C = diag(0, C_r)`` and
+        ``stabilisation`` describing the reverse rows; ``contact`` and the
+        multilevel data (the constrained surface's hierarchy) are unchanged.
+    """
+    if not (0.0 <= alpha <= 2.0):
+        raise ValueError(f"parameter 'alpha': {alpha!r} is not allowed; allowed: a number in [0, 2]")
+    if not (np.isfinite(penalty) and penalty > 0):
+        raise ValueError(f"parameter 'penalty': {penalty!r} is not allowed; "
+                         "allowed: a number in (0, inf)")
+    if qp.mesh is None or qp.contact is None or qp.stabilisation is not None or qp.C is not None:
+        raise ValueError("parameter 'qp': a nodal ContactQP with mesh and contact, not yet "
+                         "stabilised, is required")
+    pts, c = qp.mesh.points, qp.contact
+    n = c.direction.mean(axis=0)
+    n = n / np.linalg.norm(n)
+    opposing_nodes = np.unique(c.opposing_facets)
+    cc = contact_constraints(pts, opposing_nodes, c.facets, direction=-n, search="b",
+                             n_nodes=qp.n_nodes)
+    if cc.m == 0:
+        raise ValueError("no node of the opposing surface faces the constrained surface "
+                         "along -n: nothing to stabilise")
+    row_of = -np.ones(qp.n_nodes, dtype=np.int64)
+    row_of[c.nodes] = np.arange(len(c.nodes))
+    cols = row_of[cc.facet_nodes]
+    keep = cols >= 0                  # a facet node without a row (dropped by Alg. 7.1)
+    transfer = sp.csr_matrix((cc.weights[keep], (np.nonzero(keep)[0], cols[keep])),
+                             shape=(cc.m, len(c.nodes)))
+    mass = lumped_surface_mass(pts, c.opposing_facets, qp.n_nodes)[cc.rows]
+    size = facet_sizes(pts, c.opposing_facets, cc.rows)
+    extent = float(np.ptp(pts[np.unique(c.facets)], axis=0).max())
+    k = penalty * effective_modulus(qp) * extent ** (2 * alpha - 1)
+    c_r = size ** (2 * alpha) / (k * mass)
+    B_r = cc.B[:, qp.free_dofs]
+    g_r = cc.g - cc.B @ qp.u_fixed
+    return replace(
+        qp, B=sp.vstack([qp.B, B_r]).tocsr(), g=np.concatenate([qp.g, g_r]),
+        C=sp.diags(np.concatenate([np.zeros(qp.m), c_r]), format="csr"),
+        stabilisation=Stabilisation(nodes=cc.rows, mass=mass, size=size, transfer=transfer,
+                                    alpha=float(alpha), modulus=float(k)),
+        name=f"{qp.name} (stabilised, alpha = {alpha:g})", cache={})
