@@ -343,7 +343,8 @@ def run_study(spec, params, start_level: int, variants: list[str], max_nodes: in
                 E = float(qp.mesh.E_cell[qp.mesh.body_of_node[qp.mesh.cells[:, 0]] == body][0])
                 dual_norm[len(timing) - 1] = (float(np.sqrt(max(res.p @ (qp.B @ x), 0.0))), E)
             clock["t"] = time.perf_counter()
-            log(f"{_v}: N = {qp.n_nodes}, N^C = {qp.m}, {res.status}, "
+            extra = f" + {qp.m - qp.m_contact} reverse rows" if qp.stabilisation else ""
+            log(f"{_v}: N = {qp.n_nodes}, N^C = {qp.m_contact}{extra}, {res.status}, "
                 f"kkt {res.kkt.max:.1e}, {timing[-1]['t_solve_total']:.2f} s")
             return res
 
