@@ -378,7 +378,10 @@ def figure_meshes(steps: pd.DataFrame, vtus: dict, surfaces: dict, path: str) ->
         else:
             _surface_panel_3d(axes[0, j], vtus[v], title + "\nconstrained surface (black, "
                               "coloured by pressure), opposing facets (red)")
-    fig.suptitle("Meshes near the contact (Fig. 7.3: eta_1; Fig. 7.4: eta_1 + eta_2)",
+    figs = {"eta1": "Fig. 7.3: eta_1", "eta1+eta2": "Fig. 7.4: eta_1 + eta_2",
+            "stabilised": "Fig. 7.5: stabilised (7.10), eta_1"}
+    fig.suptitle("Meshes near the contact ("
+                 + "; ".join(figs[v] for v in variants if v in figs) + ")",
                  fontsize=9)
     save_figure(fig, path)
 
