@@ -112,13 +112,16 @@ def _label(force: float) -> str:
 def pressure_figure(profiles: pd.DataFrame, contact: pd.DataFrame, path: str) -> None:
     """Fig. 9.10: the strip's line load on the work roll along x, and the contact pressure
     on the work roll's top (the largest force)."""
-    fe = profiles[(profiles.source == "fe") & (profiles.crown == profiles.crown.max())]
+    crowned = profiles[profiles.crown == profiles.crown.max()]
     fig, ax = plt.subplots(1, 2, figsize=(11, 4))
-    for force, g in fe.groupby("force"):
-        g = g.dropna(subset=["strip_line_load"]).sort_values("x")
-        ax[0].step(g.x, g.strip_line_load / 1e6, where="mid", label=f"strip, {_label(force)}")
-        q = g.dropna(subset=["q"])
-        ax[0].plot(q.x, q.q / 1e6, "o-", ms=3, label=f"contact WR-BUR, {_label(force)}")
+    for i, (force, g) in enumerate(crowned.groupby("force")):
+        s = g[g.source == "strip"].sort_values("x")
+        edges = np.concatenate([s.x - s.interval / 2, [s.x.iloc[-1] + s.interval.iloc[-1] / 2]])
+        ax[0].stairs(s.strip_line_load / 1e6, edges, color=f"C{i}",
+                     label=f"strip on the work roll, {_label(force)}")
+        q = g[g.source == "fe"].dropna(subset=["q"]).sort_values("x")
+        ax[0].plot(q.x, q.q / 1e6, "o-", ms=3, color=f"C{i}", alpha=0.6,
+                   label=f"contact WR-BUR, {_label(force)}")
     ax[0].set_xlabel("x along the rolls [m]")
     ax[0].set_ylabel("line load [MN/m]")
     ax[0].set_title("strip load on the work roll (uniform over |x| <= L/2) and contact line load",

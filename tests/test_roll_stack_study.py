@@ -115,12 +115,15 @@ def test_study_script_end_to_end(run):
         assert abs(fe / beam - 1) < 0.1
     assert (runs.sag_work_axis > runs.sag_backup_axis).all()    # the work roll rises more
     prof = pd.read_csv(run / "roll_stack_profiles.csv")
-    assert {"fe", "beam"} == set(prof.source)
+    assert {"fe", "beam", "strip"} == set(prof.source)
+    strip = prof[(prof.source == "strip") & (prof.force == 15e6) & (prof.crown == 150e-6)]
+    # the strip's load: uniform F / L over |x| <= L/2 = 0.5 m, nothing beyond
+    inside = strip.x < 0.5
+    # (to 1e-4: the uniform pressure acts on arcs of the crowned radius, which vary by 2e-5)
+    np.testing.assert_allclose(strip.strip_line_load[inside], 15e6 / 1.0, rtol=1e-4)
+    assert (strip.strip_line_load[~inside] == 0).all()
     fe = prof[(prof.source == "fe") & (prof.force == 15e6) & (prof.crown == 150e-6)]
-    strip = fe.dropna(subset=["strip_line_load"])
-    # the strip's line load integrates to the strip force (quarter: x >= 0 is half of it)
-    total = 2 * np.sum(strip.strip_line_load * study.tributary(strip.x.to_numpy()))
-    assert abs(total / 15e6 - 1) < 1e-10
+    assert fe.x.is_unique and fe.q.notna().sum() > 3
     solvers = pd.read_csv(run / "roll_stack_solvers.csv")
     assert set(solvers.status) == {"converged"} and set(solvers.solver) == {"pdas", "pdas_kkt"}
     for force in ("15", "30"):

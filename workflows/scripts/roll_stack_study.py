@@ -28,7 +28,8 @@ Then (quarter model: forces of the whole stack are 4x the model's):
 * the beam model (:func:`reference.roll_stack.solve`) at the same force and crown.
 
 Writes, into ``--outdir``: ``roll_stack_runs.csv`` (one row per force and crown),
-``roll_stack_profiles.csv`` (per force, crown, source ``fe``/``beam`` and ``x``),
+``roll_stack_profiles.csv`` (per force, crown, source and ``x``: ``fe`` per x layer,
+``beam``, ``strip`` the strip's line load per interval between layers),
 ``roll_stack_contact.csv`` (per constrained node of the crowned runs), ``roll_stack_solvers.csv``
 (every solver in ``--solvers`` at ``--solver-levels``, 15 MN crowned; n_o is the outer
 iteration count of the augmented projection), and ``roll_stack_F{MN}MN.vtu`` per force
@@ -43,6 +44,7 @@ Example::
 from __future__ import annotations
 
 import argparse
+import gc
 import time
 from pathlib import Path
 
@@ -181,14 +183,23 @@ def analyse(qp, sc, res, p, level: int) -> tuple[dict, pd.DataFrame, pd.DataFram
     for col, name in (("work_surface", "strip_profile"), ("work_strip_surface", "strip_profile_surface")):
         s0 = float(out.loc[out.x.abs() < 1e-12, col].iloc[0])
         out[name] = np.where(in_strip, 2 * (out[col] - s0), np.nan)
-    # strip line load on the work roll along x (Fig. 9.10)
+    # the strip's line load on the work roll along x (Fig. 9.10): the traction's resultant
+    # per interval between x layers (facet areas times the pressure, by facet centroid),
+    # per length; both halves in y. (Nodal sums per layer would show the tetrahedral
+    # split's uneven lumping, not the load.)
     tr = sc.tractions[0]
     cw_cells = mesh.cells[mesh.body_of_node[mesh.cells[:, 0]] == 0]
     facets = boundary_facets(cw_cells, mesh.points)
     facets = facets[tr.on(mesh.points[facets].mean(axis=1))]
-    fz = traction_vector(mesh.points, facets, np.asarray(tr.traction, float)).reshape(-1, 3)[:, 2]
-    strip = np.array([mirror_y * fz[np.abs(pts[:, 0] - xj) < tol].sum() / trib[xj] for xj in layers_w])
-    out = out.merge(pd.DataFrame({"x": layers_w, "strip_line_load": strip}), on="x", how="left")
+    v = mesh.points[facets]
+    area = 0.5 * np.linalg.norm(np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]), axis=1)
+    fz = area * float(tr.traction[2])                                      # N per facet
+    cx = v[:, :, 0].mean(axis=1) / ell
+    bins = np.searchsorted(layers_w, cx) - 1
+    per = np.bincount(bins, weights=fz, minlength=len(layers_w) - 1)[:len(layers_w) - 1]
+    strip = pd.DataFrame({"x": 0.5 * (layers_w[1:] + layers_w[:-1]),
+                          "strip_line_load": mirror_y * per / np.diff(layers_w),
+                          "interval": np.diff(layers_w)})
     out = out.merge(prof.reset_index(), on="x", how="left")
     # summary at the barrel centre
     c0 = prof.loc[prof.index.min()]
@@ -220,7 +231,8 @@ def analyse(qp, sc, res, p, level: int) -> tuple[dict, pd.DataFrame, pd.DataFram
     }
     table = pd.DataFrame({"x": xc[:, 0], "y": xc[:, 1], "z": xc[:, 2], "p": res.p,
                           "pressure": res.p / qp.contact.mass * ell ** 2})
-    return row, out, table
+    return row, pd.concat([out.assign(source="fe"), strip.assign(source="strip")],
+                          ignore_index=True), table
 
 
 def beam_profiles(p) -> tuple[dict, pd.DataFrame]:
@@ -326,7 +338,7 @@ def main(argv=None) -> None:
         row.update({"build_time": t_build, "solve_time": t_solve,
                     "wall_time": t_build + t_solve, "peak_mb": mem["peak_mb"], **brow})
         rows.append(row)
-        profiles += [prof.assign(force=p.force, crown=p.crown, source="fe"),
+        profiles += [prof.assign(force=p.force, crown=p.crown),
                      bprof.assign(force=p.force, crown=p.crown, source="beam")]
         if p.crown == args.crowns[0]:
             contacts.append(table.assign(force=p.force))
@@ -338,6 +350,7 @@ def main(argv=None) -> None:
             f"um (beam {row['beam_sag_work_axis'] * 1e6:.0f}), strip crown "
             f"{row['strip_crown'] * 1e6:.1f} um (beam {row['beam_strip_crown'] * 1e6:.1f})")
         del qp, sc, res
+        gc.collect()          # frees the factorisation (PARDISO memory) before the next run
     write_csv(out / "roll_stack_runs.csv", pd.DataFrame(rows))
     write_csv(out / "roll_stack_profiles.csv", pd.concat(profiles, ignore_index=True))
     write_csv(out / "roll_stack_contact.csv", pd.concat(contacts, ignore_index=True))
