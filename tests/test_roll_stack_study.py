@@ -196,3 +196,14 @@ def test_script_rejects_bad_arguments(tmp_path, capsys):
             study.main(base + args)
         assert err.value.code == 2 and needle in capsys.readouterr().err
     assert not list(tmp_path.iterdir())
+
+
+def test_study_outputs_do_not_depend_on_the_units(run, tmp_path):
+    """The same study in mm, N, MPa reports the same SI numbers (to round-off)."""
+    study.main(["--problem", "roll_stack", "--set", "units=mm", "--level", "0", "--forces",
+                "15e6", "--crowns", "150e-6", "--outdir", str(tmp_path)])
+    mm = pd.read_csv(tmp_path / "roll_stack_runs.csv").iloc[0]
+    m = pd.read_csv(run / "roll_stack_runs.csv").set_index(["force", "crown"]).loc[(15e6, 150e-6)]
+    for col in ("contact_force", "q0", "p0_nodal", "sag_work_axis", "sag_backup_axis",
+                "strip_crown", "spring_fraction", "work_roll_rise"):
+        assert abs(mm[col] / m[col] - 1) < 1e-9, col
