@@ -207,3 +207,16 @@ def test_study_outputs_do_not_depend_on_the_units(run, tmp_path):
     for col in ("contact_force", "q0", "p0_nodal", "sag_work_axis", "sag_backup_axis",
                 "strip_crown", "spring_fraction", "work_roll_rise"):
         assert abs(mm[col] / m[col] - 1) < 1e-9, col
+
+
+@pytest.mark.parametrize("scale", ["tiny", "quick", "full"])
+def test_schema_accepts_the_configs_and_refuses_unknown_roll_stack_keys(scale):
+    from snakemake.exceptions import WorkflowError
+    from snakemake.utils import validate
+
+    schema = str(ROOT / "workflows/config.schema.yaml")
+    c = config(scale)
+    validate(copy.deepcopy(c), schema)
+    c["roll_stack"]["crown"] = [0.0]                        # a typo: 'crowns'
+    with pytest.raises(WorkflowError, match="crown"):
+        validate(c, schema)
