@@ -27,8 +27,15 @@ the rolls (``x = 0`` at the mill centre), ``y`` the rolling direction, ``z`` up.
   the ``y`` translation and the spin about its axis) is removed by weak grounded
   springs (``u_y``, ``u_z``) on the nodes of its neck end faces, ``spring * E * R_w``
   per node (force per length): the spring force is reported by
-  :func:`problems.fem.two_body.spring_forces` and is ~2.5e-5 of the strip force
-  (tested below 1e-4).
+  :func:`problems.fem.two_body.spring_forces` and is 1.5e-5 to 5.4e-5 of the strip force
+  at levels 0-3 (tested below 1e-4). The springs leave ``A`` nearly singular (the
+  work roll's vertical translation has a Rayleigh quotient of ~7e-10 of the diagonal):
+  solvers that factorise ``A`` must keep that mode apart
+  (:func:`problems.qp.floating_modes`, :class:`solvers.cholesky.FloatingCholesky`; the
+  exact PDAS does), otherwise the contact solution is a difference of metre-sized
+  rigid motions. Stiffer springs are no cure: the spring force is their stiffness times
+  the roll's rigid rise (~0.3-0.5 mm), so 1e-4 of the strip force allows at most ~2x
+  the present stiffness, which changes the conditioning by as little.
 
 Model: ``model="quarter"`` (default) keeps ``x >= 0, y >= 0`` with the symmetry
 conditions ``u_x = 0`` on ``x = 0`` and ``u_y = 0`` on ``y = 0``; ``model="half"``
@@ -293,12 +300,16 @@ def scene(level: int, p: Options) -> TwoBodyScene:
                                   SHOULDER * ell) * (1 - 1e-9)
         return on_surface & (x[:, 0] <= bw + tol) & (np.abs(x[:, 1]) <= band + tol) & (x[:, 2] > 0)
 
+    # facets are selected by centroid; the symmetry plane x = 0 is a boundary of the model
+    # but not a surface of the rolls (its facets' centroids lie on x = 0, the barrel's
+    # facets' beyond it): neither the strip nor the contact acts there
     def on_opposing(c):
         r = np.hypot(c[:, 1], c[:, 2] - (Rw + Rb))
-        return (c[:, 0] <= bb + tol) & (r > 0.99 * Rb) & (c[:, 2] < Rw + Rb)
+        return (c[:, 0] > tol) & (c[:, 0] <= bb + tol) & (r > 0.99 * Rb) & (c[:, 2] < Rw + Rb)
 
     def in_bite(c):
-        return (c[:, 0] <= L / 2 + tol) & (np.abs(c[:, 1]) <= bite / 2 + tol) & (c[:, 2] < -0.9 * Rw)
+        return ((c[:, 0] > tol) & (c[:, 0] <= L / 2 + tol) & (np.abs(c[:, 1]) <= bite / 2 + tol)
+                & (c[:, 2] < -0.9 * Rw))
 
     # the traction giving the strip force exactly on the selected facets
     facets = boundary_facets(cw, pw)

@@ -42,11 +42,12 @@ CLAIMS: dict[str, Callable[[pd.DataFrame], pd.DataFrame]] = {
     "adaptive_pileup": lambda t: adaptive.claims(pileup=t),
     "patch_table": lambda t: adaptive.claims(patch=t),
     "hard_table": hard_cases.claims,
+    "roll_claims": lambda t: t,
 }
 
 #: Tables shown inline (ours beside the thesis's where it has values).
 INLINE = ("ap_table", "adaptive_table", "hertz", "laplace_rates", "exact_table",
-          "solver_summary")
+          "solver_summary", "roll_table")
 
 STYLE = """
 body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;margin:1.2em 2em;

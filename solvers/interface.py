@@ -225,7 +225,9 @@ DIRECT_LINEAR_LIMIT = {2: 2_500_000, 3: 150_000}
 def linear_solver(qp: ContactQP) -> Callable[[np.ndarray], np.ndarray]:
     """``r -> A^{-1} r`` for the verification's duality gap, built once per problem
     (``qp.cache``): a sparse Cholesky of ``A`` (:func:`solvers.cholesky.factorize`) up
-    to :data:`DIRECT_LINEAR_LIMIT`, else CG preconditioned by one V-cycle (geometric
+    to :data:`DIRECT_LINEAR_LIMIT` or where a solver has factorised it already (with
+    the floating bodies' near-kernel removed, :class:`solvers.cholesky.FloatingCholesky`:
+    a multigrid PCG on such a nearly singular ``A`` needs thousands of steps), else CG preconditioned by one V-cycle (geometric
     multigrid on the problem's hierarchy, pyamg SA without one) to a relative residual
     of 1e-14.
     """
@@ -233,9 +235,13 @@ def linear_solver(qp: ContactQP) -> Callable[[np.ndarray], np.ndarray]:
         return qp.cache["linear_solver"]
     import scipy.sparse.linalg as spla
 
-    if qp.n <= DIRECT_LINEAR_LIMIT.get(qp.dim, 0):
-        from solvers.cholesky import factorize
-        chol = factorize(qp.A)
+    if qp.n <= DIRECT_LINEAR_LIMIT.get(qp.dim, 0) or "floating_cholesky" in qp.cache:
+        from problems.qp import floating_modes
+        from solvers.cholesky import factorize, shared_floating_factor
+        modes = floating_modes(qp)
+        # a body held only by weak springs: its rigid part solved apart (no 1/spring-sized
+        # intermediate results; see FloatingCholesky)
+        chol = shared_floating_factor(qp, modes) if modes.shape[1] else factorize(qp.A)
 
         def solve_A(r):
             x = chol.solve(r)

@@ -40,9 +40,9 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from problems.qp import ContactQP, kkt_residuals
+from problems.qp import ContactQP, floating_modes, kkt_residuals
 from problems.spec import Options, Parameter
-from solvers.cholesky import factorize
+from solvers.cholesky import factorize, shared_floating_factor
 from solvers.interface import SolveResult, SolverSpec
 
 #: Columns of ``A^{-1} B^T`` computed at once when forming the Schur complement.
@@ -307,21 +307,40 @@ class _ActiveSetSystem:
     # -- Schur complement -----------------------------------------------------
     def _prepare_schur(self) -> None:
         """Factorise ``A`` once (:func:`solvers.cholesky.factorize`) and form the dense
-        ``S = B A^{-1} B^T`` by partial solves on the support of ``B``."""
+        ``S = B A^{-1} B^T`` by partial solves on the support of ``B``.
+
+        With floating bodies (:func:`problems.qp.floating_modes`: a body held only by
+        contact and weak springs) ``A`` is factorised without its near-kernel
+        (:class:`solvers.cholesky.FloatingCholesky`) and the rigid amplitudes ``alpha``
+        stay unknowns of each step, as in FETI for contact: ``S = B_r A_rr^{-1} B_r^T``
+        is the complement of the held part only (see :meth:`_solve_floating`).
+        """
         if self.qp.m > SCHUR_MAX_M:
             raise ValueError(f"method='schur' forms a dense {self.qp.m} x {self.qp.m} Schur "
                              f"complement (one solve with A per constraint); it is meant for "
                              f"at most {SCHUR_MAX_M} constraints: use method='kkt'")
         t0 = time.perf_counter()
-        self.chol = factorize(self.A, self.factorization, components=self.B.indices)
+        modes = floating_modes(self.qp)
+        self.floating = None
+        B = self.B
+        if modes.shape[1]:
+            fl = shared_floating_factor(self.qp, modes, self.factorization)
+            self.floating, self.chol = fl, fl.chol
+            self.z_f = fl._rest_solve(self.qp.f[fl.rest])      # A_rr^{-1} f_r, once
+            B = self.B[:, fl.rest].tocsr()
+            self.B_rest = B
+            self.G = self.B @ fl.R - B @ fl.W          # G~ = B R - B_r A_rr^{-1} C  (m x k)
+        else:
+            self.chol = factorize(self.A, self.factorization, components=self.B.indices)
         m = self.qp.m
         S = np.empty((m, m))
-        Bt = sp.csc_matrix(self.B.T)
+        Bt = sp.csc_matrix(B.T)
         for start in range(0, m, _SCHUR_BLOCK):
             cols = Bt[:, start:start + _SCHUR_BLOCK]
-            S[:, start:start + cols.shape[1]] = self.B @ self.chol.solve(cols, partial=True)
+            S[:, start:start + cols.shape[1]] = B @ self.chol.solve(cols, partial=True)
         self.S = 0.5 * (S + S.T)
-        self.w = self._solve_A(self.qp.f)  # unconstrained solution A^{-1} f
+        if self.floating is None:
+            self.w = self._solve_A(self.qp.f)  # unconstrained solution A^{-1} f
         self.factor_time += time.perf_counter() - t0
         self.n_factorisations += 1
 
@@ -332,6 +351,8 @@ class _ActiveSetSystem:
         return x
 
     def _solve_schur(self, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        if self.floating is not None:
+            return self._solve_floating(idx)
         if idx.size == 0:
             return self.w.copy(), np.zeros(0)
         S_II = self.S[np.ix_(idx, idx)]
@@ -343,6 +364,63 @@ class _ActiveSetSystem:
         except sla.LinAlgError as err:
             raise RuntimeError(f"Schur complement not positive definite: {err}") from None
         u = self._solve_A(self.qp.f - self.B[idx].T @ p_I)
+        return u, p_I
+
+    def _solve_floating(self, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The active-set step with floating bodies, iteratively refined.
+
+        In the basis ``u = u_r + R alpha`` (:class:`solvers.cholesky.FloatingCholesky`)
+        the step ``A u + B_I^T p_I = f``, ``B_I u - C_II p_I = g_I`` becomes, after
+        eliminating ``u_r``,
+
+            Sigma~ alpha + G~_I^T p_I = f~,     G~_I alpha - (S_II + C_II) p_I = g~_I,
+
+        (``f~ = R^T f - C^T A_rr^{-1} f_r``, ``g~ = g - B_r A_rr^{-1} f_r``): a dense
+        Cholesky of ``S_II + C_II`` and a ``k x k`` system for the rigid amplitudes.
+        Nothing here is of the size of ``1 / spring``: the springs enter only through
+        ``Sigma~``, which is small beside ``G~^T S^{-1} G~`` (the contact's stiffness).
+        """
+        g_I = self.qp.g[idx]
+        u, p_I = self._floating_step(idx, self.qp.f, g_I, self.z_f)
+        B_I = self.B[idx]
+        C_II = None if self.C is None else self.C[idx][:, idx]
+        for _ in range(self.refine):      # until the correction is at round-off
+            r_f = self.qp.f - self.A @ u - B_I.T @ p_I
+            r_g = g_I - B_I @ u + (C_II @ p_I if C_II is not None else 0.0)
+            du, dp = self._floating_step(idx, r_f, r_g)
+            u, p_I = u + du, p_I + dp
+            if np.max(np.abs(du)) <= 1e-14 * np.max(np.abs(u)):
+                break
+        return u, p_I
+
+    def _floating_step(self, idx, r_f, r_g, z=None):
+        """One solve of the step's system for the right-hand side ``(r_f, r_g)``
+        (``z = A_rr^{-1} r_f`` on the rest if known); see :meth:`_solve_floating`."""
+        fl = self.floating
+        if z is None:
+            z = fl._rest_solve(r_f[fl.rest], refine=False)
+        f_t = fl.R.T @ r_f - fl.C.T @ z
+        if idx.size:
+            g_t = r_g - self.B_rest[idx] @ z
+            S_II = self.S[np.ix_(idx, idx)]
+            if self.C is not None:
+                S_II = S_II + self.C[idx][:, idx].toarray()
+            G_I = self.G[idx]
+            try:
+                cho = sla.cho_factor(S_II)
+            except sla.LinAlgError as err:
+                raise RuntimeError(f"Schur complement not positive definite: {err}") from None
+            X = sla.cho_solve(cho, np.column_stack([G_I, g_t]))
+            M = fl.sigma + G_I.T @ X[:, :-1]
+            alpha = np.linalg.solve(0.5 * (M + M.T), f_t + G_I.T @ X[:, -1])
+            p_I = X[:, :-1] @ alpha - X[:, -1]
+            rhs_r = r_f[fl.rest] - fl.C @ alpha - self.B_rest[idx].T @ p_I
+        else:
+            alpha = np.linalg.solve(fl.sigma, f_t)
+            p_I = np.zeros(0)
+            rhs_r = r_f[fl.rest] - fl.C @ alpha
+        u = fl.R @ alpha
+        u[fl.rest] += fl._rest_solve(rhs_r, refine=False)
         return u, p_I
 
 

@@ -177,7 +177,8 @@ def test_snakemake_dry_run_plans_every_study():
     out = snakemake("-n", "--forceall", "--quiet", "rules")
     assert out.returncode == 0, out.stderr[-2000:]
     for rule in ("contact_level", "solver_comparison", "augmented_projection_study",
-                 "laplace_errors", "adaptive_study", "adaptive_figures", "patch_test", "all"):
+                 "laplace_errors", "adaptive_study", "adaptive_figures", "patch_test",
+                 "roll_stack_study", "roll_stack_report", "all"):
         assert rule in out.stdout
 
 

@@ -82,6 +82,21 @@ PATHS = {
     "hard_case_runs": "results/{scene}/hard_case_L{level}.csv",
     "hard_table": "results/hard_cases/hard_cases.csv",
     "hard_heatmap": "results/hard_cases/hard_cases.png",
+    # roll_stack (Sect. 9.3): both strip forces at one level, profiles, fields, solvers
+    "roll_runs": "results/{scene}/roll_stack_runs.csv",
+    "roll_profiles": "results/{scene}/roll_stack_profiles.csv",
+    "roll_contact": "results/{scene}/roll_stack_contact.csv",
+    "roll_solver_runs": "results/{scene}/roll_stack_solvers.csv",
+    "roll_fields": "results/{scene}/roll_stack_F{force}MN.vtu",
+    "roll_table": "results/{scene}/roll_stack_table.csv",
+    "roll_claims": "results/{scene}/roll_stack_claims.csv",
+    "roll_solver_table": "results/{scene}/roll_stack_solver_table.csv",
+    "roll_pressure": "results/{scene}/roll_stack_pressure.png",
+    "roll_mesh": "results/{scene}/roll_stack_mesh.png",
+    "roll_stress": "results/{scene}/roll_stack_von_mises.png",
+    "roll_line_load": "results/{scene}/roll_stack_line_load.png",
+    "roll_sag": "results/{scene}/roll_stack_sag.png",
+    "roll_strip": "results/{scene}/roll_stack_strip_profile.png",
     # the summary page at the top of the report (report/summary.py)
     "summary_html": "results/summary/summary.html",
     "summary_claims": "results/summary/claims.csv",
@@ -228,6 +243,18 @@ STUDIES = {
                      "adaptive_eta", "adaptive_error", "adaptive_pressure"),
             extra=(("patch_test", ("patch_table", "patch_figure")),),
         ),
+        Study(
+            name="roll_stack",
+            summary="the roll stack of a four-high mill (crowned work roll floating on a backup "
+                    "roll, SI units) at both strip forces: equilibrium, Hertz at the barrel "
+                    "centre, contact line load and half-width along the barrel, sag of axes and "
+                    "contact lines with and without the crown, strip profile for crowned and "
+                    "cylindrical work rolls beside the beam model, von Mises cuts, VTU; the "
+                    "solvers on the scene at coarser levels",
+            thesis="Sect. 9.3, Figs. 9.10-9.16",
+            outputs=("roll_table", "roll_claims", "roll_solver_table", "roll_pressure",
+                     "roll_mesh", "roll_stress", "roll_line_load", "roll_sag", "roll_strip"),
+        ),
     )
 }
 
@@ -285,11 +312,20 @@ THESIS_ITEMS = (
                "adaptive_snapshot", "cube_sphere"),
     ThesisItem("Sect. 9.2 (Hertz)", "cube-sphere against the Hertz point contact", "hertz",
                "cube_sphere"),
-    ThesisItem("Figs. 9.10-9.16", "roll stack: pressure along the work roll, mesh, stresses, "
-               "sag curves", None,
-               note="the scene problems/roll_stack.py and its tests exist; the study (profiles, "
-                    "figures, VTU) waits for a solver that handles the floating work roll at "
-                    "the resolving level (issue 10)"),
+    ThesisItem("Fig. 9.10", "roll stack: strip pressure along the work roll", "roll_pressure",
+               "roll_stack"),
+    ThesisItem("Fig. 9.11", "roll stack: mesh (thesis: 46,611 nodes, 7,089 inequalities)",
+               "roll_mesh", "roll_stack"),
+    ThesisItem("Figs. 9.12/9.13", "roll stack: von Mises stress on cuts", "roll_stress",
+               "roll_stack"),
+    ThesisItem("Figs. 9.14-9.16", "roll stack: sag along the rolls' lines, 15 and 30 (MN), "
+               "corrected by the crown (Schliff)", "roll_sag", "roll_stack"),
+    ThesisItem("Sect. 9.3 (line load)", "roll stack: contact line load and half-width along "
+               "the barrel, Hertz at the barrel centre", "roll_line_load", "roll_stack"),
+    ThesisItem("Sect. 9.3 (strip)", "roll stack: strip thickness profile, crowned and "
+               "cylindrical work rolls", "roll_strip", "roll_stack"),
+    ThesisItem("Sect. 9.3 (numbers)", "roll stack: FE beside plane-strain Hertz and the beam "
+               "model", "roll_table", "roll_stack"),
 )
 
 
@@ -318,6 +354,26 @@ def exact_args(config: dict, scene: str) -> str:
     kkt = entry.get("kkt_levels", {}).get(scene, levels)
     return (f"--levels {' '.join(map(str, levels))} --kkt-levels {' '.join(map(str, kkt))} "
             f"--time-limit {entry['time_limit']}")
+
+
+def roll_args(config: dict, scene: str) -> str:
+    """A scene's settings of the roll_stack study as arguments of
+    ``workflows/scripts/roll_stack_study.py``."""
+    rs = config["roll_stack"]
+    (level,) = scenes_of(config, "roll_stack")[scene]
+    args = [f"--level {level}", "--forces " + " ".join(f"{f:g}" for f in rs["forces"]),
+            "--crowns " + " ".join(f"{c:g}" for c in rs["crowns"]),
+            f"--time-limit {rs['time_limit']}"]
+    if rs.get("solver_levels"):
+        args += ["--solver-levels " + " ".join(map(str, rs["solver_levels"])),
+                 "--solvers " + " ".join(rs["solvers"])]
+    return " ".join(args)
+
+
+def roll_fields(config: dict, scene: str) -> list[str]:
+    """The VTU files of the roll_stack study (one per strip force, crowned roll)."""
+    return [PATHS["roll_fields"].format(scene=scene, force=f"{f / 1e6:g}")
+            for f in config["roll_stack"]["forces"]]
 
 
 def adaptive_variant_file(variant: str) -> str:
@@ -396,6 +452,7 @@ def check_config(config: dict) -> None:
                               f"not allowed; allowed: among exact_reference.scenes.{scene} "
                               f"{runs.get(scene, [])}")
     _check_adaptive(config, registry)
+    _check_roll_stack(config, registry)
     for rule, study in HEAVY_RULES.items():
         if study in config and not {"mem_mb", "runtime"} <= set(
                 config.get("resources", {}).get(rule, {})):
@@ -442,6 +499,45 @@ def _check_adaptive(config: dict, registry: dict) -> None:
                               f"not allowed; allowed: {lo}..{hi}")
 
 
+def _check_roll_stack(config: dict, registry: dict) -> None:
+    """The roll_stack study: roll-stack scenes, one level each, forces and crowns within
+    the problem's ranges, known solvers at valid levels."""
+    from problems.spec import ParameterError
+    from solvers.interface import solvers
+
+    rs = config.get("roll_stack")
+    if not rs:
+        return
+    for scene, levels in scenes_of(config, "roll_stack").items():
+        spec = registry[config["scenes"][scene]["problem"]]
+        if spec.name != "roll_stack":
+            raise ConfigError(f"config 'roll_stack.scenes.{scene}': problem {spec.name!r} is "
+                              "not allowed; allowed: roll_stack")
+        if len(levels) != 1:
+            raise ConfigError(f"config 'roll_stack.scenes.{scene}': {levels} is not allowed; "
+                              "allowed: one level, e.g. [3]")
+        params = dict(config["scenes"][scene].get("params") or {})
+        for key, name in (("forces", "force"), ("crowns", "crown")):
+            for value in rs[key]:
+                try:
+                    spec.options(**{**params, name: value})
+                except ParameterError as err:
+                    raise ConfigError(f"config 'roll_stack.{key}': {err}") from None
+        lo, hi = spec.levels
+        bad = [lv for lv in rs.get("solver_levels", []) if not lo <= lv <= hi]
+        if bad:
+            raise ConfigError(f"config 'roll_stack.solver_levels': levels {bad} are not "
+                              f"allowed; allowed: {lo}..{hi}")
+    known = set(solvers()) | {"pdas_kkt"}
+    bad = [s for s in rs.get("solvers", []) if s not in known]
+    if bad:
+        raise ConfigError(f"config 'roll_stack.solvers': {bad} are not allowed; allowed: "
+                          f"{', '.join(sorted(known))}")
+    if len({f"{f / 1e6:g}" for f in rs["forces"]}) != len(rs["forces"]):
+        raise ConfigError("config 'roll_stack.forces': two forces round to the same MN "
+                          "(the fields' file names); allowed: distinct values in MN")
+
+
 def log_path(rule: str, name: str = "{scene}") -> str:
     """The log file of a rule's job (``name`` may hold wildcards)."""
     return PATHS["log"].format(rule=rule, name=name)
@@ -463,6 +559,7 @@ HEAVY_RULES = {
     "hard_case": "hard_cases",
     "adaptive_study": "adaptive",
     "patch_test": "adaptive",
+    "roll_stack_study": "roll_stack",
 }
 
 
