@@ -327,7 +327,7 @@ class FloatingCholesky:
         AR = A @ self.R
         self.C = AR[self.rest]
         sigma = self.R.T @ AR
-        self.W = self._rest_solve(self.C)
+        self.W = self.rest_solve(self.C)
         self.sigma = 0.5 * (sigma + sigma.T) - self.C.T @ self.W
         self.sigma = 0.5 * (self.sigma + self.sigma.T)
         self.backend, self.fill = self.chol.backend, self.chol.fill
@@ -336,7 +336,7 @@ class FloatingCholesky:
             raise FactorizationError("the floating modes' spring stiffness Sigma~ is not "
                                      "positive definite (a mode that nothing holds)")
 
-    def _rest_solve(self, b: np.ndarray, refine: bool = True) -> np.ndarray:
+    def rest_solve(self, b: np.ndarray, refine: bool = True) -> np.ndarray:
         """``A_rr^{-1} b``, with one step of iterative refinement unless ``refine=False``."""
         x = self.chol.solve(b)
         return x + self.chol.solve(b - self._Arr @ x) if refine else x
@@ -344,7 +344,7 @@ class FloatingCholesky:
     def solve(self, b: np.ndarray) -> np.ndarray:
         """``A^{-1} b`` (a vector or the columns of a matrix)."""
         b = np.asarray(b, dtype=float)
-        z = self._rest_solve(b[self.rest])
+        z = self.rest_solve(b[self.rest])
         y_d = np.linalg.solve(self.sigma, self.R.T @ b - self.C.T @ z)
         x = self.R @ y_d
         x[self.rest] += z - self.W @ y_d

@@ -326,7 +326,7 @@ class _ActiveSetSystem:
         if modes.shape[1]:
             fl = shared_floating_factor(self.qp, modes, self.factorization)
             self.floating, self.chol = fl, fl.chol
-            self.z_f = fl._rest_solve(self.qp.f[fl.rest])      # A_rr^{-1} f_r, once
+            self.z_f = fl.rest_solve(self.qp.f[fl.rest])      # A_rr^{-1} f_r, once
             B = self.B[:, fl.rest].tocsr()
             self.B_rest = B
             self.G = self.B @ fl.R - B @ fl.W          # G~ = B R - B_r A_rr^{-1} C  (m x k)
@@ -398,7 +398,7 @@ class _ActiveSetSystem:
         (``z = A_rr^{-1} r_f`` on the rest if known); see :meth:`_solve_floating`."""
         fl = self.floating
         if z is None:
-            z = fl._rest_solve(r_f[fl.rest], refine=False)
+            z = fl.rest_solve(r_f[fl.rest], refine=False)
         f_t = fl.R.T @ r_f - fl.C.T @ z
         if idx.size:
             g_t = r_g - self.B_rest[idx] @ z
@@ -420,7 +420,7 @@ class _ActiveSetSystem:
             p_I = np.zeros(0)
             rhs_r = r_f[fl.rest] - fl.C @ alpha
         u = fl.R @ alpha
-        u[fl.rest] += fl._rest_solve(rhs_r, refine=False)
+        u[fl.rest] += fl.rest_solve(rhs_r, refine=False)
         return u, p_I
 
 

@@ -46,18 +46,17 @@ from problems.fem.contact import contact_constraints
 from problems.fem.elasticity import lumped_surface_mass
 from problems.fem.surface import facet_sizes
 from problems.qp import ContactQP, Stabilisation
+from reference.hertz import effective_modulus as hertz_modulus
 
 
 def effective_modulus(qp: ContactQP) -> float:
-    """``E*`` with ``1/E* = (1 - nu_1^2)/E_1 + (1 - nu_2^2)/E_2`` of the two bodies
-    (the constrained body and the opposing one, from the cells next to each surface)."""
+    """Hertz's ``E*`` (:func:`reference.hertz.effective_modulus`) of the two bodies: the
+    constrained one and the opposing one, from the cells next to each surface."""
     m = qp.mesh
     body_of_cell = m.body_of_node[m.cells[:, 0]]
-    inv = 0.0
-    for node in (qp.contact.nodes[0], qp.contact.opposing_facets[0, 0]):
-        cell = np.flatnonzero(body_of_cell == m.body_of_node[node])[0]
-        inv += (1.0 - m.nu_cell[cell] ** 2) / m.E_cell[cell]
-    return 1.0 / inv
+    cells = [np.flatnonzero(body_of_cell == m.body_of_node[node])[0]
+             for node in (qp.contact.nodes[0], qp.contact.opposing_facets[0, 0])]
+    return hertz_modulus(*(x for c in cells for x in (m.E_cell[c], m.nu_cell[c])))
 
 
 def stabilise(qp: ContactQP, alpha: float = 1.0, penalty: float = 1.0) -> ContactQP:
