@@ -87,15 +87,18 @@ def claims(study: pd.DataFrame, config: str = MAIN) -> pd.DataFrame:
         t_floor = floor["t_to_target"].min()
         runs = finest[~finest.config.str.startswith("amg_pcg") & (finest.config != "reference")]
         best = runs.loc[[runs["t_total"].idxmin()]] if runs["t_total"].notna().any() else runs.iloc[:0]
-        for label, row in ((config + " (Alg. 8.4 as written)", runs[runs.config == config]),
-                           ("best configuration", best)):
+        # the bars of the performance issue: Alg. 8.4 as written 5x; the best variant 2x in
+        # 2D, 3x in 3D
+        best_bar = 2.0 if ("dim" not in finest or int(finest["dim"].iloc[0]) == 2) else 3.0
+        for label, row, bar in ((config + " (Alg. 8.4 as written)", runs[runs.config == config], 5.0),
+                                ("best configuration", best, best_bar)):
             if not len(row):
                 continue
             r = float(row["t_total"].iloc[0] / t_floor)
             rows.append({"claim": f"time to the energy-error target, {label}: {row['config'].iloc[0]}, "
                                   f"/ fastest AMG-PCG linear solve (N = {int(row['N'].iloc[0])}; "
                                   "coarse levels of nested iteration included)",
-                         "measured": r, "bar": 5.0, "pass": bool(r <= 5.0)})
+                         "measured": r, "bar": bar, "pass": bool(r <= bar)})
     return pd.DataFrame(rows)
 
 

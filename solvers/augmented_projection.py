@@ -208,8 +208,12 @@ class Alg84:
     def Cp(self, p):
         return self.C @ p if self.C is not None else 0.0
 
-    def step(self, u: np.ndarray, p: np.ndarray, update: str = "multiplicative"):
+    def step(self, u: np.ndarray, p: np.ndarray, update: str = "multiplicative",
+             Au: np.ndarray | None = None, residual: tuple | None = None):
         """One step of Alg. 8.4, (8.23)-(8.25), line by line.
+
+        ``Au``, if given, is ``A @ u``; ``residual``, if given, is ``(d_u, w_u)``
+        of (8.23) at ``(u, p)`` (saves the products when the caller has them).
 
         Returns
         -------
@@ -218,8 +222,11 @@ class Alg84:
             (8.23) at ``(u, p)`` (for the transformed functional and Cor. 8.4).
         """
         A, B, tau, gamma = self.A, self.B, self.tau, self.gamma_bar
-        d_u = self.F - A @ u - B.T @ p                          # (8.23)
-        w_u = self.A_hat_inv(d_u)                               # (8.23)
+        if residual is None:
+            d_u = self.F - (A @ u if Au is None else Au) - B.T @ p  # (8.23)
+            w_u = self.A_hat_inv(d_u)                               # (8.23)
+        else:
+            d_u, w_u = residual
         w_p = B @ w_u - (self.G - B @ u + self.Cp(p))           # (8.23)
         t0 = time.perf_counter()
         p_new, n_inner = self.project(self.S_hat(p) + tau * w_p, p)  # p^{k+1} = P~(S-hat p^k + tau w_p)
@@ -233,7 +240,8 @@ class Alg84:
 
 def augmented_projection_algorithm(op: Alg84, u: np.ndarray, p: np.ndarray, eps: float,
                                    max_iter: int, update: str = "multiplicative",
-                                   monitor: Callable[[OuterStep], bool] | None = None):
+                                   monitor: Callable[[OuterStep], bool] | None = None,
+                                   corollary: bool = True):
     """Alg. 8.4 (approximate augmented projection): repeat :meth:`Alg84.step` until (8.25).
 
     Parameters
@@ -247,6 +255,9 @@ def augmented_projection_algorithm(op: Alg84, u: np.ndarray, p: np.ndarray, eps:
     monitor : callable, optional
         Called after each step with an :class:`OuterStep`; returning True
         stops the iteration (time limit, KKT-based stopping).
+    corollary : bool
+        Also evaluate Corollary 8.4's quantity (one more product with ``A`` per
+        step; NaN otherwise). ``Jt(U^k)`` costs no product: the step shares ``A u``.
 
     Returns
     -------
@@ -257,11 +268,12 @@ def augmented_projection_algorithm(op: Alg84, u: np.ndarray, p: np.ndarray, eps:
     eta_0 = None
     for k in range(max_iter):
         Au = op.A @ u
-        u_new, p_new, eta, n_inner, t_proj, d_u, w_u, w_p = op.step(u, p, update)
+        u_new, p_new, eta, n_inner, t_proj, d_u, w_u, w_p = op.step(u, p, update, Au)
         Ft_U = Au @ z - op.F @ u + p @ Bz - p @ op.G
         J_t = -0.5 * Ft_U - 0.5 * (Au @ w_u - u @ d_u + p @ w_p)  # Jt(U^k) of (8.20)
         du = u_new - u
-        cor = float(du @ (op.A @ w_u) - du @ d_u + (p_new - p) @ w_p)  # Corollary 8.4
+        cor = float(du @ (op.A @ w_u) - du @ d_u + (p_new - p) @ w_p) if corollary \
+            else np.nan                                         # Corollary 8.4
         eta_0 = max(eta, 1e-300) if eta_0 is None else eta_0
         eta_rel = float(np.sqrt(max(eta, 0.0) / eta_0))
         u, p = u_new, p_new
@@ -283,16 +295,18 @@ def face_cg_variant(op: Alg84, S_hat_columns: Callable, u: np.ndarray, p: np.nda
     """Alg. 8.4 accelerated by preconditioned CG on the face of the active set.
 
     *Not in the thesis* (option ``accelerate="face_cg"``). An MPRGP-like
-    outer method for the transformed problem (8.20): multiplicative Alg. 8.4
-    steps (:meth:`Alg84.step`, which also play the role of proportioning and
-    expansion steps) until the set ``{p > 0}`` repeats; then Bramble-Pasciak
-    CG for (8.20) with ``p`` restricted to that face and the block
-    preconditioner ``diag(gamma_bar (A - A_hat), S_hat_II)`` (8.22), one
-    V-cycle per step (the ``u``-part of the residual stays of the form
-    ``(A - A_hat) y``, so ``(A - A_hat)^{-1}`` is never needed). The CG phase
-    ends at a step that would leave ``p >= 0`` (truncated, feasible step), or
-    when the chopped gradient of the zero multipliers outgrows the face
-    residual (factor ``Gamma``). Both steps decrease ``Jt`` monotonically.
+    outer method for the transformed problem (8.20): after every multiplicative
+    Alg. 8.4 step (:meth:`Alg84.step`, which plays the role of MPRGP's
+    expansion and proportioning steps) Bramble-Pasciak CG for (8.20) with ``p``
+    restricted to the face ``{p > 0}`` and the block preconditioner
+    ``diag(gamma_bar (A - A_hat), S_hat_II)`` (8.22), one V-cycle per step
+    (the ``u``-part of the residual stays of the form ``(A - A_hat) y``, so
+    ``(A - A_hat)^{-1}`` is never needed). The CG phase ends at a step that
+    would leave ``p >= 0`` (truncated, feasible step), or when the chopped
+    gradient of the zero multipliers outgrows the face residual (factor
+    ``Gamma``, MPRGP's proportioning test); the next Alg. 8.4 step then reuses
+    the phase's last residual ``(d_u, A-hat^{-1} d_u)``, so a CG phase that ends
+    at once costs no V-cycle. Both kinds of step decrease ``Jt`` monotonically.
     ``S_hat_II^{-1}`` is a dense Cholesky factor of the face block of
     ``S_hat`` (``S_hat_columns(I)``; size = number of active constraints).
 
@@ -303,8 +317,9 @@ def face_cg_variant(op: Alg84, S_hat_columns: Callable, u: np.ndarray, p: np.nda
     """
     import scipy.linalg as sla
     A, B, F, G, gamma_bar = op.A, op.B, op.F, op.G, op.gamma_bar
-    eta_0, k, n_cg, last_face = None, 0, 0, None
+    eta_0, k, n_cg = None, 0, 0
     S_diag = None
+    residual = None     # (d, A-hat^-1 d) at (u, p), left by a CG phase for the next step
 
     def emit(eta, cor, n_inner, t_proj):
         eta_rel = float(np.sqrt(max(eta, 0.0) / eta_0))
@@ -314,7 +329,7 @@ def face_cg_variant(op: Alg84, S_hat_columns: Callable, u: np.ndarray, p: np.nda
 
     while k < max_iter:
         # -- one multiplicative step of Alg. 8.4 ---------------------------
-        u, p, eta, n_inner, t_proj, *_ = op.step(u, p, "multiplicative")
+        u, p, eta, n_inner, t_proj, *_ = op.step(u, p, "multiplicative", residual=residual)
         eta_0 = max(eta, 1e-300) if eta_0 is None else eta_0
         k += 1
         eta_rel, stop = emit(eta, np.nan, n_inner, t_proj)
@@ -323,8 +338,8 @@ def face_cg_variant(op: Alg84, S_hat_columns: Callable, u: np.ndarray, p: np.nda
         if stop:
             return u, p, k, "monitor", n_cg
         face = p > 0
-        if last_face is None or not np.array_equal(face, last_face) or not face.any():
-            last_face = face
+        residual = None
+        if not face.any():
             continue
         # -- CG on the face {p > 0} ------------------------------------------
         I = np.flatnonzero(face)
@@ -339,6 +354,7 @@ def face_cg_variant(op: Alg84, S_hat_columns: Callable, u: np.ndarray, p: np.nda
         P_u = AP_u = P_p = None
         rz_old = None
         while k < max_iter:
+            residual = (d, y)
             z = sla.cho_solve(chol, r_p[I])
             rz = float(Ay @ y - y @ d) / gamma_bar + float(r_p[I] @ z)
             chopped = np.where(face, 0.0, np.maximum(r_p, 0.0))
@@ -371,6 +387,7 @@ def face_cg_variant(op: Alg84, S_hat_columns: Callable, u: np.ndarray, p: np.nda
             y = y - step * v
             Ay = A @ y
             r_p = r_p - step * BPv
+            residual = (d, y)
             k, n_cg = k + 1, n_cg + 1
             eta_rel, stop = emit(rz + eta_beta, step * rz, 0, 0.0)
             if eta_rel <= eps and eta_beta <= eps ** 2 * eta_0:
@@ -379,7 +396,6 @@ def face_cg_variant(op: Alg84, S_hat_columns: Callable, u: np.ndarray, p: np.nda
                 return u, p, k, "monitor", n_cg
             if alpha_f <= alpha:
                 break                                    # the face shrinks: back to Alg. 8.4
-        last_face = None
     return u, p, max_iter, "max_iter", n_cg
 
 
@@ -442,7 +458,8 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
         ``claimed_status`` ``converged`` when the verified KKT residual
         (``stop="kkt"``, the default) or (8.25) (``stop="estimate"``) meets the
         tolerance; ``stats`` has the columns of Table 9.1 and the setup
-        details; ``history`` per outer step: ``energy`` J(u^k),
+        details; ``history`` per outer step: ``energy`` J(u^k) (NaN with
+        ``diagnostics=False``, as is ``corollary_8_4``),
         ``J_transformed``, ``kkt_max``, ``eta_rel``, ``corollary_8_4``,
         ``n_inner``, ``time``.
     """
@@ -482,7 +499,7 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
     stop_kkt = opts.stop == "kkt"
 
     def monitor(step: OuterStep) -> bool:
-        history["energy"].append(qp.energy(step.u))
+        history["energy"].append(qp.energy(step.u) if opts.diagnostics else np.nan)
         history["J_transformed"].append(step.J_transformed)
         history["eta_rel"].append(step.eta_rel)
         history["eta"].append(step.eta)
@@ -514,7 +531,7 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
                                                 monitor=monitor)
     else:
         u, p, k, reason = augmented_projection_algorithm(op, u, p, eps_run, max_iter,
-                                                         opts.update, monitor)
+                                                         opts.update, monitor, opts.diagnostics)
     solve_time = time.perf_counter() - t_solve
     if reason == "converged" or state["reason"] == "kkt":
         status = "converged"
@@ -643,6 +660,9 @@ SOLVER = SolverSpec(
                   "face of the active set between Alg. 8.4 steps", choices=("none", "face_cg")),
         Parameter("kappa_exact", False, "also estimate kappa(S-hat^-1 S), S = B A^-1 B' (costly)"),
         Parameter("record_kkt", True, "verified KKT residual in the history at every step"),
+        Parameter("diagnostics", True, "J(u^k) and Corollary 8.4's quantity in the history at "
+                  "every step (two products with A per step, not part of Alg. 8.4; timing "
+                  "studies turn them off)"),
         Parameter("seed", 0, "Lanczos start vectors", low=0, kind=int),
     ),
     presets={"low": "stop when the verified KKT max <= 1e-3",

@@ -250,8 +250,9 @@ def linear_solver(qp: ContactQP) -> Callable[[np.ndarray], np.ndarray]:
         from solvers import preconditioners as pc
         from solvers.augmented_projection import SOLVER as AP
         kind = "gmg" if qp.multilevel.prolongations else "sa"
-        opts = {**AP.options(ahat=kind).ahat.options, "lanczos_steps": 5}
-        vc = pc.scaled_vcycle(qp.A, kind, qp.multilevel, qp.dim, qp.free_dofs, **opts)
+        o = AP.options(ahat=kind).ahat.options
+        vc = pc.vcycle(qp.A, kind, qp.multilevel, qp.dim, qp.free_dofs, smoother=o["smoother"],
+                       sweeps=o["sweeps"], max_coarse=o.get("max_coarse", 0))
         M = spla.LinearOperator(qp.A.shape, matvec=vc.raw)
 
         def solve_A(r):

@@ -256,6 +256,8 @@ def test_spectral_estimates_match_dense_eigenvalues():
     assert Ainv.ritz[0] == pytest.approx(lam[0], rel=1e-6)
     assert Ainv.ritz[1] == pytest.approx(lam[-1], rel=1e-6)
     assert lam[-1] / lam[0] * 1.05 / 0.9 == pytest.approx(Ainv.gamma_bar, rel=1e-5)
+    # a symmetric V-cycle with Galerkin coarse operators never over-corrects: lambda(V A) <= 1
+    assert lam[-1] <= 1.0 + 1e-10
     # (8.18) holds for the scaled operator: A-hat < A <= gamma_bar A-hat
     assert lam[0] / Ainv.gamma_low > 1 and lam[-1] / Ainv.gamma_low <= Ainv.gamma_bar
     sh = pc.build_schur("multilevel", qp, Ainv, 40)
@@ -271,3 +273,31 @@ def test_spectral_estimates_match_dense_eigenvalues():
     mu_in = sla.eigh(0.5 * (S_in + S_in.T), S_hat, eigvals_only=True)
     assert mu_in[-1] <= 1.0 + 1e-9                          # scaled: S_in <= S-hat
     assert sh.kappa_Sin == pytest.approx(mu_in[-1] / mu_in[0], rel=1e-4)
+
+
+def test_unscaled_vcycle_is_the_scaled_one_without_lanczos(problems):
+    """What a linear PCG solve (the floor, the certificate) builds: the same V-cycle as
+    A-hat, with no Lanczos run for a scaling it does not need."""
+    qp = problems[0]["cs1"]
+    o = {k: GMG[k] for k in ("smoother", "sweeps")}
+    raw = pc.vcycle(qp.A, "gmg", qp.multilevel, 2, qp.free_dofs, **o)
+    scaled = pc.scaled_vcycle(qp.A, "gmg", qp.multilevel, 2, qp.free_dofs, **GMG)
+    x = np.random.default_rng(1).standard_normal(qp.n)
+    assert np.array_equal(raw.raw(x), scaled.raw(x))
+    assert raw.gamma_low == 1.0 and raw.lanczos_time == 0.0 and np.isnan(raw.ritz).all()
+    assert np.allclose(scaled(x), scaled.raw(x) / scaled.gamma_low)
+
+
+def test_diagnostics_off_changes_nothing_but_the_record(problems):
+    """``diagnostics=False`` drops the per-step J(u^k) and Corollary 8.4 products, not a
+    step of Alg. 8.4: the iterates are the same to the last bit."""
+    qp = problems[0]["cs1"]
+    runs = [solve(qp, solver="augmented_projection", tol=1e-8, max_iter=40, stop="estimate",
+                  record_kkt=False, diagnostics=d) for d in (True, False)]
+    on, off = runs
+    assert on.iterations == off.iterations > 5
+    assert np.array_equal(on.u, off.u) and np.array_equal(on.p, off.p)
+    assert np.array_equal(on.history["J_transformed"], off.history["J_transformed"])
+    assert np.isfinite(on.history["energy"]).all() and np.isnan(off.history["energy"]).all()
+    assert np.isfinite(on.history["corollary_8_4"]).all()
+    assert np.isnan(off.history["corollary_8_4"]).all()

@@ -125,6 +125,8 @@ def test_augmented_projection_study_and_its_report(tmp_path):
     assert table.loc[1, "thesis_n_outer_1e-03"] == 19 and table.loc[1, "n_outer_1e-03"] > 0
     claims = pd.read_csv(outs[1])
     assert {"claim", "measured", "bar", "pass"} <= set(claims.columns) and len(claims) >= 2
+    bars = claims[claims.claim.str.startswith("time to the energy-error target")].bar
+    assert sorted(map(float, bars)) == [2.0, 5.0]   # 2D: the best variant 2x, Alg. 8.4 5x
 
 
 def test_laplace_scripts_and_reports(tmp_path):

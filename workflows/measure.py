@@ -47,9 +47,12 @@ def peak_rss(interval: float = 0.005):
         thread.join()
 
 
-def _gmg_vcycle(qp, lanczos_steps: int = 5):
-    gmg = {**ap.SOLVER.options(ahat="gmg").ahat.options, "lanczos_steps": lanczos_steps}
-    return pc.scaled_vcycle(qp.A, "gmg", qp.multilevel, qp.dim, qp.free_dofs, **gmg)
+def _gmg_vcycle(qp):
+    """The augmented projection's geometric-multigrid V-cycle with its default smoother,
+    unscaled: a PCG solve needs no spectral bounds, so none are timed."""
+    o = ap.SOLVER.options(ahat="gmg").ahat.options
+    return pc.vcycle(qp.A, "gmg", qp.multilevel, qp.dim, qp.free_dofs,
+                     smoother=o["smoother"], sweeps=o["sweeps"])
 
 
 def linear_solution(qp, rtol: float = 1e-13, max_iter: int = 2000) -> np.ndarray:

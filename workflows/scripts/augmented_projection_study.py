@@ -61,7 +61,7 @@ def run_config(qp, u_ref, opts, eps, target, max_iter, time_limit, u0=None, p0=N
         return reached_eps and reached_target
 
     options = ap.SOLVER.options(**opts, stop="estimate", eps=1e-14, record_kkt=False,
-                                kappa_exact=kappa_exact)
+                                diagnostics=False, kappa_exact=kappa_exact)
     res = ap.solve(qp, 1e-12, max_iter, time_limit, u0, p0, options, callback=callback)
     res = verify(qp, res, 1e-12)
     h, s = res.history, res.stats
