@@ -291,7 +291,8 @@ def augmented_projection_algorithm(op: Alg84, u: np.ndarray, p: np.ndarray, eps:
 # ---------------------------------------------------------------------------
 def face_cg_variant(op: Alg84, S_hat_columns: Callable, u: np.ndarray, p: np.ndarray,
                     eps: float, max_iter: int, Gamma: float = 1.0,
-                    monitor: Callable[[OuterStep], bool] | None = None):
+                    monitor: Callable[[OuterStep], bool] | None = None,
+                    S_hat_diagonal: np.ndarray | None = None):
     """Alg. 8.4 accelerated by preconditioned CG on the face of the active set.
 
     *Not in the thesis* (option ``accelerate="face_cg"``). An MPRGP-like
@@ -308,7 +309,9 @@ def face_cg_variant(op: Alg84, S_hat_columns: Callable, u: np.ndarray, p: np.nda
     the phase's last residual ``(d_u, A-hat^{-1} d_u)``, so a CG phase that ends
     at once costs no V-cycle. Both kinds of step decrease ``Jt`` monotonically.
     ``S_hat_II^{-1}`` is a dense Cholesky factor of the face block of
-    ``S_hat`` (``S_hat_columns(I)``; size = number of active constraints).
+    ``S_hat`` (``S_hat_columns(I)``; size = number of active constraints);
+    ``diag(S_hat)`` (proportioning test) is ``S_hat_diagonal`` or, if None,
+    read off ``S_hat_columns`` entry by entry.
 
     Returns
     -------
@@ -318,7 +321,7 @@ def face_cg_variant(op: Alg84, S_hat_columns: Callable, u: np.ndarray, p: np.nda
     import scipy.linalg as sla
     A, B, F, G, gamma_bar = op.A, op.B, op.F, op.G, op.gamma_bar
     eta_0, k, n_cg = None, 0, 0
-    S_diag = None
+    S_diag = S_hat_diagonal
     residual = None     # (d, A-hat^-1 d) at (u, p), left by a CG phase for the next step
 
     def emit(eta, cor, n_inner, t_proj):
@@ -527,8 +530,11 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
     eps_run = 0.0 if stop_kkt else eps_eff
     n_cg = 0
     if opts.accelerate == "face_cg":
+        # the sparse kinds know their diagonal; otherwise face_cg reads it off when needed
+        cheap_diagonal = S_hat.diagonal() if S_hat.diagonal_unscaled is not None else None
         u, p, k, reason, n_cg = face_cg_variant(op, S_hat.columns, u, p, eps_run, max_iter,
-                                                monitor=monitor)
+                                                monitor=monitor,
+                                                S_hat_diagonal=cheap_diagonal)
     else:
         u, p, k, reason = augmented_projection_algorithm(op, u, p, eps_run, max_iter,
                                                          opts.update, monitor, opts.diagnostics)

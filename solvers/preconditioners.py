@@ -348,6 +348,13 @@ class SchurPreconditioner:
             e[j] = 0.0
         return out
 
+    def diagonal(self) -> np.ndarray:
+        """``diag(S-hat)``: from ``diagonal_unscaled`` when the kind has it, else one
+        product per entry."""
+        if self.diagonal_unscaled is not None:
+            return self.scale * np.asarray(self.diagonal_unscaled, dtype=float)
+        return np.array([self.columns(np.array([j]))[j, 0] for j in range(self.m)])
+
     def dense(self) -> np.ndarray:
         """Explicit, symmetrised ``S-hat`` (m products; for tests and small m)."""
         M = self.columns(np.arange(self.m))

@@ -196,6 +196,7 @@ def test_multilevel_S_hat_is_spectrally_close_to_S_in(problems):
     sh = pc.build_schur("multilevel", qp, Ainv, SCHUR_STEPS)
     Sd = sh.dense()
     assert np.allclose(Sd, Sd.T) and np.linalg.eigvalsh(Sd)[0] > 0
+    assert np.allclose(sh.diagonal(), np.diag(Sd), rtol=1e-12)   # the known diagonal is S-hat's
     assert sh.kappa_Sin < 5.0
     # scaled so that S_in <= S-hat
     S_in = np.column_stack([qp.B @ Ainv(qp.B.T @ e) for e in np.eye(qp.m)])
