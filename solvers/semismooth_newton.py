@@ -6,12 +6,16 @@ Optim. 13, 2003) for ``min 1/2 u'Au - f'u  s.t.  Bu <= g``: with the active set
 ``I = {i : p_i + c (Bu - g)_i > 0}`` each step solves the equality-constrained
 problem ``min 1/2 u'Au - f'u  s.t.  B_I u = g_I`` -- here *inexactly*, by
 projected preconditioned CG (Gould, Hribar and Nocedal, SIAM J. Sci. Comput. 23,
-2001): CG on the null space of ``B_I`` with the orthogonal projector
-``Pi = I - B_I'(B_I B_I')^{-1} B_I`` (a sparse factorisation of the small
-``B_I B_I'``) and the preconditioner ``Pi M Pi``, ``M`` one symmetric V-cycle
-(geometric multigrid on the refinement hierarchy, pyamg SA without one), warm
-started from the previous iterate. The multipliers are the least-squares ones,
-``p_I = (B_I B_I')^{-1} B_I (f - A u)``, ``p = 0`` off ``I``.
+2001): CG on the null space of ``B_I`` with a projector ``Pi`` onto it and the
+preconditioner ``Pi M Pi'``, ``M`` one symmetric V-cycle (geometric multigrid on
+the refinement hierarchy, pyamg SA without one). ``Pi`` removes the constraint
+directions along their local A-harmonic extensions (``face="harmonic"``, beyond
+Gould-Hribar-Nocedal; :func:`solvers.preconditioners.face_projector`), which
+keeps the V-cycle's rate on the face, or orthogonally (``face="euclidean"``,
+their ``I - B_I'(B_I B_I')^{-1} B_I``), which cuts the V-cycle's smooth correction
+at the constrained DOFs and needs about twice the steps. The solve is warm
+started from the previous iterate. The multipliers are those the projector defines,
+``p_I = (W' B_I')^{-1} W' (f - A u)`` (least squares for ``euclidean``), ``p = 0`` off ``I``.
 
 Inexactness control: the inner relative tolerance starts at ``inner.rtol`` and
 is tied to the outer residual (a forcing term ``min(rtol, forcing * KKT)``), so
@@ -36,22 +40,21 @@ from solvers.interface import SolveResult, SolverSpec, certify
 from solvers.pdas import _check_positive_diagonal, _damped_update, _pdas_update, _stiffness_scale
 
 
-def projected_pcg(A, BI: sp.csr_matrix, f, gI, M, x0, rtol: float, max_steps: int):
+def projected_pcg(A, face: pc.FaceProjector, f, gI, M, x0, rtol: float, max_steps: int):
     """``min 1/2 x'Ax - f'x  s.t.  B_I x = g_I`` by projected PCG from ``x0``.
 
-    Returns ``(x, steps, lu)`` with ``lu`` the factorisation of ``B_I B_I'`` (None
-    without constraints). ``rtol`` is relative to the projected preconditioned
-    residual at ``x0`` made feasible.
+    ``face`` projects onto ``ker B_I`` (:func:`solvers.preconditioners.face_projector`);
+    the preconditioner is ``Pi M Pi'``. ``rtol`` is relative to the projected
+    preconditioned residual at ``x0`` lifted onto the face.
+
+    Returns
+    -------
+    (x, steps)
     """
-    lu = spla.splu((BI @ BI.T).tocsc()) if BI.shape[0] else None
-    if lu is None:
-        proj = lambda v: v
-        x = np.array(x0, dtype=float)
-    else:
-        proj = lambda v: v - BI.T @ lu.solve(BI @ v)
-        x = x0 + BI.T @ lu.solve(gI - BI @ x0)            # the nearest feasible start
-    r = proj(f - A @ x)
-    z = proj(M(r))
+    x = face.lift(np.array(x0, dtype=float), gI)           # a feasible start near x0
+    precondition = lambda r: face.project(M(face.project_T(r)))
+    r = f - A @ x
+    z = precondition(r)
     d = z.copy()
     rz = float(r @ z)
     r0 = np.sqrt(max(rz, 0.0))
@@ -60,13 +63,13 @@ def projected_pcg(A, BI: sp.csr_matrix, f, gI, M, x0, rtol: float, max_steps: in
         Ad = A @ d
         alpha = rz / float(d @ Ad)
         x += alpha * d
-        r = proj(r - alpha * Ad)
-        z = proj(M(r))
+        r = r - alpha * Ad
+        z = precondition(r)
         rz_new = float(r @ z)
         d = z + (rz_new / rz) * d
         rz = rz_new
         steps += 1
-    return x, steps, lu
+    return x, steps
 
 
 def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
@@ -84,11 +87,13 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
     _check_positive_diagonal(qp.A)
     kind = opts.ahat.kind if opts.ahat.kind != "auto" else (
         "gmg" if qp.multilevel.prolongations else "sa")
-    vc = pc.scaled_vcycle(qp.A, kind, qp.multilevel, qp.dim, qp.free_dofs, seed=0,
-                          **opts.ahat.options)
+    a = opts.ahat.options   # its Lanczos steps are the augmented projection's: PCG needs no bounds
+    vc = pc.vcycle(qp.A, kind, qp.multilevel, qp.dim, qp.free_dofs, smoother=a["smoother"],
+                   sweeps=a["sweeps"], max_coarse=a.get("max_coarse", 0))
     M = vc.raw
     c_eff = opts.c * _stiffness_scale(qp)
     B = qp.B.tocsr()
+    hops = pc.face_hops(qp.dim, opts.face.options.get("hops", 0))
     setup_time = time.perf_counter() - t_start
     vcycles_setup = vc.n_applications
 
@@ -102,16 +107,17 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
     rtol = opts.inner.options["rtol"]
     history = {"n_active": [], "inner_steps": [], "inner_rtol": [], "kkt_max": [], "time": []}
     seen: set[bytes] = set()
+    face = face_rows = None
     limit: int | None = None
     status, message, k = "max_iter", f"not verified after {max_iter} Newton steps", 0
     for k in range(1, max_iter + 1):
         idx = np.flatnonzero(active)
-        BI = B[idx]
-        u, steps, lu = projected_pcg(qp.A, BI, qp.f, qp.g[idx], M, u, rtol,
-                                     opts.inner.options["max_steps"])
+        if face is None or not np.array_equal(idx, face_rows):   # a repeated set keeps its factor
+            face, face_rows = pc.face_projector(qp.A, B[idx], opts.face.kind, hops), idx
+        u, steps = projected_pcg(qp.A, face, qp.f, qp.g[idx], M, u, rtol,
+                                 opts.inner.options["max_steps"])
         p = np.zeros(qp.m)
-        if lu is not None:
-            p[idx] = lu.solve(BI @ (qp.f - qp.A @ u))
+        p[idx] = face.multipliers(qp.f - qp.A @ u)
         kkt = kkt_residuals(qp, u, p).max
         history["n_active"].append(int(idx.size))
         history["inner_steps"].append(steps)
@@ -148,7 +154,7 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
     inner = int(np.sum(history["inner_steps"]))
     stats = {"newton_steps": k, "inner_steps": inner, "n_vcycles": vc.n_applications - vcycles_setup,
              "vcycles_setup": vcycles_setup, "n_active": int(np.count_nonzero(p > 0)),
-             "ahat_kind": kind, "damped": limit is not None}
+             "ahat_kind": kind, "face": opts.face.kind, "damped": limit is not None}
     return SolveResult(u=u, p=p, claimed_status=status, message=message, iterations=k,
                        setup_time=setup_time, solve_time=time.perf_counter() - t_solve,
                        history=history, stats=stats)
@@ -177,6 +183,7 @@ SOLVER = SolverSpec(
                       Parameter("max_steps", 500, "cap on inner PCG steps per Newton step",
                                 low=1, kind=int))},
             "inner solver of a Newton step: projected PCG with one V-cycle"),
+        pc.FACE_PROJECTION,
         Parameter("forcing", 0.1, "inner tolerance <= forcing * KKT residual (Eisenstat-Walker "
                   "type forcing term)", low=0.0, high=1.0, low_open=True),
         Parameter("tighten", 1e-2, "factor on the inner tolerance when the active set repeats "

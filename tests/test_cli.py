@@ -111,7 +111,10 @@ def test_every_solver_runs_the_stabilised_coupling_through_the_cli(tmp_path, sol
     assert data["m"] == qp.m > qp.m_contact
     res = solve(qp, solver, tol="mid")
     assert data["status"] == res.status
-    assert energy_error(qp, res.u, ref.u) <= data["energy_bound"] * (1 + 1e-6)
+    # the bound is certified down to its floating-point floor (below it, both it and the
+    # reference's own error are rounding): compare at whichever is larger
+    certified = max(data["energy_bound"], data["energy_bound_floor"])
+    assert energy_error(qp, res.u, ref.u) <= certified * (1 + 1e-6)
     if data["status"] == "converged":
         assert energy_error(qp, res.u, ref.u) < 1e-4
 
