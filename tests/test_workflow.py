@@ -111,7 +111,11 @@ def test_augmented_projection_study_and_its_report(tmp_path):
         "--configs", "alg84", "nested_face_cg", "--kappa-exact", "--time-limit", "60",
         "--out", str(study))
     s = pd.read_csv(study)
-    assert set(s["config"]) == {"reference", "alg84", "nested_face_cg", "amg_pcg_gmg", "amg_pcg_sa"}
+    assert set(s["config"]) == {"reference", "alg84", "nested_face_cg", "semismooth_newton",
+                                "amg_pcg_gmg", "amg_pcg_sa"}
+    newton = s[s.config == "semismooth_newton"]
+    assert (newton["status"] == "converged").all() and (newton["energy_error"] <= 1e-6).all()
+    assert (newton["t_to_target"] == newton["t_setup"] + newton["t_solve"]).all()
     assert set(s.loc[s.config == "reference", "reference"]) == {"pdas"}
     runs = s[s.config == "alg84"]
     assert list(runs["NC"]) == [17, 33] and runs["stop_8_25"].all()
