@@ -349,12 +349,9 @@ class FaceProjector:
 
     B_I: sp.csr_matrix
     patch: np.ndarray
+    B_p: sp.csr_matrix          # B_I[:, patch]
     solve_G: Apply | None
     K_factor: tuple | None
-    B_p: sp.csr_matrix | None = None   # B_I[:, patch]
-
-    def __post_init__(self):
-        self.B_p = self.B_I[:, self.patch]
 
     def _extend(self, v: np.ndarray, c: np.ndarray, sign: float) -> np.ndarray:
         """``v + sign * W K^{-1} c``."""
@@ -409,25 +406,29 @@ def face_projector(A: sp.spmatrix, B_I: sp.spmatrix, kind: str = "harmonic",
     if hops < 0:
         raise ValueError(f"hops must be >= 0, got {hops}")
     B_I = sp.csr_matrix(B_I)
-    if B_I.shape[0] == 0:
-        return FaceProjector(B_I, np.zeros(0, dtype=int), None, None)
     constrained = np.unique(B_I.indices)
+    patch = constrained
+    if B_I.shape[0] == 0:
+        return FaceProjector(B_I, patch, B_I[:, patch], None, None)
     if kind == "harmonic":
         A = sp.csr_matrix(A)
-        patch = constrained
         for _ in range(hops):
             patch = np.union1d(patch, A[patch].indices)
+    B_p = B_I[:, patch]
+    if kind == "harmonic":
         G = factorize(A[patch][:, patch], components=np.searchsorted(patch, constrained))
-        solve_G, X = G.solve, G.solve(B_I[:, patch].T, partial=True)
+        solve_G, X = G.solve, G.solve(B_p.T, partial=True)
     else:
-        patch = constrained
-        solve_G, X = (lambda r: np.asarray(r, dtype=float)), B_I[:, patch].T.toarray()
-    K = np.asarray(B_I[:, patch] @ X)
+        solve_G, X = (lambda r: np.asarray(r, dtype=float)), B_p.T.toarray()
+    K = np.asarray(B_p @ X)
     try:
         K_factor = sla.cho_factor(0.5 * (K + K.T))
+        dependent = np.diag(K_factor[0]).min() ** 2 <= 1e-12 * np.diag(K).max()
     except np.linalg.LinAlgError:
-        raise ValueError("the active constraint rows B_I are linearly dependent") from None
-    return FaceProjector(B_I, patch, solve_G, K_factor)
+        dependent = True
+    if dependent:
+        raise ValueError("the active constraint rows B_I are linearly dependent")
+    return FaceProjector(B_I, patch, B_p, solve_G, K_factor)
 
 
 # ---------------------------------------------------------------------------

@@ -30,8 +30,6 @@ from __future__ import annotations
 import time
 
 import numpy as np
-import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
 from problems.qp import ContactQP, kkt_residuals
 from problems.spec import ComponentParameter, Options, Parameter

@@ -98,3 +98,17 @@ def test_stops_short_honestly():
     qp = CIRCLE_SQUARE.make(1)
     res = solve(qp, "semismooth_newton", tol="high", max_iter=2)
     assert res.status == "max_iter" and res.iterations == 2
+
+
+def test_face_projector_refuses_bad_input():
+    qp = CIRCLE_SQUARE.make(0)
+    B = qp.B.tocsr()
+    with pytest.raises(ValueError, match="allowed: harmonic, euclidean"):
+        face_projector(qp.A, B[:2], "oblique")
+    with pytest.raises(ValueError, match="hops must be >= 0"):
+        face_projector(qp.A, B[:2], "harmonic", hops=-1)
+    with pytest.raises(ValueError, match="linearly dependent"):
+        face_projector(qp.A, sp.vstack([B[:1], B[:1]]), "euclidean")
+    empty = face_projector(qp.A, B[:0])          # no active constraint: the identity
+    v = np.arange(qp.n, dtype=float)
+    assert np.array_equal(empty.project(v), v) and np.array_equal(empty.project_T(v), v)
