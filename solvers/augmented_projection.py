@@ -436,9 +436,7 @@ def make_projection(projection: Component, S_hat: pc.SchurPreconditioner, tau_2_
 
 def resolve_kinds(qp: ContactQP, ahat: Component, schur: Component) -> tuple[str, str]:
     """The A-hat and S-hat kinds ``auto`` stands for on this problem."""
-    a = ahat.kind
-    if a == "auto":
-        a = "gmg" if qp.multilevel.prolongations else "sa"
+    a = pc.vcycle_kind(qp, ahat.kind)
     s = schur.kind
     if s == "auto":
         s = ("multilevel" if (qp.multilevel.surface is not None and qp.m > 2

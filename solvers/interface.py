@@ -249,10 +249,7 @@ def linear_solver(qp: ContactQP) -> Callable[[np.ndarray], np.ndarray]:
     else:
         from solvers import preconditioners as pc
         from solvers.augmented_projection import SOLVER as AP
-        kind = "gmg" if qp.multilevel.prolongations else "sa"
-        o = AP.options(ahat=kind).ahat.options
-        vc = pc.vcycle(qp.A, kind, qp.multilevel, qp.dim, qp.free_dofs, smoother=o["smoother"],
-                       sweeps=o["sweeps"], max_coarse=o.get("max_coarse", 0))
+        vc = pc.component_vcycle(qp, AP.options().ahat)
         M = spla.LinearOperator(qp.A.shape, matvec=vc.raw)
 
         def solve_A(r):

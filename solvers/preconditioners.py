@@ -264,6 +264,23 @@ def vcycle(A: sp.spmatrix, kind: str, multilevel: Multilevel | None, dim: int,
     return ScaledVCycle(kind, ml, 1.0, 1.0, (np.nan, np.nan), time.perf_counter() - t0, 0.0)
 
 
+def vcycle_kind(qp: ContactQP, kind: str) -> str:
+    """``kind``, with ``auto`` resolved: gmg when ``qp`` has a refinement hierarchy, else sa."""
+    return kind if kind != "auto" else ("gmg" if qp.multilevel.prolongations else "sa")
+
+
+def component_vcycle(qp: ContactQP, ahat) -> ScaledVCycle:
+    """The unscaled V-cycle an ``ahat`` component (:class:`problems.spec.Component`, as the
+    augmented projection declares it) describes on ``qp.A``: what a PCG solve needs.
+
+    Kind ``auto`` as :func:`vcycle_kind`; a Lanczos step count among the options is
+    not used.
+    """
+    o = ahat.options
+    return vcycle(qp.A, vcycle_kind(qp, ahat.kind), qp.multilevel, qp.dim, qp.free_dofs, smoother=o["smoother"],
+                  sweeps=o["sweeps"], max_coarse=o.get("max_coarse", 0))
+
+
 def scaled_vcycle(A: sp.spmatrix, kind: str, multilevel: Multilevel | None, dim: int,
                   free_dofs: np.ndarray | None, *, smoother: str, sweeps: int,
                   lanczos_steps: int, max_coarse: int = 0, seed: int = 0) -> ScaledVCycle:

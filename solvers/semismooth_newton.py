@@ -83,11 +83,7 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
         raise ValueError("semismooth_newton solves Bu <= g only; the ContactQP has a "
                          "stabilisation block C (Sect. 7.5)")
     _check_positive_diagonal(qp.A)
-    kind = opts.ahat.kind if opts.ahat.kind != "auto" else (
-        "gmg" if qp.multilevel.prolongations else "sa")
-    a = opts.ahat.options   # its Lanczos steps are the augmented projection's: PCG needs no bounds
-    vc = pc.vcycle(qp.A, kind, qp.multilevel, qp.dim, qp.free_dofs, smoother=a["smoother"],
-                   sweeps=a["sweeps"], max_coarse=a.get("max_coarse", 0))
+    vc = pc.component_vcycle(qp, opts.ahat)   # unscaled: PCG needs no spectral bounds
     M = vc.raw
     c_eff = opts.c * _stiffness_scale(qp)
     B = qp.B.tocsr()
@@ -152,7 +148,7 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
     inner = int(np.sum(history["inner_steps"]))
     stats = {"newton_steps": k, "inner_steps": inner, "n_vcycles": vc.n_applications - vcycles_setup,
              "vcycles_setup": vcycles_setup, "n_active": int(np.count_nonzero(p > 0)),
-             "ahat_kind": kind, "face": opts.face.kind, "damped": limit is not None}
+             "ahat_kind": vc.kind, "face": opts.face.kind, "damped": limit is not None}
     return SolveResult(u=u, p=p, claimed_status=status, message=message, iterations=k,
                        setup_time=setup_time, solve_time=time.perf_counter() - t_solve,
                        history=history, stats=stats)

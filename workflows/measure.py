@@ -50,9 +50,7 @@ def peak_rss(interval: float = 0.005):
 def _gmg_vcycle(qp):
     """The augmented projection's geometric-multigrid V-cycle with its default smoother,
     unscaled: a PCG solve needs no spectral bounds, so none are timed."""
-    o = ap.SOLVER.options(ahat="gmg").ahat.options
-    return pc.vcycle(qp.A, "gmg", qp.multilevel, qp.dim, qp.free_dofs,
-                     smoother=o["smoother"], sweeps=o["sweeps"])
+    return pc.component_vcycle(qp, ap.SOLVER.options(ahat="gmg").ahat)
 
 
 def linear_solution(qp, rtol: float = 1e-13, max_iter: int = 2000) -> np.ndarray:
