@@ -28,6 +28,7 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+from tqdm import tqdm
 
 from problems.qp import energy_error, kkt_residuals
 from solvers import augmented_projection as ap
@@ -167,12 +168,18 @@ def main(argv=None) -> None:
     spec, params = scene_from_args(parser, args)
     levels = check_levels(parser, spec, args.levels)
     rows = []
+    steps = ["reference", *args.configs, *([] if args.no_newton else [NEWTON]),
+             *([] if args.no_floor else ["floor"])]
+    progress = tqdm(total=len(levels) * len(steps), desc=f"augmented projection on {spec.name}")
     for level in levels:
+        progress.set_postfix_str(f"level {level}: building, reference")
         qp = spec.build(level, params)
         base = {"level": level, "dim": qp.dim, "N": qp.n_nodes, "NC": qp.m, "n": qp.n}
         u_ref = _reference(qp, level, spec.name, args.ref_cache, rows, base)
+        progress.update()
         measured = set()   # kappa(S-hat^-1 S) costs a PCG solve per product: once per S-hat kind
         for name in args.configs:
+            progress.set_postfix_str(f"level {level}: {name}")
             variant = ap.VARIANTS[name]
             schur = ap.resolve_kinds(qp, *(ap.SOLVER.options(**variant.options)[k]
                                            for k in ("ahat", "schur")))[1]
@@ -195,15 +202,21 @@ def main(argv=None) -> None:
                              args.time_limit, u0, p0, kappa_exact)
             rows.append({**base, "config": name, **row, "t_coarse_levels": t_coarse,
                          **{f"opt_{k}": v for k, v in variant.options.items()}})
+            progress.update()
         if not args.no_newton:
+            progress.set_postfix_str(f"level {level}: {NEWTON}")
             rows.append({**base, "config": NEWTON,
                          **newton_run(qp, u_ref, args.target, args.time_limit)})
+            progress.update()
         if not args.no_floor:
+            progress.set_postfix_str(f"level {level}: multigrid-PCG floor")
             u_lin = linear_solution(qp)
             for kind in ("gmg", "sa"):
                 rows.append({**base, "config": f"amg_pcg_{kind}",
                              **amg_pcg_floor(qp, kind, args.target, u_lin)})
+            progress.update()
         write_csv(args.out, pd.DataFrame(rows))  # after every level: partial results survive
+    progress.close()
 
 
 if __name__ == "__main__":
