@@ -598,12 +598,14 @@ def feasible_point(qp: ContactQP, u: np.ndarray, tight: np.ndarray | None = None
 
 
 def duality_gap(qp: ContactQP, u: np.ndarray, p: np.ndarray,
-                solve_A: Callable[[np.ndarray], np.ndarray],
+                solve_A: Callable[..., np.ndarray],
                 target: float | None = None) -> DualityGap:
     """The certified energy-error bound of ``u`` (:class:`DualityGap`).
 
-    ``solve_A(r)`` returns ``A^{-1} r`` (the bound is certified up to that solve's
-    accuracy, which the caller drives far below the gap). For a pair
+    ``solve_A(r, guess=x0)`` returns ``A^{-1} r`` (the bound is certified up to that
+    solve's accuracy, which the caller drives far below the gap); ``x0``, the feasible
+    point of the pair (close to ``A^{-1} r`` for a good pair), is where an iterative
+    solve may start: it changes the cost, not the accuracy asked for. For a pair
     ``(u_f, p~)`` with ``x = A^{-1}(f - B'p~)`` the gap is a sum of non-negative
     terms, computed without cancellation::
 
@@ -626,7 +628,7 @@ def duality_gap(qp: ContactQP, u: np.ndarray, p: np.ndarray,
     inf = float("inf")
 
     def pair(u_f, p_t, extra=0.0):
-        x = solve_A(qp.f - qp.B.T @ p_t)
+        x = solve_A(qp.f - qp.B.T @ p_t, guess=u_f)
         e = u_f - x
         slack = qp.g - qp.B @ u_f
         gap = 0.5 * float(e @ (qp.A @ e)) + float(p_t @ slack) + extra

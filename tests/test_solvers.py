@@ -395,3 +395,55 @@ def test_complementarity_residual_cannot_cancel():
     res = kkt_residuals(qp, np.zeros(2), np.ones(2))
     assert res.complementarity == pytest.approx(1.0)  # sum|p_i s_i| / (||p||_1 max|g|)
     assert res.dual == 0.0 and str(res.dual) == "0.0"
+
+
+# --------------------------------------------------------------------------- certificate
+def test_certificate_pcg_warm_start_saves_steps_not_accuracy(monkeypatch):
+    """Beyond the direct limit the certificate's A^-1 is multigrid PCG to 1e-14 ||r||:
+    started from a nearby guess (the pair's feasible point) it takes fewer steps and
+    meets the same residual."""
+    import scipy.sparse.linalg as linalg
+
+    from solvers import interface
+
+    monkeypatch.setattr(interface, "DIRECT_LINEAR_LIMIT", {})
+    steps = []
+    plain_cg = linalg.cg
+
+    def counted_cg(*args, **kwargs):
+        count = [0]
+        out = plain_cg(*args, callback=lambda _: count.__setitem__(0, count[0] + 1), **kwargs)
+        steps.append(count[0])
+        return out
+
+    monkeypatch.setattr(linalg, "cg", counted_cg)
+    qp = obstacle_qp(40)
+    solve_A = interface.linear_solver(qp)
+    r = qp.f - qp.B.T @ np.linspace(0.0, 1e-3, qp.m)
+    exact = spla.spsolve(sp.csc_matrix(qp.A), r)
+    guess = exact * (1 + 1e-6 * np.random.default_rng(0).normal(size=qp.n))
+    cold, warm = solve_A(r), solve_A(r, guess=guess)
+    residual = [np.linalg.norm(r - qp.A @ x) / np.linalg.norm(r) for x in (cold, warm)]
+    assert max(residual) <= 1e-13, residual    # 1e-14 recursively; the true one near it
+    for x in (cold, warm):
+        np.testing.assert_allclose(x, exact, rtol=1e-10)
+    assert steps[1] <= 0.8 * steps[0], steps     # 11 -> 8 here
+
+
+def test_certificate_is_computed_once_per_pair(references):
+    """A solver that certifies its own stop and the verification after it share one
+    certificate; another pair or tolerance gets its own."""
+    from solvers.interface import certify, linear_solver
+
+    qp = two_body_qp(seed=3)
+    solves = []
+    direct = linear_solver(qp)
+    qp.cache["linear_solver"] = lambda r, guess=None: solves.append(1) or direct(r, guess)
+    res = solve(qp, "semismooth_newton", tol=1e-8)
+    assert res.status == "converged" and solves
+    assert res.gap is qp.cache["certificate"][1]
+    before = len(solves)
+    assert certify(qp, res.u, res.p, 1e-8) is res.gap and len(solves) == before
+    again = certify(qp, res.u + 1e-9, res.p, 1e-8)
+    assert again is not res.gap and len(solves) > before
+    assert certify(qp, res.u, res.p, 1e-3) is not res.gap
