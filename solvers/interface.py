@@ -14,6 +14,7 @@ verifies it.
 """
 from __future__ import annotations
 
+import hashlib
 import time
 from dataclasses import dataclass, field
 from typing import Any, Callable
@@ -269,8 +270,6 @@ def certify(qp: ContactQP, u: np.ndarray, p: np.ndarray, tol: float | None = Non
     The last certificate is kept in ``qp.cache`` under the digest of ``(u, p, tol)``:
     a solver that certifies its own stop and :func:`verify` after it pay for one.
     """
-    import hashlib
-
     u, p = np.ascontiguousarray(u, dtype=float), np.ascontiguousarray(p, dtype=float)
     key = hashlib.blake2b(u.tobytes() + p.tobytes() + repr(tol).encode(),
                           digest_size=16).digest()
