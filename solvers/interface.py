@@ -224,14 +224,16 @@ DIRECT_LINEAR_LIMIT = {2: 2_500_000, 3: 150_000}
 
 
 def linear_solver(qp: ContactQP) -> Callable[..., np.ndarray]:
-    """``(r, guess=None) -> A^{-1} r`` for the verification's duality gap, built once per problem
-    (``qp.cache``): a sparse Cholesky of ``A`` (:func:`solvers.cholesky.factorize`) up
-    to :data:`DIRECT_LINEAR_LIMIT` or where a solver has factorised it already (with
-    the floating bodies' near-kernel removed, :class:`solvers.cholesky.FloatingCholesky`:
-    a multigrid PCG on such a nearly singular ``A`` needs thousands of steps), else CG preconditioned by one V-cycle (geometric
-    multigrid on the problem's hierarchy, pyamg SA without one) to a residual of
-    1e-14 ||r||, started from ``guess`` (the direct route ignores it): a guess close to
-    the solution saves steps, never accuracy.
+    """``(r, guess=None) -> A^{-1} r`` for the verification's duality gap, built once
+    per problem (``qp.cache``).
+
+    A sparse Cholesky of ``A`` (:func:`solvers.cholesky.factorize`) up to
+    :data:`DIRECT_LINEAR_LIMIT` or where a solver has factorised it already (with the
+    floating bodies' near-kernel removed, :class:`solvers.cholesky.FloatingCholesky`: a
+    multigrid PCG on such a nearly singular ``A`` needs thousands of steps); else CG
+    preconditioned by one V-cycle (geometric multigrid on the problem's hierarchy, pyamg
+    SA without one) to a residual of 1e-14 ||r||, started from ``guess`` (the direct
+    route ignores it): a guess close to the solution saves steps, never accuracy.
     """
     if "linear_solver" in qp.cache:
         return qp.cache["linear_solver"]

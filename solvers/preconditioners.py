@@ -277,8 +277,8 @@ def component_vcycle(qp: ContactQP, ahat) -> ScaledVCycle:
     not used.
     """
     o = ahat.options
-    return vcycle(qp.A, vcycle_kind(qp, ahat.kind), qp.multilevel, qp.dim, qp.free_dofs, smoother=o["smoother"],
-                  sweeps=o["sweeps"], max_coarse=o.get("max_coarse", 0))
+    return vcycle(qp.A, vcycle_kind(qp, ahat.kind), qp.multilevel, qp.dim, qp.free_dofs,
+                  smoother=o["smoother"], sweeps=o["sweeps"], max_coarse=o.get("max_coarse", 0))
 
 
 def scaled_vcycle(A: sp.spmatrix, kind: str, multilevel: Multilevel | None, dim: int,
