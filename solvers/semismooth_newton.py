@@ -21,137 +21,369 @@ Inexactness control: the inner relative tolerance starts at ``inner.rtol`` and
 is tied to the outer residual (a forcing term ``min(rtol, forcing * KKT)``), so
 early steps with a wrong active set are cheap and the last ones accurate; when
 the active set repeats, the tolerance is tightened by ``tighten`` until the
-verification passes. A cycling active set is damped as in :mod:`solvers.pdas`.
+verification passes. The inner PCG keeps its residual projected and stops at the
+round-off level of the problem (:func:`projected_pcg`), so its result does not
+depend on how a BLAS kernel rounds. A cycling active set is damped as in
+:mod:`solvers.pdas`.
+
+Globalisation: PDAS converges for M-matrix-like problems but may cycle otherwise
+(with exact or inexact solves). When the Newton iteration stalls -- the active set
+recurs even under single damped changes, or the best KKT residual has not halved for
+``patience`` steps -- the monotone primal active-set method takes over from where
+Newton stopped (:func:`_monotone`; Nocedal and Wright, Alg. 16.3): feasible iterates,
+the same inexact face solves, a non-increasing energy, finite termination. The
+message says that it ran and why; ``fallback="none"`` makes a stall a ``failed`` run
+instead, and ``patience=0`` runs the monotone method from the start.
+
 It stops when the suite's verification passes (KKT residuals and the certified
 energy bound, :func:`solvers.interface.verify`), so its claims are never refuted.
 """
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from problems.qp import ContactQP, kkt_residuals
-from problems.spec import ComponentParameter, Options, Parameter
+from problems.spec import ComponentParameter, Options, Parameter, ParameterError
 from solvers import preconditioners as pc
 from solvers.interface import SolveResult, SolverSpec, certify
 from solvers.pdas import _check_positive_diagonal, _damped_update, _pdas_update, _stiffness_scale
+
+
+#: Round-off floor of the inner solve, relative to the energy norm of the iterate: below
+#: it the projected residual is noise (measured ~1e-16 relative on the random two-body
+#: family and on circle-square) and further CG steps only stir it.
+ROUNDOFF_FLOOR = 1e3 * np.finfo(float).eps
 
 
 def projected_pcg(A, face: pc.FaceProjector, f, gI, M, x0, rtol: float, max_steps: int):
     """``min 1/2 x'Ax - f'x  s.t.  B_I x = g_I`` by projected PCG from ``x0``.
 
     ``face`` projects onto ``ker B_I`` (:func:`solvers.preconditioners.face_projector`);
-    the preconditioner is ``Pi M Pi'``. ``rtol`` is relative to the projected
-    preconditioned residual at ``x0`` lifted onto the face.
+    the preconditioner is ``Pi M Pi'``. The residual is kept projected,
+    ``r <- Pi' r`` after every update (Gould, Hribar and Nocedal's *residual
+    update*, their Sect. 6), so that ``r'z = r' M r`` is evaluated as a norm: the
+    unprojected residual carries the constraint force ``B_I' p`` and ``r'z``
+    computed from it is a difference of large numbers that rounding can make
+    tiny, negative or wrong (the cause of issue 20: CG then walked off the face
+    and ran into ``max_steps`` on 90 unknowns). It stops when
+    ``||r||_M <= max(rtol ||r_0||_M, ROUNDOFF_FLOOR ||x||_A)``: relative to the
+    lifted start, but never below the round-off level of the problem, which a
+    warm start that is already optimal on the face sits at. The iterate is
+    lifted onto the face once more at the end (removes the drift of the updates).
 
     Returns
     -------
     (x, steps)
     """
     x = face.lift(np.array(x0, dtype=float), gI)           # a feasible start near x0
-    precondition = lambda r: face.project(M(face.project_T(r)))
-    r = f - A @ x
-    z = precondition(r)
-    d = z.copy()
-    rz = float(r @ z)
-    r0 = np.sqrt(max(rz, 0.0))
+    Ax = A @ x
+    r = face.project_T(f - Ax)
+    y = M(r)
+    rz = float(r @ y)
+    floor = ROUNDOFF_FLOOR * np.sqrt(max(float(x @ Ax), 0.0))
+    stop = max(rtol * np.sqrt(max(rz, 0.0)), floor)
+    z = face.project(y)
+    d = z
     steps = 0
-    while steps < max_steps and np.sqrt(max(rz, 0.0)) > rtol * r0 and rz > 0:
+    while steps < max_steps and rz > 0 and np.sqrt(rz) > stop:
         Ad = A @ d
-        alpha = rz / float(d @ Ad)
-        x += alpha * d
-        r = r - alpha * Ad
-        z = precondition(r)
-        rz_new = float(r @ z)
+        dAd = float(d @ Ad)
+        if not dAd > 0:                                     # d is round-off: nothing to gain
+            break
+        alpha = rz / dAd
+        x = x + alpha * d
+        r = face.project_T(r - alpha * Ad)
+        y = M(r)
+        rz_new = float(r @ y)
+        z = face.project(y)
         d = z + (rz_new / rz) * d
         rz = rz_new
         steps += 1
-    return x, steps
+    return (face.lift(x, gI) if steps else x), steps
 
 
 def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
           u0: np.ndarray | None, p0: np.ndarray | None, opts: Options) -> SolveResult:
     """Solve ``qp`` by the inexact semismooth Newton method (module docstring).
 
-    ``max_iter`` caps the Newton (active-set) steps; ``stats`` count the inner
-    PCG steps and the V-cycles (one per inner step plus one per Newton step for
-    the initial residual) and those of the setup.
+    ``max_iter`` caps the steps, Newton and fallback together; ``stats`` count the
+    inner PCG steps and the V-cycles (one per inner step plus one per face solve for
+    the initial residual) and those of the setup, and say whether the monotone
+    fallback ran (``fallback``) and why (the message).
     """
     t_start = time.perf_counter()
     if qp.C is not None:
         raise ValueError("semismooth_newton solves Bu <= g only; the ContactQP has a "
                          "stabilisation block C (Sect. 7.5)")
     _check_positive_diagonal(qp.A)
+    if opts.patience == 0 and opts.fallback == "none":
+        raise ParameterError("parameter 'patience': 0 (the fallback from the start) is not "
+                             "allowed with fallback='none'; allowed: patience >= 1")
     vc = pc.component_vcycle(qp, opts.ahat)   # unscaled: PCG needs no spectral bounds
-    M = vc.raw
-    c_eff = opts.c * _stiffness_scale(qp)
     B = qp.B.tocsr()
     hops = pc.face_hops(qp.dim, opts.face.options.get("hops", 0))
+    faces = _FaceCache(qp.A, B, opts.face.kind, hops)
     setup_time = time.perf_counter() - t_start
     vcycles_setup = vc.n_applications
 
     t_solve = time.perf_counter()
+    run = _Run(qp, B, vc.raw, faces, tol, opts, t_solve,
+               None if time_limit is None else t_start + time_limit)
     u = np.zeros(qp.n) if u0 is None else np.array(u0, dtype=float)
     p = np.zeros(qp.m) if p0 is None else np.maximum(np.asarray(p0, dtype=float), 0.0)
     if u0 is None and p0 is None:
         active = np.zeros(qp.m, dtype=bool)
     else:
-        active = (p + c_eff * (B @ u - qp.g)) > 0
-    rtol = opts.inner.options["rtol"]
-    history = {"n_active": [], "inner_steps": [], "inner_rtol": [], "kkt_max": [], "time": []}
-    seen: set[bytes] = set()
-    face = face_rows = None
-    limit: int | None = None
-    status, message, k = "max_iter", f"not verified after {max_iter} Newton steps", 0
-    for k in range(1, max_iter + 1):
+        active = (p + opts.c * _stiffness_scale(qp) * (B @ u - qp.g)) > 0
+    fallback = opts.fallback == "monotone"
+    if opts.patience == 0:
+        out = _monotone(run, u, active, max_iter, 0)
+        out.message = f"monotone primal active-set method (patience=0): {out.message}"
+    else:
+        out = _newton(run, u, active, max_iter, opts.patience)
+    if out.status == "stalled" and fallback and out.steps < max_iter:
+        stall = out.message
+        out = _monotone(run, out.u, out.active, max_iter - out.steps, out.steps)
+        out.message = f"{stall}; fell back to the monotone primal active-set method: {out.message}"
+    elif out.status == "stalled":
+        out.status = "failed" if not fallback else "max_iter"
+        out.message += "; no fallback" if not fallback else "; no steps left for the fallback"
+    inner = int(np.sum(run.history["inner_steps"]))
+    stats = {"newton_steps": run.newton_steps, "fallback_steps": run.fallback_steps,
+             "fallback": run.fallback_steps > 0, "inner_steps": inner,
+             "n_vcycles": vc.n_applications - vcycles_setup, "vcycles_setup": vcycles_setup,
+             "n_active": int(np.count_nonzero(out.p > 0)), "ahat_kind": vc.kind,
+             "face": opts.face.kind, "damped": run.damped}
+    return SolveResult(u=out.u, p=out.p, claimed_status=out.status, message=out.message,
+                       iterations=out.steps, setup_time=setup_time,
+                       solve_time=time.perf_counter() - t_solve, history=run.history,
+                       stats=stats)
+
+
+class _FaceCache:
+    """The face projector of the last active set (a repeated set keeps its factor)."""
+
+    def __init__(self, A, B, kind: str, hops: int):
+        self.A, self.B, self.kind, self.hops = A, B, kind, hops
+        self.rows, self.face = None, None
+
+    def __call__(self, idx: np.ndarray) -> pc.FaceProjector:
+        if self.face is None or not np.array_equal(idx, self.rows):
+            self.face, self.rows = pc.face_projector(self.A, self.B[idx], self.kind, self.hops), idx
+        return self.face
+
+
+@dataclass
+class _Outcome:
+    """Where a phase stopped: the iterate, its active set, the status and the steps so far."""
+
+    u: np.ndarray
+    p: np.ndarray
+    active: np.ndarray
+    status: str
+    message: str
+    steps: int
+
+
+@dataclass
+class _Run:
+    """What both phases share: the problem, the V-cycle, the faces, the inexactness
+    control (``rtol``), the clock and the history."""
+
+    qp: ContactQP
+    B: object
+    M: object
+    faces: _FaceCache
+    tol: float
+    opts: Options
+    t_solve: float
+    deadline: float | None
+    rtol: float = 0.0
+    newton_steps: int = 0
+    fallback_steps: int = 0
+    damped: bool = False
+    history: dict = field(default_factory=lambda: {
+        "phase": [], "n_active": [], "inner_steps": [], "inner_rtol": [], "kkt_max": [],
+        "energy": [], "time": []})
+
+    def __post_init__(self):
+        self.rtol = self.opts.inner.options["rtol"]
+
+    def face_solve(self, u: np.ndarray, active: np.ndarray):
+        """The face of ``active`` solved from ``u`` to ``rtol``: ``(u, p, face)``."""
         idx = np.flatnonzero(active)
-        if face is None or not np.array_equal(idx, face_rows):   # a repeated set keeps its factor
-            face, face_rows = pc.face_projector(qp.A, B[idx], opts.face.kind, hops), idx
-        u, steps = projected_pcg(qp.A, face, qp.f, qp.g[idx], M, u, rtol,
-                                 opts.inner.options["max_steps"])
-        p = np.zeros(qp.m)
-        p[idx] = face.multipliers(qp.f - qp.A @ u)
+        face = self.faces(idx)
+        u, steps = projected_pcg(self.qp.A, face, self.qp.f, self.qp.g[idx], self.M, u,
+                                 self.rtol, self.opts.inner.options["max_steps"])
+        self.history["inner_steps"].append(steps)
+        self.history["inner_rtol"].append(self.rtol)
+        return u, face
+
+    def multipliers(self, u: np.ndarray, active: np.ndarray, face) -> np.ndarray:
+        p = np.zeros(self.qp.m)
+        p[active] = face.multipliers(self.qp.f - self.qp.A @ u)
+        return p
+
+    def record(self, phase: str, active: np.ndarray, u: np.ndarray, kkt: float) -> None:
+        h = self.history
+        h["phase"].append(phase)
+        h["n_active"].append(int(np.count_nonzero(active)))
+        h["kkt_max"].append(kkt)
+        h["energy"].append(self.qp.energy(u))
+        h["time"].append(time.perf_counter() - self.t_solve)
+
+    def verified(self, u: np.ndarray, p: np.ndarray, kkt: float) -> bool:
+        """The suite's verification: KKT residuals and the certified energy bound."""
+        return kkt <= self.tol and certify(self.qp, u, p, self.tol).meets(self.tol)
+
+    def tighten(self) -> bool:
+        """Tighten the inner tolerance; False when it is at its floor already."""
+        floor = self.opts.inner.options["min_rtol"]
+        if self.rtol <= floor:
+            return False
+        self.rtol = max(self.rtol * self.opts.tighten, floor)
+        return True
+
+    def out_of_time(self) -> bool:
+        return self.deadline is not None and time.perf_counter() > self.deadline
+
+
+def _newton(run: _Run, u: np.ndarray, active: np.ndarray, max_iter: int,
+            patience: int) -> _Outcome:
+    """The semismooth Newton (PDAS) steps with inexact face solves.
+
+    Ends ``converged`` (verified), ``inaccurate`` (the active set is fixed but the
+    inner tolerance is at its floor), ``max_iter``, ``time_limit``, or ``stalled``:
+    the active set recurs even under single damped changes, or the best KKT
+    residual has not halved for ``patience`` steps. A stalled run goes on in
+    :func:`_monotone` (option ``fallback``).
+    """
+    qp, opts, tol = run.qp, run.opts, run.tol
+    seen: set[bytes] = set()
+    limit: int | None = None
+    best, since_best = np.inf, 0
+    p = np.zeros(qp.m)
+    for k in range(1, max_iter + 1):
+        run.newton_steps = k
+        u, face = run.face_solve(u, active)
+        p = run.multipliers(u, active, face)
         kkt = kkt_residuals(qp, u, p).max
-        history["n_active"].append(int(idx.size))
-        history["inner_steps"].append(steps)
-        history["inner_rtol"].append(rtol)
-        history["kkt_max"].append(kkt)
-        history["time"].append(time.perf_counter() - t_solve)
+        run.record("newton", active, u, kkt)
+        best, since_best = (kkt, 0) if kkt < 0.5 * best else (best, since_best + 1)
         proposed = _pdas_update(qp, active, u, p, opts.flip_tol)
         new = proposed if limit is None else _damped_update(qp, active, proposed, u, p, limit)
         if np.array_equal(new, active):
-            if kkt <= tol and certify(qp, u, p, tol).meets(tol):
-                status = "converged"
-                message = (f"active set fixed after {k} Newton steps, verified (KKT "
-                           f"{kkt:.1e}, certified bound <= {tol:.0e})")
-                break
-            if rtol <= opts.inner.options["min_rtol"]:
-                status = "inaccurate"
-                message = (f"active set fixed but not verified at the inner tolerance floor "
-                           f"{rtol:.0e} (KKT {kkt:.1e})")
-                break
-            rtol = max(rtol * opts.tighten, opts.inner.options["min_rtol"])
+            if run.verified(u, p, kkt):
+                return _Outcome(u, p, active, "converged",
+                                f"active set fixed after {k} Newton steps, verified (KKT "
+                                f"{kkt:.1e}, certified bound <= {tol:.0e})", k)
+            if not run.tighten():
+                return _Outcome(u, p, active, "inaccurate",
+                                f"active set fixed but not verified at the inner tolerance "
+                                f"floor {run.rtol:.0e} (KKT {kkt:.1e})", k)
         else:
             key = new.tobytes()
             if key in seen:                                   # cycling: damp the updates
+                if limit == 1:
+                    return _Outcome(u, p, active, "stalled",
+                                    f"the active set cycles under single changes at Newton "
+                                    f"step {k} (KKT {kkt:.1e})", k)
                 n_changes = int(np.count_nonzero(proposed != active))
                 limit = max(1, n_changes // 2) if limit is None else max(1, limit // 2)
+                run.damped = True
                 seen = set()
                 new = _damped_update(qp, active, proposed, u, p, limit)
+            if since_best >= patience:
+                return _Outcome(u, p, active, "stalled",
+                                f"no progress in {since_best} Newton steps (best KKT "
+                                f"{best:.1e}, now {kkt:.1e})", k)
             seen.add(new.tobytes())
             active = new
-            rtol = max(min(rtol, opts.forcing * kkt), opts.inner.options["min_rtol"])
-        if time_limit is not None and time.perf_counter() - t_start > time_limit:
-            status, message = "time_limit", f"time limit {time_limit:g} s reached at step {k}"
-            break
-    inner = int(np.sum(history["inner_steps"]))
-    stats = {"newton_steps": k, "inner_steps": inner, "n_vcycles": vc.n_applications - vcycles_setup,
-             "vcycles_setup": vcycles_setup, "n_active": int(np.count_nonzero(p > 0)),
-             "ahat_kind": vc.kind, "face": opts.face.kind, "damped": limit is not None}
-    return SolveResult(u=u, p=p, claimed_status=status, message=message, iterations=k,
-                       setup_time=setup_time, solve_time=time.perf_counter() - t_solve,
-                       history=history, stats=stats)
+            run.rtol = max(min(run.rtol, opts.forcing * kkt), opts.inner.options["min_rtol"])
+        if run.out_of_time():
+            return _Outcome(u, p, active, "time_limit", f"time limit reached at step {k}", k)
+    return _Outcome(u, p, active, "max_iter", f"not verified after {max_iter} Newton steps",
+                    max_iter)
+
+
+def _feasible_start(run: _Run, u: np.ndarray, active: np.ndarray):
+    """A point with ``Bu <= g`` on the face of a working set that contains ``active``:
+    the violated rows join the working set and ``u`` is lifted onto its face, until
+    no row is violated (at most ``m`` rounds; the lift moves ``u`` only on a patch
+    around the constrained DOFs)."""
+    qp, B = run.qp, run.B
+    work = active.copy()
+    for _ in range(qp.m + 1):
+        idx = np.flatnonzero(work)
+        u = run.faces(idx).lift(u, qp.g[idx])
+        Bu = B @ u
+        scale = max(float(np.max(np.abs(Bu))), float(np.max(np.abs(qp.g))), 1e-300)
+        violated = ~work & (Bu - qp.g > run.opts.flip_tol * scale)
+        if not violated.any():
+            return u, work
+        work |= violated
+    raise RuntimeError("no feasible point found on the faces of the violated rows")
+
+
+def _monotone(run: _Run, u: np.ndarray, active: np.ndarray, budget: int,
+              done: int) -> _Outcome:
+    """The fallback: a primal feasible active-set method (Nocedal and Wright, Numerical
+    Optimization, Alg. 16.3; Hungerländer and Rendl, SIAM J. Optim. 25, 2015, for
+    the same safeguard of a PDAS method) with the same inexact face solves.
+
+    From a feasible point (:func:`_feasible_start`) each step solves the face of the
+    working set by projected PCG (monotone in the energy, since CG is), moves
+    towards it as far as the inactive rows allow and adds the blocking row, or,
+    at the face's minimum, drops the row with the most negative multiplier. Every
+    step keeps ``Bu <= g`` and does not raise the energy ``J``, so no working set
+    recurs while ``J`` falls: the method terminates in exact arithmetic. It stops
+    when the verification passes.
+    """
+    qp, B, opts, tol = run.qp, run.B, run.opts, run.tol
+    try:
+        u, work = _feasible_start(run, u, active)
+    except (RuntimeError, ValueError) as err:
+        return _Outcome(u, np.zeros(qp.m), active, "failed",
+                        f"no feasible start for the fallback: {err}", done)
+    p = np.zeros(qp.m)
+    for k in range(1, budget + 1):
+        run.fallback_steps = k
+        x, face = run.face_solve(u, work)
+        d = x - u
+        Bd, slack = B @ d, qp.g - B @ u
+        blocking = np.flatnonzero(~work & (Bd > 0) & (Bd > slack))
+        if blocking.size:                                  # a row stops the step short
+            t = np.maximum(slack[blocking], 0.0) / Bd[blocking]
+            j = blocking[np.argmin(t)]
+            u = u + float(t.min()) * d
+            work[j] = True
+            p = np.zeros(qp.m)
+            run.record("fallback", work, u, kkt_residuals(qp, u, p).max)
+        else:
+            u = x
+            p = run.multipliers(u, work, face)
+            kkt = kkt_residuals(qp, u, np.maximum(p, 0.0)).max
+            run.record("fallback", work, u, kkt)
+            p_scale = float(np.max(np.abs(p))) if p.size else 0.0
+            i = int(np.argmin(np.where(work, p, np.inf))) if work.any() else -1
+            if i >= 0 and p[i] < -opts.flip_tol * p_scale:
+                work[i] = False                            # leave the most negative row
+            elif run.verified(u, np.maximum(p, 0.0), kkt):
+                return _Outcome(u, np.maximum(p, 0.0), work, "converged",
+                                f"verified after {k} steps (KKT {kkt:.1e}, certified "
+                                f"bound <= {tol:.0e})", done + k)
+            elif not run.tighten():
+                return _Outcome(u, np.maximum(p, 0.0), work, "inaccurate",
+                                f"not verified at the inner tolerance floor {run.rtol:.0e} "
+                                f"after {k} steps (KKT {kkt:.1e})", done + k)
+        if run.out_of_time():
+            return _Outcome(u, np.maximum(p, 0.0), work, "time_limit",
+                            f"time limit reached at fallback step {k}", done + k)
+    return _Outcome(u, np.maximum(p, 0.0), work, "max_iter",
+                    f"not verified after {budget} steps", done + budget)
 
 
 def _ahat_parameter() -> ComponentParameter:
@@ -182,6 +414,13 @@ SOLVER = SolverSpec(
                   "type forcing term)", low=0.0, high=1.0, low_open=True),
         Parameter("tighten", 1e-2, "factor on the inner tolerance when the active set repeats "
                   "without verification", low=0.0, high=1.0, low_open=True),
+        Parameter("patience", 10, "Newton steps without halving the best KKT residual "
+                  "before the Newton iteration counts as stalled (0: the fallback from the "
+                  "start)", low=0, kind=int),
+        Parameter("fallback", "monotone", "what runs when the Newton iteration stalls (the "
+                  "active set cycles under single changes, or 'patience' steps without "
+                  "progress): the monotone primal active-set method, or nothing (status "
+                  "'failed')", choices=("monotone", "none")),
         Parameter("c", 1.0, "PDAS parameter relative to the stiffness scale", low=0.0,
                   low_open=True),
         Parameter("flip_tol", 1e-13, "relative size below which a sign change does not "

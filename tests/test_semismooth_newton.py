@@ -12,6 +12,7 @@ from solvers.augmented_projection import nested_initial_guess
 from solvers.interface import solve
 from solvers.preconditioners import face_projector, vcycle
 from solvers.semismooth_newton import projected_pcg
+from test_solvers import cycling_qp
 
 
 @pytest.mark.parametrize("kind", ["harmonic", "euclidean"])
@@ -112,3 +113,51 @@ def test_face_projector_refuses_bad_input():
     empty = face_projector(qp.A, B[:0])          # no active constraint: the identity
     v = np.arange(qp.n, dtype=float)
     assert np.array_equal(empty.project(v), v) and np.array_equal(empty.project_T(v), v)
+
+
+# --------------------------------------------------------------------- the fallback
+def _fallback_energies(res) -> np.ndarray:
+    phase = np.array(res.history["phase"])
+    return np.array(res.history["energy"])[phase == "fallback"]
+
+
+def test_a_stalled_newton_iteration_falls_back_and_says_so():
+    """From a guess on which the PDAS update cycles (tests.test_solvers.cycling_qp), with
+    the patience cut to one step: the monotone fallback takes over, lowers the energy at
+    every step and ends on the exact solution; the message names the fallback."""
+    qp, p0 = cycling_qp()
+    ref = solve(qp, "pdas", tol="high")
+    res = solve(qp, "semismooth_newton", tol="high", u0=np.zeros(4), p0=p0,
+                patience=1)
+    assert res.status == "converged" and res.stats["fallback"], res.message
+    assert "fell back to the monotone primal active-set method" in res.message
+    energies = _fallback_energies(res)
+    assert energies.size == res.stats["fallback_steps"] >= 2
+    assert np.all(np.diff(energies) <= 1e-14 * np.abs(energies).max())
+    assert energy_error(qp, res.u, ref.u) < 1e-10
+    # without a fallback the same stall is an honest failure, at once
+    none = solve(qp, "semismooth_newton", tol="high", u0=np.zeros(4), p0=p0,
+                 patience=1, fallback="none", max_iter=50)
+    assert none.status == "failed" and "no fallback" in none.message
+    assert none.iterations < 50
+
+
+@pytest.mark.parametrize("problem", [CIRCLE_SQUARE, CUBE_SPHERE], ids=["2d", "3d"])
+def test_the_monotone_method_alone_solves_a_scene(problem):
+    """``patience=0``: the primal feasible active-set method from the start;
+    feasible and energy-monotone at every step, verified at the end like Newton."""
+    qp = problem.make(1)
+    ref = solve(qp, "pdas", tol=1e-12)
+    res = solve(qp, "semismooth_newton", tol="mid", patience=0)
+    assert res.status == "converged", res.message
+    assert res.stats["newton_steps"] == 0 and res.stats["fallback_steps"] == res.iterations
+    energies = _fallback_energies(res)
+    assert np.all(np.diff(energies) <= 1e-12 * np.abs(energies).max())
+    assert energy_error(qp, res.u, ref.u) < 1e-5
+    assert np.max(qp.B @ res.u - qp.g) <= 1e-12 * np.abs(qp.g).max()
+
+
+def test_no_fallback_from_the_start_is_refused():
+    from problems.spec import ParameterError
+    with pytest.raises(ParameterError, match="parameter 'patience'"):
+        solve(CIRCLE_SQUARE.make(0), "semismooth_newton", patience=0, fallback="none")
