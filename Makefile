@@ -39,8 +39,18 @@ $(CHROMIUM):
 	@command -v apt-get >/dev/null 2>&1 || { echo "error: $(CHROMIUM) not found and no apt-get; install Chromium and set CHROMIUM=/path/to/chromium"; exit 2; }
 	apt-get install -y --no-install-recommends chromium || { apt-get update && apt-get install -y --no-install-recommends chromium; }
 
+# the solver tests, run once more under every other OpenBLAS kernel the CPU can run
+# (tests/blas_kernels.py): rounding must not decide a solve
+SOLVER_TESTS := tests/test_rounding.py tests/test_solvers.py tests/test_semismooth_newton.py \
+	tests/test_augmented_projection.py tests/test_cholesky.py tests/test_qp.py tests/test_two_body.py
+
 test: setup browser
 	CONTACTBENCH_CHROMIUM=$(CHROMIUM) $(BIN)/python -m pytest -q
+	@kernels="$$($(BIN)/python tests/blas_kernels.py)" || exit 1; \
+	for k in $$kernels; do \
+		echo "== the solver tests again under OPENBLAS_CORETYPE=$$k"; \
+		OPENBLAS_CORETYPE=$$k $(BIN)/python -m pytest -q -p no:cacheprovider $(SOLVER_TESTS) || exit 1; \
+	done
 
 # pytest-benchmark history in .benchmarks/ (not committed): each run saved and compared
 # with the previous one
