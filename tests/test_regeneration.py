@@ -39,13 +39,30 @@ TIMING = re.compile(r"(^|_)(t|s|cpu|wall|rss|mb|peak|memory|created)($|_)|time|s
 TIMING_CLAIM = re.compile(r"T_solve|time|faster|speed")
 
 
-def regenerate(cwd: Path, *extra: str, popen: bool = False):
+def regenerate(cwd: Path, *extra: str, popen: bool = False, env: dict | None = None):
     cmd = [str(SNAKEMAKE), "-s", str(ROOT / "Snakefile"), "--configfile", str(TINY),
            "--profile", str(PROFILE), "--cores", "2", *extra]
     if popen:
         return subprocess.Popen(cmd, cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                                text=True, start_new_session=True)
-    return subprocess.run(cmd, cwd=cwd, capture_output=True, text=True, timeout=1800)
+                                text=True, start_new_session=True, env=env)
+    return subprocess.run(cmd, cwd=cwd, capture_output=True, text=True, timeout=1800, env=env)
+
+
+#: The job the interrupted run holds: ``report.laplace tables`` (rule laplace_summary),
+#: which starts only after its four ``laplace_errors`` jobs have finished and has jobs
+#: after it. A ``sitecustomize`` on the jobs' PYTHONPATH (test-only, nothing in the
+#: workflow knows of it) marks the job as started and keeps it running until the test's
+#: SIGINT ends it: the interrupt lands inside a job whatever the machine's speed.
+HELD_JOB = ("report.laplace", "tables")
+GATE = f"""
+import os, sys, time
+from pathlib import Path
+_gate = os.environ.get("CONTACTBENCH_TEST_GATE")
+if _gate and set({HELD_JOB!r}) <= set(getattr(sys, "orig_argv", ())):
+    Path(_gate, "held").write_text(str(os.getpid()))
+    while True:                       # until the test's SIGINT
+        time.sleep(0.1)
+"""
 
 
 def targets() -> list[str]:
@@ -63,16 +80,19 @@ def tiny_run(tmp_path_factory) -> Path:
 
 @pytest.fixture(scope="module")
 def resumed_run(tmp_path_factory):
-    """A regeneration interrupted once a few jobs have finished, then resumed."""
+    """A regeneration interrupted (SIGINT to its process group, as Ctrl-C) while the held
+    job (:data:`HELD_JOB`) runs, then resumed with the same command."""
     cwd = tmp_path_factory.mktemp("resumed")
-    bench = cwd / "results" / "benchmarks"
-    proc = regenerate(cwd, popen=True)
-    deadline = time.monotonic() + 900
-    while time.monotonic() < deadline and proc.poll() is None:
-        if bench.exists() and len(list(bench.rglob("*.tsv"))) >= 4:
-            break
-        time.sleep(0.5)
-    assert proc.poll() is None, "the run ended before it could be interrupted"
+    gate = tmp_path_factory.mktemp("gate")
+    (gate / "sitecustomize.py").write_text(GATE)
+    env = {**os.environ, "CONTACTBENCH_TEST_GATE": str(gate),
+           "PYTHONPATH": os.pathsep.join(filter(None, [str(gate), os.environ.get("PYTHONPATH")]))}
+    proc = regenerate(cwd, popen=True, env=env)
+    held = gate / "held"
+    while not held.exists() and proc.poll() is None:
+        time.sleep(0.2)
+    if proc.poll() is not None:
+        pytest.fail("the run ended before the held job started:\n" + proc.communicate()[0][-4000:])
     os.killpg(proc.pid, signal.SIGINT)
     log = proc.communicate(timeout=300)[0]
     assert proc.returncode != 0, "the interrupted run claims success"
@@ -208,7 +228,11 @@ def test_summary_page_renders_in_the_report(tiny_run):
 
 def test_interrupted_run_resumes_without_redoing_finished_jobs(resumed_run):
     cwd, log, after_interrupt, broken, resumed = resumed_run
-    assert after_interrupt, "nothing had finished before the interrupt"
+    # the held job's four inputs had finished, the held job had not
+    laplace_runs = {cwd / PATHS["laplace_runs"].format(case=case, side=side)
+                    for case in ("sin10x", "linear") for side in ("coarse", "fine")}
+    assert laplace_runs <= after_interrupt.keys(), sorted(map(str, after_interrupt))
+    assert cwd / PATHS["laplace_rates"] not in after_interrupt
     assert not broken, f"half-written results after the interrupt: {broken}"
     assert resumed.returncode == 0, (resumed.stdout + resumed.stderr)[-4000:]
     redone = [str(p) for p, mtime in after_interrupt.items()
