@@ -5,7 +5,7 @@ Scene (dimensionless units):
 * the lower block (0, 1) x (0, 1) and the upper block (0, 1) x (1 + gap, 2 + gap),
   E = 1, nu = 0.3 for both, plane strain, a uniform initial ``gap`` (default 1e-3, a
   tenth of the indentation; a zero gap makes every gap and every ``B u`` vanish and
-  leaves the scaled KKT residuals of :func:`problems.qp.kkt_residuals` without a
+  leaves the scaled KKT residuals of :func:`problems.kkt.kkt_residuals` without a
   displacement scale);
 * meshes in the ratio ``ratio`` of Ch. 6 (default 2:3, so that the interface nodes
   of the two sides coincide only at every second coarse node): the lower block has

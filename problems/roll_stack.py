@@ -31,7 +31,7 @@ the rolls (``x = 0`` at the mill centre), ``y`` the rolling direction, ``z`` up.
   at levels 0-3 (tested below 1e-4). The springs leave ``A`` nearly singular (the
   work roll's vertical translation has a Rayleigh quotient of ~7e-10 of the diagonal):
   solvers that factorise ``A`` must keep that mode apart
-  (:func:`problems.qp.floating_modes`, :class:`solvers.cholesky.FloatingCholesky`; the
+  (:func:`problems.floating.floating_modes`, :class:`solvers.cholesky.FloatingCholesky`; the
   exact PDAS does), otherwise the contact solution is a difference of metre-sized
   rigid motions. Stiffer springs are no cure: the spring force is their stiffness times
   the roll's rigid rise (~0.3-0.5 mm), so 1e-4 of the strip force allows at most ~2x
@@ -79,7 +79,7 @@ used 46,611 nodes and 7,089 inequalities.
 
 Levels are separate meshes, not refinements of each other: no prolongations are
 supplied, and multigrid-preconditioned solvers use algebraic (smoothed aggregation)
-hierarchies (``solvers.preconditioners``).
+hierarchies (``solvers.multigrid``, ``solvers.schur``).
 
 Left out: friction and the rolls' horizontal offset; the strip's plastic response
 (its pressure is a given uniform traction); the work roll's bearing/bending forces;

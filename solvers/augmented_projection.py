@@ -14,7 +14,7 @@ preconditioned Richardson with the block preconditioner (8.22)
 ``diag(gamma_bar (A - Ah), S-hat)`` and an approximate projection of ``p`` onto
 ``p >= 0`` in the ``S-hat`` norm that only multiplies by ``S-hat`` ((8.24)).
 
-Ingredients (:mod:`solvers.preconditioners`): ``Ah`` one symmetric V-cycle
+Ingredients (:mod:`solvers.multigrid`, :mod:`solvers.schur`): ``Ah`` one symmetric V-cycle
 (geometric multigrid on ``qp.multilevel.prolongations`` or pyamg smoothed
 aggregation with rigid-body modes), scaled by Lanczos so that
 ``Ah < A <= gamma_bar Ah`` (8.18, Remark 8.14); ``S-hat`` the inexact Schur
@@ -50,16 +50,19 @@ never builds coarser problems.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
 
 
-from problems.qp import ContactQP, kkt_residuals
+from problems.kkt import kkt_residuals
+from problems.qp import ContactQP
 from problems.spec import Component, ComponentParameter, Options, Parameter
-from solvers import preconditioners as pc
-from solvers.interface import SolveResult, SolverSpec, certify
+from solvers.multigrid import AHAT, scaled_vcycle, vcycle_kind
+from solvers.schur import SchurPreconditioner, build_schur, kappa_schur_exact
+from solvers.base import SolveResult, SolverSpec
+from solvers.certificate import certify
 
 
 # ---------------------------------------------------------------------------
@@ -411,7 +414,7 @@ def theorem_8_8_alpha(gamma_bar: float) -> tuple[float, float]:
     return 1.0 - r, 1.0 + r
 
 
-def make_projection(projection: Component, S_hat: pc.SchurPreconditioner, tau_2_hat: float = 1.0):
+def make_projection(projection: Component, S_hat: SchurPreconditioner, tau_2_hat: float = 1.0):
     """The approximate projection ``project(d, p_k) -> (p_{k+1}, n_inner)``.
 
     ``richardson``: Alg. 8.3 with ``tau_2 = tau_2_hat / lambda_max(S-hat)`` and
@@ -436,7 +439,7 @@ def make_projection(projection: Component, S_hat: pc.SchurPreconditioner, tau_2_
 
 def resolve_kinds(qp: ContactQP, ahat: Component, schur: Component) -> tuple[str, str]:
     """The A-hat and S-hat kinds ``auto`` stands for on this problem."""
-    a = pc.vcycle_kind(qp, ahat.kind)
+    a = vcycle_kind(qp, ahat.kind)
     s = schur.kind
     if s == "auto":
         s = ("multilevel" if (qp.multilevel.surface is not None and qp.m > 2
@@ -470,10 +473,10 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
         raise ValueError("augmented projection needs at least one constraint")
     ahat_kind, schur_kind = resolve_kinds(qp, opts.ahat, opts.schur)
     a, s = opts.ahat.options, opts.schur.options
-    A_hat_inv = pc.scaled_vcycle(qp.A, ahat_kind, qp.multilevel, qp.dim, qp.free_dofs,
+    A_hat_inv = scaled_vcycle(qp.A, ahat_kind, qp.multilevel, qp.dim, qp.free_dofs,
                                  seed=opts.seed, **a)
     gamma_bar = A_hat_inv.gamma_bar
-    S_hat = pc.build_schur(schur_kind, qp, A_hat_inv, s["lanczos_steps"], opts.seed)
+    S_hat = build_schur(schur_kind, qp, A_hat_inv, s["lanczos_steps"], opts.seed)
     alpha_low, alpha_bar = theorem_8_8_alpha(gamma_bar)
     tau = opts.tau
     if tau <= 0.0:  # Sect. 8.5: tau = 1/alpha_bar; block Gauss-Seidel (multiplicative): 1
@@ -554,7 +557,7 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
     n_vcycles, t_vcycle = A_hat_inv.n_applications - vcycles_setup, A_hat_inv.time
     kappa_SinvS = np.nan
     if opts.kappa_exact:  # diagnostic, after the timed solve (Sect. 8.6: kappa(S-hat^-1 S))
-        kappa_SinvS = pc.kappa_schur_exact(qp, A_hat_inv, S_hat, max(s["lanczos_steps"], 20))[0]
+        kappa_SinvS = kappa_schur_exact(qp, A_hat_inv, S_hat, max(s["lanczos_steps"], 20))[0]
     n_inner = np.asarray(history["n_inner"], dtype=float)
     stats = {
         "N": qp.n_nodes, "NC": qp.m,
@@ -615,28 +618,16 @@ def nested_initial_guess(qp_coarse: ContactQP, result_coarse, qp_fine: ContactQP
     return P @ u_c, np.maximum(pressure, 0.0) * qp_fine.contact.mass
 
 
-#: Options of the A-hat component, per kind (declared once).
-_LANCZOS = Parameter("lanczos_steps", 12, "Lanczos steps for the spectral bounds", low=5, kind=int)
-_SMOOTHER = Parameter("smoother", "symmetric_gs", "V-cycle smoother", choices=tuple(pc.SMOOTHERS))
-_SWEEPS = Parameter("sweeps", 1, "pre- and post-smoothing steps: V(sweeps, sweeps)", low=1,
-                    high=10, kind=int)
-_MAX_COARSE = Parameter("max_coarse", 500, "SA: largest coarsest level", low=10, kind=int)
-
 SOLVER = SolverSpec(
     name="augmented_projection",
     summary="Hackl's augmented projection (Alg. 8.4): projected preconditioned Richardson on the "
             "Bramble-Pasciak-transformed problem, multigrid A-hat, sparse S-hat, MPRGP projection",
     solve=solve,
     parameters=(
+        AHAT,
         ComponentParameter(
-            "ahat", "auto", {"auto": (_SMOOTHER, _SWEEPS, _MAX_COARSE, _LANCZOS),
-                             "gmg": (_SMOOTHER, _SWEEPS, _LANCZOS),
-                             "sa": (_SMOOTHER, _SWEEPS, _MAX_COARSE, _LANCZOS)},
-            "A-hat (8.18): one symmetric V-cycle of geometric MG on the refinement hierarchy "
-            "(gmg) or pyamg SA with rigid-body modes (sa), scaled by Lanczos (Remark 8.14); "
-            "auto = gmg if the problem has a hierarchy"),
-        ComponentParameter(
-            "schur", "auto", {k: (replace(_LANCZOS, default=24),) for k in
+            "schur", "auto", {k: (Parameter("lanczos_steps", 24, "Lanczos steps for the spectral bounds", low=5,
+                                        kind=int),) for k in
                               ("auto", "multilevel", "inexact", "inexact_assembled", "jacobi")},
             "S-hat: multilevel surface operator (O(N^C)), inexact S_in (matrix-free), "
             "inexact_assembled (N^C V-cycles) or jacobi B diag(A)^-1 B'; auto = multilevel "

@@ -282,7 +282,7 @@ class FloatingCholesky:
     A : sparse (n, n)
         Symmetric positive definite.
     modes : (n, k) array
-        Basis of the near-kernel (:func:`problems.qp.floating_modes`), k >= 1.
+        Basis of the near-kernel (:func:`problems.floating.floating_modes`), k >= 1.
     backend, components, threads
         As :func:`factorize` (``components`` in the numbering of ``A``).
 
@@ -353,12 +353,12 @@ class FloatingCholesky:
 
 def shared_floating_factor(qp, modes: np.ndarray, backend: str = "auto") -> FloatingCholesky:
     """The :class:`FloatingCholesky` of ``qp.A`` (partial solves on ``B``'s support),
-    factorised once per problem and kept in ``qp.cache``: the exact solver and the
+    factorised once per problem and kept in ``qp.cache.floating_factor``: the exact solver and the
     verification's duality gap need the same ``A^{-1}`` (a factorisation at the roll
     stack's level 3, 316k unknowns, takes ~25 s), and sharing it changes no number."""
-    cached = qp.cache.get("floating_cholesky")
+    cached = qp.cache.floating_factor
     if cached is not None and backend in ("auto", cached.backend):
         return cached
     fl = FloatingCholesky(qp.A, modes, backend, components=sp.csr_matrix(qp.B).indices)
-    qp.cache["floating_cholesky"] = fl
+    qp.cache.floating_factor = fl
     return fl

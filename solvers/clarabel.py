@@ -29,7 +29,7 @@ from solvers._scaling import (ADAPTER_PARAMETERS, require_plain_constraints, sca
                               upper_triangle)
 from problems.qp import ContactQP
 from problems.spec import Options, resolve_parameters
-from solvers.interface import TOLERANCES, SolveResult, SolverSpec
+from solvers.base import TOLERANCES, SolveResult, SolverSpec
 
 #: Clarabel status name -> SolveResult status.
 _STATUS = {

@@ -40,10 +40,14 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from problems.qp import ContactQP, floating_modes, kkt_residuals
+from problems.floating import floating_modes
+from problems.kkt import kkt_residuals
+from problems.qp import ContactQP
 from problems.spec import Options, Parameter
 from solvers.cholesky import factorize, shared_floating_factor
-from solvers.interface import SolveResult, SolverSpec
+from solvers.active_set import (check_positive_diagonal, damped_update, initial_active_set,
+                                pdas_update, stiffness_scale)
+from solvers.base import SolveResult, SolverSpec
 
 #: Columns of ``A^{-1} B^T`` computed at once when forming the Schur complement.
 _SCHUR_BLOCK = 64
@@ -85,15 +89,15 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
         ``time_limit`` or ``failed`` (cycling, singular system).
     """
     t_start = time.perf_counter()
-    _check_positive_diagonal(qp.A)
-    c_eff = opts.c * _stiffness_scale(qp)
+    check_positive_diagonal(qp.A)
+    c_eff = opts.c * stiffness_scale(qp)
     method = opts.method if opts.method != "auto" else (
         "schur" if qp.m <= SCHUR_MAX_M else "kkt")
     system = _ActiveSetSystem(qp, method, opts.refine, opts.factorization)
     setup_time = time.perf_counter() - t_start
 
     t_solve = time.perf_counter()
-    active = _initial_active_set(qp, u0, p0, c_eff)
+    active = initial_active_set(qp, u0, p0, c_eff)
     history = {"n_active": [], "n_added": [], "n_removed": [], "kkt_max": [], "time": []}
     seen: set[bytes] = {active.tobytes()}
     limit: int | None = None  # None: full PDAS update; k: damped, at most k changes
@@ -115,8 +119,8 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
         res = kkt_residuals(qp, u, p)
         if res.max < best[0]:
             best = (res.max, u, p, n_active)
-        proposed = _pdas_update(qp, active, u, p, opts.flip_tol)
-        new = proposed if limit is None else _damped_update(qp, active, proposed, u, p, limit)
+        proposed = pdas_update(qp, active, u, p, opts.flip_tol)
+        new = proposed if limit is None else damped_update(qp, active, proposed, u, p, limit)
         _record(history, active, new, res.max, time.perf_counter() - t_solve)
         if np.array_equal(new, active):
             status, message = _fixed_point_status(res.max, tol, iterations)
@@ -130,7 +134,7 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
                 break
             limit = max(1, n_changes // 2) if limit is None else max(1, limit // 2)
             seen = set()
-            new = _damped_update(qp, active, proposed, u, p, limit)
+            new = damped_update(qp, active, proposed, u, p, limit)
         seen.add(new.tobytes())
         active = new
         if time_limit is not None and time.perf_counter() - t_start > time_limit:
@@ -144,76 +148,6 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
     return SolveResult(u=u, p=p, claimed_status=status, message=message,
                        iterations=iterations, setup_time=setup_time,
                        solve_time=time.perf_counter() - t_solve, history=history, stats=stats)
-
-
-def _check_positive_diagonal(A: sp.spmatrix) -> None:
-    """Raise ValueError if ``A`` has a non-positive diagonal entry (not SPD)."""
-    diag = A.diagonal()
-    bad = np.flatnonzero(diag <= 0)
-    if bad.size:
-        raise ValueError(f"A has {bad.size} non-positive diagonal entries (first: "
-                         f"{bad[:5].tolist()}); it is not positive definite")
-
-
-def _stiffness_scale(qp: ContactQP) -> float:
-    """``mean(diag A) / mean(||B_i||^2)``: the unit of ``c`` (force per length)."""
-    if qp.m == 0:
-        return 1.0
-    row_sq = np.asarray(qp.B.multiply(qp.B).sum(axis=1)).ravel()
-    return float(np.mean(qp.A.diagonal()) / np.mean(row_sq))
-
-
-def _constraint_residual(qp: ContactQP, u: np.ndarray, p: np.ndarray) -> np.ndarray:
-    """``Bu - Cp - g`` (positive where a constraint is violated)."""
-    r = qp.B @ u - qp.g
-    if qp.C is not None:
-        r = r - qp.C @ p
-    return r
-
-
-def _initial_active_set(qp: ContactQP, u0, p0, c_eff: float) -> np.ndarray:
-    """Empty without a guess, else the PDAS rule ``p0 + c (B u0 - C p0 - g) > 0``."""
-    if u0 is None and p0 is None:
-        return np.zeros(qp.m, dtype=bool)
-    u = np.zeros(qp.n) if u0 is None else np.asarray(u0, dtype=float)
-    p = np.zeros(qp.m) if p0 is None else np.asarray(p0, dtype=float)
-    return (p + c_eff * _constraint_residual(qp, u, p)) > 0
-
-
-def _pdas_update(qp: ContactQP, active: np.ndarray, u: np.ndarray, p: np.ndarray,
-                 flip_tol: float) -> np.ndarray:
-    """The PDAS rule after an exact step, with round-off hysteresis.
-
-    Keeps ``i`` in the active set while ``p_i >= -flip_tol ||p||_inf`` and adds
-    ``i`` when ``(Bu - Cp - g)_i > flip_tol max(||Bu||_inf, ||g||_inf)``.
-    """
-    r = _constraint_residual(qp, u, p)
-    p_scale = float(np.max(np.abs(p))) if p.size else 0.0
-    d_scale = max(float(np.max(np.abs(qp.B @ u))), float(np.max(np.abs(qp.g)))) if p.size else 0.0
-    keep = active & (p >= -flip_tol * p_scale)
-    add = ~active & (r > flip_tol * d_scale)
-    return keep | add
-
-
-def _damped_update(qp: ContactQP, active: np.ndarray, proposed: np.ndarray, u: np.ndarray,
-                   p: np.ndarray, limit: int) -> np.ndarray:
-    """Apply only the ``limit`` largest of the proposed changes.
-
-    Changes are ranked by relative size: ``-p_i / ||p||_inf`` for a constraint
-    leaving the active set, ``(Bu - Cp - g)_i / max(||Bu||, ||g||)`` for one
-    entering it.
-    """
-    changes = np.flatnonzero(proposed != active)
-    if changes.size <= limit:
-        return proposed
-    r = _constraint_residual(qp, u, p)
-    p_scale = max(float(np.max(np.abs(p))), 1e-300)
-    d_scale = max(float(np.max(np.abs(qp.B @ u))), float(np.max(np.abs(qp.g))), 1e-300)
-    score = np.where(active[changes], -p[changes] / p_scale, r[changes] / d_scale)
-    chosen = changes[np.argsort(-score, kind="stable")[:limit]]
-    new = active.copy()
-    new[chosen] = proposed[chosen]
-    return new
 
 
 def _fixed_point_status(kkt_max: float, tol: float, step: int) -> tuple[str, str]:
@@ -309,7 +243,7 @@ class _ActiveSetSystem:
         """Factorise ``A`` once (:func:`solvers.cholesky.factorize`) and form the dense
         ``S = B A^{-1} B^T`` by partial solves on the support of ``B``.
 
-        With floating bodies (:func:`problems.qp.floating_modes`: a body held only by
+        With floating bodies (:func:`problems.floating.floating_modes`: a body held only by
         contact and weak springs) ``A`` is factorised without its near-kernel
         (:class:`solvers.cholesky.FloatingCholesky`) and the rigid amplitudes ``alpha``
         stay unknowns of each step, as in FETI for contact: ``S = B_r A_rr^{-1} B_r^T``

@@ -26,7 +26,7 @@ from problems.qp import ContactQP
 from problems.spec import Options, Parameter, resolve_parameters
 from solvers._scaling import (ADAPTER_PARAMETERS, require_plain_constraints, scale_qp,
                               upper_triangle)
-from solvers.interface import TOLERANCES, SolveResult, SolverSpec
+from solvers.base import TOLERANCES, SolveResult, SolverSpec
 
 #: ``piqp.Status`` name -> SolveResult status.
 _STATUS = {

@@ -33,7 +33,7 @@ from problems.spec import Parameter
 from solvers._scaling import ADAPTER_PARAMETERS, require_plain_constraints, scale_qp
 from problems.qp import ContactQP
 from problems.spec import Options, resolve_parameters
-from solvers.interface import TOLERANCES, SolveResult, SolverSpec
+from solvers.base import TOLERANCES, SolveResult, SolverSpec
 
 #: ProxQP status name -> SolveResult status.
 _STATUS = {

@@ -28,7 +28,7 @@ from problems.qp import ContactQP
 from problems.spec import Options, Parameter, resolve_parameters
 from solvers._scaling import (ADAPTER_PARAMETERS, require_plain_constraints, scale_qp,
                               upper_triangle)
-from solvers.interface import TOLERANCES, SolveResult, SolverSpec
+from solvers.base import TOLERANCES, SolveResult, SolverSpec
 
 #: QPALM ``info.status`` -> SolveResult status.
 _STATUS = {

@@ -10,7 +10,7 @@ projected preconditioned CG (Gould, Hribar and Nocedal, SIAM J. Sci. Comput. 23,
 preconditioner ``Pi M Pi'``, ``M`` one symmetric V-cycle (geometric multigrid on
 the refinement hierarchy, pyamg SA without one). ``Pi`` removes the constraint
 directions along their local A-harmonic extensions (``face="harmonic"``, beyond
-Gould-Hribar-Nocedal; :func:`solvers.preconditioners.face_projector`), which
+Gould-Hribar-Nocedal; :func:`solvers.face.face_projector`), which
 keeps the V-cycle's rate on the face, or orthogonally (``face="euclidean"``,
 their ``I - B_I'(B_I B_I')^{-1} B_I``), which cuts the V-cycle's smooth correction
 at the constrained DOFs and needs about twice the steps. The solve is warm
@@ -45,11 +45,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from problems.qp import ContactQP, kkt_residuals
+from problems.kkt import kkt_residuals
+from problems.qp import ContactQP
 from problems.spec import ComponentParameter, Options, Parameter, ParameterError
-from solvers import preconditioners as pc
-from solvers.interface import SolveResult, SolverSpec, certify
-from solvers.pdas import _check_positive_diagonal, _damped_update, _pdas_update, _stiffness_scale
+from solvers.face import FACE_PROJECTION, FaceProjector, face_hops, face_projector
+from solvers.multigrid import AHAT, component_vcycle
+from solvers.base import SolveResult, SolverSpec
+from solvers.certificate import certify
+from solvers.active_set import check_positive_diagonal, damped_update, pdas_update, stiffness_scale
 
 
 #: Round-off floor of the inner solve, relative to the energy norm of the iterate: below
@@ -58,10 +61,10 @@ from solvers.pdas import _check_positive_diagonal, _damped_update, _pdas_update,
 ROUNDOFF_FLOOR = 1e3 * np.finfo(float).eps
 
 
-def projected_pcg(A, face: pc.FaceProjector, f, gI, M, x0, rtol: float, max_steps: int):
+def projected_pcg(A, face: FaceProjector, f, gI, M, x0, rtol: float, max_steps: int):
     """``min 1/2 x'Ax - f'x  s.t.  B_I x = g_I`` by projected PCG from ``x0``.
 
-    ``face`` projects onto ``ker B_I`` (:func:`solvers.preconditioners.face_projector`);
+    ``face`` projects onto ``ker B_I`` (:func:`solvers.face.face_projector`);
     the preconditioner is ``Pi M Pi'``. The residual is kept projected,
     ``r <- Pi' r`` after every update (Gould, Hribar and Nocedal's *residual
     update*, their Sect. 6), so that ``r'z = r' M r`` is evaluated as a norm: the
@@ -118,13 +121,13 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
     if qp.C is not None:
         raise ValueError("semismooth_newton solves Bu <= g only; the ContactQP has a "
                          "stabilisation block C (Sect. 7.5)")
-    _check_positive_diagonal(qp.A)
+    check_positive_diagonal(qp.A)
     if opts.patience == 0 and opts.fallback == "none":
         raise ParameterError("parameter 'patience': 0 (the fallback from the start) is not "
                              "allowed with fallback='none'; allowed: patience >= 1")
-    vc = pc.component_vcycle(qp, opts.ahat)   # unscaled: PCG needs no spectral bounds
+    vc = component_vcycle(qp, opts.ahat)   # unscaled: PCG needs no spectral bounds
     B = qp.B.tocsr()
-    hops = pc.face_hops(qp.dim, opts.face.options.get("hops", 0))
+    hops = face_hops(qp.dim, opts.face.options.get("hops", 0))
     faces = _FaceCache(qp.A, B, opts.face.kind, hops)
     setup_time = time.perf_counter() - t_start
     vcycles_setup = vc.n_applications
@@ -137,7 +140,7 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
     if u0 is None and p0 is None:
         active = np.zeros(qp.m, dtype=bool)
     else:
-        active = (p + opts.c * _stiffness_scale(qp) * (B @ u - qp.g)) > 0
+        active = (p + opts.c * stiffness_scale(qp) * (B @ u - qp.g)) > 0
     fallback = opts.fallback == "monotone"
     if opts.patience == 0:
         out = _monotone(run, u, active, max_iter, 0)
@@ -170,9 +173,9 @@ class _FaceCache:
         self.A, self.B, self.kind, self.hops = A, B, kind, hops
         self.rows, self.face = None, None
 
-    def __call__(self, idx: np.ndarray) -> pc.FaceProjector:
+    def __call__(self, idx: np.ndarray) -> FaceProjector:
         if self.face is None or not np.array_equal(idx, self.rows):
-            self.face, self.rows = pc.face_projector(self.A, self.B[idx], self.kind, self.hops), idx
+            self.face, self.rows = face_projector(self.A, self.B[idx], self.kind, self.hops), idx
         return self.face
 
 
@@ -273,8 +276,8 @@ def _newton(run: _Run, u: np.ndarray, active: np.ndarray, max_iter: int,
         kkt = kkt_residuals(qp, u, p).max
         run.record("newton", active, u, kkt)
         best, since_best = (kkt, 0) if kkt < 0.5 * best else (best, since_best + 1)
-        proposed = _pdas_update(qp, active, u, p, opts.flip_tol)
-        new = proposed if limit is None else _damped_update(qp, active, proposed, u, p, limit)
+        proposed = pdas_update(qp, active, u, p, opts.flip_tol)
+        new = proposed if limit is None else damped_update(qp, active, proposed, u, p, limit)
         if np.array_equal(new, active):
             if run.verified(u, p, kkt):
                 return _Outcome(u, p, active, "converged",
@@ -295,7 +298,7 @@ def _newton(run: _Run, u: np.ndarray, active: np.ndarray, max_iter: int,
                 limit = max(1, n_changes // 2) if limit is None else max(1, limit // 2)
                 run.damped = True
                 seen = set()
-                new = _damped_update(qp, active, proposed, u, p, limit)
+                new = damped_update(qp, active, proposed, u, p, limit)
             if since_best >= patience:
                 return _Outcome(u, p, active, "stalled",
                                 f"no progress in {since_best} Newton steps (best KKT "
@@ -386,20 +389,13 @@ def _monotone(run: _Run, u: np.ndarray, active: np.ndarray, budget: int,
                     f"not verified after {budget} steps", done + budget)
 
 
-def _ahat_parameter() -> ComponentParameter:
-    """The V-cycle's options, shared with (declared once in) the augmented projection."""
-    from solvers.augmented_projection import SOLVER as AP
-
-    return next(p for p in AP.parameters if p.name == "ahat")
-
-
 SOLVER = SolverSpec(
     name="semismooth_newton",
     summary="inexact semismooth Newton / primal-dual active set with warm-started "
             "projected multigrid-PCG inner solves and an inexactness control",
     solve=solve,
     parameters=(
-        _ahat_parameter(),
+        AHAT,
         ComponentParameter(
             "inner", "ppcg",
             {"ppcg": (Parameter("rtol", 1e-2, "initial relative tolerance of the inner "
@@ -409,7 +405,7 @@ SOLVER = SolverSpec(
                       Parameter("max_steps", 500, "cap on inner PCG steps per Newton step",
                                 low=1, kind=int))},
             "inner solver of a Newton step: projected PCG with one V-cycle"),
-        pc.FACE_PROJECTION,
+        FACE_PROJECTION,
         Parameter("forcing", 0.1, "inner tolerance <= forcing * KKT residual (Eisenstat-Walker "
                   "type forcing term)", low=0.0, high=1.0, low_open=True),
         Parameter("tighten", 1e-2, "factor on the inner tolerance when the active set repeats "

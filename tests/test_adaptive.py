@@ -15,7 +15,7 @@ from problems.fem.estimators import (eta1_squared, eta2_squared, estimate, mesh_
 from problems.fem.mesh import (Hierarchy, netgen_ball, netgen_disk, project_to_circle,
                                structured_cube, structured_square, tet_quality)
 from problems.fem.surface import surface_levels
-from problems.qp import kkt_residuals
+from problems.kkt import kkt_residuals
 from solvers.augmented_projection import nested_initial_guess
 from solvers.interface import solve
 

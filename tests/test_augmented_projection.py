@@ -9,9 +9,11 @@ import scipy.sparse as sp
 
 from problems.circle_square import PROBLEM
 from problems.fem.surface import tensor_coarsening
-from problems.qp import ContactQP, ContactSurface, Multilevel, SurfaceHierarchy, energy_error
+from problems.kkt import energy_error
+from problems.qp import ContactQP, ContactSurface, Multilevel, SurfaceHierarchy
 from problems.spec import Component
-from solvers import preconditioners as pc
+from solvers import multigrid as mg
+from solvers.schur import build_schur, kappa_schur_exact
 from solvers.augmented_projection import (SOLVER, Alg84, augmented_projection_algorithm,
                                           face_cg_variant, make_projection, mprgp,
                                           nested_initial_guess, projected_richardson,
@@ -138,8 +140,8 @@ def test_estimate_8_25_bounds_true_error(problems, name):
     additive update, S-hat = S_in and Alg. 8.3 with n_i by (8.15) (rho_P <= e^-c)."""
     qps, refs = problems
     qp, ref = qps[name], refs[name]
-    Ainv = pc.scaled_vcycle(qp.A, "gmg", qp.multilevel, 2, qp.free_dofs, **GMG)
-    S_hat = pc.build_schur("inexact", qp, Ainv, SCHUR_STEPS)
+    Ainv = mg.scaled_vcycle(qp.A, "gmg", qp.multilevel, 2, qp.free_dofs, **GMG)
+    S_hat = build_schur("inexact", qp, Ainv, SCHUR_STEPS)
     a_low, a_bar = theorem_8_8_alpha(Ainv.gamma_bar)
     tau, c = 1.0 / a_bar, 1.0
     project, _ = make_projection(richardson(c), S_hat)
@@ -161,8 +163,8 @@ def test_face_cg_variant_decreases_transformed_functional(problems, name):
     """The Krylov variant (beyond the thesis) keeps Theorem 8.2's monotone decay of Jt."""
     qps, refs = problems
     qp, ref = qps[name], refs[name]
-    Ainv = pc.scaled_vcycle(qp.A, "gmg", qp.multilevel, 2, qp.free_dofs, **GMG)
-    S_hat = pc.build_schur("multilevel", qp, Ainv, SCHUR_STEPS)
+    Ainv = mg.scaled_vcycle(qp.A, "gmg", qp.multilevel, 2, qp.free_dofs, **GMG)
+    S_hat = build_schur("multilevel", qp, Ainv, SCHUR_STEPS)
     project, _ = make_projection(MPRGP, S_hat)
     iterates = []
     u, p, k, reason, n_cg = face_cg_variant(
@@ -181,10 +183,10 @@ def test_kappa_S_hat_doubles_per_refinement():
     kappas = {"multilevel": [], "inexact": []}
     for level in (0, 1, 2):
         qp = PROBLEM.make(level)
-        Ainv = pc.scaled_vcycle(qp.A, "gmg", qp.multilevel, 2, qp.free_dofs,
+        Ainv = mg.scaled_vcycle(qp.A, "gmg", qp.multilevel, 2, qp.free_dofs,
                                  **{**GMG, "lanczos_steps": 10})
         for kind in kappas:
-            kappas[kind].append(pc.build_schur(kind, qp, Ainv, lanczos_steps=40).kappa)
+            kappas[kind].append(build_schur(kind, qp, Ainv, lanczos_steps=40).kappa)
     for kind, k in kappas.items():
         ratios = np.array(k[1:]) / np.array(k[:-1])
         assert np.all((ratios > 1.6) & (ratios < 2.5)), (kind, k)
@@ -192,8 +194,8 @@ def test_kappa_S_hat_doubles_per_refinement():
 
 def test_multilevel_S_hat_is_spectrally_close_to_S_in(problems):
     qp = problems[0]["cs1"]
-    Ainv = pc.scaled_vcycle(qp.A, "gmg", qp.multilevel, 2, qp.free_dofs, **GMG)
-    sh = pc.build_schur("multilevel", qp, Ainv, SCHUR_STEPS)
+    Ainv = mg.scaled_vcycle(qp.A, "gmg", qp.multilevel, 2, qp.free_dofs, **GMG)
+    sh = build_schur("multilevel", qp, Ainv, SCHUR_STEPS)
     Sd = sh.dense()
     assert np.allclose(Sd, Sd.T) and np.linalg.eigvalsh(Sd)[0] > 0
     assert np.allclose(sh.diagonal(), np.diag(Sd), rtol=1e-12)   # the known diagonal is S-hat's
@@ -248,7 +250,7 @@ def test_spectral_estimates_match_dense_eigenvalues():
     Lanczos, against dense generalised eigenvalues on level 0 (2194 unknowns, 17 rows)."""
     import scipy.linalg as sla
     qp = PROBLEM.make(0)
-    Ainv = pc.scaled_vcycle(qp.A, "gmg", qp.multilevel, 2, qp.free_dofs,
+    Ainv = mg.scaled_vcycle(qp.A, "gmg", qp.multilevel, 2, qp.free_dofs,
                             **{**GMG, "lanczos_steps": 40})
     # the V-cycle as a dense SPD matrix: A-hat^-1 = V / gamma_low
     V = np.column_stack([Ainv.raw(e) for e in np.eye(qp.n)])
@@ -261,13 +263,13 @@ def test_spectral_estimates_match_dense_eigenvalues():
     assert lam[-1] <= 1.0 + 1e-10
     # (8.18) holds for the scaled operator: A-hat < A <= gamma_bar A-hat
     assert lam[0] / Ainv.gamma_low > 1 and lam[-1] / Ainv.gamma_low <= Ainv.gamma_bar
-    sh = pc.build_schur("multilevel", qp, Ainv, 40)
+    sh = build_schur("multilevel", qp, Ainv, 40)
     S_hat = sh.dense()
     ev = np.linalg.eigvalsh(S_hat)
     assert sh.kappa == pytest.approx(ev[-1] / ev[0] * 1.05, rel=1e-6)
     S = qp.B.toarray() @ np.linalg.solve(qp.A.toarray(), qp.B.T.toarray())
     mu = sla.eigh(S, S_hat, eigvals_only=True)
-    kappa, lo, hi = pc.kappa_schur_exact(qp, Ainv, sh, steps=40)
+    kappa, lo, hi = kappa_schur_exact(qp, Ainv, sh, steps=40)
     assert kappa == pytest.approx(mu[-1] / mu[0], rel=1e-4)
     assert kappa < 5.0                                     # spectrally equivalent, Remark 8.15
     S_in = qp.B.toarray() @ V @ qp.B.T.toarray() / Ainv.gamma_low
@@ -281,8 +283,8 @@ def test_unscaled_vcycle_is_the_scaled_one_without_lanczos(problems):
     A-hat, with no Lanczos run for a scaling it does not need."""
     qp = problems[0]["cs1"]
     o = {k: GMG[k] for k in ("smoother", "sweeps")}
-    raw = pc.vcycle(qp.A, "gmg", qp.multilevel, 2, qp.free_dofs, **o)
-    scaled = pc.scaled_vcycle(qp.A, "gmg", qp.multilevel, 2, qp.free_dofs, **GMG)
+    raw = mg.vcycle(qp.A, "gmg", qp.multilevel, 2, qp.free_dofs, **o)
+    scaled = mg.scaled_vcycle(qp.A, "gmg", qp.multilevel, 2, qp.free_dofs, **GMG)
     x = np.random.default_rng(1).standard_normal(qp.n)
     assert np.array_equal(raw.raw(x), scaled.raw(x))
     assert raw.gamma_low == 1.0 and raw.lanczos_time == 0.0 and np.isnan(raw.ritz).all()

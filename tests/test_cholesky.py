@@ -11,7 +11,8 @@ import scipy.sparse.linalg as spla
 from problems import circle_square, cube_sphere
 from solvers import cholesky
 from solvers.cholesky import FactorizationError, available_backends, factorize
-from solvers.interface import reference_solve, solve
+from solvers.interface import solve
+from solvers.reference import reference_solve
 
 BACKENDS = available_backends()
 

@@ -6,7 +6,7 @@ from problems.circle_square import PROBLEM
 from problems.fem.elasticity import boundary_facets, stiffness_matrix
 from problems.spec import ParameterError
 from problems.fem.fields import hertz_comparison
-from problems.qp import energy_error
+from problems.kkt import energy_error
 from reference import hertz
 from solvers.interface import solve
 

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from problems.qp import energy_error, kkt_residuals
+from problems.kkt import energy_error, kkt_residuals
 from problems.spec import Parameter, ParameterError, problems, resolve_parameters
 from solvers.interface import solve, solvers
 from workflows.cli import main

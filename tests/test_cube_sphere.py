@@ -8,7 +8,7 @@ from problems.fem.contact import contact_constraints
 from problems.fem.elasticity import boundary_facets, stiffness_matrix
 from problems.fem.fields import hertz_comparison
 from problems.fem.mesh import tet_quality
-from problems.qp import energy_error
+from problems.kkt import energy_error
 from solvers.interface import solve
 from test_contact import brute_force, closest_on_triangle
 
@@ -129,7 +129,7 @@ def test_hertz_in_3d_at_a_resolved_level():
 
 
 def test_reference_beyond_the_direct_limit_is_the_verified_iterative_solve(level1, monkeypatch):
-    import solvers.interface as interface
+    import solvers.reference as interface
     qp, exact = level1
     assert interface.reference_solve(qp).solver == "pdas"            # 7137 unknowns: direct
     monkeypatch.setitem(interface.DIRECT_REFERENCE_LIMIT, 3, 1000)

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from problems.qp import ContactQP, QPValidationError, energy_error, kkt_residuals
+from problems.kkt import energy_error, kkt_residuals
+from problems.qp import ContactQP, QPValidationError
 from problems.spec import (Component, ComponentParameter, Options, Parameter, ParameterError,
                            resolve_parameters)
 
@@ -123,7 +124,7 @@ def _direct(qp):
 
 def test_duality_gap_is_exact_on_known_pairs():
     """tiny QP: u* = (0.5, 1), p* = 0.5, S = B A^-1 B' = 1."""
-    from problems.qp import duality_gap
+    from solvers.certificate import duality_gap
     qp, solve_A = tiny_qp(), None
     solve_A = _direct(qp)
     exact = duality_gap(qp, np.array([0.5, 1.0]), np.array([0.5]), solve_A)
@@ -140,7 +141,7 @@ def test_duality_gap_is_exact_on_known_pairs():
 
 def test_certified_bound_holds_for_perturbed_solutions():
     """On a random two-body QP, perturbed (u, p) pairs: the bound always exceeds the error."""
-    from problems.qp import duality_gap
+    from solvers.certificate import duality_gap
     from solvers.interface import solve
     rng = np.random.default_rng(5)
     n1, n2, m = 30, 40, 12

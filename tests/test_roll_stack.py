@@ -1,7 +1,7 @@
 """The roll stack scene (thesis Sect. 9.3) at its coarsest level: geometry, equilibrium,
 symmetry, unit independence and the solvers.
 
-Tolerances are scale-free: the verification (:func:`problems.qp.kkt_residuals`) divides
+Tolerances are scale-free: the verification (:func:`problems.kkt.kkt_residuals`) divides
 every KKT residual by the size of the terms it compares (forces by ``max(|f|, |Au|,
 |B'p|)``, gaps by ``max(|Bu|, |g|)``), and the library adapters hand their solvers the
 Jacobi-scaled, unit-load problem (``solvers/_scaling.py``), so E ~ 2e11 Pa and

@@ -18,7 +18,8 @@ import pytest
 import scipy.sparse as sp
 import yaml
 
-from problems.qp import floating_modes, kkt_residuals
+from problems.floating import floating_modes
+from problems.kkt import kkt_residuals
 from problems.roll_stack import PROBLEM
 from report import roll_stack as report
 from solvers.cholesky import FloatingCholesky

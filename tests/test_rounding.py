@@ -22,7 +22,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from problems.qp import ContactQP, energy_error
+from problems.kkt import energy_error
+from problems.qp import ContactQP
 from solvers.interface import STATUSES, TOLERANCES, solve, solvers
 from test_solvers import two_body_qp
 

@@ -7,10 +7,11 @@ import scipy.sparse.linalg as spla
 
 from problems.circle_square import PROBLEM as CIRCLE_SQUARE
 from problems.cube_sphere import PROBLEM as CUBE_SPHERE
-from problems.qp import energy_error
+from problems.kkt import energy_error
 from solvers.augmented_projection import nested_initial_guess
 from solvers.interface import solve
-from solvers.preconditioners import face_projector, vcycle
+from solvers.face import face_projector
+from solvers.multigrid import vcycle
 from solvers.semismooth_newton import projected_pcg
 from test_solvers import cycling_qp
 

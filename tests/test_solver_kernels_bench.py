@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from problems.circle_square import PROBLEM
-from solvers import preconditioners as pc
+from solvers import multigrid as mg
+from solvers.schur import build_schur
 from solvers.augmented_projection import SOLVER, make_projection
 
 LEVEL = 2
@@ -19,10 +20,10 @@ LEVEL = 2
 @pytest.fixture(scope="module")
 def setup():
     qp = PROBLEM.make(LEVEL)
-    vcycles = {kind: pc.scaled_vcycle(qp.A, kind, qp.multilevel, 2, qp.free_dofs,
+    vcycles = {kind: mg.scaled_vcycle(qp.A, kind, qp.multilevel, 2, qp.free_dofs,
                                       **{**SOLVER.options(ahat=kind).ahat.options,
                                          "lanczos_steps": 10}) for kind in ("gmg", "sa")}
-    schur = {kind: pc.build_schur(kind, qp, vcycles["gmg"], lanczos_steps=20)
+    schur = {kind: build_schur(kind, qp, vcycles["gmg"], lanczos_steps=20)
              for kind in ("multilevel", "inexact", "jacobi")}
     rng = np.random.default_rng(0)
     return qp, vcycles, schur, rng.standard_normal(qp.n), rng.standard_normal(qp.m)

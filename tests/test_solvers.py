@@ -17,7 +17,8 @@ import scipy.sparse.linalg as spla
 
 from problems.spec import ParameterError
 from solvers import _scaling
-from problems.qp import ContactQP, QPValidationError, kkt_residuals
+from problems.kkt import kkt_residuals
+from problems.qp import ContactQP, QPValidationError
 from solvers.interface import TOLERANCES, solve, solvers
 
 #: Every library adapter in the registry (role "reference"): adding one adds it here.
@@ -404,9 +405,9 @@ def test_certificate_pcg_warm_start_saves_steps_not_accuracy(monkeypatch):
     meets the same residual."""
     import scipy.sparse.linalg as linalg
 
-    from solvers import interface
+    from solvers import certificate
 
-    monkeypatch.setattr(interface, "DIRECT_LINEAR_LIMIT", {})
+    monkeypatch.setattr(certificate, "DIRECT_LINEAR_LIMIT", {})
     steps = []
     plain_cg = linalg.cg
 
@@ -418,7 +419,7 @@ def test_certificate_pcg_warm_start_saves_steps_not_accuracy(monkeypatch):
 
     monkeypatch.setattr(linalg, "cg", counted_cg)
     qp = obstacle_qp(40)
-    solve_A = interface.linear_solver(qp)
+    solve_A = certificate.linear_solver(qp)
     r = qp.f - qp.B.T @ np.linspace(0.0, 1e-3, qp.m)
     exact = spla.spsolve(sp.csc_matrix(qp.A), r)
     guess = exact * (1 + 1e-6 * np.random.default_rng(0).normal(size=qp.n))
@@ -438,10 +439,10 @@ def test_certificate_is_computed_once_per_pair(references):
     qp = two_body_qp(seed=3)
     solves = []
     direct = linear_solver(qp)
-    qp.cache["linear_solver"] = lambda r, guess=None: solves.append(1) or direct(r, guess)
+    qp.cache.linear_solver = lambda r, guess=None: solves.append(1) or direct(r, guess)
     res = solve(qp, "semismooth_newton", tol=1e-8)
     assert res.status == "converged" and solves
-    assert res.gap is qp.cache["certificate"][1]
+    assert res.gap is qp.cache.certificate[1]
     before = len(solves)
     assert certify(qp, res.u, res.p, 1e-8) is res.gap and len(solves) == before
     again = certify(qp, res.u + 1e-9, res.p, 1e-8)

@@ -11,8 +11,9 @@ from problems.fem.adaptive import adaptive_loop, adaptive_start
 from problems.fem.estimators import penetrations
 from problems.fem.mesh import project_to_circle
 from problems.fem.stabilised import effective_modulus, stabilise
-from problems.qp import (ContactQP, QPValidationError, kkt_residuals, slack_form,
-                         surface_multipliers)
+from problems.kkt import kkt_residuals
+from problems.qp import ContactQP, QPValidationError, surface_multipliers
+from problems.slack import slack_form
 from solvers.interface import certify, solve
 
 

@@ -15,8 +15,7 @@ from contextlib import contextmanager
 import numpy as np
 import scipy.sparse.linalg as spla
 
-from solvers import augmented_projection as ap
-from solvers import preconditioners as pc
+from solvers import multigrid as pc
 
 
 @contextmanager
@@ -50,7 +49,7 @@ def peak_rss(interval: float = 0.005):
 def _gmg_vcycle(qp):
     """The augmented projection's geometric-multigrid V-cycle with its default smoother,
     unscaled: a PCG solve needs no spectral bounds, so none are timed."""
-    return pc.component_vcycle(qp, ap.SOLVER.options(ahat="gmg").ahat)
+    return pc.component_vcycle(qp, pc.ahat_component("gmg"))
 
 
 def linear_solution(qp, rtol: float = 1e-13, max_iter: int = 2000) -> np.ndarray:

@@ -32,7 +32,8 @@ from problems.fem.bisection import grow, label_longest_edge
 from problems.fem.estimators import VARIANTS, estimate
 from problems.fem.mesh import Hierarchy
 from problems.fem.two_body import TwoBodyScene, assemble_two_body
-from problems.qp import ContactQP, kkt_residuals, surface_multipliers
+from problems.kkt import kkt_residuals
+from problems.qp import ContactQP, surface_multipliers
 
 
 #: The adaptive study's variants (Sects. 7.4, 7.5): ``name -> (estimator, discretisation)``.

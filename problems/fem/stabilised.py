@@ -17,7 +17,7 @@ with ``I_+`` the positive part at the opposing nodes. With the lumped mass
 
 appended to the nodal rows (which keep ``C = 0``). Alg. 8.4 solves this with
 ``C != 0`` as written; the QP solvers see the equivalent slack form
-(:func:`problems.qp.slack_form`).
+(:func:`problems.slack.slack_form`).
 
 The constant ``k`` makes the penalty unit-free: ``k = penalty E* l^(2 alpha - 1)``
 with ``E*`` the effective modulus of the pair (Hertz's ``1/E* = sum (1 - nu^2)/E``)
@@ -45,7 +45,7 @@ import scipy.sparse as sp
 from problems.fem.contact import contact_constraints
 from problems.fem.elasticity import lumped_surface_mass
 from problems.fem.surface import facet_sizes
-from problems.qp import ContactQP, Stabilisation
+from problems.qp import ContactQP, SharedWork, Stabilisation
 from reference.hertz import effective_modulus as hertz_modulus
 
 
@@ -113,4 +113,4 @@ def stabilise(qp: ContactQP, alpha: float = 1.0, penalty: float = 1.0) -> Contac
         C=sp.diags(np.concatenate([np.zeros(qp.m), c_r]), format="csr"),
         stabilisation=Stabilisation(nodes=cc.rows, mass=mass, size=size, transfer=transfer,
                                     alpha=float(alpha), modulus=float(k)),
-        name=f"{qp.name} (stabilised, alpha = {alpha:g})", cache={})
+        name=f"{qp.name} (stabilised, alpha = {alpha:g})", cache=SharedWork())

@@ -74,10 +74,11 @@ from problems.fem.fields import contact_fields, hertz_comparison, in_plane
 from problems.fem.mesh import project_to_circle
 from problems.fem.stabilised import stabilise
 from problems.fem.two_body import assemble_two_body
-from problems.qp import ContactQP, kkt_residuals, surface_multipliers
+from problems.kkt import kkt_residuals
+from problems.qp import ContactQP, surface_multipliers
 from solvers import augmented_projection as ap
-from solvers.interface import (DIRECT_REFERENCE_LIMIT, linear_solver, reference_solve, solve,
-                               verify)
+from solvers.interface import linear_solver, solve, verify
+from solvers.reference import DIRECT_REFERENCE_LIMIT, reference_solve
 from workflows.io import write_csv, write_vtu
 from workflows.scene_args import add_scene_arguments, check_levels, scene_from_args
 

@@ -30,9 +30,10 @@ import numpy as np
 import pandas as pd
 from tqdm import tqdm
 
-from problems.qp import energy_error, kkt_residuals
+from problems.kkt import energy_error, kkt_residuals
 from solvers import augmented_projection as ap
-from solvers.interface import reference_solve, solve, verify
+from solvers.interface import solve, verify
+from solvers.reference import reference_solve
 from workflows.io import atomic_path, check_result, write_csv
 from workflows.measure import amg_pcg_floor, linear_solution
 from workflows.scene_args import add_scene_arguments, check_levels, scene_from_args

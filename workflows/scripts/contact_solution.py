@@ -24,7 +24,7 @@ import numpy as np
 import pandas as pd
 
 from problems.fem.fields import contact_fields, contact_state, hertz_comparison, in_plane
-from solvers.interface import reference_solve
+from solvers.reference import reference_solve
 from workflows.io import write_csv, write_vtu
 from workflows.scene_args import add_scene_arguments, check_levels, scene_from_args
 

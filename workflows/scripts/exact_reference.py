@@ -23,7 +23,7 @@ import numpy as np
 import pandas as pd
 from tqdm import tqdm
 
-from problems.qp import energy_error
+from problems.kkt import energy_error
 from solvers.interface import solve
 from workflows.io import write_csv
 from workflows.measure import peak_rss

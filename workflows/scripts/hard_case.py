@@ -23,8 +23,9 @@ import numpy as np
 import pandas as pd
 from tqdm import tqdm
 
-from problems.qp import energy_error
-from solvers.interface import TOLERANCES, linear_solver, parse_tolerance, reference_solve, solvers
+from problems.kkt import energy_error
+from solvers.interface import TOLERANCES, linear_solver, parse_tolerance, solvers
+from solvers.reference import reference_solve
 from workflows.io import write_csv
 from workflows.isolation import solve_isolated
 from workflows.scene_args import add_scene_arguments, check_levels, scene_from_args

@@ -25,8 +25,9 @@ import numpy as np
 import pandas as pd
 from tqdm import tqdm
 
-from problems.qp import energy_error
-from solvers.interface import TOLERANCES, reference_solve, solvers
+from problems.kkt import energy_error
+from solvers.interface import TOLERANCES, solvers
+from solvers.reference import reference_solve
 from workflows.io import write_csv
 from workflows.isolation import solve_isolated
 from workflows.measure import amg_pcg_floor, linear_solution

@@ -1,0 +1,308 @@
+"""The verification: how the suite certifies an answer, whoever produced it.
+
+:func:`verify` fills in a :class:`~solvers.base.SolveResult`'s four KKT residuals
+(:func:`problems.kkt.kkt_residuals`) and a certified bound on its energy error
+(:func:`duality_gap`, weak duality), and decides the verified status. :func:`certify`
+computes the bound (kept per problem, ``qp.cache.certificate``) with the linear solver
+of :func:`linear_solver` (kept per problem, ``qp.cache.linear_solver``). Solvers that
+stop on the verification itself (the exact PDAS, semismooth Newton, the augmented
+projection) call :func:`certify`.
+"""
+from __future__ import annotations
+
+import hashlib
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+import scipy.sparse as sp
+
+from problems.floating import floating_modes
+from problems.kkt import KKTResiduals, kkt_residuals
+from problems.qp import ContactQP
+from solvers.base import STATUSES, SolveResult
+
+
+@dataclass
+class DualityGap:
+    """A certified bound on the energy error of ``u`` by weak duality.
+
+    For a feasible ``u_f`` (``B u_f <= g``) and any ``p~ >= 0`` the duality gap with
+    the exact dual function ``q(p~) = min_v L(v, p~)`` bounds the energy error:
+    ``J(u_f) - q(p~) >= J(u_f) - J(u*) >= 1/2 ||u_f - u*||_A^2``, so
+    ``||u - u*||_A <= ||u - u_f||_A + sqrt(2 gap)``. :func:`duality_gap` tries a few
+    pairs ``(u_f, p~)`` built from the solver's ``(u, p)`` and keeps the smallest
+    bound (each is valid).
+
+    Attributes
+    ----------
+    gap : float
+        The duality gap of the best pair (>= 0 up to round-off).
+    relative_gap : float
+        ``gap / |J(u_f)|``: dimensionless.
+    shift : float
+        ``||u - u_f||_A``: the correction making ``u`` feasible.
+    energy_bound : float
+        Certified ``||u - u*||_A <= shift + sqrt(2 gap)``.
+    relative_energy_bound : float
+        ``energy_bound / (||u_f||_A - sqrt(2 gap))``: a certified bound on the
+        relative energy error ``||u - u*||_A / ||u*||_A`` (inf if not positive).
+    floor : float
+        The bound's floating-point floor (relative): the gap is a sum of terms
+        known to about machine precision, so bounds below ``~sqrt(eps)`` cannot be
+        certified.
+    pair_gap : float
+        The relative gap of the solver's own pair ``(u_f, p)``: with its
+        multipliers as they are (their complementarity and S-norm error,
+        ``1/2 ||p - p*||_S^2 <= gap``).
+    certified : bool
+        False if no feasible ``u_f`` was found (then the bounds are inf).
+    """
+
+    gap: float
+    relative_gap: float
+    shift: float
+    energy_bound: float
+    relative_energy_bound: float
+    floor: float
+    pair_gap: float
+    certified: bool
+
+    def as_dict(self) -> dict:
+        return {"energy_bound": self.relative_energy_bound, "energy_bound_floor": self.floor,
+                "relative_gap": self.relative_gap, "pair_gap": self.pair_gap,
+                "feasibility_shift": self.shift, "certified": self.certified}
+
+    def meets(self, tol: float) -> bool:
+        """The certified relative energy bound is <= ``tol`` (or at its floor)."""
+        return self.certified and self.relative_energy_bound <= max(tol, 4.0 * self.floor)
+
+
+def _pivots(qp: ContactQP, B: sp.csr_matrix) -> tuple[np.ndarray, np.ndarray]:
+    """One unknown per row of ``B`` (the constrained surface's rows of ``qp``) to move it
+    with: the constrained node's component along the row's direction if free (a
+    contact code would move the constrained surface), else the row's largest entry.
+    Returns ``(pivot, coefficient)``."""
+    pivot = np.asarray(abs(B).argmax(axis=1)).ravel()
+    if qp.contact is not None and qp.free_dofs is not None and qp.u_fixed is not None:
+        pos = -np.ones(len(qp.u_fixed), dtype=np.int64)
+        pos[qp.free_dofs] = np.arange(qp.n)
+        comp = np.abs(qp.contact.direction).argmax(axis=1)
+        own = pos[qp.contact.nodes * qp.dim + comp]
+        pivot = np.where(own >= 0, own, pivot)
+    return pivot, np.asarray(B[np.arange(B.shape[0]), pivot]).ravel()
+
+
+def feasible_point(qp: ContactQP, u: np.ndarray, tight: np.ndarray | None = None,
+                   sweeps: int = 3) -> tuple[np.ndarray, bool]:
+    """``u_f = u + delta`` with ``B u_f <= g``, and ``B u_f = g`` on the rows ``tight``,
+    on the constrained surface's rows (the first ``qp.m_contact``; a stabilised
+    problem's reverse rows are penalised, not hard).
+
+    Each violated (or, in ``tight``, slack) row is moved on its pivot unknown
+    (:func:`_pivots`); rows sharing unknowns interact, so up to ``sweeps``
+    passes. Returns ``(u_f, feasible)``.
+    """
+    u_f = np.array(u, dtype=float)
+    mc = qp.m_contact
+    if mc == 0:
+        return u_f, True
+    B, g = qp.B.tocsr()[:mc], qp.g[:mc]
+    pivot, coef = _pivots(qp, B)
+    tight = np.zeros(mc, dtype=bool) if tight is None else np.asarray(tight, dtype=bool)
+    scale = max(float(np.max(np.abs(B @ u_f))), float(np.max(np.abs(g))), 1e-300)
+    for _ in range(sweeps):
+        res = B @ u_f - g
+        move = (res > 0) | (tight & (res < 0))
+        if not move.any():
+            break
+        np.subtract.at(u_f, pivot[move], res[move] / coef[move])
+    return u_f, bool(np.all(B @ u_f - g <= 1e-14 * scale))
+
+
+def duality_gap(qp: ContactQP, u: np.ndarray, p: np.ndarray,
+                solve_A: Callable[..., np.ndarray],
+                target: float | None = None) -> DualityGap:
+    """The certified energy-error bound of ``u`` (:class:`DualityGap`).
+
+    ``solve_A(r, guess=x0)`` returns ``A^{-1} r`` (the bound is certified up to that
+    solve's accuracy, which the caller drives far below the gap); ``x0``, the feasible
+    point of the pair (close to ``A^{-1} r`` for a good pair), is where an iterative
+    solve may start: it changes the cost, not the accuracy asked for. For a pair
+    ``(u_f, p~)`` with ``x = A^{-1}(f - B'p~)`` the gap is a sum of non-negative
+    terms, computed without cancellation::
+
+        J(u_f) - q(p~) = 1/2 ||u_f - x||_A^2 + p~'(g - B u_f)
+
+    Pairs tried: the solver's ``(u, p_+)`` made feasible; and, for thresholds
+    ``theta`` in (1e-8, 1e-4), ``u`` made feasible and tight on the rows with
+    ``p > theta max p`` with ``p~`` = ``p`` there and 0 elsewhere (a solver's
+    complementarity error would otherwise dominate the bound of its ``u``).
+    Each pair costs one linear solve; with ``target`` the search stops at the
+    first pair whose bound meets it. With a stabilisation block ``C`` (Sect. 7.5;
+    diagonal, zero on the hard rows, which come first) the primal function is
+    ``P(u) = J(u) + 1/2 v'C^{-1}v``, ``v = (Bu - g)_+`` on the rows with ``C > 0``;
+    ``u`` is made feasible on the hard rows only:
+    ``P(u) - q(p) = 1/2 ||u - x||_A^2 + p'(g - Bu) + 1/2 p'Cp + 1/2 v'C^{-1}v``.
+    """
+    eps = np.finfo(float).eps
+    u = np.asarray(u, dtype=float)
+    p_plus = np.maximum(np.asarray(p, dtype=float), 0.0)
+    inf = float("inf")
+
+    def pair(u_f, p_t, extra=0.0):
+        x = solve_A(qp.f - qp.B.T @ p_t, guess=u_f)
+        e = u_f - x
+        slack = qp.g - qp.B @ u_f
+        gap = 0.5 * float(e @ (qp.A @ e)) + float(p_t @ slack) + extra
+        d = u_f - u
+        shift = float(np.sqrt(max(d @ (qp.A @ d), 0.0)))
+        norm = float(np.sqrt(max(u_f @ (qp.A @ u_f), 0.0)))
+        root = np.sqrt(2.0 * max(gap, 0.0))
+        noise = 8 * eps * (float(p_t @ (np.abs(qp.g) + abs(qp.B) @ np.abs(u_f))) + norm ** 2
+                           + abs(float(qp.f @ u_f)))
+        if norm > 0:
+            rel = (shift + root) / (norm - root) if norm > root else inf
+            floor = np.sqrt(2 * noise) / norm
+        else:            # u_f = 0: certified exactly if the bound is zero (e.g. no load)
+            rel, floor = (0.0 if shift + root == 0 else inf), 0.0
+        return gap, shift, shift + root, rel, floor, gap / max(abs(qp.energy(u_f)), 1e-300)
+
+    if qp.C is not None:
+        c = qp.C.diagonal()
+        soft = c > 0
+        hard_rows = np.flatnonzero(~soft)
+        if (abs(qp.C - sp.diags(c)).max() > 0 or np.any(c < 0)
+                or np.any(hard_rows >= qp.m_contact)):
+            return DualityGap(inf, inf, 0.0, inf, inf, inf, inf, False)
+        u_f, feasible = feasible_point(qp, u) if hard_rows.size else (u, True)
+        if not feasible:
+            return DualityGap(inf, inf, inf, inf, inf, inf, inf, False)
+        v = np.maximum(qp.B @ u_f - qp.g, 0.0)[soft]
+        gap, shift, bound, rel, floor, relgap = pair(
+            u_f, p_plus, 0.5 * float(p_plus[soft] @ (c[soft] * p_plus[soft]))
+            + 0.5 * float(v @ (v / c[soft])))
+        return DualityGap(gap, relgap, shift, bound, rel, floor, relgap, True)
+    u_f, feasible = feasible_point(qp, u)
+    if not feasible:
+        return DualityGap(inf, inf, inf, inf, inf, inf, inf, False)
+    best = pair(u_f, p_plus)
+    pair_gap = best[5]
+    top = float(p_plus.max()) if qp.m else 0.0
+    for theta in (1e-8, 1e-4):
+        if target is not None and best[3] <= max(target, 4.0 * best[4]):
+            break
+        active = p_plus > theta * top
+        if top == 0 or active.all() and theta > 1e-8:
+            continue
+        u_t, ok = feasible_point(qp, u, tight=active)
+        if ok:
+            cand = pair(u_t, np.where(active, p_plus, 0.0))
+            if cand[3] < best[3]:
+                best = cand
+    gap, shift, bound, rel, floor, relgap = best
+    return DualityGap(gap=float(gap), relative_gap=float(relgap), shift=shift,
+                      energy_bound=float(bound), relative_energy_bound=float(rel),
+                      floor=float(floor), pair_gap=float(pair_gap), certified=True)
+
+
+#: Largest number of unknowns for which :func:`linear_solver` factorises A (per dimension);
+#: beyond, multigrid-preconditioned CG.
+DIRECT_LINEAR_LIMIT = {2: 2_500_000, 3: 150_000}
+
+
+def linear_solver(qp: ContactQP) -> Callable[..., np.ndarray]:
+    """``(r, guess=None) -> A^{-1} r`` for the verification's duality gap, built once
+    per problem (``qp.cache.linear_solver``).
+
+    The route depends on the problem alone, never on which solver ran before: a sparse
+    Cholesky of ``A`` (:func:`solvers.cholesky.factorize`) up to
+    :data:`DIRECT_LINEAR_LIMIT`, and for a problem with floating bodies at any size
+    (with their near-kernel removed, :class:`solvers.cholesky.FloatingCholesky`, the
+    factor shared with the exact solver: a multigrid PCG on such a nearly singular
+    ``A`` needs thousands of steps); else CG
+    preconditioned by one V-cycle (geometric multigrid on the problem's hierarchy, pyamg
+    SA without one) to a residual of 1e-14 ||r||, started from ``guess`` (the direct
+    route ignores it): a guess close to the solution saves steps, never accuracy.
+    """
+    if qp.cache.linear_solver is not None:
+        return qp.cache.linear_solver
+    import scipy.sparse.linalg as spla
+
+    modes = floating_modes(qp)
+    if qp.n <= DIRECT_LINEAR_LIMIT.get(qp.dim, 0) or modes.shape[1]:
+        from solvers.cholesky import factorize, shared_floating_factor
+        # a body held only by weak springs: its rigid part solved apart (no 1/spring-sized
+        # intermediate results; see FloatingCholesky)
+        chol = shared_floating_factor(qp, modes) if modes.shape[1] else factorize(qp.A)
+
+        def solve_A(r, guess=None):
+            x = chol.solve(r)
+            return x + chol.solve(r - qp.A @ x)        # one step of iterative refinement
+    else:
+        from solvers.multigrid import ahat_component, component_vcycle
+        vc = component_vcycle(qp, ahat_component())
+        M = spla.LinearOperator(qp.A.shape, matvec=vc.raw)
+
+        def solve_A(r, guess=None):
+            x, info = spla.cg(qp.A, r, x0=guess, M=M, rtol=1e-14, atol=0.0, maxiter=3000)
+            if info != 0:
+                raise RuntimeError("multigrid PCG for the duality gap did not converge")
+            return x
+    qp.cache.linear_solver = solve_A
+    return solve_A
+
+
+def certify(qp: ContactQP, u: np.ndarray, p: np.ndarray, tol: float | None = None) -> DualityGap:
+    """The certified bound of ``(u, p)`` (one to three linear solves with A; with
+    ``tol``, as few as meet it).
+
+    The last certificate is kept in ``qp.cache.certificate`` with the digest of
+    ``(u, p, tol)``:
+    a solver that certifies its own stop and :func:`verify` after it pay for one.
+    """
+    u, p = np.ascontiguousarray(u, dtype=float), np.ascontiguousarray(p, dtype=float)
+    key = hashlib.blake2b(u.tobytes() + p.tobytes() + repr(tol).encode(),
+                          digest_size=16).digest()
+    last = qp.cache.certificate
+    if last is not None and last[0] == key:
+        return last[1]
+    gap = duality_gap(qp, u, p, linear_solver(qp), target=tol)
+    qp.cache.certificate = (key, gap)
+    return gap
+
+
+def verify(qp: ContactQP, result: SolveResult, tol: float) -> SolveResult:
+    """Fill in ``kkt``, ``gap`` and the verified ``status``.
+
+    qpbenchmark's rule, strengthened: ``converged`` only if the solver claims it,
+    every scaled KKT residual is <= ``tol`` and the certified bound on the relative
+    energy error (from the duality gap, :func:`duality_gap`) is <=
+    ``tol`` (or at the bound's floating-point floor, ~1e-8: below it the KKT
+    residuals decide). A scaled residual alone can pass a wrong answer when A is
+    ill-conditioned; the certified bound cannot.
+    """
+    if result.claimed_status not in STATUSES:
+        raise ValueError(f"solver returned unknown status {result.claimed_status!r}")
+    u_ok = np.shape(result.u) == (qp.n,) and np.all(np.isfinite(result.u))
+    p_ok = np.shape(result.p) == (qp.m,) and np.all(np.isfinite(result.p))
+    if not (u_ok and p_ok):
+        result.kkt = KKTResiduals(*([float("inf")] * 4))
+        result.status = "failed"
+        result.message = (result.message + "; " if result.message else "") + "non-finite or mis-shaped result"
+        return result
+    result.kkt = kkt_residuals(qp, result.u, result.p)
+    from solvers.cholesky import FactorizationError
+    try:
+        result.gap = certify(qp, result.u, result.p, tol)
+    except FactorizationError as err:          # A not positive definite: no certificate
+        inf = float("inf")
+        result.gap = DualityGap(inf, inf, inf, inf, inf, inf, inf, False)
+        result.message = (result.message + "; " if result.message else "") + (
+            f"no certificate: {err}")
+    if result.claimed_status == "converged":
+        accurate = result.kkt.max <= tol and result.gap.meets(tol)
+        result.status = "converged" if accurate else "inaccurate"
+    else:
+        result.status = result.claimed_status
+    return result

@@ -1,0 +1,330 @@
+"""Multigrid for ``A``: one symmetric V-cycle as a preconditioner, and Lanczos bounds.
+
+* ``A-hat`` (thesis (8.18)): one symmetric V-cycle per application, either pyamg
+  smoothed aggregation with the rigid-body modes of each body as near-null space, or
+  geometric multigrid on the refinement hierarchy (``qp.multilevel``) with Galerkin
+  coarse operators. :func:`scaled_vcycle` scales it by Lanczos (Remark 8.14) so that
+  ``A-hat < A <= gamma_bar A-hat``; :func:`vcycle` is the plain V-cycle a PCG needs.
+* :data:`AHAT`: the V-cycle as a solver option (kind and settings), declared once here
+  and read by every solver that uses one.
+* :func:`lanczos_extremes`: Ritz estimates of extreme eigenvalues of a symmetric
+  pencil (Remark 8.14, kappa(S-hat) of Table 9.1).
+"""
+from __future__ import annotations
+
+import time
+from contextlib import contextmanager
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+import scipy.linalg as sla
+import scipy.sparse as sp
+
+from problems.qp import ContactQP, Multilevel
+from problems.spec import Component, ComponentParameter, Parameter, resolve_parameters
+
+#: Safety factors applied to Ritz values (Ritz values lie inside the spectrum).
+LOW_SAFETY = 0.9
+HIGH_SAFETY = 1.05
+
+Apply = Callable[[np.ndarray], np.ndarray]
+
+
+# ---------------------------------------------------------------------------
+# Lanczos (Remark 8.14)
+# ---------------------------------------------------------------------------
+def lanczos_extremes(apply_K: Apply, n: int, steps: int = 30, apply_Minv: Apply | None = None,
+                     seed: int = 0, tol: float = 1e-10) -> tuple[float, float]:
+    """Ritz estimates of the extreme eigenvalues of ``K x = lambda M x``.
+
+    Preconditioned Lanczos in the ``M`` inner product (only ``M^{-1}`` is
+    applied), without re-orthogonalisation (extreme Ritz values converge first;
+    spurious copies do not matter for extremes).
+
+    Parameters
+    ----------
+    apply_K, apply_Minv : callables
+        Symmetric positive (semi)definite ``K`` and SPD ``M^{-1}`` (identity if None).
+    n : int
+        Dimension.
+    steps : int
+        Lanczos steps (one ``K`` and one ``M^{-1}`` product each).
+    seed : int
+        Random start vector.
+
+    Returns
+    -------
+    (lambda_min, lambda_max) : floats
+        Ritz values; ``lambda_min`` over-, ``lambda_max`` under-estimates.
+    """
+    Minv = apply_Minv or (lambda x: x)
+    r = np.random.default_rng(seed).standard_normal(n)
+    z = Minv(r)
+    beta0 = np.sqrt(max(float(r @ z), 0.0))
+    q, Mq = z / beta0, r / beta0
+    Mq_prev, beta = np.zeros(n), 0.0
+    alphas, betas = [], []
+    for _ in range(min(steps, n)):
+        w = apply_K(q)
+        alpha = float(q @ w)
+        alphas.append(alpha)
+        w = w - alpha * Mq - beta * Mq_prev
+        z = Minv(w)
+        beta_new = np.sqrt(max(float(w @ z), 0.0))
+        if beta_new <= tol * max(abs(alpha), 1e-300):
+            break
+        betas.append(beta_new)
+        Mq_prev = Mq
+        q, Mq, beta = z / beta_new, w / beta_new, beta_new
+    k = len(alphas)
+    ritz = sla.eigvalsh_tridiagonal(np.array(alphas), np.array(betas[:k - 1])) if k > 1 \
+        else np.array(alphas)
+    return float(ritz[0]), float(ritz[-1])
+
+
+# ---------------------------------------------------------------------------
+# A-hat: one symmetric V-cycle (8.18)
+# ---------------------------------------------------------------------------
+#: Smoothers of the V-cycle: pyamg name and settings per sweep.
+SMOOTHERS = {
+    "symmetric_gs": ("gauss_seidel", {"sweep": "symmetric"}),
+    "block_gs": ("block_gauss_seidel", {"sweep": "symmetric"}),
+    "jacobi": ("jacobi", {"omega": 0.6}),
+}
+
+
+def _smoother(name: str, sweeps: int, blocked: bool):
+    """pyamg smoother spec ``(name, settings)`` with ``sweeps`` iterations.
+
+    Block Gauss-Seidel needs a BSR operator; otherwise pointwise symmetric GS.
+    """
+    if name == "block_gs" and not blocked:
+        name = "symmetric_gs"
+    kind, settings = SMOOTHERS[name]
+    return kind, {**settings, "iterations": int(sweeps) * (2 if kind == "jacobi" else 1)}
+
+
+def _as_blocked(A: sp.spmatrix, dim: int, free_dofs: np.ndarray | None):
+    """``A`` as BSR with node blocks when the free DOFs come in whole nodes."""
+    n = A.shape[0]
+    if free_dofs is None or n % dim:
+        return sp.csr_matrix(A)
+    fd = np.asarray(free_dofs).reshape(-1, dim)
+    if np.all(fd[:, 0] % dim == 0) and np.all(np.diff(fd, axis=1) == 1):
+        return sp.bsr_matrix(A, blocksize=(dim, dim))
+    return sp.csr_matrix(A)
+
+
+@contextmanager
+def _seeded_global_rng(seed: int = 0):
+    """pyamg estimates spectral radii (Jacobi weights, prolongation smoothing) from
+    ``np.random.rand`` start vectors: seed the global generator while a hierarchy is
+    set up, so that two runs give the same hierarchy, and restore it afterwards."""
+    state = np.random.get_state()
+    np.random.seed(seed)
+    try:
+        yield
+    finally:
+        np.random.set_state(state)
+
+
+def sa_hierarchy(A: sp.spmatrix, near_null: np.ndarray | None, dim: int,
+                 free_dofs: np.ndarray | None, smoother: str, sweeps: int, max_coarse: int):
+    """pyamg smoothed aggregation with ``near_null`` (rigid-body modes per body).
+
+    Node-blocked (BSR) when the free DOFs come in whole nodes; symmetric
+    smoothing so that one V-cycle is an SPD operator.
+    """
+    import pyamg
+    Ab = _as_blocked(A, dim, free_dofs)
+    sm = _smoother(smoother, sweeps, sp.isspmatrix_bsr(Ab))
+    B = None if near_null is None else np.asarray(near_null, dtype=float)
+    with _seeded_global_rng():
+        return pyamg.smoothed_aggregation_solver(
+            Ab, B=B, max_coarse=max_coarse, presmoother=sm, postsmoother=sm,
+            improve_candidates=None, coarse_solver="splu")
+
+
+def geometric_hierarchy(A: sp.spmatrix, prolongations: list, smoother: str, sweeps: int):
+    """Geometric multigrid on the refinement hierarchy, Galerkin coarse operators.
+
+    Parameters
+    ----------
+    prolongations : list of sparse
+        ``P_k`` maps level ``k`` to ``k+1`` on the free DOFs; ``P[-1]`` ends at
+        ``A``. Without prolongations the "V-cycle" is a direct solve.
+    """
+    from pyamg.multilevel import MultilevelSolver
+    from pyamg.relaxation.smoothing import change_smoothers
+    levels = []
+    A_k = sp.csr_matrix(A)
+    for P in reversed(prolongations):
+        lvl = MultilevelSolver.Level()
+        lvl.A, lvl.P, lvl.R = A_k, sp.csr_matrix(P), sp.csr_matrix(P.T)
+        levels.append(lvl)
+        A_k = sp.csr_matrix(lvl.R @ A_k @ lvl.P)
+    coarse = MultilevelSolver.Level()
+    coarse.A = A_k
+    levels.append(coarse)
+    ml = MultilevelSolver(levels, coarse_solver="splu")
+    sm = _smoother(smoother, sweeps, blocked=False)
+    with _seeded_global_rng():
+        change_smoothers(ml, presmoother=sm, postsmoother=sm)
+    return ml
+
+
+def _vcycle(ml, lvl: int, b: np.ndarray) -> np.ndarray:
+    """One V-cycle on level ``lvl`` of a pyamg hierarchy, zero initial guess.
+
+    Same operations as pyamg's cycle, without its residual norms (which cost
+    as much as a smoothing sweep here).
+    """
+    levels = ml.levels
+    if len(levels) == 1:
+        return ml.coarse_solver(levels[0].A, b)
+    level = levels[lvl]
+    x = np.zeros_like(b)
+    level.presmoother(level.A, x, b)
+    coarse_b = level.R @ (b - level.A @ x)
+    if lvl == len(levels) - 2:
+        coarse_x = ml.coarse_solver(levels[-1].A, coarse_b)
+    else:
+        coarse_x = _vcycle(ml, lvl + 1, coarse_b)
+    x += level.P @ coarse_x
+    level.postsmoother(level.A, x, b)
+    return x
+
+
+@dataclass
+class ScaledVCycle:
+    """``A-hat^{-1}`` = one V-cycle divided by ``gamma_low`` (Remark 8.14).
+
+    After scaling ``A-hat < A <= gamma_bar A-hat`` (8.18) with
+    ``gamma_bar = gamma_high / gamma_low``.
+    """
+
+    kind: str
+    ml: object
+    gamma_low: float
+    gamma_high: float
+    ritz: tuple
+    setup_time: float
+    lanczos_time: float
+    n_applications: int = 0
+    time: float = 0.0
+
+    @property
+    def gamma_bar(self) -> float:
+        return self.gamma_high / self.gamma_low
+
+    def raw(self, r: np.ndarray) -> np.ndarray:
+        """One unscaled V-cycle with zero start (symmetric smoothing)."""
+        t0 = time.perf_counter()
+        x = _vcycle(self.ml, 0, np.asarray(r, dtype=float))
+        self.time += time.perf_counter() - t0
+        self.n_applications += 1
+        return x
+
+    def __call__(self, r: np.ndarray) -> np.ndarray:
+        """``A-hat^{-1} r`` (scaled)."""
+        return self.raw(r) / self.gamma_low
+
+    def operator_complexity(self) -> float:
+        return float(self.ml.operator_complexity())
+
+
+def vcycle(A: sp.spmatrix, kind: str, multilevel: Multilevel | None, dim: int,
+           free_dofs: np.ndarray | None, *, smoother: str, sweeps: int,
+           max_coarse: int = 0) -> ScaledVCycle:
+    """One symmetric V-cycle as a preconditioner, unscaled (``gamma_low = 1``).
+
+    ``kind`` {"gmg", "sa"}: geometric multigrid on ``multilevel.prolongations``
+    or pyamg smoothed aggregation (rigid-body modes as near-null space);
+    V(sweeps, sweeps) with the named symmetric smoother; ``max_coarse`` (SA
+    only) the largest coarsest level. What a multigrid-PCG linear solve needs;
+    :func:`scaled_vcycle` adds the scaling of (8.18).
+    """
+    multilevel = multilevel or Multilevel()
+    t0 = time.perf_counter()
+    if kind == "sa":
+        ml = sa_hierarchy(A, multilevel.rigid_body_modes, dim, free_dofs, smoother, sweeps,
+                          max_coarse)
+    elif kind == "gmg":
+        ml = geometric_hierarchy(A, list(multilevel.prolongations), smoother, sweeps)
+    else:
+        raise ValueError(f"unknown A-hat kind {kind!r}; allowed: gmg, sa")
+    return ScaledVCycle(kind, ml, 1.0, 1.0, (np.nan, np.nan), time.perf_counter() - t0, 0.0)
+
+
+def vcycle_kind(qp: ContactQP, kind: str) -> str:
+    """``kind``, with ``auto`` resolved: gmg when ``qp`` has a refinement hierarchy, else sa."""
+    return kind if kind != "auto" else ("gmg" if qp.multilevel.prolongations else "sa")
+
+
+def component_vcycle(qp: ContactQP, ahat) -> ScaledVCycle:
+    """The unscaled V-cycle an ``ahat`` component (:class:`problems.spec.Component`, as the
+    augmented projection declares it) describes on ``qp.A``: what a PCG solve needs.
+
+    Kind ``auto`` as :func:`vcycle_kind`; a Lanczos step count among the options is
+    not used.
+    """
+    o = ahat.options
+    return vcycle(qp.A, vcycle_kind(qp, ahat.kind), qp.multilevel, qp.dim, qp.free_dofs,
+                  smoother=o["smoother"], sweeps=o["sweeps"], max_coarse=o.get("max_coarse", 0))
+
+
+def scaled_vcycle(A: sp.spmatrix, kind: str, multilevel: Multilevel | None, dim: int,
+                  free_dofs: np.ndarray | None, *, smoother: str, sweeps: int,
+                  lanczos_steps: int, max_coarse: int = 0, seed: int = 0) -> ScaledVCycle:
+    """Build ``A-hat`` (:func:`vcycle`) and scale it by Lanczos so that (8.18) holds.
+
+    Parameters
+    ----------
+    kind, multilevel, smoother, sweeps, max_coarse
+        As :func:`vcycle`.
+    lanczos_steps : int
+        Steps of preconditioned Lanczos for ``lambda(A-hat^{-1} A)``.
+
+    The defaults of these options are declared once, in
+    :data:`solvers.augmented_projection.SOLVER` (``ahat``).
+
+    Returns
+    -------
+    ScaledVCycle
+        With ``gamma_low = LOW_SAFETY * ritz_min`` and
+        ``gamma_high = HIGH_SAFETY * ritz_max``.
+    """
+    vc = vcycle(A, kind, multilevel, dim, free_dofs, smoother=smoother, sweeps=sweeps,
+                max_coarse=max_coarse)
+    t0 = time.perf_counter()
+    lo, hi = lanczos_extremes(lambda x: A @ x, A.shape[0], lanczos_steps, vc.raw, seed)
+    vc.lanczos_time = time.perf_counter() - t0
+    vc.ritz = (lo, hi)
+    vc.gamma_low, vc.gamma_high = LOW_SAFETY * lo, HIGH_SAFETY * hi
+    return vc
+
+
+# ---------------------------------------------------------------------------
+# The V-cycle as a solver option (declared once)
+# ---------------------------------------------------------------------------
+_LANCZOS = Parameter("lanczos_steps", 12, "Lanczos steps for the spectral bounds", low=5, kind=int)
+_SMOOTHER = Parameter("smoother", "symmetric_gs", "V-cycle smoother", choices=tuple(SMOOTHERS))
+_SWEEPS = Parameter("sweeps", 1, "pre- and post-smoothing steps: V(sweeps, sweeps)", low=1,
+                    high=10, kind=int)
+_MAX_COARSE = Parameter("max_coarse", 500, "SA: largest coarsest level", low=10, kind=int)
+
+#: ``A-hat``: the kind of V-cycle and its settings, per kind.
+AHAT = ComponentParameter(
+    "ahat", "auto", {"auto": (_SMOOTHER, _SWEEPS, _MAX_COARSE, _LANCZOS),
+                     "gmg": (_SMOOTHER, _SWEEPS, _LANCZOS),
+                     "sa": (_SMOOTHER, _SWEEPS, _MAX_COARSE, _LANCZOS)},
+    "A-hat (8.18): one symmetric V-cycle of geometric MG on the refinement hierarchy "
+    "(gmg) or pyamg SA with rigid-body modes (sa), scaled by Lanczos (Remark 8.14) where a "
+    "solver needs spectral bounds; auto = gmg if the problem has a hierarchy")
+
+
+def ahat_component(kind: str = "auto", **options) -> Component:
+    """The :data:`AHAT` component of ``kind`` with its defaults (``options`` override)."""
+    given = {"ahat": kind, **{f"ahat.{k}": v for k, v in options.items()}}
+    return resolve_parameters((AHAT,), given, "A-hat").ahat

@@ -1,0 +1,257 @@
+"""``S-hat``: preconditioners of the Schur complement ``S = B A^{-1} B^T`` (thesis
+Sect. 8.5, Remarks 8.11, 8.12, 8.15), for the augmented projection (Alg. 8.4).
+
+The inexact Schur complement ``S_in = B A-hat^{-1} B^T + C`` (matrix-free, one V-cycle
+per product, or assembled), the Jacobi-type ``B diag(A)^{-1} B^T + C`` and a
+multilevel ``S-hat`` for the order -1 operator ``S`` on the nested constrained-surface
+meshes the scene supplies (a line in 2D, a triangulated face in 3D), whose product
+costs O(N^C).
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.linalg as sla
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from problems.qp import ContactQP, SurfaceHierarchy
+from solvers.multigrid import HIGH_SAFETY, Apply, ScaledVCycle, lanczos_extremes
+
+# ---------------------------------------------------------------------------
+# S-hat: Schur-complement preconditioners
+# ---------------------------------------------------------------------------
+@dataclass
+class SchurPreconditioner:
+    """``S-hat`` as a product ``q -> S-hat q`` (never its inverse in Alg. 8.4).
+
+    Attributes
+    ----------
+    name : str
+    apply_unscaled : callable
+    m : int
+    diagonal_unscaled : (m,) array or None
+        Diagonal of ``apply_unscaled`` when it is cheap (sparse kinds).
+    scale : float
+        ``S-hat = scale * apply_unscaled``; chosen so that ``S_in <= S-hat``.
+    lam_min, lam_max : float
+        Ritz values of ``S-hat`` (Euclidean), for (8.15) and MPRGP's step.
+    kappa_Sin : float
+        ``kappa(S-hat^{-1} S_in)`` (1 for ``S-hat = S_in``).
+    """
+
+    name: str
+    apply_unscaled: Apply
+    m: int
+    diagonal_unscaled: np.ndarray | None = None
+    scale: float = 1.0
+    lam_min: float = np.nan
+    lam_max: float = np.nan
+    kappa_Sin: float = 1.0
+    ritz_Sin: tuple = (1.0, 1.0)
+    setup_time: float = 0.0
+    n_applications: int = 0
+    info: dict = field(default_factory=dict)
+
+    def __call__(self, q: np.ndarray) -> np.ndarray:
+        self.n_applications += 1
+        return self.scale * self.apply_unscaled(q)
+
+    @property
+    def kappa(self) -> float:
+        """kappa(S-hat) of Table 9.1 (Euclidean, Lanczos)."""
+        return self.lam_max / self.lam_min
+
+    def columns(self, idx: np.ndarray) -> np.ndarray:
+        """``S-hat[:, idx]`` (one product per column)."""
+        out = np.empty((self.m, len(idx)))
+        e = np.zeros(self.m)
+        for c, j in enumerate(idx):
+            e[j] = 1.0
+            out[:, c] = self.scale * self.apply_unscaled(e)
+            e[j] = 0.0
+        return out
+
+    def diagonal(self) -> np.ndarray:
+        """``diag(S-hat)``: from ``diagonal_unscaled`` when the kind has it, else one
+        product per entry."""
+        if self.diagonal_unscaled is not None:
+            return self.scale * np.asarray(self.diagonal_unscaled, dtype=float)
+        return np.array([self.columns(np.array([j]))[j, 0] for j in range(self.m)])
+
+    def dense(self) -> np.ndarray:
+        """Explicit, symmetrised ``S-hat`` (m products; for tests and small m)."""
+        M = self.columns(np.arange(self.m))
+        return 0.5 * (M + M.T)
+
+    def solve_unscaled(self) -> Apply:
+        """``x = apply_unscaled^{-1} b`` by Jacobi-PCG (needs ``diagonal_unscaled``)."""
+        if self.diagonal_unscaled is None:
+            raise ValueError(f"S-hat '{self.name}' has no cheap diagonal for its inverse")
+        K = spla.LinearOperator((self.m, self.m), matvec=self.apply_unscaled)
+        M = spla.LinearOperator((self.m, self.m), matvec=lambda x: x / self.diagonal_unscaled)
+
+        def solve(b: np.ndarray) -> np.ndarray:
+            x, info = spla.cg(K, b, M=M, rtol=1e-11, atol=0.0, maxiter=10 * self.m + 100)
+            if info != 0:
+                raise RuntimeError(f"CG on S-hat '{self.name}' did not converge (info {info})")
+            return x
+
+        return solve
+
+
+def multilevel_schur_apply(surface: SurfaceHierarchy) -> tuple[Apply, np.ndarray]:
+    """``S-hat q = sum_k I_k W_k M_k^{-1} I_k^T q`` (a multilevel H^{-1/2} norm) and its diagonal.
+
+    ``I_k`` interpolates surface level ``k`` to the finest, ``M_k`` is the
+    lumped surface mass and ``W_k`` the local mesh size (``surface.sizes``),
+    halved below the finest level (``h_k - h_{k+1}`` on uniform levels). With
+    ``lambda = M^{-1} q`` the pressure, ``q^T S-hat q`` is
+    ``sum_k ||Q_k lambda||^2_{W_k}`` with quasi-L2 projections ``Q_k``, i.e. the
+    multilevel norm ``sum_k h_k ||(Q_k - Q_{k-1}) lambda||^2 ~
+    ||lambda||^2_{H^{-1/2}}``, which matches ``S = B A^{-1} B^T`` (order -1,
+    Lemma 8.13). One product costs O(N^C) (Remark 8.12): restrictions down,
+    diagonal scalings, prolongations up. Dimension-generic: the surface is a
+    line (2D) or a triangulated face (3D), nested as the scene supplies it.
+    """
+    L = surface.n_levels - 1
+    h = [np.asarray(s, dtype=float) for s in surface.sizes]
+    scale = [(0.5 * h[k] if k < L else h[k]) / surface.masses[k] for k in range(L + 1)]
+    P = [sp.csr_matrix(p) for p in surface.prolongations]
+    Pt = [p.T.tocsr() for p in P]
+
+    def apply(q: np.ndarray) -> np.ndarray:
+        r = [None] * (L + 1)
+        r[L] = np.asarray(q, dtype=float)
+        for k in range(L - 1, -1, -1):
+            r[k] = Pt[k] @ r[k + 1]
+        y = scale[0] * r[0]
+        for k in range(1, L + 1):
+            y = P[k - 1] @ y + scale[k] * r[k]
+        return y
+
+    # diag(I_k D_k I_k^T) = (I_k o I_k) diag(D_k), with I_k the composite interpolation
+    diag = scale[L].copy()
+    I = sp.identity(len(scale[L]), format="csr")
+    for k in range(L - 1, -1, -1):
+        I = (I @ P[k]).tocsr()
+        diag += I.multiply(I) @ scale[k]
+    return apply, diag
+
+
+def build_schur(kind: str, qp: ContactQP, Ainv: ScaledVCycle, lanczos_steps: int,
+                seed: int = 0) -> SchurPreconditioner:
+    """Build ``S-hat`` of the given kind, scaled so that ``S_in <= S-hat``.
+
+    Parameters
+    ----------
+    kind : {"inexact", "inexact_assembled", "multilevel", "jacobi"}
+        ``S_in = B A-hat^{-1} B^T + C`` (8.22) matrix-free or assembled
+        (N^C V-cycles), the multilevel surface operator
+        (:func:`multilevel_schur_apply`) or ``B diag(A)^{-1} B^T + C``.
+    qp : ContactQP
+    Ainv : ScaledVCycle
+        The scaled ``A-hat^{-1}``.
+    lanczos_steps : int
+        Lanczos steps for the extreme eigenvalues of ``S-hat`` (kappa, MPRGP's
+        step); sparse kinds scale against ``S_in`` with a third of them (at
+        least 6), one V-cycle per step.
+
+    Returns
+    -------
+    SchurPreconditioner
+        With Lanczos estimates of ``lambda(S-hat)`` and, for sparse kinds,
+        of ``lambda(S-hat^{-1} S_in)`` (setup inverts the sparse ``S-hat`` by
+        PCG; the iteration never does).
+    """
+    t0 = time.perf_counter()
+    B, C, m = qp.B, qp.C, qp.m
+    Bt = sp.csr_matrix(B.T)
+    plusC = (lambda q: C @ q) if C is not None else (lambda q: 0.0)
+    diagC = C.diagonal() if C is not None else 0.0
+
+    def S_in(q):
+        return B @ Ainv(Bt @ q) + plusC(q)
+
+    info = {}
+    if kind == "inexact":
+        sh = SchurPreconditioner("inexact", S_in, m)
+    elif kind == "inexact_assembled":
+        I = np.eye(m)
+        Sd = np.column_stack([S_in(I[:, j]) for j in range(m)])
+        Sd = 0.5 * (Sd + Sd.T)
+        sh = SchurPreconditioner("inexact_assembled", lambda q: Sd @ q, m, np.diag(Sd).copy())
+    elif kind == "jacobi":
+        Sj = sp.csr_matrix(B @ sp.diags(1.0 / qp.A.diagonal()) @ Bt)
+        if C is not None:
+            Sj = Sj + C
+        sh = SchurPreconditioner("jacobi", lambda q: Sj @ q, m, Sj.diagonal().copy())
+    elif kind == "multilevel":
+        surface = qp.multilevel.surface
+        if qp.stabilisation is not None:
+            raise ValueError("schur=multilevel covers the constrained surface's rows only; the "
+                             "stabilised problem (Sect. 7.5) has reverse rows too: use "
+                             "schur=inexact or jacobi")
+        if surface is None:
+            raise ValueError("schur=multilevel needs the nested constrained-surface meshes "
+                             "(qp.multilevel.surface), which this problem does not supply; "
+                             "use schur=inexact")
+        base, diag = multilevel_schur_apply(surface)
+        apply = (lambda q: base(q) + C @ q) if C is not None else base
+        sh = SchurPreconditioner("multilevel", apply, m, diag + diagC)
+        info["surface_levels"] = surface.n_levels
+    else:
+        raise ValueError(f"unknown S-hat kind {kind!r}")
+    sh.info = info
+    if kind in ("jacobi", "multilevel"):
+        # lambda_max first; one V-cycle per step, and the largest Ritz value of the pencil has
+        # settled to 0.3% by 8 steps (circle-square, cube-sphere), inside HIGH_SAFETY
+        _scale_against_Sin(sh, S_in, max(6, lanczos_steps // 3), seed)
+    lo, hi = lanczos_extremes(sh, m, min(lanczos_steps * 2, m), seed=seed + 1)
+    sh.lam_min, sh.lam_max = lo, HIGH_SAFETY * hi
+    sh.n_applications = 0
+    sh.setup_time = time.perf_counter() - t0
+    return sh
+
+
+def _scale_against_Sin(sh: SchurPreconditioner, S_in: Apply, steps: int, seed: int) -> None:
+    """Scale ``S-hat`` so that ``S_in <= S-hat`` (so the bound alpha_bar <= 2 holds).
+
+    Lanczos for the pencil ``(S_in, S-hat)`` with ``S-hat^{-1}`` by PCG; also
+    records ``kappa(S-hat^{-1} S_in)``.
+    """
+    lo, hi = lanczos_extremes(S_in, sh.m, min(steps, sh.m), sh.solve_unscaled(), seed=seed + 2)
+    sh.ritz_Sin = (lo, hi)
+    sh.scale = HIGH_SAFETY * hi
+    sh.kappa_Sin = hi / lo
+
+
+def kappa_schur_exact(qp: ContactQP, Ainv: ScaledVCycle, sh: SchurPreconditioner,
+                      steps: int = 30, cg_tol: float = 1e-10,
+                      seed: int = 3) -> tuple[float, float, float]:
+    """``kappa(S-hat^{-1} S)`` with ``S = B A^{-1} B^T + C`` (costly: PCG per product).
+
+    ``S-hat^{-1}`` by PCG on the sparse ``S-hat``, or a dense Cholesky factor
+    for a kind without a cheap diagonal (small ``m``).
+
+    Returns
+    -------
+    (kappa, lambda_min, lambda_max)
+    """
+    Bt = sp.csr_matrix(qp.B.T)
+    M = spla.LinearOperator(qp.A.shape, matvec=Ainv)
+
+    def S(q):
+        x, info = spla.cg(qp.A, Bt @ q, M=M, rtol=cg_tol, atol=0.0, maxiter=500)
+        return qp.B @ x + (qp.C @ q if qp.C is not None else 0.0)
+
+    if sh.diagonal_unscaled is not None:
+        inv_unscaled = sh.solve_unscaled()
+        inv = lambda x: inv_unscaled(x) / sh.scale
+    else:
+        factor = sla.cho_factor(sh.dense())
+        inv = lambda x: sla.cho_solve(factor, x)
+    lo, hi = lanczos_extremes(S, sh.m, min(steps, sh.m), inv, seed=seed)
+    return hi / lo, lo, hi
