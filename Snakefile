@@ -13,9 +13,9 @@ from snakemake.utils import validate
 from workflows.io import sweep_results
 
 from workflows.studies import (PATHS, adaptive_args, adaptive_variant_file, all_targets,
-                               bench_path, check_config, exact_args, log_path, roll_args,
-                               roll_fields, rule_resources, scenes_of, set_args, summary_items,
-                               thesis_table)
+                               bench_path, check_config, coarser_levels, exact_args, log_path,
+                               roll_args, roll_fields, rule_resources, scenes_of, set_args,
+                               summary_items, thesis_table)
 
 # the quick scale unless --configfile names another (merging quick.yaml under full.yaml or
 # tiny.yaml would leave quick's scenes in them)

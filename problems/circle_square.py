@@ -40,6 +40,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from problems.fem.contact import RENAMED_SEARCHES, SEARCHES
 from problems.fem.mesh import (Hierarchy, nested_prolongation, netgen_disk, project_to_circle,
                                structured_rectangle, uniform_hierarchy)
 from problems.fem.surface import tensor_coarsening
@@ -138,8 +139,9 @@ PROBLEM = ProblemSpec(
                   low=0.0, high=0.2),
         Parameter("held_arc", 60.0, "half-angle (degrees) of the circle's held upper arc", low=5.0,
                   high=90.0),
-        Parameter("search", "b", "opposing point: b = along n = (0, 1), a = closest point",
-                  choices=("a", "b")),
+        Parameter("search", "along_direction", "opposing point (Alg. 7.1): along_direction = along n = (0, 1) "
+                  "(case b), closest_point = closest point (case a)", choices=SEARCHES,
+                  renamed=RENAMED_SEARCHES),
         Parameter("order", "square_first", "bodies' order in memory (a solution must not depend on it)",
                   choices=("square_first", "circle_first")),
     ),

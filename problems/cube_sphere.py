@@ -44,6 +44,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from problems.fem.contact import RENAMED_SEARCHES, SEARCHES
 from problems.fem.mesh import (Hierarchy, nested_prolongation, netgen_ball, project_to_circle,
                                structured_cube, uniform_hierarchy)
 from problems.fem.surface import tensor_coarsening
@@ -129,8 +130,9 @@ PROBLEM = ProblemSpec(
                   low=0.0, high=0.3),
         Parameter("held_arc", 60.0, "half-angle (degrees) of the ball's held upper cap",
                   low=5.0, high=90.0),
-        Parameter("search", "b", "opposing point: b = along n = (0, 0, 1), a = closest point",
-                  choices=("a", "b")),
+        Parameter("search", "along_direction", "opposing point (Alg. 7.1): along_direction = along n = (0, 0, 1) "
+                  "(case b), closest_point = closest point (case a)", choices=SEARCHES,
+                  renamed=RENAMED_SEARCHES),
         Parameter("order", "cube_first", "bodies' order in memory (a solution must not depend "
                   "on it)", choices=("cube_first", "ball_first")),
     ),

@@ -108,7 +108,7 @@ def scene(level: int, p: Options) -> TwoBodyScene:
         bodies=(lower, upper), constrained_body=constrained, supports=supports,
         on_constrained=lambda x: np.isclose(x[:, 1], level_of[constrained]),
         on_opposing=lambda c: np.isclose(c[:, 1], level_of[1 - constrained]),
-        direction=np.array([0.0, 1.0 if constrained == 0 else -1.0]), search="b",
+        direction=np.array([0.0, 1.0 if constrained == 0 else -1.0]), search="along_direction",
         surface_coarsening=lambda x: tensor_coarsening(x[:, :1]), units="dimensionless")
 
 

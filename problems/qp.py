@@ -83,7 +83,7 @@ class ContactSurface:
     opposing_facets : (k', d) int array
         Facets of the opposing surface (thesis: surface ``l-1``) the search used.
     search : str
-        ``"a"`` (closest point, (7.12)) or ``"b"`` (fixed direction, (7.13)).
+        ``"closest_point"`` (Alg. 7.1 case a, (7.12)) or ``"along_direction"`` (case b, (7.13)).
     dropped : int
         Nodes of the constrained surface that found no opposing facet (e.g. beyond
         the opposing body's reach in grazing contact) and carry no constraint.
@@ -94,7 +94,7 @@ class ContactSurface:
     direction: np.ndarray
     facets: np.ndarray
     opposing_facets: np.ndarray
-    search: str = "b"
+    search: str = "along_direction"
     dropped: int = 0
 
 

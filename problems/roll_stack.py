@@ -325,7 +325,7 @@ def scene(level: int, p: Options) -> TwoBodyScene:
     return TwoBodyScene(
         bodies=(work, backup), constrained_body=0, supports=supports,
         on_constrained=on_constrained, on_opposing=on_opposing,
-        direction=np.array([0.0, 0.0, 1.0]), search="b",
+        direction=np.array([0.0, 0.0, 1.0]), search="along_direction",
         tractions=[Traction(0, in_bite, np.array([0.0, 0.0, pressure]))],
         springs=[Springs(0, on_springs, np.array([0.0, 1.0, 1.0]) * p.spring * E * Rw)],
         hertz=HertzSetup("line", 1.0 / (1.0 / Rw + 1.0 / Rb),

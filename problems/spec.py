@@ -40,6 +40,11 @@ class Parameter:
         Closed bounds for numbers (``None`` = unbounded).
     low_open, high_open : bool
         Make the corresponding bound strict.
+    kind : type, optional
+        The value's type when the default's is not it.
+    renamed : dict, optional
+        ``{old value: new value}`` of choices that were renamed: the old spelling is
+        refused with an error naming the new one.
     """
 
     name: str
@@ -51,6 +56,7 @@ class Parameter:
     low_open: bool = False
     high_open: bool = False
     kind: type | None = None
+    renamed: dict | None = None
 
     @property
     def type(self) -> type:
@@ -99,6 +105,10 @@ class Parameter:
             raise ParameterError(
                 f"parameter '{self.name}': cannot use {value!r}; allowed: {self.allowed()}"
             ) from None
+        if self.renamed and value in self.renamed:
+            raise ParameterError(
+                f"parameter '{self.name}': {value!r} was renamed to {self.renamed[value]!r}; "
+                f"allowed: {self.allowed()}")
         if self.choices is not None and value not in self.choices:
             raise ParameterError(
                 f"parameter '{self.name}': {value!r} is not allowed; allowed: {self.allowed()}")

@@ -21,8 +21,8 @@ from matplotlib.colors import ListedColormap  # noqa: E402
 from report.figures import save_figure  # noqa: E402
 from workflows.io import read_csv, write_csv  # noqa: E402
 
-STATUS_ORDER = ("converged", "inaccurate", "max_iter", "time_limit", "failed")
-STATUS_COLORS = ("#2ca02c", "#ff7f0e", "#9467bd", "#8c564b", "#d62728")
+STATUS_ORDER = ("converged", "inaccurate", "max_iter", "time_limit", "failed", "skipped")
+STATUS_COLORS = ("#2ca02c", "#ff7f0e", "#9467bd", "#8c564b", "#d62728", "#c7c7c7")
 
 
 def table(inputs: list[str]) -> pd.DataFrame:

@@ -76,6 +76,7 @@ def summary(t: pd.DataFrame) -> pd.DataFrame:
                      "max_iter": int((g.status == "max_iter").sum()),
                      "time_limit": int((g.status == "time_limit").sum()),
                      "failed": int((g.status == "failed").sum()),
+                     "skipped": int((g.status == "skipped").sum()),
                      "success_rate": float((g.status == "converged").mean()),
                      "correct_rate": float(g["correct"].mean()),
                      "sgm_time": sgm(g["penalised_time"]),

@@ -17,7 +17,8 @@ from report.rates import fitted_slope  # noqa: E402
 from solvers.interface import TOLERANCES, solvers  # noqa: E402
 from workflows.io import read_csv, write_csv  # noqa: E402
 
-MARKERS = {"converged": "o", "inaccurate": "x", "max_iter": "s", "time_limit": ">", "failed": "X"}
+MARKERS = {"converged": "o", "inaccurate": "x", "max_iter": "s", "time_limit": ">", "failed": "X",
+           "skipped": "."}
 LINES = {"low": ":", "mid": "--", "high": "-"}
 
 
@@ -32,7 +33,7 @@ def cost_table(table: pd.DataFrame) -> pd.DataFrame:
     runs = table[~table.solver.isin([FLOOR]) & (table.preset != "reference")]
     rows = []
     for (solver, preset), grp in runs.groupby(["solver", "preset"]):
-        ok = grp[~grp.status.isin(["failed", "time_limit"])].sort_values("N")
+        ok = grp[~grp.status.isin(["failed", "time_limit", "skipped"])].sort_values("N")
         row = {"solver": solver, "preset": preset, "levels": len(ok),
                "converged": int((grp.status == "converged").sum()), "runs": len(grp),
                "time_exponent": fitted_slope(ok["N"], ok["total_time"], last=len(ok)),

@@ -11,6 +11,7 @@ verifies it (:func:`solvers.certificate.verify`).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from enum import StrEnum
 from typing import Any, Callable
 
 import numpy as np
@@ -21,8 +22,24 @@ from problems.spec import Options, Parameter, ParameterError, resolve_parameters
 #: Tolerance presets; each solver maps them to its own options (``SolverSpec.presets``).
 TOLERANCES = {"low": 1e-3, "mid": 1e-6, "high": 1e-9}
 
-#: Status values of a :class:`SolveResult`.
-STATUSES = ("converged", "inaccurate", "max_iter", "time_limit", "failed")
+#: Status values of a :class:`SolveResult`. ``skipped``: the solver declared at once that it
+#: cannot take the problem (:meth:`SolverSpec.check`); the message says why.
+STATUSES = ("converged", "inaccurate", "max_iter", "time_limit", "failed", "skipped")
+
+
+class Role(StrEnum):
+    """What a solver is in the comparison (a string, so ``role == "exact"`` works)."""
+
+    #: ground truth: an exact method (the PDAS with a factorised A)
+    EXACT = "exact"
+    #: the thesis's own solver (Alg. 8.4)
+    THESIS = "thesis"
+    #: a contact-mechanics method (semismooth Newton, TNNMG)
+    NEWTON = "newton"
+    #: a general QP library (OSQP, Clarabel, ...)
+    LIBRARY = "library"
+    #: anything else, e.g. a solver of another package (entry point contactbench.solvers)
+    OTHER = "other"
 
 
 @dataclass
@@ -35,8 +52,9 @@ class SolveResult:
         Primal solution on the free DOFs and multipliers (``p >= 0``, ``Bu <= g``).
     claimed_status : str
         What the solver itself says: one of ``converged``, ``max_iter``,
-        ``time_limit``, ``failed``, or ``inaccurate`` when the solver itself
-        knows it stopped short of its tolerance (e.g. Clarabel ``AlmostSolved``).
+        ``time_limit``, ``failed``, ``inaccurate`` when the solver itself
+        knows it stopped short of its tolerance (e.g. Clarabel ``AlmostSolved``), or
+        ``skipped`` when it cannot take the problem (:meth:`SolverSpec.check`).
     status : str
         After verification (:func:`verify`): ``converged`` only if the solver
         claimed it *and* every verified KKT residual is <= tol *and* the
@@ -108,13 +126,17 @@ class SolverSpec:
         For the report: how the presets ``low/mid/high`` map to the solver's own
         options, e.g. ``{"low": "eps_abs=eps_rel=1e-3, polish", ...}``.
     default_max_iter : int
-    role : str
-        ``"reference"`` (general QP solvers), ``"exact"`` (ground truth) or
-        ``"thesis"`` (the augmented projection of Alg. 8.4).
+    role : Role
+        What the solver is in the comparison (a :class:`Role` or its value).
     handles_C : bool
         The solver takes a stabilisation block ``C`` (Sect. 7.5) as it is; for the
-        others :func:`solve` hands over the equivalent slack form
+        others :func:`solvers.interface.solve` hands over the equivalent slack form
         (:func:`problems.slack.slack_form`) and maps the answer back.
+    supports : callable, optional
+        ``supports(qp) -> (ok, reason)``, benchopt's ``skip``: called on the problem the
+        solver would receive; ``(False, reason)`` makes the run ``skipped`` at once with
+        that reason (a floating body, a size beyond a dense method, ...). It must be
+        cheap (well under a second).
     """
 
     name: str
@@ -123,12 +145,27 @@ class SolverSpec:
     parameters: tuple[Parameter, ...] = ()
     presets: dict = field(default_factory=dict)
     default_max_iter: int = 10_000
-    role: str = "reference"
+    role: Role = Role.OTHER
     handles_C: bool = False
+    supports: Callable[[Any], tuple[bool, str]] | None = None
+
+    def __post_init__(self):
+        try:
+            object.__setattr__(self, "role", Role(self.role))
+        except ValueError:
+            raise ValueError(f"solver {self.name!r}: role {self.role!r} is not allowed; allowed: "
+                             f"{', '.join(r.value for r in Role)}") from None
 
     def options(self, **given: Any) -> Options:
         """The resolved options: defaults overridden by ``given``, validated."""
         return resolve_parameters(self.parameters, given, f"solver '{self.name}'")
+
+    def check(self, qp) -> tuple[bool, str]:
+        """``(True, "")`` if the solver takes ``qp``, else ``(False, reason)``."""
+        if self.supports is None:
+            return True, ""
+        ok, reason = self.supports(qp)
+        return bool(ok), str(reason)
 
 
 

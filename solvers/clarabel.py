@@ -29,7 +29,7 @@ from solvers._scaling import (ADAPTER_PARAMETERS, require_plain_constraints, sca
                               upper_triangle)
 from problems.qp import ContactQP
 from problems.spec import Options, resolve_parameters
-from solvers.base import TOLERANCES, SolveResult, SolverSpec
+from solvers.base import TOLERANCES, Role, SolveResult, SolverSpec
 
 #: Clarabel status name -> SolveResult status.
 _STATUS = {
@@ -136,5 +136,5 @@ SOLVER = SolverSpec(
     parameters=PARAMETERS,
     presets={name: _describe(tol) for name, tol in TOLERANCES.items()},
     default_max_iter=200,
-    role="reference",
+    role=Role.LIBRARY,
 )

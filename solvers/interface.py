@@ -19,10 +19,10 @@ import numpy as np
 from problems.qp import ContactQP
 from problems.slack import slack_form
 from problems.spec import Parameter, ParameterError, discover, lookup
-from solvers.base import STATUSES, TOLERANCES, SolveResult, SolverSpec, parse_tolerance
+from solvers.base import STATUSES, TOLERANCES, Role, SolveResult, SolverSpec, parse_tolerance
 from solvers.certificate import certify, linear_solver, verify
 
-__all__ = ["STATUSES", "TOLERANCES", "SolveResult", "SolverSpec", "certify", "linear_solver",
+__all__ = ["STATUSES", "TOLERANCES", "Role", "SolveResult", "SolverSpec", "certify", "linear_solver",
            "parse_tolerance", "solve", "solvers", "verify"]
 
 
@@ -78,6 +78,13 @@ def solve(qp: ContactQP, solver: str = "pdas", tol: float | str = "mid",
             soft = qp.C.diagonal() > 0
             u0 = np.concatenate([u0, (qp.B @ u0 - qp.g)[soft]])
     t0 = time.perf_counter()
+    ok, reason = spec.check(target)
+    if not ok:                                        # benchopt's skip: at once, with why
+        result = SolveResult(u=np.zeros(qp.n), p=np.zeros(qp.m), claimed_status="skipped",
+                             message=f"skipped: {reason}", solver=spec.name, tol=tol,
+                             options=opts.flat(), solve_time=time.perf_counter() - t0)
+        result.status = "skipped"
+        return result
     try:
         result = spec.solve(target, tol, max_iter, time_limit, u0, p0, opts)
         if target is not qp:

@@ -25,7 +25,7 @@ from solvers._scaling import (ADAPTER_PARAMETERS, require_plain_constraints, sca
                               upper_triangle)
 from problems.qp import ContactQP
 from problems.spec import Options, resolve_parameters
-from solvers.base import TOLERANCES, SolveResult, SolverSpec
+from solvers.base import TOLERANCES, Role, SolveResult, SolverSpec
 
 #: OSQP status strings -> SolveResult status (``solved inaccurate`` is resolved
 #: by :func:`_map_status`).
@@ -166,5 +166,5 @@ SOLVER = SolverSpec(
     parameters=PARAMETERS,
     presets={name: _describe(tol) for name, tol in TOLERANCES.items()},
     default_max_iter=100_000,
-    role="reference",
+    role=Role.LIBRARY,
 )

@@ -47,7 +47,7 @@ from problems.spec import Options, Parameter
 from solvers.cholesky import factorize, shared_floating_factor
 from solvers.active_set import (check_positive_diagonal, damped_update, initial_active_set,
                                 pdas_update, stiffness_scale)
-from solvers.base import SolveResult, SolverSpec
+from solvers.base import Role, SolveResult, SolverSpec
 
 #: Columns of ``A^{-1} B^T`` computed at once when forming the Schur complement.
 _SCHUR_BLOCK = 64
@@ -381,6 +381,6 @@ SOLVER = SolverSpec(
              "mid": "exact (stops when the active set repeats); tol only judges the result",
              "high": "exact (stops when the active set repeats); tol only judges the result"},
     default_max_iter=100,
-    role="exact",
+    role=Role.EXACT,
     handles_C=True,
 )

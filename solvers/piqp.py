@@ -26,7 +26,7 @@ from problems.qp import ContactQP
 from problems.spec import Options, Parameter, resolve_parameters
 from solvers._scaling import (ADAPTER_PARAMETERS, require_plain_constraints, scale_qp,
                               upper_triangle)
-from solvers.base import TOLERANCES, SolveResult, SolverSpec
+from solvers.base import TOLERANCES, Role, SolveResult, SolverSpec
 
 #: ``piqp.Status`` name -> SolveResult status.
 _STATUS = {
@@ -110,5 +110,5 @@ SOLVER = SolverSpec(
     parameters=PARAMETERS,
     presets={name: _describe(tol) for name, tol in TOLERANCES.items()},
     default_max_iter=250,
-    role="reference",
+    role=Role.LIBRARY,
 )

@@ -33,7 +33,7 @@ from problems.spec import Parameter
 from solvers._scaling import ADAPTER_PARAMETERS, require_plain_constraints, scale_qp
 from problems.qp import ContactQP
 from problems.spec import Options, resolve_parameters
-from solvers.base import TOLERANCES, SolveResult, SolverSpec
+from solvers.base import TOLERANCES, Role, SolveResult, SolverSpec
 
 #: ProxQP status name -> SolveResult status.
 _STATUS = {
@@ -160,5 +160,5 @@ SOLVER = SolverSpec(
     parameters=PARAMETERS,
     presets={name: _describe(tol) for name, tol in TOLERANCES.items()},
     default_max_iter=10_000,
-    role="reference",
+    role=Role.LIBRARY,
 )

@@ -28,7 +28,7 @@ from problems.qp import ContactQP
 from problems.spec import Options, Parameter, resolve_parameters
 from solvers._scaling import (ADAPTER_PARAMETERS, require_plain_constraints, scale_qp,
                               upper_triangle)
-from solvers.base import TOLERANCES, SolveResult, SolverSpec
+from solvers.base import TOLERANCES, Role, SolveResult, SolverSpec
 
 #: QPALM ``info.status`` -> SolveResult status.
 _STATUS = {
@@ -107,5 +107,5 @@ SOLVER = SolverSpec(
     parameters=PARAMETERS,
     presets={name: _describe(tol) for name, tol in TOLERANCES.items()},
     default_max_iter=10_000,
-    role="reference",
+    role=Role.LIBRARY,
 )

@@ -50,7 +50,7 @@ from problems.qp import ContactQP
 from problems.spec import ComponentParameter, Options, Parameter, ParameterError
 from solvers.face import FACE_PROJECTION, FaceProjector, face_hops, face_projector
 from solvers.multigrid import AHAT, component_vcycle
-from solvers.base import SolveResult, SolverSpec
+from solvers.base import Role, SolveResult, SolverSpec
 from solvers.certificate import certify
 from solvers.active_set import check_positive_diagonal, damped_update, pdas_update, stiffness_scale
 
@@ -426,5 +426,5 @@ SOLVER = SolverSpec(
              "mid": "stop when verified: KKT and certified energy bound <= 1e-6",
              "high": "stop when verified: KKT and certified energy bound <= 1e-9"},
     default_max_iter=100,
-    role="newton",
+    role=Role.NEWTON,
 )

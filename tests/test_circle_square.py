@@ -93,7 +93,7 @@ def test_swapping_body_order_leaves_solution_unchanged(level1):
 
 
 def test_search_a_and_b_agree_for_this_geometry():
-    qa, qb = PROBLEM.make(1, search="a"), PROBLEM.make(1, search="b")
+    qa, qb = PROBLEM.make(1, search="closest_point"), PROBLEM.make(1, search="along_direction")
     ra, rb = solve(qa, "pdas", tol=1e-10), solve(qb, "pdas", tol=1e-10)
     # closest point and vertical ray differ slightly off-centre; total force within 1%
     assert abs(ra.p.sum() / rb.p.sum() - 1) < 0.01

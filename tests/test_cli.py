@@ -98,6 +98,16 @@ def test_every_solver_runs_through_the_cli(tmp_path, references, scene, solver):
     assert kkt_residuals(qp, res.u, res.p).max == pytest.approx(res.kkt.max)
 
 
+def test_a_skipped_solve_is_reported_through_the_cli(tmp_path, capsys):
+    out = tmp_path / "run.json"
+    assert main(["solve", "--problem", "roll_stack", "--level", "0", "--solver",
+                 "augmented_projection", "--out", str(out)]) == 0
+    data = json.loads(out.read_text())
+    assert data["status"] == "skipped" and "floating" in data["message"]
+    assert data["kkt"] is None and data["contact"] is None
+    assert "skipped (skipped: 1 floating rigid mode" in capsys.readouterr().out
+
+
 @pytest.mark.parametrize("solver", SOLVERS)
 def test_every_solver_runs_the_stabilised_coupling_through_the_cli(tmp_path, solver):
     """The stabilised formulation of Sect. 7.5 (C != 0): natively or in slack form, every
@@ -153,7 +163,8 @@ BAD_INPUTS = [
     (["--problem", "circle_square", "--set", "nu1=0.5"], "'nu1': 0.5 is out of range"),
     (["--problem", "circle_square", "--set", "E1=nan"], "'E1': nan is not finite"),
     (["--problem", "circle_square", "--set", "load=inf"], "'load': inf is not finite"),
-    (["--problem", "circle_square", "--set", "search=c"], "'search': 'c' is not allowed; allowed: one of a, b"),
+    (["--problem", "circle_square", "--set", "search=c"], "'search': 'c' is not allowed; allowed: one of along_direction, closest_point"),
+    (["--problem", "circle_square", "--set", "search=a"], "'search': 'a' was renamed to 'closest_point'"),
     (["--problem", "circle_square", "--tol", "-1"], "'tol': '-1' is not allowed"),
     (["--problem", "circle_square", "--tol", "nan"], "'tol': 'nan' is not allowed"),
     (["--problem", "circle_square", "--tol", "2"], "'tol': '2' is not allowed"),

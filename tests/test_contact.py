@@ -85,7 +85,7 @@ def test_tilted_opposing_line(theta):
     s = (xs - a) / (b - a)
     np.testing.assert_allclose(cc.weights, np.column_stack([1 - s, s]), atol=EPS)
     # case a: distance to the line, n = inward normal of the tilted line
-    ca = contact_constraints(points, nodes, seg, search="a")
+    ca = contact_constraints(points, nodes, seg, search="closest_point")
     d = (1.0 + xs * np.tan(theta) - 0.9) * np.cos(theta)
     np.testing.assert_allclose(ca.g, d, atol=EPS)
     np.testing.assert_allclose(ca.direction, [[-np.sin(theta), np.cos(theta)]] * 4, atol=EPS)
@@ -100,7 +100,7 @@ def test_tilted_opposing_line(theta):
 def test_penetration_gives_negative_gap():
     xs = np.array([0.2, 0.45, 0.7])
     points, nodes, seg = two_bodies(xs, 1.05, np.array([0.0, 0.5, 1.0]), 1.0)
-    for kwargs in ({"direction": [0.0, 1.0]}, {"search": "a"}):
+    for kwargs in ({"direction": [0.0, 1.0]}, {"search": "closest_point"}):
         cc = contact_constraints(points, nodes, seg, **kwargs)
         np.testing.assert_allclose(cc.g, -0.05, atol=EPS)
         np.testing.assert_allclose(cc.direction, [[0.0, 1.0]] * 3, atol=EPS)
@@ -112,7 +112,7 @@ def test_penetration_gives_negative_gap():
 
 def test_node_on_surface_case_a():
     points, nodes, seg = two_bodies(np.array([0.25, 0.5]), 1.0, np.array([0.0, 0.5, 1.0]), 1.0)
-    cc = contact_constraints(points, nodes, seg, search="a")
+    cc = contact_constraints(points, nodes, seg, search="closest_point")
     np.testing.assert_allclose(cc.g, 0.0, atol=EPS)
     np.testing.assert_allclose(cc.direction, [[0.0, 1.0]] * 2, atol=EPS)
     np.testing.assert_array_equal(cc.facet, [0, 0])       # shared vertex -> lowest id
@@ -124,7 +124,7 @@ def test_case_a_agrees_with_case_b_flat_on_flat():
     ys = 0.9 + 0.0 * xs
     points, nodes, seg = two_bodies(xs, ys, np.linspace(0, 1, 7), 1.0)
     cb = contact_constraints(points, nodes, seg, direction=[0.0, 1.0])
-    ca = contact_constraints(points, nodes, seg, search="a")
+    ca = contact_constraints(points, nodes, seg, search="closest_point")
     for field in ("rows", "g", "direction", "facet", "weights", "target", "found"):
         np.testing.assert_allclose(getattr(ca, field), getattr(cb, field), atol=EPS, err_msg=field)
     assert abs(ca.B - cb.B).max() < EPS
@@ -140,7 +140,7 @@ def test_misses_and_max_distance_are_dropped():
     np.testing.assert_array_equal(cc.found, [False, True, False, False])
     assert cc.B.shape == (1, 2 * len(points)) and cc.g.shape == (1,)
     # case a: every node has a closest point; max_distance drops the far ones
-    ca = contact_constraints(points, nodes, seg, search="a", max_distance=0.2)
+    ca = contact_constraints(points, nodes, seg, search="closest_point", max_distance=0.2)
     np.testing.assert_array_equal(ca.found, [False, True, False, False])
     # the direction parallel to the surface misses everything
     cc = contact_constraints(points, nodes, seg, direction=[1.0, 0.0])
@@ -153,7 +153,7 @@ def test_rigid_translation_is_free():
     points, nodes, seg = two_bodies(xs, 0.8 + 0.05 * np.sin(7 * xs),
                                     np.linspace(-0.1, 1.1, 9), 1.0 + 0.1 * np.cos(np.linspace(0, 4, 9)))
     dirs = np.column_stack([0.3 * np.sin(5 * xs), np.ones_like(xs)])
-    for kwargs in ({"direction": [0.2, 1.0]}, {"direction": dirs}, {"search": "a"}):
+    for kwargs in ({"direction": [0.2, 1.0]}, {"direction": dirs}, {"search": "closest_point"}):
         cc = contact_constraints(points, nodes, seg, **kwargs)
         assert cc.m == len(xs)
         np.testing.assert_allclose(cc.weights.sum(axis=1), 1.0, atol=EPS)
@@ -163,7 +163,7 @@ def test_rigid_translation_is_free():
         np.testing.assert_allclose(gap_after(points, cc, u), cc.g - cc.B @ u, atol=1e-13)
 
 
-@pytest.mark.parametrize("search", ["a", "b"])
+@pytest.mark.parametrize("search", ["closest_point", "along_direction"])
 def test_rotation_invariance_2d(search):
     rng = np.random.default_rng(11)
     xs = np.sort(rng.uniform(0.05, 0.95, 10))
@@ -171,8 +171,8 @@ def test_rotation_invariance_2d(search):
                                     1.0 + 0.1 * np.sin(3 * np.linspace(0, 1, 6)))
     n = np.array([0.1, 1.0])
     rot = random_rotation(2, rng)
-    kw = {"direction": n} if search == "b" else {"search": "a"}
-    kwr = {"direction": rot @ n} if search == "b" else {"search": "a"}
+    kw = {"direction": n} if search == "along_direction" else {"search": "closest_point"}
+    kwr = {"direction": rot @ n} if search == "along_direction" else {"search": "closest_point"}
     cc = contact_constraints(points, nodes, seg, **kw)
     cr = contact_constraints(points @ rot.T, nodes, seg, **kwr)
     assert cc.m == cr.m == len(xs)
@@ -192,7 +192,7 @@ def test_closed_opposing_boundary_takes_nearest_hit():
     lower = np.array([[0.4, 1.02], [0.5, 0.98], [0.6, 1.0]])           # inside, apart, apart
     points = np.vstack([lower, circ])
     cb = contact_constraints(points, np.arange(3), seg, direction=[0.0, 1.0])
-    ca = contact_constraints(points, np.arange(3), seg, search="a")
+    ca = contact_constraints(points, np.arange(3), seg, search="closest_point")
     for cc in (cb, ca):
         assert cc.m == 3
         q = cc.target
@@ -235,7 +235,7 @@ def test_3d_triangle_case_a_interior_edge_vertex():
                   [0.2, 0.1, 1.3]])     # above the interior: inside the upper body
     points = np.vstack([P, tri_pts])
     tri = np.array([[4, 5, 6]])
-    cc = contact_constraints(points, np.arange(4), tri, search="a")
+    cc = contact_constraints(points, np.arange(4), tri, search="closest_point")
     assert cc.found.all()
     np.testing.assert_allclose(cc.target, [[0.3, 0.3, 1.0], [0.0, 0.4, 1.0], [0, 0, 1.0],
                                            [0.2, 0.1, 1.0]], atol=EPS)
@@ -251,7 +251,7 @@ def test_3d_shared_edge_gives_one_row():
     P = np.array([[0.5, 0.5, 0.8], [0.25, 0.25, 0.8], [1.0, 0.0, 0.8]])   # on the diagonal/vertex
     points = np.vstack([P, sq])
     tris = np.array([[0, 2, 1], [0, 3, 2]]) + 3                       # both normals (0,0,-1)
-    for kwargs in ({"direction": [0, 0, 1]}, {"search": "a"}):
+    for kwargs in ({"direction": [0, 0, 1]}, {"search": "closest_point"}):
         cc = contact_constraints(points, np.arange(3), tris, **kwargs)
         assert cc.m == 3
         np.testing.assert_array_equal(cc.facet, [0, 0, 0])
@@ -270,7 +270,7 @@ def grid_surface(n, height, shift=(0.0, 0.0)):
     return pts, tris
 
 
-@pytest.mark.parametrize("search", ["a", "b"])
+@pytest.mark.parametrize("search", ["closest_point", "along_direction"])
 def test_rotation_invariance_3d(search):
     rng = np.random.default_rng(5)
     up, tris = grid_surface(5, lambda x, y: 1.0 + 0.1 * np.sin(3 * x + y))
@@ -280,8 +280,8 @@ def test_rotation_invariance_3d(search):
     assert np.all(facet_normals(points, tris)[:, 2] < 0)
     n = np.array([0.1, -0.05, 1.0])
     rot = random_rotation(3, rng)
-    kw = {"direction": n} if search == "b" else {"search": "a"}
-    kwr = {"direction": rot @ n} if search == "b" else {"search": "a"}
+    kw = {"direction": n} if search == "along_direction" else {"search": "closest_point"}
+    kwr = {"direction": rot @ n} if search == "along_direction" else {"search": "closest_point"}
     cc = contact_constraints(points, np.arange(8), tris, **kw)
     cr = contact_constraints(points @ rot.T, np.arange(8), tris, **kwr)
     assert cc.m == cr.m == 8
@@ -352,7 +352,7 @@ def test_kdtree_search_matches_brute_force_2d(case):
         cc = contact_constraints(points, nodes, seg, direction=dirs)
         ref = brute_force(points, nodes, seg, "b", dirs)
     else:
-        cc = contact_constraints(points, nodes, seg, search="a")
+        cc = contact_constraints(points, nodes, seg, search="closest_point")
         upper = points[seg[:, 0].min():]
         ref = brute_force(points, nodes, seg, "a", inside_upper=lambda P: (
             0 <= P[0] <= 1 and P[1] > np.interp(P[0], upper[:, 0], upper[:, 1])))
@@ -408,7 +408,7 @@ def test_case_a_3d_matches_dense_sampling():
     up, tris = grid_surface(5, lambda x, y: 0.5 + 0.2 * x * y)
     P = np.column_stack([rng.uniform(-0.3, 1.3, (10, 2)), rng.uniform(0.2, 0.45, 10)])
     points = np.vstack([P, up])
-    cc = contact_constraints(points, np.arange(10), tris + 10, search="a")
+    cc = contact_constraints(points, np.arange(10), tris + 10, search="closest_point")
     assert cc.found.all()
     s, t = np.meshgrid(np.linspace(0, 1, 41), np.linspace(0, 1, 41))
     keep = s + t <= 1
@@ -467,6 +467,8 @@ def test_bad_input_names_the_parameter():
     points, nodes, seg = two_bodies(np.array([0.2, 0.7]), 0.9, np.array([0.0, 0.5, 1.0]), 1.0)
     cases = [
         ({"search": "c", "direction": [0, 1]}, "search"),
+        ({"search": "a", "direction": [0, 1]}, "'a' was renamed to 'closest_point'"),
+        ({"search": "b", "direction": [0, 1]}, "'b' was renamed to 'along_direction'"),
         ({}, "direction"),
         ({"direction": [0, 1, 0]}, "direction"),
         ({"direction": [0, 0]}, "direction"),
@@ -491,7 +493,7 @@ def test_n_nodes_pads_columns_and_empty_inputs():
     assert cc.B.shape == (2, 20)
     cc = contact_constraints(points, np.array([], dtype=int), seg, direction=[0, 1])
     assert cc.m == 0 and cc.B.shape == (0, 2 * len(points))
-    cc = contact_constraints(points, nodes, np.zeros((0, 2), dtype=int), search="a")
+    cc = contact_constraints(points, nodes, np.zeros((0, 2), dtype=int), search="closest_point")
     assert cc.m == 0 and cc.found.shape == (2,)
 
 
@@ -502,7 +504,7 @@ def test_facets_of_the_node_itself_are_skipped():
     far = np.array([[-1.0, 2.0], [1.0, 2.0]])
     points = np.vstack([star, far])
     facets = np.vstack([np.column_stack([np.zeros(9, int), np.arange(1, 10)]), [[10, 11]]])
-    ca = contact_constraints(points, [0], facets, search="a")     # all nearest facets are own
+    ca = contact_constraints(points, [0], facets, search="closest_point")     # all nearest facets are own
     cb = contact_constraints(points, [0], facets, direction=[0.0, 1.0])
     for cc in (ca, cb):
         np.testing.assert_array_equal(cc.facet, [9])
@@ -550,7 +552,7 @@ def test_kdtree_search_matches_brute_force_3d_case_a():
     k = 40
     P = np.column_stack([rng.uniform(-0.2, 1.2, (k, 2)), rng.uniform(0.3, 0.65, k)])
     points = np.vstack([P, up])
-    cc = contact_constraints(points, np.arange(k), tris + k, search="a")
+    cc = contact_constraints(points, np.arange(k), tris + k, search="closest_point")
     assert cc.found.all()
 
     def height(x, y):                 # the piecewise-linear surface, None outside
@@ -576,7 +578,7 @@ def test_kdtree_search_matches_brute_force_3d_case_a():
 
 def test_case_a_ignores_direction():
     points, nodes, seg = two_bodies(np.array([0.2, 0.7]), 0.9, np.array([0.0, 0.5, 1.0]), 1.1)
-    plain = contact_constraints(points, nodes, seg, search="a")
-    given = contact_constraints(points, nodes, seg, search="a", direction=[0.3, 1.0])
+    plain = contact_constraints(points, nodes, seg, search="closest_point")
+    given = contact_constraints(points, nodes, seg, search="closest_point", direction=[0.3, 1.0])
     np.testing.assert_array_equal(given.direction, plain.direction)
     np.testing.assert_array_equal(given.g, plain.g)

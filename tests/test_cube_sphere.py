@@ -59,13 +59,13 @@ def test_meshes_are_nested_valid_and_on_the_sphere():
             assert on_sphere.all()
 
 
-@pytest.mark.parametrize("search", ["b", "a"])
+@pytest.mark.parametrize("search", ["along_direction", "closest_point"])
 def test_constraints_on_this_geometry_match_brute_force(level1, search):
     qp = level1[0]
     pts, nodes, facets = qp.mesh.points, qp.contact.nodes, qp.contact.opposing_facets
     cc = contact_constraints(pts, nodes, facets, direction=[0.0, 0.0, 1.0], search=search)
     assert cc.found.all() and cc.m == 81
-    if search == "b":
+    if search == "along_direction":
         ref = brute_force(pts, nodes, facets, "b", dirs=np.tile([0.0, 0.0, 1.0], (len(nodes), 1)))
         for i, (key, f, g, w) in enumerate(ref):
             np.testing.assert_allclose(cc.g[i], g, atol=1e-12)
@@ -112,7 +112,7 @@ def test_body_order_and_search_do_not_change_the_answer(level1):
     x1, x2 = qp.constrained_points(), swapped.constrained_points()
     np.testing.assert_allclose(x1, x2)          # rows sorted by coordinates in both
     np.testing.assert_allclose(res2.p, res.p, rtol=1e-9, atol=1e-14)
-    a = solve(PROBLEM.make(1, search="a"), "pdas", tol=1e-12)
+    a = solve(PROBLEM.make(1, search="closest_point"), "pdas", tol=1e-12)
     assert abs(a.p.sum() / res.p.sum() - 1) < 0.02
 
 

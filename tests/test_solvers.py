@@ -22,7 +22,7 @@ from problems.qp import ContactQP, QPValidationError
 from solvers.interface import TOLERANCES, solve, solvers
 
 #: Every library adapter in the registry (role "reference"): adding one adds it here.
-REFERENCE_SOLVERS = tuple(sorted(n for n, s in solvers().items() if s.role == "reference"))
+REFERENCE_SOLVERS = tuple(sorted(n for n, s in solvers().items() if s.role == "library"))
 ALL_SOLVERS = ("pdas", "semismooth_newton") + REFERENCE_SOLVERS
 
 
@@ -158,7 +158,7 @@ def test_all_solvers_registered_with_presets():
         assert set(spec.presets) == set(TOLERANCES), name
         assert all(isinstance(text, str) and text for text in spec.presets.values())
     assert registry["pdas"].role == "exact"
-    assert all(registry[name].role == "reference" for name in REFERENCE_SOLVERS)
+    assert all(registry[name].role == "library" for name in REFERENCE_SOLVERS)
 
 
 # --------------------------------------------------------------------------- PDAS
@@ -448,3 +448,52 @@ def test_certificate_is_computed_once_per_pair(references):
     again = certify(qp, res.u + 1e-9, res.p, 1e-8)
     assert again is not res.gap and len(solves) > before
     assert certify(qp, res.u, res.p, 1e-3) is not res.gap
+
+
+# --------------------------------------------------------------------------- skipped
+def test_a_solver_that_cannot_take_a_problem_says_skipped_at_once():
+    """benchopt's skip: the augmented projection refuses a floating body (the roll stack)
+    before it iterates, with its reason; no verification is spent on nothing."""
+    from problems.roll_stack import PROBLEM as ROLL_STACK
+    from solvers.interface import Role
+
+    qp = ROLL_STACK.make(0)
+    spec = solvers()["augmented_projection"]
+    ok, reason = spec.check(qp)
+    assert not ok and "floating" in reason
+    res = solve(qp, "augmented_projection", "mid")
+    assert res.status == res.claimed_status == "skipped" and res.iterations == 0
+    assert res.message == f"skipped: {reason}" and res.kkt is None and res.gap is None
+    row = res.summary()
+    assert row["status"] == "skipped" and "kkt_max" not in row
+    # a problem it takes is not skipped
+    assert spec.check(two_body_qp())[0]
+    assert spec.role is Role.THESIS and spec.role == "thesis"
+
+
+def test_an_unknown_role_is_refused_by_name():
+    from solvers.base import SolverSpec
+
+    with pytest.raises(ValueError, match="role 'reference' is not allowed; allowed: exact, "):
+        SolverSpec(name="x", summary="", solve=lambda *a: None, role="reference")
+
+
+def test_a_solver_that_gave_up_at_a_coarser_level_is_skipped_there():
+    import pandas as pd
+
+    from workflows.scripts.solver_comparison import gave_up_at_coarser_levels, skipped_result
+
+    level1 = pd.DataFrame({"level": [1, 1, 1], "solver": ["osqp", "osqp", "piqp"],
+                           "preset": ["mid", "high", "mid"],
+                           "status": ["converged", "time_limit", "failed"],
+                           "message": ["", "", "boom"]})
+    given_up = gave_up_at_coarser_levels([level1], 2)
+    assert given_up == {("osqp", "high"): "timed out at level 1",
+                        ("piqp", "mid"): "failed at level 1"}
+    qp = two_body_qp()
+    row = skipped_result(qp, "osqp", "high", given_up["osqp", "high"]).summary()
+    level2 = pd.DataFrame([{**row, "level": 2, "preset": "high"}])
+    # carried on to the next level with the level where it happened first
+    assert gave_up_at_coarser_levels([level1, level2], 3)[("osqp", "high")] == \
+        "timed out at level 1"
+    assert gave_up_at_coarser_levels([], 2) == {}

@@ -121,9 +121,11 @@ def _solve_contact(spec, level: int, params: dict, args: argparse.Namespace) -> 
                    time_limit=args.time_limit, **solver_opts)
     record = {"params": dict(scene_opts), "n": qp.n, "m": qp.m, "n_nodes": qp.n_nodes,
               "units": qp.units, "build_time": t_build, **result.summary(),
-              "solver_options": result.options, "kkt": result.kkt.as_dict(prefix=""),
-              "contact": contact_state(qp, result.u, result.p)}
-    if args.vtu:
+              "solver_options": result.options,
+              "kkt": result.kkt.as_dict(prefix="") if result.kkt is not None else None,
+              "contact": contact_state(qp, result.u, result.p)
+              if result.status != "skipped" else None}
+    if args.vtu and result.status != "skipped":
         write_vtu(args.vtu, contact_fields(qp, result.u, result.p))
     return record
 
@@ -138,7 +140,8 @@ def cmd_solve(args: argparse.Namespace) -> int:
     record = {"problem": spec.name, "level": level, "kind": spec.kind,
               **run(spec, level, params, args), "provenance": provenance()}
     write_json(args.out, record)
-    print(f"{spec.name} level {level}: {record['solver']} {record['status']} -> {args.out}")
+    why = f" ({record['message']})" if record["status"] == "skipped" else ""
+    print(f"{spec.name} level {level}: {record['solver']} {record['status']}{why} -> {args.out}")
     return 0
 
 

@@ -3,6 +3,11 @@
 SC = config.get("solver_comparison", {})
 
 rule solver_comparison:
+    # the same scene's coarser levels first: a solver that timed out or failed there is
+    # skipped here
+    input:
+        lambda w: expand(PATHS["solver_runs"], scene=w.scene,
+                         level=coarser_levels(config, "solver_comparison", w.scene, w.level))
     output: PATHS["solver_runs"]
     log: log_path("solver_comparison", "{scene}_L{level}")
     benchmark: bench_path("solver_comparison", "{scene}_L{level}")
@@ -16,7 +21,7 @@ rule solver_comparison:
     shell:
         "{params.py} -m workflows.scripts.solver_comparison {params.scene} "
         "--level {wildcards.level} --presets {params.presets} --time-limit {params.limit} "
-        "--out {output} > {log} 2>&1"
+        "--coarser {input} --out {output} > {log} 2>&1"
 
 rule solver_comparison_report:
     input:

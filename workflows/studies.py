@@ -147,6 +147,12 @@ class Study:
         return [path for _, _, path in self.items(config)]
 
 
+def coarser_levels(config: dict, study: str, scene: str, level) -> list[int]:
+    """The configured levels of ``scene`` in ``study`` below ``level`` (a study whose jobs
+    run coarse to fine, each reading the coarser results)."""
+    return [l for l in scenes_of(config, study).get(scene, []) if l < int(level)]
+
+
 def scenes_of(config: dict, study: str) -> dict[str, list[int]]:
     """``{scene: levels}`` a per-scene study runs (empty if the study is not configured)."""
     return dict(config.get(study, {}).get("scenes", {}))

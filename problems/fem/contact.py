@@ -6,8 +6,10 @@ facets (segments in 2D, triangles in 3D).  For each constrained node the
 procedure **Parametrisation** of Alg. 7.1 finds a facet ``Delta`` and a point
 ``Q`` on it,
 
-* case ``"b"`` (7.13): ``Q = P + lambda n`` along a prescribed unit vector ``n``;
-* case ``"a"`` (7.12): ``Q`` is the closest point of the opposing surface,
+* case b, ``search="along_direction"`` (7.13): ``Q = P + lambda n`` along a
+  prescribed unit vector ``n``;
+* case a, ``search="closest_point"`` (7.12): ``Q`` is the closest point of the
+  opposing surface,
 
 and **Barycentric** (7.14) gives the weights ``w_k`` of ``Q`` in ``Delta``, so
 that ``u(Q) = sum_k w_k u(P_k)``.
@@ -59,7 +61,12 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.spatial import cKDTree
 
-SEARCHES = ("a", "b")
+#: Alg. 7.1's two ways to find the opposing point ``Q`` of a constrained node ``P``:
+#: along a prescribed direction (its case b, (7.13)) or the closest point (case a, (7.12)).
+SEARCHES = ("along_direction", "closest_point")
+
+#: The names the searches had before (Alg. 7.1's case letters): refused, naming the new one.
+RENAMED_SEARCHES = {"a": "closest_point", "b": "along_direction"}
 
 
 @dataclass
@@ -90,7 +97,7 @@ class ContactConstraints:
         ``rows == constrained_nodes[found]``.
     dim : int
     search : str
-        ``"a"`` (closest point) or ``"b"`` (fixed direction).
+        ``"closest_point"`` (case a) or ``"along_direction"`` (case b).
     """
 
     rows: np.ndarray
@@ -287,6 +294,9 @@ def _check_inputs(points, constrained_nodes, opposing_facets, dim, direction, se
         raise ValueError(f"n_nodes: {n_nodes!r} not allowed; allowed: an integer >= len(points) "
                          f"= {points.shape[0]}")
     n_nodes = int(n_nodes)
+    if search in RENAMED_SEARCHES:
+        raise ValueError(f"search: {search!r} was renamed to {RENAMED_SEARCHES[search]!r}; "
+                         f"allowed: one of {', '.join(SEARCHES)}")
     if search not in SEARCHES:
         raise ValueError(f"search: {search!r} not allowed; allowed: one of {', '.join(SEARCHES)}")
     nodes = np.asarray(constrained_nodes)
@@ -313,11 +323,11 @@ def _check_inputs(points, constrained_nodes, opposing_facets, dim, direction, se
         raise ValueError(f"max_distance: {max_distance!r} not allowed; allowed: a number >= 0 or inf")
     if not (0 <= tol < 0.5):
         raise ValueError(f"tol: {tol!r} not allowed; allowed: a number in [0, 0.5)")
-    if search == "a":
+    if search == "closest_point":
         dirs = None                     # n is the closest-point direction; direction is ignored
     else:
         if direction is None:
-            raise ValueError("direction: required for search='b'; allowed: a (dim,) vector "
+            raise ValueError("direction: required for search='along_direction'; allowed: a (dim,) vector "
                              "or a (len(constrained_nodes), dim) array")
         dirs = np.asarray(direction, dtype=float)
         if dirs.shape == (dim,):
@@ -547,7 +557,7 @@ def _search_b_lines(op: _Opposing, points, nodes, dirs):
 # --------------------------------------------------------------------------- public API
 
 def contact_constraints(points, constrained_nodes, opposing_facets, *, dim=None, direction=None,
-                        search="b", max_distance=np.inf, n_nodes=None,
+                        search="along_direction", max_distance=np.inf, n_nodes=None,
                         tol=1e-10) -> ContactConstraints:
     """Matrix ``B`` and gap ``g`` of the nodal contact constraints, Alg. 7.1.
 
@@ -559,20 +569,21 @@ def contact_constraints(points, constrained_nodes, opposing_facets, *, dim=None,
         Distinct node ids of the constrained surface (thesis surface ``l``).
     opposing_facets : (f, dim) int array
         Facets of the opposing surface (surface ``l-1``): segments (2D) or
-        triangles (3D).  Case ``"a"`` needs them outward oriented
-        (:func:`orient_facets`); case ``"b"`` does not.  Give only the part that
-        may come into contact (``Gamma_C``): case ``"b"`` takes the hit closest
+        triangles (3D).  Case a needs them outward oriented
+        (:func:`orient_facets`); case b does not.  Give only the part that
+        may come into contact (``Gamma_C``): case b takes the hit closest
         to ``P`` along the line.  Facets having ``P`` as a vertex are skipped.
     dim : {2, 3}, optional
         Defaults to ``points.shape[1]`` (must agree with it).
     direction : (dim,) or (k, dim) array, optional
-        Required for case ``"b"``: ``n`` per node or one constant vector,
+        Required for case b: ``n`` per node or one constant vector,
         pointing from the constrained towards the opposing body; normalised
-        here.  Ignored by case ``"a"`` (``n`` is then the closest-point
+        here.  Ignored by case a (``n`` is then the closest-point
         direction), so a scene can switch ``search`` without other changes.
-    search : {"b", "a"}
-        ``"b"``: ``Q = P + lambda n`` inside a facet (7.13), smallest ``|lambda|``
-        wins; ``"a"``: ``Q`` closest point of the opposing surface (7.12).
+    search : {"along_direction", "closest_point"}
+        ``"along_direction"`` (Alg. 7.1 case b): ``Q = P + lambda n`` inside a facet (7.13),
+        smallest ``|lambda|`` wins; ``"closest_point"`` (case a): ``Q`` closest point of the
+        opposing surface (7.12).
     max_distance : float
         Nodes with no facet within this distance (``|lambda|`` in case b,
         ``|P - Q|`` in case a), or whose line misses every facet, get no row.
@@ -622,7 +633,7 @@ def contact_constraints(points, constrained_nodes, opposing_facets, *, dim=None,
                        radius=float(radii.max()),
                        tree=cKDTree(centroids), max_distance=max_distance, tol=tol,
                        tol_len=tol * max(float(np.linalg.norm(extent)), 1e-300))
-        if search == "a":
+        if search == "closest_point":
             run = lambda sel: _search_a(op, points, nodes[sel])
         elif np.all(dirs == dirs[0]):
             basis = _orthonormal_complement(dirs[0])

@@ -239,7 +239,7 @@ def penetrations(qp: ContactQP, u_full: np.ndarray, direction=None,
          else np.asarray(direction, dtype=float))
     n = n / np.linalg.norm(n)
     opp_nodes = np.unique(qp.contact.opposing_facets)
-    cc = contact_constraints(x, opp_nodes, qp.contact.facets, direction=-n, search="b")
+    cc = contact_constraints(x, opp_nodes, qp.contact.facets, direction=-n, search="along_direction")
     fc = mesh_facets(pts, qp.mesh.cells) if facets is None else facets
     rows = _facet_rows(fc, qp.contact.facets)
     if np.any(rows < 0) or np.any(fc.interior[rows]):

@@ -90,7 +90,7 @@ def stabilise(qp: ContactQP, alpha: float = 1.0, penalty: float = 1.0) -> Contac
     n = c.direction.mean(axis=0)
     n = n / np.linalg.norm(n)
     opposing_nodes = np.unique(c.opposing_facets)
-    cc = contact_constraints(pts, opposing_nodes, c.facets, direction=-n, search="b",
+    cc = contact_constraints(pts, opposing_nodes, c.facets, direction=-n, search="along_direction",
                              n_nodes=qp.n_nodes)
     if cc.m == 0:
         raise ValueError("no node of the opposing surface faces the constrained surface "

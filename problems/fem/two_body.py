@@ -102,7 +102,7 @@ class TwoBodyScene:
         Boundary facets (by centroid) of the opposing body that may come into contact.
     direction : (d,) array
         Contact direction ``n`` (case b), from the constrained towards the opposing body.
-    search : {"b", "a"}
+    search : {"along_direction", "closest_point"}
     surface_coarsening : callable, optional
         ``coarsening(points of the constrained nodes on level 0)`` returns
         coarser surface levels ``(prolongations, masses)`` below the coarsest
@@ -121,7 +121,7 @@ class TwoBodyScene:
     on_constrained: Selector
     on_opposing: Selector
     direction: np.ndarray
-    search: str = "b"
+    search: str = "along_direction"
     surface_coarsening: Callable | None = None
     tractions: list = field(default_factory=list)
     springs: list = field(default_factory=list)

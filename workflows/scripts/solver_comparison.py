@@ -9,7 +9,11 @@ the linear floor per preset: geometric-multigrid PCG for the same system without
 contact to the preset's energy accuracy (``solver`` = ``linear_floor``). Every
 run is a child process with a hard wall-clock limit
 (:func:`workflows.isolation.solve_isolated`): failures, crashes and time-outs
-are rows, not gaps. Called by the rule ``solver_comparison``.
+are rows, not gaps. A solver that cannot take the problem is a ``skipped`` row with its
+reason (:meth:`solvers.base.SolverSpec.check`); one that timed out or failed at a
+coarser level of the same scene (``--coarser``, that level's results) is ``skipped``
+here with the reason "timed out at level k" / "failed at level k". Called by the rule
+``solver_comparison``.
 
 Example::
 
@@ -26,9 +30,9 @@ import pandas as pd
 from tqdm import tqdm
 
 from problems.kkt import energy_error
-from solvers.interface import TOLERANCES, solvers
+from solvers.interface import TOLERANCES, SolveResult, solvers
 from solvers.reference import reference_solve
-from workflows.io import write_csv
+from workflows.io import read_csv, write_csv
 from workflows.isolation import solve_isolated
 from workflows.measure import amg_pcg_floor, linear_solution
 from workflows.scene_args import add_scene_arguments, check_levels, scene_from_args
@@ -43,6 +47,9 @@ def main(argv=None) -> None:
                         help="default: every registered solver but the exact reference")
     parser.add_argument("--presets", nargs="+", default=list(TOLERANCES), choices=list(TOLERANCES))
     parser.add_argument("--time-limit", type=float, default=600.0)
+    parser.add_argument("--coarser", nargs="*", default=[],
+                        help="results of coarser levels of the same scene: a solver that "
+                             "timed out or failed there is skipped here")
     parser.add_argument("--out", required=True)
     args = parser.parse_args(argv)
     spec, params = scene_from_args(parser, args)
@@ -75,15 +82,50 @@ def main(argv=None) -> None:
                      "solve_time": floor["t_to_target"] - floor["t_setup"],
                      "total_time": floor["t_to_target"], "energy_error": floor["energy_error"],
                      "message": "multigrid PCG for A u = f without contact (the floor)"})
+    given_up = gave_up_at_coarser_levels([read_csv(f) for f in args.coarser], level)
     for solver, preset in tqdm([(s, p) for s in names for p in args.presets],
                                desc=f"solvers on {qp.name}"):
         t0 = time.perf_counter()
-        res = solve_isolated(qp, solver, preset, time_limit=args.time_limit)
+        if (solver, preset) in given_up:
+            res = skipped_result(qp, solver, preset, given_up[solver, preset])
+        else:
+            res = solve_isolated(qp, solver, preset, time_limit=args.time_limit)
         rows.append({**base, "preset": preset, **res.summary(),
                      "energy_error": energy_error(qp, res.u, ref.u)
                      if res.kkt is not None else np.nan,
                      "wall_time": time.perf_counter() - t0})
     write_csv(args.out, pd.DataFrame(rows))
+
+
+def gave_up_at_coarser_levels(tables: list[pd.DataFrame], level: int) -> dict:
+    """``{(solver, preset): reason}`` for the solvers that timed out or failed at a level
+    below ``level`` (or were skipped there for that reason), from the coarser levels'
+    results: the reason names the level where it happened first."""
+    out = {}
+    if not tables:
+        return out
+    t = pd.concat(tables, ignore_index=True)
+    t = t[(t["level"] < level) & t["status"].isin(["time_limit", "failed", "skipped"])]
+    for _, r in t.sort_values("level").iterrows():
+        key = (r["solver"], r["preset"])
+        if key in out:
+            continue
+        if r["status"] == "skipped":
+            message = str(r.get("message", ""))
+            if "at level" in message:                   # carried over from a coarser level
+                out[key] = message.removeprefix("skipped: ")
+        else:
+            verb = "timed out" if r["status"] == "time_limit" else "failed"
+            out[key] = f"{verb} at level {int(r['level'])}"
+    return out
+
+
+def skipped_result(qp, solver: str, preset: str, reason: str) -> SolveResult:
+    """The row of a run that is not made (status ``skipped``, the reason in its message)."""
+    res = SolveResult(u=np.zeros(qp.n), p=np.zeros(qp.m), claimed_status="skipped",
+                      message=f"skipped: {reason}", solver=solver, tol=TOLERANCES[preset])
+    res.status = "skipped"
+    return res
 
 
 if __name__ == "__main__":
