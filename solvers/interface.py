@@ -11,7 +11,9 @@ re-exported here.
 """
 from __future__ import annotations
 
+import functools
 import time
+import warnings
 from typing import Any
 
 import numpy as np
@@ -22,13 +24,55 @@ from problems.spec import Parameter, ParameterError, discover, lookup
 from solvers.base import STATUSES, TOLERANCES, Role, SolveResult, SolverSpec, parse_tolerance
 from solvers.certificate import certify, linear_solver, verify
 
-__all__ = ["STATUSES", "TOLERANCES", "Role", "SolveResult", "SolverSpec", "certify", "linear_solver",
-           "parse_tolerance", "solve", "solvers", "verify"]
+__all__ = ["ENTRY_POINT_GROUP", "STATUSES", "TOLERANCES", "Role", "SolveResult", "SolverSpec",
+           "certify", "external_solvers", "linear_solver", "parse_tolerance", "solve", "solvers",
+           "verify"]
+
+
+#: The entry-point group through which another installed package registers a solver: its
+#: value names a :class:`SolverSpec` (``"package.module:SOLVER"``) or a module defining
+#: ``SOLVER`` (README, "Bring your own solver").
+ENTRY_POINT_GROUP = "contactbench.solvers"
 
 
 def solvers() -> dict[str, SolverSpec]:
-    """All registered solvers, ``{name: SolverSpec}``."""
-    return discover("solvers", "SOLVER")
+    """All registered solvers, ``{name: SolverSpec}``: the modules of ``solvers/`` that
+    define ``SOLVER``, and the solvers other installed packages register under the
+    entry-point group :data:`ENTRY_POINT_GROUP` (a built-in name wins a clash)."""
+    found = discover("solvers", "SOLVER")
+    for name, spec in external_solvers().items():
+        if name in found:
+            warnings.warn(f"solver plug-in {name!r} ({spec.solve.__module__}) is left out: "
+                          f"a built-in solver has that name", RuntimeWarning, stacklevel=2)
+        else:
+            found[name] = spec
+    return dict(sorted(found.items()))
+
+
+@functools.lru_cache(maxsize=1)
+def external_solvers() -> dict[str, SolverSpec]:
+    """The solvers of other installed packages (entry points :data:`ENTRY_POINT_GROUP`),
+    read once per process. One that cannot be loaded, or is not a :class:`SolverSpec`,
+    is left out with a warning that says why: a broken plug-in never breaks the suite."""
+    from importlib.metadata import entry_points
+
+    found = {}
+    for ep in entry_points(group=ENTRY_POINT_GROUP):
+        try:
+            obj = ep.load()
+        except Exception as err:                 # whatever the plug-in's import raises
+            warnings.warn(f"solver plug-in {ep.name!r} ({ep.value}) is left out: it could not "
+                          f"be loaded ({type(err).__name__}: {err})", RuntimeWarning,
+                          stacklevel=2)
+            continue
+        spec = getattr(obj, "SOLVER", obj)
+        if not isinstance(spec, SolverSpec):
+            warnings.warn(f"solver plug-in {ep.name!r} ({ep.value}) is left out: it names a "
+                          f"{type(spec).__name__}, not a solvers.base.SolverSpec",
+                          RuntimeWarning, stacklevel=2)
+            continue
+        found[spec.name] = spec
+    return found
 
 
 

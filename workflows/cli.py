@@ -78,7 +78,9 @@ def cmd_list(args: argparse.Namespace) -> int:
         show(spec.parameters)
     print("solvers:")
     for name, spec in solvers().items():
-        print(f"  {name}  [{spec.role}]  {spec.summary}")
+        module = spec.solve.__module__
+        origin = "" if module.startswith("solvers.") else f"; plug-in {module}"
+        print(f"  {name}  [{spec.role}{origin}]  {spec.summary}")
         show(spec.parameters)
     print("tolerance presets: " + ", ".join(f"{k}={v:g}" for k, v in TOLERANCES.items()))
     print("studies (snakemake targets):")

@@ -17,11 +17,12 @@ rule solver_comparison:
     conda: ENV
     params:
         py=PY, scene=lambda w: set_args(config, w.scene), limit=SC.get("time_limit", 120),
-        presets=" ".join(SC.get("presets", []))
+        presets=" ".join(SC.get("presets", [])),
+        solvers=" ".join(["--solvers", *SC["solvers"]]) if SC.get("solvers") else ""
     shell:
         "{params.py} -m workflows.scripts.solver_comparison {params.scene} "
         "--level {wildcards.level} --presets {params.presets} --time-limit {params.limit} "
-        "--coarser {input} --out {output} > {log} 2>&1"
+        "--coarser {input} {params.solvers} --out {output} > {log} 2>&1"
 
 rule solver_comparison_report:
     input:

@@ -450,6 +450,13 @@ def check_config(config: dict) -> None:
         if variant not in VARIANTS:
             raise ConfigError(f"config 'augmented_projection.configs': {variant!r} is not "
                               f"allowed; allowed: {', '.join(VARIANTS)}")
+    chosen = config.get("solver_comparison", {}).get("solvers", [])
+    if chosen:
+        from solvers.interface import solvers
+        unknown = sorted(set(chosen) - set(solvers()))
+        if unknown:
+            raise ConfigError(f"config 'solver_comparison.solvers': {unknown} are not "
+                              f"registered; allowed: {', '.join(solvers())}")
     runs = scenes_of(config, "exact_reference")
     for scene, levels in config.get("exact_reference", {}).get("kkt_levels", {}).items():
         extra = sorted(set(levels) - set(runs.get(scene, [])))
