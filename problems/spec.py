@@ -332,7 +332,8 @@ class ProblemSpec:
 
 
 def discover(package: str, attribute: str) -> dict[str, Any]:
-    """Import every module of ``package`` that defines ``attribute``.
+    """Import every module of ``package`` that defines ``attribute`` (or a tuple of them,
+    ``attribute + "S"``).
 
     Modules whose name starts with an underscore and subpackages (shared
     machinery such as ``problems.fem``) are skipped. Returns ``{name: spec}``
@@ -345,7 +346,8 @@ def discover(package: str, attribute: str) -> dict[str, Any]:
             continue
         module = importlib.import_module(f"{package}.{info.name}")
         spec = getattr(module, attribute, None)
-        if spec is not None:
+        # one spec per module, or a table of them (e.g. SOLVERS, one per QP library)
+        for spec in ([spec] if spec is not None else getattr(module, attribute + "S", ())):
             if spec.name in found:
                 raise RuntimeError(f"two {package} modules register the name {spec.name!r}")
             found[spec.name] = spec

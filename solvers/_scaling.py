@@ -1,4 +1,4 @@
-"""Diagonal rescaling of a ContactQP, shared by the reference-solver adapters.
+"""Diagonal rescaling of a ContactQP, for the QP libraries (:mod:`solvers.qp_libraries`).
 
 The general QP solvers (OSQP, ProxSuite, Clarabel) test their own stopping
 criteria with absolute tolerances, so the same preset means different things
@@ -27,20 +27,13 @@ import scipy.sparse as sp
 
 from problems.spec import Parameter
 
-#: Options every library adapter (OSQP, ProxSuite, Clarabel) shares.
+#: Options every QP library of :mod:`solvers.qp_libraries` shares.
 ADAPTER_PARAMETERS = (
     Parameter("tol_factor", 1.0, "library tolerances = tol * tol_factor", low=0.0,
               high=1.0, low_open=True),
     Parameter("scale", True, "rescale the problem (Jacobi A, unit rows of B, unit load) "
               "before handing it over"),
 )
-
-
-def require_plain_constraints(qp) -> None:
-    """The library adapters solve ``Bu <= g`` only: refuse a stabilisation block C."""
-    if qp.C is not None:
-        raise ValueError("this adapter solves Bu <= g only; the ContactQP has a "
-                         "stabilisation block C (Sect. 7.5)")
 
 
 @dataclass

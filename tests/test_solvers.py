@@ -497,3 +497,43 @@ def test_a_solver_that_gave_up_at_a_coarser_level_is_skipped_there():
     assert gave_up_at_coarser_levels([level1, level2], 3)[("osqp", "high")] == \
         "timed out at level 1"
     assert gave_up_at_coarser_levels([], 2) == {}
+
+
+# --------------------------------------------------------------------------- the library table
+def test_a_qpsolvers_library_is_one_table_row(references):
+    """Adding a library qpsolvers reaches is one row: here OSQP again under another name,
+    with qpbenchmark's plain mapping, registered, run and verified like every solver."""
+    from solvers.qp_libraries import Library, run, solver_spec, via_qpsolvers
+
+    row = Library("osqp_plain", "OSQP through qpsolvers, qpbenchmark's settings", "osqp",
+                  settings=lambda tol, o: {"eps_abs": tol, "eps_rel": 0.0, "verbose": False},
+                  statuses={"solved": "converged"},
+                  call=via_qpsolvers("osqp", lambda e: e["info"].status,
+                                     lambda e: e["info"].iter))
+    spec = solver_spec(row)
+    qp, ref = references["two-body"]
+    res = spec.solve(qp, 1e-6, 10_000, None, None, None, spec.options())
+    assert res.claimed_status == "converged" and res.message == "osqp_plain: solved"
+    assert res.iterations > 0 and np.abs(res.p - ref.p).max() <= 1e-3 * ref.p.max()
+    assert "eps_abs=1e-06" in spec.presets["mid"]
+    # the shared steps live in one function: no row repeats them
+    assert spec.solve.__code__.co_names == ("run",) and callable(run)
+
+
+def test_a_library_failure_keeps_its_own_words():
+    """HiGHS's active-set QP solver on a contact scene: whatever it says, the row carries
+    HiGHS's own model status, never a bare 'failed'; an exception inside a library is a
+    row too."""
+    from problems.circle_square import PROBLEM
+    from solvers.qp_libraries import LIBRARIES, run
+
+    qp = PROBLEM.make(1)
+    res = solve(qp, "highs", "mid")
+    assert res.message.startswith("highs: ") and len(res.message) > len("highs: ")
+    if res.status != "converged":
+        assert res.status in ("failed", "inaccurate", "max_iter", "time_limit"), res.message
+    cvxopt = next(lib for lib in LIBRARIES if lib.name == "cvxopt")
+    bad = ContactQP(A=sp.eye(2), f=np.ones(2), B=sp.csr_matrix([[1.0, 0.0], [-1.0, 0.0]]),
+                    g=np.array([-1.0, -1.0]), name="infeasible")
+    out = run(cvxopt, bad, 1e-6, 100, None, None, None, solvers()["cvxopt"].options())
+    assert out.claimed_status != "converged" and out.message.startswith("cvxopt: ")
