@@ -101,9 +101,10 @@ def performance_profiles(t: pd.DataFrame, path: str) -> None:
         best = times.min(axis=1)
         ratio = times.div(best, axis=0).fillna(np.inf)
         taus = np.logspace(0, 3, 300)
-        for solver in ratio.columns:
+        for i, solver in enumerate(sorted(ratio.columns)):
             share = [(ratio[solver] <= tau).mean() for tau in taus]
-            ax.semilogx(taus, share, lw=1.5, label=solver)
+            ax.semilogx(taus, share, lw=1.5, label=solver, color=plt.cm.tab20.colors[i % 20],
+                        linestyle=("-", "--")[i // 10 % 2])
         ax.set_xlabel("tau: time within this factor of the best verified")
         ax.set_ylabel("share of problems")
         ax.set_title(f"preset {preset} ({len(ratio)} problems)", fontsize=9)

@@ -25,6 +25,11 @@ LINES = {"low": ":", "mid": "--", "high": "-"}
 FLOOR = "linear_floor"
 
 
+def solver_colors(names) -> dict:
+    """One distinct colour per solver (tab20: up to 20 before a colour repeats)."""
+    return {name: plt.cm.tab20.colors[i % 20] for i, name in enumerate(sorted(names))}
+
+
 def cost_table(table: pd.DataFrame) -> pd.DataFrame:
     """Per solver and preset: the fitted exponents of wall time and of peak memory
     against N over the levels it solved (verified or not, but not failed or cut
@@ -62,7 +67,7 @@ def times_figure(table: pd.DataFrame, path: str) -> None:
     """Wall time against problem size per solver and preset; markers show the verified status."""
     fig, ax = plt.subplots(figsize=(7.5, 4.8))
     runs = table[table.preset != "reference"]
-    colors = dict(zip(sorted(runs.solver.unique()), plt.cm.tab10.colors))
+    colors = solver_colors(runs.solver.unique())
     for (solver, preset), grp in runs.groupby(["solver", "preset"]):
         grp = grp.sort_values("n")
         style = dict(color="k", lw=2, alpha=0.5) if solver == FLOOR else dict(color=colors[solver],
@@ -90,7 +95,7 @@ def work_precision_figure(table: pd.DataFrame, path: str) -> None:
     fig, ax = plt.subplots(figsize=(7.5, 4.8))
     runs = table[(table.preset != "reference") & (table.solver != FLOOR)
                  & np.isfinite(table.energy_error)]
-    colors = dict(zip(sorted(runs.solver.unique()), plt.cm.tab10.colors))
+    colors = solver_colors(runs.solver.unique())
     levels = sorted(runs.level.unique())
     styles = dict(zip(levels, ["-", "--", ":", "-.", (0, (1, 3))]))
     for (solver, level), grp in runs.groupby(["solver", "level"]):

@@ -100,7 +100,8 @@ def test_solver_comparison_and_its_report(tmp_path):
     summary = pd.read_csv(tmp_path / "summary.csv")
     assert set(summary["solver"]) == set(costs["solver"])
     assert ((summary["converged"] + summary["inaccurate"] + summary["max_iter"]
-             + summary["time_limit"] + summary["failed"]) == summary["runs"]).all()
+             + summary["time_limit"] + summary["failed"] + summary["skipped"])
+            == summary["runs"]).all()
     conv = summary.set_index("solver")["success_rate"]
     assert conv["semismooth_newton"] == 1.0 and conv["augmented_projection"] == 1.0
 
