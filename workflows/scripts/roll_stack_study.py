@@ -269,14 +269,16 @@ def solver_runs(spec, params, levels, names, time_limit) -> pd.DataFrame:
             t0 = time.perf_counter()
             res = solve(qp, name, tol="mid", time_limit=time_limit, **opts)
             wall = time.perf_counter() - t0
+            kkt = res.kkt.max if res.kkt is not None else np.nan      # none when skipped
+            bound = res.gap.relative_energy_bound if res.gap is not None else np.nan
             rows.append({"level": level, "N": qp.n_nodes, "n": qp.n, "m": qp.m, "solver": label,
                          "status": res.status, "claimed_status": res.claimed_status,
                          "iterations": res.iterations, "setup_time": res.setup_time,
                          "solve_time": res.solve_time, "wall_time": wall,
-                         "kkt_max": res.kkt.max, "energy_bound": res.gap.relative_energy_bound,
-                         "message": res.message[:200]})
+                         "kkt_max": kkt, "energy_bound": bound, "message": res.message[:200]})
             log(f"solver {label} at level {level}: {res.status} ({res.iterations} it, "
-                f"{wall:.1f} s, KKT {res.kkt.max:.1e})")
+                f"{wall:.1f} s, KKT {kkt:.1e})" + (f": {res.message}" if res.status == "skipped"
+                                                  else ""))
     return pd.DataFrame(rows)
 
 
