@@ -13,7 +13,7 @@ of ``B D`` a unit vector and ``sigma = ||D f||_inf`` (the load scale; the gap
 scale if there is no load). Then ``A~ u~ + B~^T p~ = f~`` holds exactly when
 ``A u + B^T p = f`` does, ``B~ u~ <= g~`` when ``B u <= g``, and ``p~ >= 0``
 when ``p >= 0``: the unscaled pair solves the original problem. The verified
-residuals (:func:`solvers.interface.kkt_residuals`) are always computed on the
+residuals (:func:`problems.kkt.kkt_residuals`) are always computed on the
 original problem, so whatever the scaling does not repair still shows.
 
 This module is private (leading underscore): the solver registry skips it.

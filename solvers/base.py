@@ -88,6 +88,16 @@ class SolveResult:
     gap: Any = None   # solvers.certificate.DualityGap
     options: dict = field(default_factory=dict)
 
+    @classmethod
+    def without_answer(cls, n: int, m: int, solver: str, tol: float, status: str,
+                       message: str, elapsed: float = 0.0) -> "SolveResult":
+        """A run that produced no answer (``skipped``, or killed / crashed in isolation):
+        zeros for ``u`` and ``p``, the status already final (nothing to verify)."""
+        res = cls(u=np.zeros(n), p=np.zeros(m), claimed_status=status, message=message,
+                  solve_time=elapsed, solver=solver, tol=tol)
+        res.status = status
+        return res
+
     @property
     def total_time(self) -> float:
         return self.setup_time + self.solve_time

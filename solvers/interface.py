@@ -71,6 +71,11 @@ def external_solvers() -> dict[str, SolverSpec]:
                           f"{type(spec).__name__}, not a solvers.base.SolverSpec",
                           RuntimeWarning, stacklevel=2)
             continue
+        if spec.name in found:
+            warnings.warn(f"solver plug-in {ep.name!r} ({ep.value}) is left out: another "
+                          f"plug-in registers the name {spec.name!r} already", RuntimeWarning,
+                          stacklevel=2)
+            continue
         found[spec.name] = spec
     return found
 
@@ -124,10 +129,9 @@ def solve(qp: ContactQP, solver: str = "pdas", tol: float | str = "mid",
     t0 = time.perf_counter()
     ok, reason = spec.check(target)
     if not ok:                                        # benchopt's skip: at once, with why
-        result = SolveResult(u=np.zeros(qp.n), p=np.zeros(qp.m), claimed_status="skipped",
-                             message=f"skipped: {reason}", solver=spec.name, tol=tol,
-                             options=opts.flat(), solve_time=time.perf_counter() - t0)
-        result.status = "skipped"
+        result = SolveResult.without_answer(qp.n, qp.m, spec.name, tol, "skipped",
+                                            f"skipped: {reason}", time.perf_counter() - t0)
+        result.options = opts.flat()
         return result
     try:
         result = spec.solve(target, tol, max_iter, time_limit, u0, p0, opts)

@@ -26,9 +26,10 @@ for OSQP, 903 against 908 ms for Clarabel, 86.9 against 86.8 ms for ProxQP, the 
 iterations: qpsolvers costs no time. It loses options, though, and there the call is
 direct: Clarabel's iteration count (not in ``extras``), and HiGHS's status (``extras`` is
 empty: its own "Solve error" / "Large nullspace" would read as a bare failure).
-qpsolvers also passes dual warm starts to no library and drops QPALM's primal one; the
-suite's studies start every library cold, so nothing measured depends on it, and a run
-given a guess says in its message whether the library used it.
+qpsolvers also passes dual warm starts to no library and drops QPALM's primal one (PIQP,
+Clarabel and HiGHS take none either); the suite's studies start every library cold, so
+nothing measured depends on it, and a run given a guess says in its message whether the
+library used it.
 """
 from __future__ import annotations
 
@@ -80,7 +81,7 @@ class Library:
     name, summary : str
         Registry name and one line for ``contactbench list``.
     package : str
-        The importable module (its version goes into the provenance).
+        The distribution, whose version :data:`workflows.io.PACKAGES` records.
     settings : callable
         ``settings(tol, opts) -> dict``: the library's options for the target ``tol``
         (the preset table).
@@ -264,7 +265,7 @@ LIBRARIES = (
         statuses={"solved": "converged", "solved inaccurate": "inaccurate",
                   "maximum iterations reached": "max_iter",
                   "run time limit reached": "time_limit"},
-        call=via_qpsolvers("osqp", lambda e: _info("status")(e), lambda e: _info("iter")(e) or 0,
+        call=via_qpsolvers("osqp", _info("status"), lambda e: _info("iter")(e) or 0,
                            lambda e: {"status_polish": int(_info("status_polish")(e)),
                                       "osqp_prim_res": float(_info("prim_res")(e)),
                                       "osqp_dual_res": float(_info("dual_res")(e))}),
@@ -325,7 +326,7 @@ LIBRARIES = (
                                  "verbose": 0},
         statuses={"solved": "converged", "maximum iterations reached": "max_iter",
                   "time limit exceeded": "time_limit"},
-        call=via_qpsolvers("qpalm", lambda e: _info("status")(e),
+        call=via_qpsolvers("qpalm", _info("status"),
                            lambda e: _info("iter")(e) or 0, primal_guess=False),
         time_limit_key="time_limit",
         parameters=(Parameter("scaling", 10, "QPALM's Ruiz scaling iterations", low=0,
@@ -336,8 +337,7 @@ LIBRARIES = (
         statuses={"optimal": "converged", "unknown": "inaccurate"},   # unknown: stopped short
         call=via_qpsolvers("cvxopt", lambda e: str(e.get("status", "no status")),
                            lambda e: int(e.get("iterations", 0)),
-                           lambda e: {"cvxopt_gap": float(e.get("gap") or np.nan)},
-                           primal_guess=False),
+                           lambda e: {"cvxopt_gap": float(e.get("gap") or np.nan)}),
         max_iter_key="maxiters", default_max_iter=100),
     Library(
         "highs", "HiGHS (active-set QP solver of the HiGHS MIP/LP suite)", "highspy",

@@ -52,7 +52,8 @@ from solvers.face import FACE_PROJECTION, FaceProjector, face_hops, face_project
 from solvers.multigrid import AHAT, component_vcycle
 from solvers.base import Role, SolveResult, SolverSpec
 from solvers.certificate import certify
-from solvers.active_set import check_positive_diagonal, damped_update, pdas_update, stiffness_scale
+from solvers.active_set import (check_positive_diagonal, damped_update, initial_active_set,
+                                pdas_update, stiffness_scale)
 
 
 #: Round-off floor of the inner solve, relative to the energy norm of the iterate: below
@@ -136,18 +137,17 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
     run = _Run(qp, B, vc.raw, faces, tol, opts, t_solve,
                None if time_limit is None else t_start + time_limit)
     u = np.zeros(qp.n) if u0 is None else np.array(u0, dtype=float)
-    p = np.zeros(qp.m) if p0 is None else np.maximum(np.asarray(p0, dtype=float), 0.0)
-    if u0 is None and p0 is None:
-        active = np.zeros(qp.m, dtype=bool)
-    else:
-        active = (p + opts.c * stiffness_scale(qp) * (B @ u - qp.g)) > 0
+    p = None if p0 is None else np.maximum(np.asarray(p0, dtype=float), 0.0)
+    active = initial_active_set(qp, u0, p, opts.c * stiffness_scale(qp))
     fallback = opts.fallback == "monotone"
     if opts.patience == 0:
         out = _monotone(run, u, active, max_iter, 0)
         out.message = f"monotone primal active-set method (patience=0): {out.message}"
     else:
         out = _newton(run, u, active, max_iter, opts.patience)
-    if out.status == "stalled" and fallback and out.steps < max_iter:
+    if out.status == "stalled" and fallback and run.out_of_time():
+        out.status, out.message = "time_limit", out.message + "; time limit reached"
+    elif out.status == "stalled" and fallback and out.steps < max_iter:
         stall = out.message
         out = _monotone(run, out.u, out.active, max_iter - out.steps, out.steps)
         out.message = f"{stall}; fell back to the monotone primal active-set method: {out.message}"
@@ -155,8 +155,9 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
         out.status = "failed" if not fallback else "max_iter"
         out.message += "; no fallback" if not fallback else "; no steps left for the fallback"
     inner = int(np.sum(run.history["inner_steps"]))
-    stats = {"newton_steps": run.newton_steps, "fallback_steps": run.fallback_steps,
-             "fallback": run.fallback_steps > 0, "inner_steps": inner,
+    phases = run.history["phase"]
+    stats = {"newton_steps": phases.count("newton"), "fallback_steps": phases.count("fallback"),
+             "fallback": "fell back" in out.message or opts.patience == 0, "inner_steps": inner,
              "n_vcycles": vc.n_applications - vcycles_setup, "vcycles_setup": vcycles_setup,
              "n_active": int(np.count_nonzero(out.p > 0)), "ahat_kind": vc.kind,
              "face": opts.face.kind, "damped": run.damped}
@@ -205,8 +206,6 @@ class _Run:
     t_solve: float
     deadline: float | None
     rtol: float = 0.0
-    newton_steps: int = 0
-    fallback_steps: int = 0
     damped: bool = False
     history: dict = field(default_factory=lambda: {
         "phase": [], "n_active": [], "inner_steps": [], "inner_rtol": [], "kkt_max": [],
@@ -216,7 +215,7 @@ class _Run:
         self.rtol = self.opts.inner.options["rtol"]
 
     def face_solve(self, u: np.ndarray, active: np.ndarray):
-        """The face of ``active`` solved from ``u`` to ``rtol``: ``(u, p, face)``."""
+        """The face of ``active`` solved from ``u`` to ``rtol``: ``(u, face)``."""
         idx = np.flatnonzero(active)
         face = self.faces(idx)
         u, steps = projected_pcg(self.qp.A, face, self.qp.f, self.qp.g[idx], self.M, u,
@@ -235,7 +234,8 @@ class _Run:
         h["phase"].append(phase)
         h["n_active"].append(int(np.count_nonzero(active)))
         h["kkt_max"].append(kkt)
-        h["energy"].append(self.qp.energy(u))
+        # the energy is what the fallback must not raise; the Newton phase does not need it
+        h["energy"].append(self.qp.energy(u) if phase == "fallback" else np.nan)
         h["time"].append(time.perf_counter() - self.t_solve)
 
     def verified(self, u: np.ndarray, p: np.ndarray, kkt: float) -> bool:
@@ -268,9 +268,7 @@ def _newton(run: _Run, u: np.ndarray, active: np.ndarray, max_iter: int,
     seen: set[bytes] = set()
     limit: int | None = None
     best, since_best = np.inf, 0
-    p = np.zeros(qp.m)
     for k in range(1, max_iter + 1):
-        run.newton_steps = k
         u, face = run.face_solve(u, active)
         p = run.multipliers(u, active, face)
         kkt = kkt_residuals(qp, u, p).max
@@ -320,10 +318,13 @@ def _feasible_start(run: _Run, u: np.ndarray, active: np.ndarray):
     qp, B = run.qp, run.B
     work = active.copy()
     for _ in range(qp.m + 1):
+        if run.out_of_time():
+            raise RuntimeError("time limit reached while looking for a feasible start")
         idx = np.flatnonzero(work)
         u = run.faces(idx).lift(u, qp.g[idx])
         Bu = B @ u
-        scale = max(float(np.max(np.abs(Bu))), float(np.max(np.abs(qp.g))), 1e-300)
+        scale = max(float(np.max(np.abs(Bu), initial=0.0)),
+                    float(np.max(np.abs(qp.g), initial=0.0)), 1e-300)
         violated = ~work & (Bu - qp.g > run.opts.flip_tol * scale)
         if not violated.any():
             return u, work
@@ -342,8 +343,10 @@ def _monotone(run: _Run, u: np.ndarray, active: np.ndarray, budget: int,
     towards it as far as the inactive rows allow and adds the blocking row, or,
     at the face's minimum, drops the row with the most negative multiplier. Every
     step keeps ``Bu <= g`` and does not raise the energy ``J``, so no working set
-    recurs while ``J`` falls: the method terminates in exact arithmetic. It stops
-    when the verification passes.
+    recurs while ``J`` falls: with exact face solves the method terminates. With
+    inexact ones a multiplier may have the wrong sign; a dropped row that blocks the
+    very next step at once is taken as that, and the faces are solved tighter from
+    then on. It stops when the verification passes.
     """
     qp, B, opts, tol = run.qp, run.B, run.opts, run.tol
     try:
@@ -352,8 +355,8 @@ def _monotone(run: _Run, u: np.ndarray, active: np.ndarray, budget: int,
         return _Outcome(u, np.zeros(qp.m), active, "failed",
                         f"no feasible start for the fallback: {err}", done)
     p = np.zeros(qp.m)
+    dropped = -1
     for k in range(1, budget + 1):
-        run.fallback_steps = k
         x, face = run.face_solve(u, work)
         d = x - u
         Bd, slack = B @ d, qp.g - B @ u
@@ -361,10 +364,13 @@ def _monotone(run: _Run, u: np.ndarray, active: np.ndarray, budget: int,
         if blocking.size:                                  # a row stops the step short
             t = np.maximum(slack[blocking], 0.0) / Bd[blocking]
             j = blocking[np.argmin(t)]
+            if j == dropped and t.min() <= 0.0:   # dropped on an inexact multiplier
+                run.tighten()
             u = u + float(t.min()) * d
             work[j] = True
             p = np.zeros(qp.m)
-            run.record("fallback", work, u, kkt_residuals(qp, u, p).max)
+            dropped = -1
+            run.record("fallback", work, u, np.nan)       # no multipliers mid-step
         else:
             u = x
             p = run.multipliers(u, work, face)
@@ -374,6 +380,7 @@ def _monotone(run: _Run, u: np.ndarray, active: np.ndarray, budget: int,
             i = int(np.argmin(np.where(work, p, np.inf))) if work.any() else -1
             if i >= 0 and p[i] < -opts.flip_tol * p_scale:
                 work[i] = False                            # leave the most negative row
+                dropped = i
             elif run.verified(u, np.maximum(p, 0.0), kkt):
                 return _Outcome(u, np.maximum(p, 0.0), work, "converged",
                                 f"verified after {k} steps (KKT {kkt:.1e}, certified "

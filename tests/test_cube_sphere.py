@@ -129,10 +129,10 @@ def test_hertz_in_3d_at_a_resolved_level():
 
 
 def test_reference_beyond_the_direct_limit_is_the_verified_iterative_solve(level1, monkeypatch):
-    import solvers.reference as interface
+    import solvers.reference as reference
     qp, exact = level1
-    assert interface.reference_solve(qp).solver == "pdas"            # 7137 unknowns: direct
-    monkeypatch.setitem(interface.DIRECT_REFERENCE_LIMIT, 3, 1000)
-    ref = interface.reference_solve(qp)
+    assert reference.reference_solve(qp).solver == "pdas"            # 7137 unknowns: direct
+    monkeypatch.setitem(reference.DIRECT_REFERENCE_LIMIT, 3, 1000)
+    ref = reference.reference_solve(qp)
     assert ref.solver == "augmented_projection" and ref.status == "converged"
     assert ref.kkt.max <= 1e-10 and energy_error(qp, ref.u, exact.u) < 1e-8

@@ -141,7 +141,9 @@ def test_a_broken_or_clashing_plugin_is_left_out_with_a_warning(monkeypatch):
            _EntryPoint("notaspec", "pkg:thing", lambda: 42),
            _EntryPoint("clash", "pkg:OSQP", lambda: SolverSpec(name="osqp", summary="mine",
                                                                solve=osqp.solve)),
-           _EntryPoint("mine", "pkg:SOLVER", lambda: good)]
+           _EntryPoint("mine", "pkg:SOLVER", lambda: good),
+           _EntryPoint("mine_again", "other:SOLVER",
+                       lambda: SolverSpec(name="mine", summary="y", solve=osqp.solve))]
     try:
         _with_entry_points(monkeypatch, eps)
         with warnings.catch_warnings(record=True) as caught:
@@ -152,6 +154,7 @@ def test_a_broken_or_clashing_plugin_is_left_out_with_a_warning(monkeypatch):
         assert "'broken' (pkg:SOLVER) is left out: it could not be loaded (ImportError" in text
         assert "'notaspec' (pkg:thing) is left out: it names a int" in text
         assert "'osqp'" in text and "a built-in solver has that name" in text
+        assert "'mine_again' (other:SOLVER) is left out: another plug-in registers" in text
     finally:
         monkeypatch.undo()
         interface.external_solvers.cache_clear()

@@ -8,6 +8,7 @@ import scipy.sparse.linalg as spla
 from problems.circle_square import PROBLEM as CIRCLE_SQUARE
 from problems.cube_sphere import PROBLEM as CUBE_SPHERE
 from problems.kkt import energy_error
+from problems.qp import ContactQP
 from solvers.augmented_projection import nested_initial_guess
 from solvers.interface import solve
 from solvers.face import face_projector
@@ -162,3 +163,11 @@ def test_no_fallback_from_the_start_is_refused():
     from problems.spec import ParameterError
     with pytest.raises(ParameterError, match="parameter 'patience'"):
         solve(CIRCLE_SQUARE.make(0), "semismooth_newton", patience=0, fallback="none")
+
+
+def test_the_monotone_method_on_a_problem_without_constraints():
+    """No rows: the feasible start is the start itself (no max over an empty set)."""
+    qp = ContactQP(A=2 * sp.eye(4), f=np.ones(4), B=sp.csr_matrix((0, 4)), g=np.zeros(0))
+    res = solve(qp, "semismooth_newton", tol="high", patience=0)
+    assert res.status == "converged", res.message
+    np.testing.assert_allclose(res.u, 0.5, rtol=1e-12)

@@ -21,7 +21,7 @@ from problems.kkt import kkt_residuals
 from problems.qp import ContactQP, QPValidationError
 from solvers.interface import TOLERANCES, solve, solvers
 
-#: Every library adapter in the registry (role "reference"): adding one adds it here.
+#: Every QP library in the registry (role "library"): adding one adds it here.
 REFERENCE_SOLVERS = tuple(sorted(n for n, s in solvers().items() if s.role == "library"))
 ALL_SOLVERS = ("pdas", "semismooth_newton") + REFERENCE_SOLVERS
 

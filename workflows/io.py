@@ -27,8 +27,9 @@ from typing import Any, Iterator
 
 import numpy as np
 
-PACKAGES = ("numpy", "scipy", "scikit-fem", "ngsolve", "pyamg", "osqp", "proxsuite", "clarabel",
-            "piqp", "qpalm", "pandas", "meshio", "matplotlib", "snakemake", "mkl")
+PACKAGES = ("numpy", "scipy", "scikit-fem", "ngsolve", "pyamg", "qpsolvers", "osqp", "proxsuite",
+            "clarabel", "piqp", "qpalm", "cvxopt", "highspy", "scs", "pandas", "meshio",
+            "matplotlib", "snakemake", "mkl")
 
 
 #: Marker of the temporary files :func:`atomic_path` writes (swept if a process died).

@@ -14,7 +14,6 @@ import signal
 import time
 import traceback
 
-import numpy as np
 
 from problems.qp import ContactQP
 from solvers.interface import SolveResult, solve
@@ -39,10 +38,7 @@ def _child(conn, qp, solver, tol, time_limit, options):
 
 def _row(qp: ContactQP, solver: str, tol: float, status: str, message: str,
          elapsed: float) -> SolveResult:
-    res = SolveResult(u=np.zeros(qp.n), p=np.zeros(qp.m), claimed_status=status,
-                      message=message, solve_time=elapsed, solver=solver, tol=tol)
-    res.status = status
-    return res
+    return SolveResult.without_answer(qp.n, qp.m, solver, tol, status, message, elapsed)
 
 
 def solve_isolated(qp: ContactQP, solver: str, tol, time_limit: float,

@@ -18,7 +18,7 @@ KKT residual that of the stabilised problem.
   n_o(eps) by (8.25) at eps = 1e-2 and 1e-3, the mean inner steps, T_solve (setup
   included) and T_proj at each eps, kappa(S-hat). The solution is then made exact
   (PDAS from the Alg. 8.4 iterate) where a factorisation is affordable
-  (:data:`solvers.interface.DIRECT_REFERENCE_LIMIT`), else Alg. 8.4 continues to
+  (:data:`solvers.reference.DIRECT_REFERENCE_LIMIT`), else Alg. 8.4 continues to
   verified KKT residuals <= ``--tol``. The other variants are solved exactly.
 * The constant in front of eta_T2^2 (``--eta2-weight``): ``calibrated`` = the ratio
   sum eta_T1^2 / sum eta_T2^2 on the start mesh, fixed for the run (both parts
@@ -90,7 +90,7 @@ TABLE_EPS = (1e-2, 1e-3)
 def exact_solve(qp: ContactQP, u0=None, p0=None, tol: float = 1e-8,
                 time_limit: float | None = None):
     """PDAS (exact: ``A`` factorised once, the dual problem on the contact rows) where a
-    factorisation is affordable (:data:`solvers.interface.DIRECT_REFERENCE_LIMIT`), else Alg. 8.4 with
+    factorisation is affordable (:data:`solvers.reference.DIRECT_REFERENCE_LIMIT`), else Alg. 8.4 with
     face-CG steps to verified KKT residuals <= ``tol``; warm-started either way."""
     if qp.n <= DIRECT_REFERENCE_LIMIT.get(qp.dim, 0):
         return solve(qp, "pdas", tol=1e-10, u0=u0, p0=p0)

@@ -1,6 +1,6 @@
 """One scene at one level, solved by the reference and checked against Hertz (study
 contact_solution): the exact PDAS where a factorisation is affordable, else the
-iterative reference to verified KKT residuals <= 1e-10 (:func:`solvers.interface.reference_solve`;
+iterative reference to verified KKT residuals <= 1e-10 (:func:`solvers.reference.reference_solve`;
 the column ``reference`` says which).
 
 Writes, into ``--outdir``: ``contact_L{level}.csv`` (per constrained node:

@@ -1,6 +1,6 @@
 """Every registered solver on one hard scene (study hard_cases).
 
-The reference (:func:`solvers.interface.reference_solve`) gives ``(u_ref, p_ref)``;
+The reference (:func:`solvers.reference.reference_solve`) gives ``(u_ref, p_ref)``;
 each solver runs at one preset in its own process with a hard wall-clock limit
 (:func:`workflows.isolation.solve_isolated`). A row per solver: verified and
 claimed status, the worst KKT residual, the certified energy bound, the energy

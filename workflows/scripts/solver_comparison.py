@@ -1,6 +1,6 @@
 """Every registered solver at every tolerance preset on one scene at one level.
 
-The reference (:func:`solvers.interface.reference_solve`: the exact PDAS, or in 3D
+The reference (:func:`solvers.reference.reference_solve`: the exact PDAS, or in 3D
 beyond a factorisation's reach the iterative reference to verified KKT residuals
 <= 1e-10) gives ``u_ref``; each run records its
 verified status, KKT residuals, the certified energy bound, time, peak memory,
@@ -23,6 +23,7 @@ Example::
 from __future__ import annotations
 
 import argparse
+import re
 import time
 
 import numpy as np
@@ -97,6 +98,10 @@ def main(argv=None) -> None:
     write_csv(args.out, pd.DataFrame(rows))
 
 
+#: The message of a run skipped because it gave up at a coarser level (and nothing else).
+GAVE_UP = re.compile(r"skipped: ((?:timed out|failed) at level \d+)")
+
+
 def gave_up_at_coarser_levels(tables: list[pd.DataFrame], level: int) -> dict:
     """``{(solver, preset): reason}`` for the solvers that timed out or failed at a level
     below ``level`` (or were skipped there for that reason), from the coarser levels'
@@ -111,9 +116,9 @@ def gave_up_at_coarser_levels(tables: list[pd.DataFrame], level: int) -> dict:
         if key in out:
             continue
         if r["status"] == "skipped":
-            message = str(r.get("message", ""))
-            if "at level" in message:                   # carried over from a coarser level
-                out[key] = message.removeprefix("skipped: ")
+            carried = GAVE_UP.fullmatch(str(r.get("message", "")))
+            if carried:                                 # carried over from a coarser level
+                out[key] = carried.group(1)
         else:
             verb = "timed out" if r["status"] == "time_limit" else "failed"
             out[key] = f"{verb} at level {int(r['level'])}"
@@ -122,10 +127,8 @@ def gave_up_at_coarser_levels(tables: list[pd.DataFrame], level: int) -> dict:
 
 def skipped_result(qp, solver: str, preset: str, reason: str) -> SolveResult:
     """The row of a run that is not made (status ``skipped``, the reason in its message)."""
-    res = SolveResult(u=np.zeros(qp.n), p=np.zeros(qp.m), claimed_status="skipped",
-                      message=f"skipped: {reason}", solver=solver, tol=TOLERANCES[preset])
-    res.status = "skipped"
-    return res
+    return SolveResult.without_answer(qp.n, qp.m, solver, TOLERANCES[preset], "skipped",
+                                      f"skipped: {reason}")
 
 
 if __name__ == "__main__":
