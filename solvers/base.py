@@ -178,7 +178,6 @@ class SolverSpec:
         return bool(ok), str(reason)
 
 
-
 def parse_tolerance(tol: Any) -> float:
     """A preset name (``low``/``mid``/``high``) or a number in (0, 1)."""
     if isinstance(tol, str) and tol in TOLERANCES:

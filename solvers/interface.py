@@ -80,7 +80,6 @@ def external_solvers() -> dict[str, SolverSpec]:
     return found
 
 
-
 def solve(qp: ContactQP, solver: str = "pdas", tol: float | str = "mid",
           max_iter: int | None = None, time_limit: float | None = None,
           u0: np.ndarray | None = None, p0: np.ndarray | None = None,
