@@ -14,14 +14,17 @@ from workflows.io import sweep_results
 
 from workflows.studies import (PATHS, adaptive_args, adaptive_variant_file, all_targets,
                                bench_path, check_config, coarser_levels, exact_args, log_path,
-                               roll_args, roll_fields, rule_resources, scenes_of, set_args,
-                               summary_items, thesis_table)
+                               roll_args, roll_fields, rule_resources, scenes_of,
+                               scenes_with_families, set_args, summary_items,
+                               test_set_hard_cases, test_set_of, test_set_runs, thesis_table)
 
 # the quick scale unless --configfile names another (merging quick.yaml under full.yaml or
 # tiny.yaml would leave quick's scenes in them)
 if not workflow.overwrite_configfiles:
     configfile: os.path.join(workflow.basedir, "workflows/config/quick.yaml")
 report: "report/workflow.rst"
+# the test set's families are scenes too (workflows/config/test_sets/): typed once there
+config["scenes"] = scenes_with_families(config)
 validate(config, os.path.join(workflow.basedir, "workflows/config.schema.yaml"))
 check_config(config)   # scenes exist, problems and parameters valid, variant names known
 
@@ -46,6 +49,7 @@ include: "workflows/contact_solution.smk"
 include: "workflows/solver_comparison.smk"
 include: "workflows/augmented_projection.smk"
 include: "workflows/exact_reference.smk"
+include: "workflows/test_set.smk"
 include: "workflows/hard_cases.smk"
 include: "workflows/summary.smk"
 include: "workflows/adaptive.smk"

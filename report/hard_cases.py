@@ -1,6 +1,10 @@
 """The hard-case table and heat map (study hard_cases): per case and solver the verified
 status, the worst KKT residual, the energy error against the reference and the time.
 
+The hard cases are families of the contact QP test set; their rows come from the
+test set's runs (``workflows/scripts/test_set_runs.py``), filtered to the configured
+cases, levels and preset.
+
 The table also checks the study's two promises on every row: a ``converged`` run
 has KKT residuals and a certified energy bound within the tolerance
 (``claim_ok``), and its answer is accurate against the reference
@@ -25,9 +29,21 @@ STATUS_ORDER = ("converged", "inaccurate", "max_iter", "time_limit", "failed", "
 STATUS_COLORS = ("#2ca02c", "#ff7f0e", "#9467bd", "#8c564b", "#d62728", "#c7c7c7")
 
 
-def table(inputs: list[str]) -> pd.DataFrame:
-    """All rows, with the two promises checked per row."""
+def table(inputs: list[str], cases: list[str] | None = None,
+          preset: str | None = None) -> pd.DataFrame:
+    """The rows of ``cases`` (``family:level``) at ``preset`` (all rows if None), with the
+    two promises checked per row."""
     t = pd.concat([read_csv(f) for f in inputs], ignore_index=True)
+    if "case" not in t:
+        t["case"] = t["family"]
+    if "wall_time" not in t:
+        t["wall_time"] = t["total_time"]
+    if cases:
+        wanted = {tuple(c.rsplit(":", 1)) for c in cases}
+        t = t[[(c, str(lv)) in wanted for c, lv in zip(t["case"], t["level"])]]
+    if preset:
+        t = t[t["preset"] == preset]
+    t = t.reset_index(drop=True)
     conv = t["status"] == "converged"
     bound_ok = t["energy_bound"] <= np.maximum(t["tol"], 4 * t["energy_bound_floor"])
     t["claim_ok"] = ~conv | ((t["kkt_max"] <= t["tol"]) & bound_ok)
@@ -92,11 +108,17 @@ def heatmap(t: pd.DataFrame, path: str) -> None:
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--inputs", nargs="+", required=True)
+    ap.add_argument("--inputs", nargs="+", required=True, help="the test set's run tables")
+    ap.add_argument("--cases", nargs="*", default=None, metavar="FAMILY:LEVEL",
+                    help="the hard cases (default: every row)")
+    ap.add_argument("--preset", default=None, help="the preset shown (default: every row)")
     ap.add_argument("--table", required=True)
     ap.add_argument("--heatmap", required=True)
     args = ap.parse_args(argv)
-    t = table(args.inputs)
+    t = table(args.inputs, args.cases, args.preset)
+    if t.empty:
+        raise SystemExit(f"no rows of the cases {args.cases} at preset {args.preset} in "
+                         f"{args.inputs}")
     write_csv(args.table, t)
     heatmap(t, args.heatmap)
 

@@ -1,12 +1,19 @@
-"""The solver summary across every scene, level and hard case, in the style of qpbenchmark.
+"""The solver summary over the contact QP test set, in the style of qpbenchmark.
+
+Inputs are the test set's run tables (``workflows/scripts/test_set_runs.py``: one per
+family and size class; every registered solver at every preset, each problem's
+exact reference exported beside it). Broken down overall, by size class and by
+scene (the registered problem behind a family); one work-precision figure per
+family (energy error against time, every solver, one panel per level).
 
 Per solver and preset (qpbenchmark's conventions, adapted to the suite's verification):
 
 * ``success_rate``: share of runs verified ``converged`` (the KKT residuals and
   the certified energy bound meet the preset's tolerance);
-* ``correct_rate``: share of runs whose claim agrees with the verification (a
-  claimed convergence that is verified, or a non-convergence the solver
-  admitted); a solver that claims success and is refuted is not "correct";
+* ``correct_rate``: share of runs whose claim is true against the exact reference:
+  a claimed convergence whose energy error ``||u - u_ref||_A / ||u_ref||_A`` is
+  within the preset's tolerance, or a non-convergence the solver admitted (a
+  solver that claims success and is wrong is not "correct");
 * shifted geometric means (shift 10, over all runs) of the wall time, a failed or
   unverified run counting as the time limit (qpbenchmark's penalty), and of the
   worst KKT residual and the certified energy bound in units of the preset's
@@ -15,7 +22,7 @@ Per solver and preset (qpbenchmark's conventions, adapted to the suite's verific
 * failures are counted, never dropped.
 
 Performance profiles (Dolan and Moré, Math. Program. 91, 2002): for each
-problem (scene, level; a hard case) the ratio of a solver's time to the best
+problem the ratio of a solver's time to the best
 verified time; a run that is not verified converged has an infinite ratio; the
 curve is the share of problems solved within a factor tau of the best.
 """
@@ -36,23 +43,22 @@ from workflows.io import read_csv, write_csv  # noqa: E402
 
 SHIFT = 10.0
 SKIP = ("reference", "linear_floor")
+#: A claimed convergence is correct if its energy error is within this factor of tol.
+ACCURATE = 1.001
 
 
 def runs(inputs: list[str], time_limit: float) -> pd.DataFrame:
-    """Every solver run of the inputs (solver tables and hard-case tables) as rows with
-    ``problem`` (scene or case and level) and the penalised time."""
-    frames = []
-    for path in inputs:
-        t = read_csv(path)
-        label = t["case"] if "case" in t else t.get("scene_problem", pd.Series(["?"] * len(t)))
-        t = t.assign(problem=label.astype(str) + " L" + t["level"].astype(str))
-        frames.append(t)
-    t = pd.concat(frames, ignore_index=True)
-    t = t[(t.preset != "reference") & ~t.solver.isin(SKIP)].copy()
-    t["time"] = t.get("wall_time", t["total_time"]).fillna(t["total_time"])
+    """Every solver run of the test set's run tables, with the penalised time and
+    whether the claim is correct against the reference."""
+    t = pd.concat([read_csv(path) for path in inputs], ignore_index=True)
+    t = t[~t.solver.isin(SKIP)].copy()
+    t["scene"] = t["scene_problem"]
+    t["time"] = t["total_time"]
     verified = t["status"] == "converged"
     t["penalised_time"] = np.where(verified, t["time"], time_limit)
-    t["correct"] = (t["claimed_status"] == "converged") == verified
+    claimed = t["claimed_status"] == "converged"
+    accurate = t["energy_error"].fillna(np.inf) <= t["tol"] * ACCURATE
+    t["correct"] = np.where(claimed, accurate, True)
     return t
 
 
@@ -62,15 +68,19 @@ def sgm(values, shift: float = SHIFT) -> float:
     return float(np.exp(np.mean(np.log(v + shift))) - shift) if v.size else float("nan")
 
 
-def summary(t: pd.DataFrame) -> pd.DataFrame:
-    """One row per solver and preset (see the module docstring)."""
+def summary(t: pd.DataFrame, by: tuple[str, ...] = ()) -> pd.DataFrame:
+    """One row per solver and preset (and per value of the columns ``by``; see the module
+    docstring)."""
     rows = []
-    for (solver, preset), g in t.groupby(["solver", "preset"]):
+    keys = [*by, "solver", "preset"]
+    for values, g in t.groupby(keys):
+        group = dict(zip(keys, values))
+        preset = group["preset"]
         tol = TOLERANCES[preset]
         kkt = g["kkt_max"].fillna(1.0).clip(upper=1.0) / tol
         bound = (g["energy_bound"].fillna(1.0).clip(upper=1.0) / tol
                  if "energy_bound" in g else kkt)
-        rows.append({"solver": solver, "preset": preset, "tol": tol,
+        rows.append({**group, "tol": tol, "problems": g["problem"].nunique(),
                      "runs": len(g), "converged": int((g.status == "converged").sum()),
                      "inaccurate": int((g.status == "inaccurate").sum()),
                      "max_iter": int((g.status == "max_iter").sum()),
@@ -83,9 +93,9 @@ def summary(t: pd.DataFrame) -> pd.DataFrame:
                      "sgm_kkt_over_tol": sgm(kkt), "sgm_energy_bound_over_tol": sgm(bound)})
     out = pd.DataFrame(rows)
     # qpbenchmark reports the time SGM relative to the best solver of the preset
-    best = out.groupby("preset")["sgm_time"].transform("min")
+    best = out.groupby([*by, "preset"])["sgm_time"].transform("min")
     out["sgm_time_relative"] = out["sgm_time"] / best
-    return out.sort_values(["preset", "sgm_time"]).reset_index(drop=True)
+    return out.sort_values([*by, "preset", "sgm_time"]).reset_index(drop=True)
 
 
 def performance_profiles(t: pd.DataFrame, path: str) -> None:
@@ -111,24 +121,92 @@ def performance_profiles(t: pd.DataFrame, path: str) -> None:
         ax.set_ylim(0, 1.02)
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=7, loc="lower right")
-    fig.suptitle("Performance profiles (Dolan-Moré) over every scene, level and hard case; "
+    fig.suptitle("Performance profiles (Dolan-Moré) over the contact QP test set; "
                  "only verified runs count", fontsize=10)
     save_figure(fig, path)
+
+
+def work_precision(t: pd.DataFrame, family: str, path: str) -> None:
+    """Energy error against time for every solver on one family: one panel per level,
+    one line per solver through its presets (runs without a solution left out; a run
+    that is not verified converged drawn hollow)."""
+    g = t[t.family == family]
+    levels = sorted(g.level.unique())
+    fig, axes = plt.subplots(1, max(len(levels), 1), figsize=(5.6 * max(len(levels), 1), 4.6),
+                             squeeze=False)
+    solvers = sorted(t.solver.unique())
+    for ax, level in zip(axes[0], levels):
+        gl = g[g.level == level]
+        for i, solver in enumerate(solvers):
+            r = gl[(gl.solver == solver) & np.isfinite(gl.energy_error.astype(float))]
+            r = r.assign(order=r.preset.map({p: k for k, p in enumerate(TOLERANCES)}))
+            r = r.sort_values("order")
+            if r.empty:
+                continue
+            color = plt.cm.tab20.colors[i % 20]
+            err = np.maximum(r.energy_error.astype(float), 1e-16)
+            ax.loglog(r.time, err, "-", color=color, lw=1.2, label=solver)
+            ok = r.status == "converged"
+            ax.loglog(r.time[ok], err[ok], "o", color=color, ms=5)
+            ax.loglog(r.time[~ok], err[~ok], "o", mfc="none", color=color, ms=5)
+        for preset, tol in TOLERANCES.items():
+            ax.axhline(tol, color="0.6", lw=0.6, ls=":")
+            ax.annotate(preset, (1.0, tol), xycoords=("axes fraction", "data"), fontsize=7,
+                        color="0.4", ha="right", va="bottom")
+        n = int(gl.n.iloc[0]) if len(gl) else 0
+        ax.set_title(f"{family} level {level} (n = {n:,})", fontsize=9)
+        ax.set_xlabel("solver time (s)")
+        ax.set_ylabel("energy error ||u - u_ref||_A / ||u_ref||_A")
+        ax.grid(True, which="both", alpha=0.3)
+    axes[0][0].legend(fontsize=7, loc="lower left", ncol=2)
+    fig.suptitle(f"Work-precision, family {family}: presets low, mid, high along each line; "
+                 "filled = verified converged, hollow = not", fontsize=10)
+    save_figure(fig, path)
+
+
+def claims(t: pd.DataFrame) -> pd.DataFrame:
+    """The verification's promises over the whole test set (claim, measured, bar, pass),
+    and the count of problems and runs."""
+    conv = t["status"] == "converged"
+    accurate = t["energy_error"].fillna(np.inf) <= t["tol"] * ACCURATE
+    wrong = int((conv & ~accurate).sum())
+    claimed = t["claimed_status"] == "converged"
+    refuted = int((claimed & ~conv).sum())
+    n_problems = t["problem"].nunique()
+    return pd.DataFrame([
+        {"claim": f"test set: every verified-converged run is within tol of the exact reference "
+                  f"(energy error; {n_problems} problems, {len(t)} runs)",
+         "measured": f"{wrong} of {int(conv.sum())} converged runs inaccurate", "bar": "0",
+         "pass": wrong == 0},
+        {"claim": "test set: claims of convergence refuted by the verification (information: "
+                  "a solver's own stopping test against the suite's KKT and certified bound)",
+         "measured": f"{refuted} of {int(claimed.sum())} claimed", "bar": "-", "pass": None}])
 
 
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--inputs", nargs="+", required=True,
-                    help="solver tables (results/<scene>/solvers.csv) and hard-case tables")
+                    help="the test set's run tables (workflows/scripts/test_set_runs.py)")
     ap.add_argument("--time-limit", type=float, required=True,
-                    help="the penalty time of an unverified run (the studies' time limit)")
-    ap.add_argument("--summary", required=True)
-    ap.add_argument("--profiles", required=True)
+                    help="the penalty time of an unverified run (the runs' time limit)")
+    ap.add_argument("--summary", required=True, help="CSV: per solver and preset")
+    ap.add_argument("--by-class", required=True, help="CSV: per size class, solver, preset")
+    ap.add_argument("--by-scene", required=True, help="CSV: per scene, solver, preset")
+    ap.add_argument("--claims", required=True, help="CSV: the verification's promises")
+    ap.add_argument("--profiles", required=True, help="PNG: performance profiles")
+    ap.add_argument("--work-precision", nargs="*", default=[], metavar="FAMILY=PNG",
+                    help="work-precision figures, one per family")
     args = ap.parse_args(argv)
     t = runs(args.inputs, args.time_limit)
     write_csv(args.summary, summary(t))
+    write_csv(args.by_class, summary(t, ("size_class",)))
+    write_csv(args.by_scene, summary(t, ("scene",)))
+    write_csv(args.claims, claims(t))
     performance_profiles(t, args.profiles)
+    for item in args.work_precision:
+        family, _, path = item.partition("=")
+        work_precision(t, family, path)
 
 
 if __name__ == "__main__":

@@ -35,20 +35,27 @@ def test_initial_penetration_is_pushed_apart():
     assert np.all(qp.g - qp.B @ res.u >= -1e-12)           # separated after loading
 
 
-def test_hard_case_script_and_report(tmp_path):
+def test_hard_case_report_from_the_test_set_runs(tmp_path):
     from report.hard_cases import main as report_main
-    from workflows.scripts.hard_case import main as case_main
+    from workflows.cli import main as cli
+    from workflows.scripts.test_set_runs import main as runs_main
+    export = tmp_path / "export"
+    assert cli(["export", "--class", "small", "--families", "hard_thin_body", "hard_grazing",
+                "--out", str(export), "--quiet"]) == 0
     out = []
-    for name, sets in (("thin", ["--set", "height=0.02"]),
-                       ("grazing", ["--set", "offset=1.0"])):
-        out.append(str(tmp_path / f"{name}.csv"))
-        case_main(["--scene", name, "--problem", "circle_square", *sets, "--level", "0",
-                   "--time-limit", "30", "--out", out[-1]])
-    report_main(["--inputs", *out, "--table", str(tmp_path / "t.csv"),
+    for family in ("hard_thin_body", "hard_grazing"):
+        out.append(str(tmp_path / f"{family}.csv"))
+        runs_main(["--set", "contact-qp-1", "--class", "small", "--family", family,
+                   "--export", str(export), "--presets", "mid", "--levels", "0",
+                   "--time-limit", "30",
+                   "--out", out[-1]])
+    report_main(["--inputs", *out, "--cases", "hard_thin_body:0", "hard_grazing:0",
+                 "--preset", "mid", "--table", str(tmp_path / "t.csv"),
                  "--heatmap", str(tmp_path / "h.png")])
     t = pd.read_csv(tmp_path / "t.csv")
-    assert set(t["solver"]) == set(solvers()) and set(t["case"]) == {"thin", "grazing"}
+    assert set(t["solver"]) == set(solvers())
+    assert set(t["case"]) == {"hard_thin_body", "hard_grazing"} and (t.level == 0).all()
     assert t["claim_ok"].all()
     assert t.loc[t.status == "converged", "accurate"].all()
-    assert (t.loc[t.case == "grazing", "dropped_rows"] > 0).all()
+    assert (t.loc[t.case == "hard_grazing", "dropped_rows"] > 0).all()
     assert (tmp_path / "h.png").read_bytes()[:4] == b"\x89PNG"

@@ -95,15 +95,6 @@ def test_solver_comparison_and_its_report(tmp_path):
     costs = pd.read_csv(outs["costs"])
     assert set(costs["solver"]) == set(solvers()) - {"pdas"}      # the reference is its own row
     assert (costs["floor_ratio_L0"] > 0).all()
-    run("report.solver_summary", "--inputs", outs["table"], "--time-limit", "60",
-        "--summary", str(tmp_path / "summary.csv"), "--profiles", str(tmp_path / "prof.png"))
-    summary = pd.read_csv(tmp_path / "summary.csv")
-    assert set(summary["solver"]) == set(costs["solver"])
-    assert ((summary["converged"] + summary["inaccurate"] + summary["max_iter"]
-             + summary["time_limit"] + summary["failed"] + summary["skipped"])
-            == summary["runs"]).all()
-    conv = summary.set_index("solver")["success_rate"]
-    assert conv["semismooth_newton"] == 1.0 and conv["augmented_projection"] == 1.0
 
 
 def test_augmented_projection_study_and_its_report(tmp_path):

@@ -9,6 +9,7 @@ Examples
         --set schur=multilevel --set ahat.sweeps=2 --out run.json --vtu run.vtu
     contactbench solve --problem laplace_nonmatching --level 3 \\
         --set case=linear --set variant=nodal --out run.json
+    contactbench export --class small --out contact-qp-small
 
 Every failure ends with exit code 2 and one line naming the parameter and what
 is allowed (``--debug`` shows the traceback); nothing is written then. The
@@ -147,6 +148,30 @@ def cmd_solve(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_export(args: argparse.Namespace) -> int:
+    from workflows.export import ExportError, export_set
+    from workflows.test_set import TestSetError, check_class, load
+
+    try:
+        ts = load(args.set)
+        check_class(args.size_class)
+        families = args.families or None
+        items = ts.problems(args.size_class, families)
+    except TestSetError as err:
+        raise ParameterError(str(err)) from None
+    if not items:
+        raise ParameterError(f"option '--class': the set {ts.id} has no {args.size_class} "
+                             "problems of the chosen families")
+    try:
+        out = export_set(ts, args.size_class, args.out, force=args.force, families=families,
+                         progress=not args.quiet)
+    except ExportError as err:
+        raise ParameterError(str(err)) from None
+    print(f"{ts.id} {args.size_class}: {len(items)} problems -> {out}/ (index.json; "
+          f"qpbenchmark {out}/contact_qp.py run ...)")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="contactbench", description=__doc__.split("\n")[0])
     parser.add_argument("--debug", action="store_true", help="show tracebacks")
@@ -167,6 +192,19 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--vtu", default=None, help="also write fields as VTU (contact problems)")
     s.add_argument("--force", action="store_true", help="replace existing output files")
     s.set_defaults(func=cmd_solve)
+    from workflows.test_set import CLASSES, CURRENT, available
+    e = sub.add_parser("export", help="write a test set's problems as Matrix Market/npz "
+                       "folders with the exact reference (min 1/2 x'Px + q'x s.t. Gx <= h)")
+    e.add_argument("--set", default=CURRENT, help=f"test set (default {CURRENT}; allowed: "
+                   f"{', '.join(available())})")
+    e.add_argument("--class", dest="size_class", required=True,
+                   help=f"size class: {' | '.join(CLASSES)}")
+    e.add_argument("--families", nargs="+", default=None, metavar="FAMILY",
+                   help="only these families of the set (default: all)")
+    e.add_argument("--out", required=True, help="folder to create (written atomically)")
+    e.add_argument("--force", action="store_true", help="replace an existing folder")
+    e.add_argument("--quiet", action="store_true", help="no progress bar")
+    e.set_defaults(func=cmd_export)
     return parser
 
 

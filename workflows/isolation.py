@@ -24,16 +24,18 @@ from workflows.measure import peak_rss
 GRACE_FACTOR, GRACE_SECONDS = 1.25, 30.0
 
 
-def _child(conn, qp, solver, tol, time_limit, options):
-    try:
-        with peak_rss() as mem:
-            res = solve(qp, solver=solver, tol=tol, time_limit=time_limit, **options)
-        res.stats["peak_mem_mb"] = mem["peak_mb"]
-        conn.send(("ok", res))
-    except BaseException as err:  # noqa: BLE001 -- anything the parent must turn into a row
-        conn.send(("error", f"{type(err).__name__}: {err}\n{traceback.format_exc(limit=3)}"))
-    finally:
-        conn.close()
+def _child(conn, qp, solver, tols, time_limit, options):
+    """Solve at every tolerance of ``tols`` in turn, sending each result at once."""
+    for tol in tols:
+        try:
+            with peak_rss() as mem:
+                res = solve(qp, solver=solver, tol=tol, time_limit=time_limit, **options)
+            res.stats["peak_mem_mb"] = mem["peak_mb"]
+            conn.send(("ok", res))
+        except BaseException as err:  # noqa: BLE001 -- anything the parent must turn into a row
+            conn.send(("error", f"{type(err).__name__}: {err}\n"
+                                f"{traceback.format_exc(limit=3)}"))
+    conn.close()
 
 
 def _row(qp: ContactQP, solver: str, tol: float, status: str, message: str,
@@ -50,36 +52,64 @@ def solve_isolated(qp: ContactQP, solver: str, tol, time_limit: float,
     or died, e.g. by a signal) and a message saying which. ``u`` and ``p`` of such
     a row are zeros; its ``kkt`` and ``gap`` are None.
     """
+    return solve_batch_isolated(qp, solver, [tol], time_limit, **options)[0]
+
+
+def solve_batch_isolated(qp: ContactQP, solver: str, tols: list, time_limit: float,
+                         **options) -> list[SolveResult]:
+    """:func:`solve_isolated` at several tolerances, in as few child processes as can be.
+
+    One child solves at every tolerance in turn; each run has its own hard limit
+    ``GRACE_FACTOR * time_limit + GRACE_SECONDS``. A run past it is killed (a
+    ``time_limit`` row) and a child that dies takes only its current run with it (a
+    ``failed`` row): the remaining tolerances go to a fresh child. One result per
+    tolerance, in order.
+    """
     from solvers.interface import parse_tolerance
 
-    tol_value = parse_tolerance(tol)
+    values = [parse_tolerance(t) for t in tols]
     hard = GRACE_FACTOR * time_limit + GRACE_SECONDS
     ctx = mp.get_context("fork")
-    receive, send = ctx.Pipe(duplex=False)
-    proc = ctx.Process(target=_child, args=(send, qp, solver, tol, time_limit, options),
-                       daemon=True)
-    t0 = time.perf_counter()
-    proc.start()
-    send.close()
-    try:
-        if receive.poll(hard):
-            kind, payload = receive.recv()
-            proc.join(10.0)
-            if kind == "ok":
-                return payload
-            return _row(qp, solver, tol_value, "failed", f"failed: {payload.splitlines()[0]}",
-                        time.perf_counter() - t0)
-    except EOFError:       # the child died before sending (killed, segfault, out of memory)
-        proc.join(10.0)
-        code = proc.exitcode
-        name = signal.Signals(-code).name if code is not None and code < 0 else f"exit code {code}"
-        return _row(qp, solver, tol_value, "failed", f"solver process died ({name})",
-                    time.perf_counter() - t0)
-    finally:
-        receive.close()
-        if proc.is_alive():
-            proc.kill()
-            proc.join(10.0)
-    return _row(qp, solver, tol_value, "time_limit",
-                f"killed after the hard wall-clock limit of {hard:.0f} s "
-                f"(solver time limit {time_limit:g} s)", time.perf_counter() - t0)
+    results: list[SolveResult] = []
+    while len(results) < len(tols):
+        todo = tols[len(results):]
+        receive, send = ctx.Pipe(duplex=False)
+        proc = ctx.Process(target=_child, args=(send, qp, solver, todo, time_limit, options),
+                           daemon=True)
+        proc.start()
+        send.close()
+        clean = False                    # every result of this child received
+        try:
+            while len(results) < len(tols):
+                tol_value = values[len(results)]
+                t0 = time.perf_counter()
+                try:
+                    if not receive.poll(hard):
+                        results.append(_row(
+                            qp, solver, tol_value, "time_limit",
+                            f"killed after the hard wall-clock limit of {hard:.0f} s "
+                            f"(solver time limit {time_limit:g} s)", time.perf_counter() - t0))
+                        break
+                    kind, payload = receive.recv()
+                except EOFError:   # the child died before sending (killed, segfault, memory)
+                    proc.join(10.0)
+                    code = proc.exitcode
+                    name = (signal.Signals(-code).name if code is not None and code < 0
+                            else f"exit code {code}")
+                    results.append(_row(qp, solver, tol_value, "failed",
+                                        f"solver process died ({name})",
+                                        time.perf_counter() - t0))
+                    break
+                results.append(payload if kind == "ok" else _row(
+                    qp, solver, tol_value, "failed", f"failed: {payload.splitlines()[0]}",
+                    time.perf_counter() - t0))
+            else:
+                clean = True
+        finally:
+            receive.close()
+            if clean:
+                proc.join(10.0)
+            if proc.is_alive():
+                proc.kill()
+                proc.join(10.0)
+    return results

@@ -16,6 +16,7 @@ import numpy as np
 import scipy.sparse.linalg as spla
 
 from solvers import multigrid as pc
+from solvers.interface import linear_solver
 
 
 @contextmanager
@@ -105,3 +106,18 @@ def amg_pcg_floor(qp, kind: str, target: float, u_exact: np.ndarray,
             "cpu_to_target": rec["cpu"][-1] if ok else np.nan,
             "energy_error": rec["err"][-1] if rec["err"] else np.nan,
             "status": "converged" if ok else "max_iter"}
+
+
+def multiplier_errors(qp, p, p_ref, u_ref) -> dict:
+    """Errors of the multipliers against the reference (max norm, S-norm, total force)."""
+    top = float(np.max(np.abs(p_ref))) if p_ref.size else 0.0
+    dp = np.asarray(p) - p_ref
+    w = linear_solver(qp)(qp.B.T @ dp)
+    s_norm = float(np.sqrt(max(w @ (qp.A @ w), 0.0)))
+    norm_u = float(np.sqrt(max(u_ref @ (qp.A @ u_ref), 0.0)))
+    force = float(np.sum(p_ref))
+    return {"multiplier_error": float(np.max(np.abs(dp))) / top if top > 0
+            else float(np.max(np.abs(dp), initial=0.0)),
+            "multiplier_error_S": s_norm / norm_u if norm_u > 0 else s_norm,
+            "force_error": abs(float(np.sum(p)) - force) / abs(force) if force > 0
+            else abs(float(np.sum(p)))}

@@ -45,19 +45,3 @@ rule solver_comparison_report:
         "{params.py} -m report.solvers --inputs {input} --table {output.table} "
         "--presets {output.presets} --times {output.times} --work {output.work} "
         "--costs {output.costs} > {log} 2>&1"
-
-rule solver_summary:
-    input:
-        [PATHS["solver_table"].format(scene=s) for s in scenes_of(config, "solver_comparison")]
-        + ([PATHS["hard_table"]] if scenes_of(config, "hard_cases") else [])
-    output:
-        summary=report(PATHS["solver_summary"], caption="../report/captions/solver_summary_table.rst",
-            category="solvers", subcategory="summary"),
-        profiles=report(PATHS["solver_profiles"], caption="../report/captions/solver_profiles.rst",
-                        category="solvers", subcategory="summary")
-    log: log_path("solver_summary", "all")
-    conda: ENV
-    params: py=PY, limit=SC.get("time_limit", 120)
-    shell:
-        "{params.py} -m report.solver_summary --inputs {input} --time-limit {params.limit} "
-        "--summary {output.summary} --profiles {output.profiles} > {log} 2>&1"

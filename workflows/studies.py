@@ -40,8 +40,16 @@ PATHS = {
     "solver_times": "results/{scene}/solver_times.png",
     "solver_work": "results/{scene}/solver_error_vs_time.png",
     "solver_costs": "results/{scene}/solver_costs.csv",
+    # test_set: the contact QP test set exported per size class, every solver on it, the
+    # summary over it (qpbenchmark's way) and one work-precision figure per family
+    "test_set_export": "results/test_set/{set}/export/{size_class}",
+    "test_set_runs": "results/test_set/{set}/runs/{size_class}/{scene}.csv",
     "solver_summary": "results/solver_summary/summary.csv",
+    "solver_summary_by_class": "results/solver_summary/summary_by_class.csv",
+    "solver_summary_by_scene": "results/solver_summary/summary_by_scene.csv",
+    "solver_summary_claims": "results/solver_summary/claims.csv",
     "solver_profiles": "results/solver_summary/performance_profiles.png",
+    "solver_work_precision": "results/solver_summary/work_precision/{scene}.png",
     # augmented_projection
     "ap_study": "results/{scene}/augmented_projection_study.csv",
     "ap_table": "results/{scene}/augmented_projection_table.csv",
@@ -78,8 +86,7 @@ PATHS = {
     "exact_table": "results/{scene}/exact_reference.csv",
     "exact_claims": "results/{scene}/exact_reference_claims.csv",
     "exact_figure": "results/{scene}/exact_reference.png",
-    # hard_cases: every solver on the hard scenes; one table and heat map across them
-    "hard_case_runs": "results/{scene}/hard_case_L{level}.csv",
+    # hard_cases: the test set's runs on its hard families; one table and heat map
     "hard_table": "results/hard_cases/hard_cases.csv",
     "hard_heatmap": "results/hard_cases/hard_cases.png",
     # roll_stack (Sect. 9.3): both strip forces at one level, profiles, fields, solvers
@@ -154,8 +161,68 @@ def coarser_levels(config: dict, study: str, scene: str, level) -> list[int]:
 
 
 def scenes_of(config: dict, study: str) -> dict[str, list[int]]:
-    """``{scene: levels}`` a per-scene study runs (empty if the study is not configured)."""
+    """``{scene: levels}`` a per-scene study runs (empty if the study is not configured);
+    for the test set its families (levels by size class: :func:`test_set_runs`)."""
+    if study == "test_set":
+        if study not in config:
+            return {}
+        return {f: [] for f in config[study].get("families") or test_set_of(config).families}
     return dict(config.get(study, {}).get("scenes", {}))
+
+
+def test_set_of(config: dict):
+    """The test set the config names (``test_set.name``; the current one by default)."""
+    from workflows.test_set import CURRENT, load
+
+    return load(config.get("test_set", {}).get("name", CURRENT))
+
+
+def scenes_with_families(config: dict) -> dict:
+    """``config['scenes']`` with the test set's families added (a family is a scene: the
+    studies name the hard cases and variants by it, typed once in the set).
+
+    Raises
+    ------
+    ConfigError
+        If a scene of the config has a family's name but another definition.
+    """
+    scenes = dict(config.get("scenes") or {})
+    for family, entry in test_set_of(config).families.items():
+        entry = {"problem": entry["problem"], **({"params": dict(entry["params"])}
+                                                  if entry.get("params") else {})}
+        mine = scenes.get(family)
+        if mine is not None and ({**mine, "params": dict(mine.get("params") or {})}
+                                 != {**entry, "params": entry.get("params", {})}):
+            raise ConfigError(f"config 'scenes.{family}': the test set defines this name as "
+                              f"{entry}; allowed: another name, or leave it out")
+        scenes[family] = entry
+    return scenes
+
+
+def test_set_runs(config: dict) -> list[str]:
+    """Every run table of the test_set study: family x size class (with problems)."""
+    if "test_set" not in config:
+        return []
+    ts, cfg = test_set_of(config), config["test_set"]
+    return [PATHS["test_set_runs"].format(set=ts.id, size_class=c, scene=f)
+            for c in cfg["classes"] for f in scenes_of(config, "test_set")
+            if ts.problems(c, [f])]
+
+
+def test_set_hard_cases(config: dict) -> tuple[list[str], list[str]]:
+    """The run tables holding the hard cases and the cases as ``family:level``."""
+    if "test_set" not in config:
+        return [], []
+    ts = test_set_of(config)
+    cases, files = [], []
+    for family, levels in scenes_of(config, "hard_cases").items():
+        for level in levels:
+            cases.append(f"{family}:{level}")
+            for c in config["test_set"]["classes"]:
+                if any(p.level == level for p in ts.problems(c, [family])):
+                    files.append(PATHS["test_set_runs"].format(set=ts.id, size_class=c,
+                                                               scene=family))
+    return sorted(set(files)), cases
 
 
 def scene_problem(config: dict, scene: str) -> tuple[str, dict]:
@@ -203,11 +270,21 @@ STUDIES = {
             name="solver_comparison",
             summary="every registered solver at three tolerance presets on identical QPs: "
                     "verified status, KKT residuals, certified bound, time, memory, energy "
-                    "error; cost exponents and the ratio to the linear floor per scene; a "
-                    "qpbenchmark-style summary and performance profiles across scenes",
+                    "error; cost exponents and the ratio to the linear floor per scene",
             thesis="Ch. 8 (solvers) on the scenes of Ch. 9",
             outputs=("solver_table", "solver_presets", "solver_times", "solver_work",
-                     "solver_costs", "solver_summary", "solver_profiles"),
+                     "solver_costs"),
+        ),
+        Study(
+            name="test_set",
+            summary="the contact QP test set (workflows/config/test_sets/): every family at "
+                    "the configured size classes exported (contactbench export) and solved by "
+                    "every registered solver at every preset; qpbenchmark's summary (success "
+                    "and correct rates, shifted geometric means, performance profiles) "
+                    "overall, by size class and by scene; a work-precision figure per family",
+            thesis="Ch. 8 (solvers) on every scene of Ch. 9 and its hard variants",
+            outputs=("solver_summary", "solver_summary_by_class", "solver_summary_by_scene",
+                     "solver_summary_claims", "solver_profiles", "solver_work_precision"),
         ),
         Study(
             name="augmented_projection",
@@ -228,8 +305,8 @@ STUDIES = {
         ),
         Study(
             name="hard_cases",
-            summary="every registered solver at the mid preset, each in its own process with a "
-                    "hard time limit, on hard variants of the scenes (stiffness contrast, near "
+            summary="every registered solver at one preset (the test set's runs), each in its "
+                    "own process with a hard time limit, on hard variants of the scenes (stiffness contrast, near "
                     "incompressibility, mesh ratio, single-node and whole-edge contact, no "
                     "contact, initial penetration, SI units, grazing contact, a thin body): "
                     "verified status, certified bound, errors against the reference, time",
@@ -423,6 +500,7 @@ def check_config(config: dict) -> None:
     from problems.spec import ParameterError, problems
     from solvers.augmented_projection import VARIANTS
 
+    config = {**config, "scenes": scenes_with_families(config)}
     registry = problems()
     for scene, entry in config.get("scenes", {}).items():
         problem = entry["problem"]
@@ -466,6 +544,7 @@ def check_config(config: dict) -> None:
                               f"{runs.get(scene, [])}")
     _check_adaptive(config, registry)
     _check_roll_stack(config, registry)
+    _check_test_set(config)
     for rule, study in HEAVY_RULES.items():
         if study in config and not {"mem_mb", "runtime"} <= set(
                 config.get("resources", {}).get(rule, {})):
@@ -551,6 +630,44 @@ def _check_roll_stack(config: dict, registry: dict) -> None:
                           "(the fields' file names); allowed: distinct values in MN")
 
 
+def _check_test_set(config: dict) -> None:
+    """The test_set study: a known set, its families, registered solvers; every hard case
+    a family of the set at a level of the configured classes."""
+    from workflows.test_set import TestSetError
+
+    if "test_set" not in config:
+        if scenes_of(config, "hard_cases"):
+            raise ConfigError("config 'hard_cases': the hard cases are the test set's runs; "
+                              "allowed: with a 'test_set' entry")
+        return
+    cfg = config["test_set"]
+    try:
+        ts = test_set_of(config)
+        ts.problems(families=cfg.get("families") or None)
+    except TestSetError as err:
+        raise ConfigError(f"config 'test_set': {err}") from None
+    chosen = cfg.get("solvers", [])
+    if chosen:
+        from solvers.interface import solvers
+        unknown = sorted(set(chosen) - set(solvers()))
+        if unknown:
+            raise ConfigError(f"config 'test_set.solvers': {unknown} are not registered; "
+                              f"allowed: {', '.join(solvers())}")
+    hc = config.get("hard_cases", {})
+    run = set(scenes_of(config, "test_set"))
+    for family, levels in scenes_of(config, "hard_cases").items():
+        have = {p.level for c in cfg["classes"] for p in ts.problems(c, [family])} \
+            if family in ts.families else set()
+        if family not in run or not set(levels) <= have:
+            raise ConfigError(f"config 'hard_cases.scenes.{family}': levels {levels} are not "
+                              f"among the test set's runs; allowed: a family of "
+                              f"test_set.families at a level of test_set.classes "
+                              f"{cfg['classes']}")
+    if hc and hc.get("preset", "mid") not in cfg["presets"]:
+        raise ConfigError(f"config 'hard_cases.preset': {hc.get('preset')!r} is not run; "
+                          f"allowed: one of test_set.presets {cfg['presets']}")
+
+
 def log_path(rule: str, name: str = "{scene}") -> str:
     """The log file of a rule's job (``name`` may hold wildcards)."""
     return PATHS["log"].format(rule=rule, name=name)
@@ -569,7 +686,8 @@ HEAVY_RULES = {
     "solver_comparison": "solver_comparison",
     "augmented_projection_study": "augmented_projection",
     "exact_reference": "exact_reference",
-    "hard_case": "hard_cases",
+    "test_set_export": "test_set",
+    "test_set_runs": "test_set",
     "adaptive_study": "adaptive",
     "patch_test": "adaptive",
     "roll_stack_study": "roll_stack",

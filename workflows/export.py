@@ -1,0 +1,246 @@
+"""Export a test set's problems as plain files that a QP user reads without the suite.
+
+Convention: ``min 1/2 x'Px + q'x  s.t.  Gx <= h`` with ``P`` the stiffness, ``q = -f``,
+``G`` the contact rows and ``h`` the gaps. A stabilised problem (the thesis's
+Sect. 7.5, a ``C`` block) is exported in its slack form
+(:func:`problems.slack.slack_form`): ``x = (u, s)``, ``s_i = c_i z_i``. Each problem
+is a folder ``<out>/<problem>/``::
+
+    P.mtx q.mtx G.mtx h.mtx   Matrix Market, as scipy.io.mmwrite writes them
+    problem.npz                the same arrays (P, G as CSR: *_data, *_indices, *_indptr, *_shape)
+    solution.npz               the exact reference: x, z (multipliers of Gx <= h)
+    meta.json                  objective, scene, level, parameters, sizes, units, norms,
+                               a condition estimate, the reference's residuals, checksums
+
+and ``<out>/index.json`` lists them; ``<out>/contact_qp.py`` is qpbenchmark's test-set
+module for the folder (``qpbenchmark <out>/contact_qp.py run ...``). A set is written
+into a temporary folder beside ``out`` and renamed into place when complete: an
+interrupted export leaves nothing behind, an existing one is replaced only when asked.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import shutil
+import tempfile
+from pathlib import Path
+
+import numpy as np
+import scipy.io
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from problems.floating import floating_modes
+from problems.slack import slack_form
+from workflows.io import provenance
+from workflows.test_set import SetProblem, TestSet
+
+CONVENTION = "min 1/2 x'Px + q'x  s.t.  Gx <= h"
+#: The qpbenchmark test-set module copied into every export (class ContactQp).
+QPBENCHMARK_MODULE = Path(__file__).resolve().parent / "data" / "contact_qp.py"
+#: Largest n whose condition number is estimated (a few solves with A each).
+CONDITION_LIMIT = 300_000
+MATRICES = ("P", "q", "G", "h")
+
+
+class ExportError(ValueError):
+    """An output folder that may not be written (the message says why)."""
+
+
+def qp_arrays(qp) -> dict[str, np.ndarray | sp.csr_matrix]:
+    """``P, q, G, h`` of ``qp`` in the exported convention (the slack form if ``qp.C``)."""
+    s = slack_form(qp)
+    return {"P": sp.csr_matrix(s.A), "q": -np.asarray(s.f, dtype=float),
+            "G": sp.csr_matrix(s.B), "h": np.asarray(s.g, dtype=float)}
+
+
+def exported_solution(qp, u: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """``x`` of the exported problem for the contact solution ``(u, p)``: ``u``, or
+    ``(u, s)`` with ``s = c p`` on the penalised rows of the slack form."""
+    if qp.C is None:
+        return np.asarray(u, dtype=float)
+    c = qp.C.diagonal()
+    return np.concatenate([u, (c * p)[c > 0]])
+
+
+def objective(qp, u: np.ndarray, p: np.ndarray) -> float:
+    """``1/2 x'Px + q'x`` at ``x`` = :func:`exported_solution` (the energy
+    ``1/2 u'Au - f'u``, plus ``1/2 p'Cp`` for a stabilised problem)."""
+    J = 0.5 * float(u @ (qp.A @ u)) - float(qp.f @ u)
+    if qp.C is not None:
+        J += 0.5 * float(p @ (qp.C @ p))
+    return J
+
+
+def condition_estimate(qp) -> dict:
+    """``kappa_1(P)`` by Hager-Higham's 1-norm estimates of ``P`` and ``P^-1``
+    (``scipy.sparse.linalg.onenormest``; ``P^-1`` through the verification's linear
+    solver, :func:`solvers.certificate.linear_solver`)."""
+    from solvers.certificate import linear_solver
+
+    if qp.n > CONDITION_LIMIT:
+        return {"kappa_1": None, "method": f"not estimated above n = {CONDITION_LIMIT}"}
+    solve_A = linear_solver(qp)
+    inv = spla.LinearOperator(qp.A.shape, matvec=solve_A, rmatvec=solve_A, dtype=float)
+    norm_P, norm_inv = spla.onenormest(qp.A), spla.onenormest(inv)
+    if qp.C is not None:                         # P = blockdiag(A, diag(1/c)) on c > 0
+        c = qp.C.diagonal()
+        c = c[c > 0]
+        if c.size:
+            norm_P, norm_inv = max(norm_P, float(np.max(1 / c))), max(norm_inv, float(np.max(c)))
+    return {"kappa_1": float(norm_P * norm_inv), "norm_1_P": float(norm_P),
+            "norm_1_P_inverse": float(norm_inv),
+            "method": "scipy.sparse.linalg.onenormest of P and of P^-1 (Hager-Higham)"}
+
+
+def _sha256(path: Path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for chunk in iter(lambda: fh.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+def write_problem(folder: Path, item: SetProblem, set_id: str, reference_tol: float = 1e-10,
+                  qp=None) -> dict:
+    """Build ``item``, solve it exactly and write its folder; returns its index entry.
+
+    Raises
+    ------
+    RuntimeError
+        If the exact reference does not converge (nothing is exported then).
+    """
+    from solvers.reference import reference_solve
+
+    qp = item.build() if qp is None else qp
+    ref = reference_solve(qp, tol=reference_tol)
+    if ref.status != "converged":
+        raise RuntimeError(f"the exact reference failed on {item.name}: {ref.status} "
+                           f"{ref.message}")
+    arrays = qp_arrays(qp)
+    folder.mkdir(parents=True)
+    for key, value in arrays.items():
+        scipy.io.mmwrite(folder / f"{key}.mtx",
+                         value if sp.issparse(value) else value.reshape(-1, 1),
+                         comment=f"{set_id} {item.name}: {key} of {CONVENTION}")
+    P, G = arrays["P"], arrays["G"]
+    np.savez_compressed(folder / "problem.npz", q=arrays["q"], h=arrays["h"],
+                        **{f"{k}_{a}": getattr(M, a) for k, M in (("P", P), ("G", G))
+                           for a in ("data", "indices", "indptr")},
+                        P_shape=np.array(P.shape), G_shape=np.array(G.shape))
+    x = exported_solution(qp, ref.u, ref.p)
+    # the reference's multipliers are >= 0 up to round-off (-1e-17 where a row is inactive)
+    np.savez_compressed(folder / "solution.npz", x=x,
+                        z=np.maximum(np.asarray(ref.p, dtype=float), 0.0))
+    J = objective(qp, ref.u, ref.p)
+    meta = {
+        "name": item.name, "set": set_id, "family": item.family, "problem": item.problem,
+        "level": item.level, "size_class": item.size_class,
+        "params": dict(problems_options(item)), "dim": qp.dim, "units": qp.units,
+        "convention": CONVENTION,
+        "form": ("slack form of the stabilised problem (Sect. 7.5): x = (u, s), "
+                 "s_i = c_i z_i on the penalised rows" if qp.C is not None else
+                 "x = u, the displacements of both bodies (Dirichlet unknowns eliminated)"),
+        "n": int(P.shape[0]), "m": int(G.shape[0]), "n_displacements": int(qp.n),
+        "nnz_P": int(P.nnz), "nnz_G": int(G.nnz),
+        "objective": J,
+        "solution": {"file": "solution.npz", "x": "x", "z": "z",
+                     "active_rows": int(np.sum(ref.p > 0))},
+        "reference": {"solver": ref.solver, "status": ref.status, "tol": reference_tol,
+                      "kkt": ref.kkt.as_dict(prefix="") if ref.kkt is not None else None,
+                      "relative_energy_bound": ref.gap.relative_energy_bound
+                      if ref.gap is not None else None},
+        "norms": {"P_max": float(abs(P).max()) if P.nnz else 0.0,
+                  "P_fro": float(spla.norm(P)), "q_inf": float(np.max(np.abs(arrays["q"]))),
+                  "G_max": float(abs(G).max()) if G.nnz else 0.0,
+                  "h_inf": float(np.max(np.abs(arrays["h"]), initial=0.0)),
+                  "x_inf": float(np.max(np.abs(x))), "z_inf": float(np.max(ref.p, initial=0.0))},
+        "condition": condition_estimate(qp),
+        "floating_modes": int(floating_modes(qp).shape[1]),
+        "files": {},
+    }
+    meta["files"] = {f.name: _sha256(f) for f in sorted(folder.iterdir())}
+    (folder / "meta.json").write_text(json.dumps(meta, indent=1) + "\n", encoding="utf-8")
+    return {"name": item.name, "family": item.family, "problem": item.problem,
+            "level": item.level, "size_class": item.size_class, "n": meta["n"], "m": meta["m"],
+            "objective": J, "folder": item.name, "meta_sha256": _sha256(folder / "meta.json")}
+
+
+def problems_options(item: SetProblem) -> dict:
+    """Every parameter of ``item``'s problem (the overrides and the defaults)."""
+    from problems.spec import problems
+
+    return dict(problems()[item.problem].options(**item.params))
+
+
+def check_out(out: Path, force: bool) -> None:
+    """Refuse an output folder that exists (unless ``force``) or cannot be made."""
+    if out.exists() and not force:
+        raise ExportError(f"option '--out': {str(out)!r} exists; allowed: a new folder, or "
+                          "--force to replace it")
+    if out.exists() and not out.is_dir():
+        raise ExportError(f"option '--out': {str(out)!r} is not a folder")
+    parent = out.parent
+    if not parent.is_dir():
+        raise ExportError(f"option '--out': directory {str(parent)!r} does not exist")
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise ExportError(f"option '--out': directory {str(parent)!r} is not writable")
+
+
+def export_set(ts: TestSet, size_class: str, out: str | os.PathLike, force: bool = False,
+               families: list[str] | None = None, progress: bool = True) -> Path:
+    """Write the problems of ``ts`` in ``size_class`` (of ``families``) to ``out``.
+
+    The folder appears complete or not at all (written beside it, renamed into place).
+    Returns ``out``.
+    """
+    from tqdm import tqdm
+
+    out = Path(out)
+    check_out(out, force)
+    items = ts.problems(size_class, families)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.partial-", dir=out.parent))
+    try:
+        entries = [write_problem(tmp / item.name, item, ts.id)
+                   for item in tqdm(items, desc=f"export {ts.id} {size_class}",
+                                    disable=not progress)]
+        index = {"set": ts.id, "name": ts.name, "version": ts.version,
+                 "description": ts.description, "size_class": size_class,
+                 "convention": CONVENTION, "problems": entries,
+                 "families": sorted({e["family"] for e in entries}),
+                 "qpbenchmark": f"qpbenchmark {out}/contact_qp.py run --solver osqp "
+                                f"--settings mid_accuracy --results-path "
+                                f"{out}/results/osqp.csv --author <name>",
+                 "provenance": provenance()}
+        (tmp / "index.json").write_text(json.dumps(index, indent=1) + "\n", encoding="utf-8")
+        shutil.copyfile(QPBENCHMARK_MODULE, tmp / "contact_qp.py")
+        if out.exists():                 # --force: the old set goes only once the new is whole
+            old = out.with_name(f".{out.name}.old-{os.getpid()}")
+            out.rename(old)
+            tmp.rename(out)
+            shutil.rmtree(old)
+        else:
+            tmp.rename(out)
+    finally:
+        if tmp.exists():
+            shutil.rmtree(tmp)
+    return out
+
+
+def load_problem(folder: str | os.PathLike, source: str = "npz") -> dict:
+    """``P, q, G, h`` of an exported problem, from ``problem.npz`` or the ``.mtx`` files
+    (``source``), as CSR matrices and 1-D arrays."""
+    folder = Path(folder)
+    if source == "mtx":
+        read = {k: scipy.io.mmread(folder / f"{k}.mtx") for k in MATRICES}
+        return {"P": sp.csr_matrix(read["P"]), "G": sp.csr_matrix(read["G"]),
+                "q": np.asarray(read["q"], dtype=float).ravel(),
+                "h": np.asarray(read["h"], dtype=float).ravel()}
+    if source != "npz":
+        raise ValueError(f"source {source!r} is not allowed; allowed: npz, mtx")
+    with np.load(folder / "problem.npz") as z:
+        def csr(k):
+            return sp.csr_matrix((z[f"{k}_data"], z[f"{k}_indices"], z[f"{k}_indptr"]),
+                                 shape=tuple(z[f"{k}_shape"]))
+        return {"P": csr("P"), "G": csr("G"), "q": z["q"], "h": z["h"]}
