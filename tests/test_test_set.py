@@ -16,6 +16,7 @@ import pytest
 
 from workflows.cli import main as cli
 from workflows.export import load_problem
+from workflows.export import objective as suite_objective
 from workflows.test_set import CLASSES, CURRENT, TestSetError, load
 
 SMALL_LIMIT = 20_000          # the quick run's budget: the small class stays below it
@@ -157,7 +158,6 @@ def test_qpbenchmark_runner_agrees_with_the_suite(small, tmp_path):
                 sol, _ = time_solve_problem(problem, "clarabel",
                                             **test_set.solver_settings[settings]["clarabel"])
                 J_theirs = 0.5 * sol.x @ (problem.P @ sol.x) + problem.q @ sol.x
-                from workflows.export import objective as suite_objective
                 J_ours = suite_objective(qp, ours.u, ours.p)
                 assert abs(J_theirs - J_ours) <= 1e-6 * abs(J_ref), problem.name
                 compared += 1

@@ -19,7 +19,6 @@ interrupted export leaves nothing behind, an existing one is replaced only when 
 """
 from __future__ import annotations
 
-import hashlib
 import json
 import os
 import shutil
@@ -33,7 +32,7 @@ import scipy.sparse.linalg as spla
 
 from problems.floating import floating_modes
 from problems.slack import slack_form
-from workflows.io import provenance
+from workflows.io import _sha256 as file_digest, provenance
 from workflows.test_set import SetProblem, TestSet
 
 CONVENTION = "min 1/2 x'Px + q'x  s.t.  Gx <= h"
@@ -94,16 +93,8 @@ def condition_estimate(qp) -> dict:
             "method": "scipy.sparse.linalg.onenormest of P and of P^-1 (Hager-Higham)"}
 
 
-def _sha256(path: Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for chunk in iter(lambda: fh.read(1 << 20), b""):
-            h.update(chunk)
-    return h.hexdigest()
-
-
-def write_problem(folder: Path, item: SetProblem, set_id: str, reference_tol: float = 1e-10,
-                  qp=None) -> dict:
+def write_problem(folder: Path, item: SetProblem, set_id: str,
+                  reference_tol: float = 1e-10) -> dict:
     """Build ``item``, solve it exactly and write its folder; returns its index entry.
 
     Raises
@@ -113,7 +104,7 @@ def write_problem(folder: Path, item: SetProblem, set_id: str, reference_tol: fl
     """
     from solvers.reference import reference_solve
 
-    qp = item.build() if qp is None else qp
+    qp = item.build()
     ref = reference_solve(qp, tol=reference_tol)
     if ref.status != "converged":
         raise RuntimeError(f"the exact reference failed on {item.name}: {ref.status} "
@@ -160,11 +151,12 @@ def write_problem(folder: Path, item: SetProblem, set_id: str, reference_tol: fl
         "floating_modes": int(floating_modes(qp).shape[1]),
         "files": {},
     }
-    meta["files"] = {f.name: _sha256(f) for f in sorted(folder.iterdir())}
+    meta["files"] = {f.name: file_digest(f)[0] for f in sorted(folder.iterdir())}
     (folder / "meta.json").write_text(json.dumps(meta, indent=1) + "\n", encoding="utf-8")
     return {"name": item.name, "family": item.family, "problem": item.problem,
             "level": item.level, "size_class": item.size_class, "n": meta["n"], "m": meta["m"],
-            "objective": J, "folder": item.name, "meta_sha256": _sha256(folder / "meta.json")}
+            "objective": J, "folder": item.name,
+            "meta_sha256": file_digest(folder / "meta.json")[0]}
 
 
 def problems_options(item: SetProblem) -> dict:
