@@ -42,7 +42,8 @@ $(CHROMIUM):
 # the solver tests, run once more under every other OpenBLAS kernel the CPU can run
 # (tests/blas_kernels.py): rounding must not decide a solve
 SOLVER_TESTS := tests/test_rounding.py tests/test_solvers.py tests/test_semismooth_newton.py \
-	tests/test_augmented_projection.py tests/test_cholesky.py tests/test_qp.py tests/test_two_body.py
+	tests/test_augmented_projection.py tests/test_cholesky.py tests/test_qp.py tests/test_two_body.py \
+	tests/test_tnnmg.py
 
 test: setup browser
 	CONTACTBENCH_CHROMIUM=$(CHROMIUM) $(BIN)/python -m pytest -q

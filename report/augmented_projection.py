@@ -25,7 +25,11 @@ from workflows.io import read_csv, write_csv  # noqa: E402
 
 MAIN = "alg84"
 #: Rows of the study that are not configurations of Alg. 8.4 (besides the ``amg_pcg_*`` floor).
-NOT_VARIANTS = ("reference", "semismooth_newton")
+NOT_VARIANTS = ("reference", "semismooth_newton", "tnnmg", "tnnmg_nested")
+#: Truncated nonsmooth Newton multigrid's rows (issue 23's bars: time to the target over the
+#: fastest linear multigrid-PCG solve at the finest level, 2D and 3D; step growth).
+TNNMG_ROWS = ("tnnmg", "tnnmg_nested")
+TNNMG_TIME_BAR = {2: 2.0, 3: 2.5}
 
 
 def read_thesis(path: str | Path | None) -> pd.DataFrame | None:
@@ -101,8 +105,36 @@ def claims(study: pd.DataFrame, config: str = MAIN) -> pd.DataFrame:
                                   f"/ fastest AMG-PCG linear solve (N = {int(row['N'].iloc[0])}; "
                                   "coarse levels of nested iteration included)",
                          "measured": r, "bar": bar, "pass": bool(r <= bar)})
+    rows += tnnmg_claims(study)
     return pd.DataFrame(rows)
 
+
+def tnnmg_claims(study: pd.DataFrame) -> list[dict]:
+    """TNNMG's bars: steps to the target grow by at most 15% from the second-finest to the
+    finest level; time to the target (coarse levels included) over the fastest linear
+    multigrid-PCG solve of the same system at the finest level."""
+    rows = []
+    for config in TNNMG_ROWS:
+        ours = study[study.config == config].sort_values("N")
+        ours = ours[ours["n_to_target"] > 0] if "n_to_target" in ours else ours.iloc[:0]
+        if len(ours) >= 2:
+            n = ours["n_to_target"].to_numpy(float)
+            growth = n[-1] / n[-2] - 1
+            rows.append({"claim": f"{config}: steps to the energy-error target, growth "
+                                  "second-finest -> finest", "measured": growth, "bar": 0.15,
+                         "pass": bool(growth <= 0.15)})
+        finest = study[study.level == study.level.max()]
+        floor = finest[finest.config.str.startswith("amg_pcg")]["t_to_target"]
+        row = finest[finest.config == config]
+        if len(row) and floor.notna().any() and np.isfinite(row["t_to_target"].iloc[0]):
+            dim = int(finest["dim"].iloc[0]) if "dim" in finest else 2
+            r = float(time_to_target(row).iloc[0] / floor.min())
+            bar = TNNMG_TIME_BAR.get(dim, 3.0)
+            rows.append({"claim": f"{config}: time to the energy-error target / fastest "
+                                  f"AMG-PCG linear solve (N = {int(row['N'].iloc[0])}; coarse "
+                                  "levels included)", "measured": r, "bar": bar,
+                         "pass": bool(r <= bar)})
+    return rows
 
 
 def figure_time(study: pd.DataFrame, thesis: pd.DataFrame | None, path: str) -> None:
@@ -114,6 +146,9 @@ def figure_time(study: pd.DataFrame, thesis: pd.DataFrame | None, path: str) -> 
         if config.startswith("amg_pcg"):
             t, style = time_to_target(grp), "k:" if config.endswith("gmg") else "k-."
             label = f"{config} (linear solve, no contact; floor)"
+        elif config in TNNMG_ROWS:
+            t, style = time_to_target(grp), "v-"
+            label = f"{config} (TNNMG, not Alg. 8.4; time to the target)"
         elif config in NOT_VARIANTS:
             t, style = grp["t_setup"] + grp["t_solve"], "d-."
             label = f"{config} (not Alg. 8.4; to its certified stop at the target)"

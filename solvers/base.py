@@ -22,6 +22,10 @@ from problems.spec import Options, Parameter, ParameterError, resolve_parameters
 #: Tolerance presets; each solver maps them to its own options (``SolverSpec.presets``).
 TOLERANCES = {"low": 1e-3, "mid": 1e-6, "high": 1e-9}
 
+#: The presets of a solver that stops on the suite's verification (semismooth Newton, TNNMG).
+VERIFIED_PRESETS = {name: "stop when verified: KKT and certified energy bound <= "
+                          + f"{tol:.0e}".replace("e-0", "e-") for name, tol in TOLERANCES.items()}
+
 #: Status values of a :class:`SolveResult`. ``skipped``: the solver declared at once that it
 #: cannot take the problem (:meth:`SolverSpec.check`); the message says why.
 STATUSES = ("converged", "inaccurate", "max_iter", "time_limit", "failed", "skipped")

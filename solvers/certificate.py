@@ -75,7 +75,17 @@ class DualityGap:
 
     def meets(self, tol: float) -> bool:
         """The certified relative energy bound is <= ``tol`` (or at its floor)."""
-        return self.certified and self.relative_energy_bound <= max(tol, 4.0 * self.floor)
+        return self.certified and self.relative_energy_bound <= certifiable(tol, self.floor)
+
+
+#: How far above its floating-point floor a bound counts as "at the floor".
+FLOOR_FACTOR = 4.0
+
+
+def certifiable(tol, floor):
+    """The energy-error level a run at ``tol`` is certified to: ``tol``, or the bound's
+    floor (times :data:`FLOOR_FACTOR`) where that is higher (arrays work too)."""
+    return np.maximum(tol, FLOOR_FACTOR * np.asarray(floor, dtype=float))
 
 
 def _pivots(qp: ContactQP, B: sp.csr_matrix) -> tuple[np.ndarray, np.ndarray]:

@@ -50,7 +50,7 @@ from problems.qp import ContactQP
 from problems.spec import ComponentParameter, Options, Parameter, ParameterError
 from solvers.face import FACE_PROJECTION, FaceProjector, face_hops, face_projector
 from solvers.multigrid import AHAT, component_vcycle
-from solvers.base import Role, SolveResult, SolverSpec
+from solvers.base import VERIFIED_PRESETS, Role, SolveResult, SolverSpec
 from solvers.certificate import certify
 from solvers.active_set import (check_positive_diagonal, damped_update, initial_active_set,
                                 pdas_update, stiffness_scale)
@@ -435,9 +435,7 @@ SOLVER = SolverSpec(
         Parameter("flip_tol", 1e-13, "relative size below which a sign change does not "
                   "change the active set", low=0.0, high=1e-6),
     ),
-    presets={"low": "stop when verified: KKT and certified energy bound <= 1e-3",
-             "mid": "stop when verified: KKT and certified energy bound <= 1e-6",
-             "high": "stop when verified: KKT and certified energy bound <= 1e-9"},
+    presets=VERIFIED_PRESETS,
     default_max_iter=100,
     role=Role.NEWTON,
 )

@@ -206,3 +206,15 @@ def test_a_rebuilt_problem_that_differs_from_its_export_is_refused(small, tmp_pa
                         P_shape=np.array(d["P"].shape), G_shape=np.array(d["G"].shape))
     with pytest.raises(RuntimeError, match="rebuilt h differs"):
         check_identical(qp, folder)
+
+
+def test_a_run_is_correct_to_what_the_verification_certifies():
+    """At the high preset the certified bound bottoms out at its floating-point floor
+    (~1e-7 relative): a verified run there is correct up to that floor, not to 1e-9;
+    below the floor the tolerance itself is the bar."""
+    from report.solver_summary import accurate_runs
+
+    t = pd.DataFrame({"tol": [1e-9, 1e-9, 1e-6, 1e-6],
+                      "energy_bound_floor": [8e-8, 8e-8, 8e-8, np.nan],
+                      "energy_error": [5e-9, 4e-7, 9e-7, 2e-6]})
+    assert accurate_runs(t).tolist() == [True, False, True, False]

@@ -1,0 +1,237 @@
+"""Nodal contact constraints as bounds on single unknowns: the change of variables of
+Krause and Wohlmuth, what truncated nonsmooth Newton multigrid needs (:mod:`solvers.tnnmg`).
+
+Each row ``i`` of ``B`` (Alg. 7.1, (7.14)) constrains one node ``s_i`` of the constrained
+surface against the interpolant on an opposing facet::
+
+    B_i u = b_i' u_s + sum_j B_ij u_j  <=  g_i        (j: the opposing facet's unknowns)
+
+With ``beta_i = |b_i|`` and ``n_i = b_i / beta_i`` the new unknowns at ``s_i`` are the
+relative normal displacement and the tangential complements (a Householder frame
+``H_i = [n_i, t_i...]``, symmetric and orthogonal, ``H_i e_1 = n_i``)::
+
+    v_s = H_i u_s + e_1 (sum_j B_ij u_j) / beta_i,    so that    B_i u = beta_i v_s[0],
+
+and every other unknown is kept (``v_j = u_j``). The inverse is
+``u_s = H_i v_s - n_i (sum_j B_ij v_j) / beta_i``. Row ``i`` becomes the bound
+``v_s[0] <= g_i / beta_i`` on one unknown; ``u = T v`` with ``T`` sparse (a constrained
+node's rows reach its opposing facet's unknowns), so ``T' A T`` stays sparse; the
+energy, the feasible set and the minimiser are the same (exact, up to round-off).
+
+The transformation needs what nodal constraints give: each row's constrained node has
+unknowns of its own that no other row touches (one row per node). The scene names that
+node (``qp.contact.nodes``); without contact-surface data (an exported or generated
+problem) it is the row's node that no other row touches, the one with the largest
+coefficients where there are several. Stabilised problems (Sect. 7.5, reverse rows on
+the opposing surface; they reach the solver in slack form) and mortar rows (weighted
+gaps: a non-diagonal ``D`` shares constrained nodes between rows) do not have that
+structure; :func:`check_structure` says why.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+from problems.qp import ContactQP
+
+
+class TransformationError(ValueError):
+    """The constraints are not nodal constraints with one row per constrained node."""
+
+
+@dataclass
+class BoxTransformation:
+    """``u = T v`` turning ``B u <= g`` into ``v[pivot] <= upper`` (module docstring).
+
+    Attributes
+    ----------
+    T, T_inv : (n, n) csr
+        ``u = T v`` and ``v = T_inv u``.
+    pivot : (m,) int array
+        The unknown of ``v`` that row ``i`` bounds (first unknown of its node block).
+    scale : (m,) array
+        ``beta_i``: ``B_i u = beta_i v[pivot_i]``.
+    upper : (m,) array
+        ``g_i / beta_i``.
+    node_ptr, node_dofs : int arrays
+        The unknowns grouped by mesh node (block ``k`` is
+        ``node_dofs[node_ptr[k]:node_ptr[k+1]]``, components in order).
+    block_row : (n_blocks,) int array
+        The row of ``B`` bounding block ``k``'s first unknown, or -1.
+    """
+
+    T: sp.csr_matrix
+    T_inv: sp.csr_matrix
+    pivot: np.ndarray
+    scale: np.ndarray
+    upper: np.ndarray
+    node_ptr: np.ndarray
+    node_dofs: np.ndarray
+    block_row: np.ndarray
+
+    def to_u(self, v: np.ndarray) -> np.ndarray:
+        return self.T @ v
+
+    def to_v(self, u: np.ndarray) -> np.ndarray:
+        return self.T_inv @ u
+
+    def multipliers(self, residual_v: np.ndarray, active: np.ndarray) -> np.ndarray:
+        """``p`` of ``B u <= g`` from the residual ``f~ - A~ v`` of the transformed problem:
+        ``p_i = max(r[pivot_i], 0) / beta_i`` on the ``active`` rows (``T' B' p = beta p``
+        at the pivots), 0 on the others (their residual is the stationarity error)."""
+        return np.where(active, np.maximum(residual_v[self.pivot], 0.0) / self.scale, 0.0)
+
+
+def _node_blocks(qp: ContactQP) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(node_ptr, node_dofs, node_of_block)``: the unknowns grouped by mesh node."""
+    free = np.arange(qp.n) if qp.free_dofs is None else np.asarray(qp.free_dofs)
+    node, comp = free // qp.dim, free % qp.dim
+    order = np.lexsort((comp, node))
+    sorted_nodes = node[order]
+    starts = np.flatnonzero(np.r_[True, sorted_nodes[1:] != sorted_nodes[:-1]])
+    node_ptr = np.r_[starts, qp.n].astype(np.int64)
+    return node_ptr, order.astype(np.int64), sorted_nodes[starts]
+
+
+def check_structure(qp: ContactQP) -> tuple[bool, str]:
+    """``(True, "")`` if :func:`box_transformation` can take ``qp``, else ``(False, why)``.
+    Cheap (a few sparse passes)."""
+    try:
+        _rows_and_slaves(qp)
+    except TransformationError as err:
+        return False, str(err)
+    return True, ""
+
+
+def _rows_and_slaves(qp: ContactQP):
+    """The node blocks and, per row, its constrained node's block; checks the structure."""
+    if qp.C is not None or qp.stabilisation is not None:
+        raise TransformationError("stabilised constraints (Sect. 7.5): the reverse rows "
+                                  "constrain the opposing surface too, so the rows are not "
+                                  "one per constrained node")
+    if qp.m == 0:
+        node_ptr, node_dofs, _ = _node_blocks(qp)
+        return node_ptr, node_dofs, np.zeros(0, dtype=np.int64)
+    node_ptr, node_dofs, node_of_block = _node_blocks(qp)
+    if qp.contact is not None and len(qp.contact.nodes) == qp.m:
+        nodes = np.asarray(qp.contact.nodes)
+    else:
+        nodes = _own_nodes(qp, node_ptr, node_dofs, node_of_block)
+    if np.unique(nodes).size != nodes.size:
+        raise TransformationError("a node carries more than one constraint row")
+    where = np.searchsorted(node_of_block, nodes)
+    where = np.minimum(where, node_of_block.size - 1)
+    if np.any(node_of_block[where] != nodes):
+        raise TransformationError("a constrained node has no free unknowns")
+    # each constrained node's unknowns appear in its own row only
+    B = qp.B.tocsc()
+    size = node_ptr[where + 1] - node_ptr[where]
+    for a in range(int(size.max())):
+        rows = np.flatnonzero(size > a)
+        cols = node_dofs[node_ptr[where[rows]] + a]
+        count = np.diff(B.indptr)[cols]
+        one = count == 1
+        if np.any(count > 1) or np.any(B.indices[B.indptr[cols[one]]] != rows[one]):
+            raise TransformationError("a constrained node's unknowns appear in other rows "
+                                      "of B (rows are not one per constrained node)")
+    return node_ptr, node_dofs, where
+
+
+def _own_nodes(qp: ContactQP, node_ptr, node_dofs, node_of_block) -> np.ndarray:
+    """Without contact-surface data: per row, the node whose unknowns no other row touches
+    (the constrained node of a nodal constraint), the one with the largest coefficients
+    where there are several."""
+    B = qp.B.tocoo()
+    block_of_dof = np.empty(qp.n, dtype=np.int64)
+    block_of_dof[node_dofs] = np.repeat(np.arange(node_ptr.size - 1), np.diff(node_ptr))
+    blk = block_of_dof[B.col]
+    nb = node_ptr.size - 1
+    lo = np.full(nb, qp.m, dtype=np.int64)
+    hi = np.full(nb, -1, dtype=np.int64)
+    np.minimum.at(lo, blk, B.row)
+    np.maximum.at(hi, blk, B.row)
+    weight = np.zeros(nb)
+    np.add.at(weight, blk, B.data ** 2)
+    own = np.flatnonzero((lo == hi) & (hi >= 0))
+    order = np.lexsort((-weight[own], lo[own]))        # per row, heaviest first
+    rows, first = np.unique(lo[own][order], return_index=True)
+    if rows.size != qp.m:
+        missing = np.setdiff1d(np.arange(qp.m), rows)
+        raise TransformationError(f"{missing.size} rows of B have no node of their own (first: "
+                                  f"row {int(missing[0])}): not one row per constrained node")
+    return node_of_block[own[order][first]]
+
+
+def box_transformation(qp: ContactQP) -> BoxTransformation:
+    """The change of variables of the module docstring for ``qp``.
+
+    Raises
+    ------
+    TransformationError
+        If the constraints lack the structure (:func:`check_structure` says why).
+    """
+    node_ptr, node_dofs, block_of_row = _rows_and_slaves(qp)
+    n, m, d = qp.n, qp.m, qp.dim
+    block_row = -np.ones(node_ptr.size - 1, dtype=np.int64)
+    block_row[block_of_row] = np.arange(m)
+    if m == 0:
+        eye = sp.identity(n, format="csr")
+        return BoxTransformation(eye, eye, np.zeros(0, np.int64), np.zeros(0), np.zeros(0),
+                                 node_ptr, node_dofs, block_row)
+    B = qp.B.tocsr()
+    k = node_ptr[block_of_row + 1] - node_ptr[block_of_row]          # unknowns per node
+    slave = -np.ones((m, d), dtype=np.int64)                         # padded unknowns
+    for a in range(d):
+        has = k > a
+        slave[has, a] = node_dofs[node_ptr[block_of_row[has]] + a]
+    b = np.zeros((m, d))
+    for a in range(d):
+        has = slave[:, a] >= 0
+        b[has, a] = np.asarray(B[np.flatnonzero(has), slave[has, a]]).ravel()
+    beta = np.linalg.norm(b, axis=1)
+    row_norm = np.sqrt(np.asarray(B.multiply(B).sum(axis=1)).ravel())
+    weak = beta <= 1e-8 * row_norm
+    if np.any(weak):
+        raise TransformationError(f"{int(weak.sum())} rows do not move their constrained node "
+                                  f"(first: row {int(np.flatnonzero(weak)[0])})")
+    normal = b / beta[:, None]
+    # Householder frames H = I - 2 w w'/(w'w), w = e_1 - n (H = I where n = e_1)
+    w = -normal.copy()
+    w[:, 0] += 1.0
+    ww = np.einsum("ij,ij->i", w, w)
+    coef = np.where(ww > 1e-30, 2.0 / np.where(ww > 1e-30, ww, 1.0), 0.0)
+    H = np.eye(d)[None] - coef[:, None, None] * w[:, :, None] * w[:, None, :]
+    # the rows' other entries (the opposing facet's unknowns)
+    is_slave = np.zeros(n, dtype=bool)
+    is_slave[slave[slave >= 0]] = True
+    coo = B.tocoo()
+    other = ~is_slave[coo.col]
+    r_o, c_o, val_o = coo.row[other], coo.col[other], coo.data[other] / beta[coo.row[other]]
+    keep = np.flatnonzero(~is_slave)
+    rows_t, cols_t, vals_t = [keep], [keep], [np.ones(keep.size)]
+    rows_i, cols_i, vals_i = [keep], [keep], [np.ones(keep.size)]
+    for a in range(d):
+        for c in range(d):
+            has = (slave[:, a] >= 0) & (slave[:, c] >= 0)
+            for rows, cols, vals in ((rows_t, cols_t, vals_t), (rows_i, cols_i, vals_i)):
+                rows.append(slave[has, a])
+                cols.append(slave[has, c])
+                vals.append(H[has, a, c])
+        has = slave[r_o, a] >= 0
+        rows_t.append(slave[r_o[has], a])
+        cols_t.append(c_o[has])
+        vals_t.append(-normal[r_o[has], a] * val_o[has])
+    rows_i.append(slave[r_o, 0])
+    cols_i.append(c_o)
+    vals_i.append(val_o)
+    T = sp.csr_matrix((np.concatenate(vals_t), (np.concatenate(rows_t), np.concatenate(cols_t))),
+                      shape=(n, n))
+    T_inv = sp.csr_matrix((np.concatenate(vals_i),
+                           (np.concatenate(rows_i), np.concatenate(cols_i))), shape=(n, n))
+    T.eliminate_zeros()
+    T_inv.eliminate_zeros()
+    pivot = slave[:, 0]
+    return BoxTransformation(T, T_inv, pivot, beta, qp.g / beta, node_ptr, node_dofs,
+                             block_row)

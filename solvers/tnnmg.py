@@ -1,0 +1,376 @@
+"""Truncated nonsmooth Newton multigrid (TNNMG): the contact community's fastest method.
+
+Gräser and Kornhuber (J. Comput. Math. 27, 2009), Gräser and Sander (IMA J. Numer. Anal.
+39, 2019; the dune-tnnmg module). The nodal constraints become bounds on single unknowns
+by the change of variables of Krause and Wohlmuth (:mod:`solvers.contact_box`:
+``u = T v``, ``A~ = T' A T``, ``v[pivot] <= upper``). One step from ``v``:
+
+1. nonlinear presmoothing: ``presmoothing`` node-block Gauss-Seidel sweeps, each block
+   minimised exactly (a bound crossed is clamped and the rest of the block solved
+   again; :mod:`solvers._block_gs`), alternating direction;
+2. the active set ``E = {pivot : v = upper}`` and the truncated linear correction: one
+   V-cycle for ``A~ c = r`` on the unknowns off ``E`` (``c = 0`` on ``E``), with the
+   truncated prolongation ``D_I T^{-1} P`` at the finest transfer and the Galerkin
+   coarse operators of the truncated space; these differ from the untruncated ones by
+   a low-rank term on the rows of ``E``, so only that term is recomputed when ``E``
+   changes (``A_c,t = A_c - Y'X - X'Y + Y'A~_EE Y``, ``Y = P~[E]``, ``X = A~[E] P~``,
+   passed down by Galerkin products of the difference);
+3. projection of the correction onto the feasible set (``c <= upper - v`` at the
+   pivots) and the exact line search on the energy over the feasible segment; beside it
+   before it, points on the projection arc (``min(v + a c, upper)``, ``a = 1, 1/4,
+   ...``), the first with a lower energy taken (:func:`_step`: the arc takes all bounds
+   a correction crosses at once, where the projected line search crawls when a soft
+   body meets a stiff one).
+
+Every part decreases the energy, so the iteration is monotone and converges globally
+for any number of smoothing sweeps. The geometric hierarchy is the scene's refinement
+hierarchy (``qp.multilevel``); without one the correction is a direct solve of the
+truncated system (exact truncated Newton). It stops when the suite's verification
+passes: the four KKT residuals and the certified energy bound (:func:`certify`).
+
+Nested iteration from the coarsest level is the caller's: the scene's coarser problems,
+solved in turn, give ``u0`` (the augmented-projection study does this for every
+nested row). Floating bodies are handled as they come: the truncation fixes the active
+normal unknowns, which hold a body that only contact holds. The stabilised problem
+(Sect. 7.5) is ``skipped``: its reverse rows do not have the one-row-per-node structure.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from problems.kkt import kkt_residuals
+from problems.qp import ContactQP
+from problems.spec import Options, Parameter
+from solvers._block_gs import BOUNDED, FIXED, FREE, block_gauss_seidel, block_inverses
+from solvers.base import VERIFIED_PRESETS, Role, SolveResult, SolverSpec
+from solvers.certificate import certify
+from solvers.cholesky import factorize
+from solvers.contact_box import BoxTransformation, box_transformation, check_structure
+
+
+#: The projection arc's backtracking: step factor and smallest step (:func:`_step`).
+ARC_FACTOR = 0.25
+ARC_MIN = 1e-4
+
+
+@dataclass
+class _Fine:
+    """The transformed fine-level system and what its block smoother needs."""
+
+    A: sp.csr_matrix
+    f: np.ndarray
+    box: BoxTransformation
+    diag: np.ndarray
+    inv_full: np.ndarray
+    inv_sub: np.ndarray
+    bounded_blocks: np.ndarray
+    upper_block: np.ndarray
+
+    def sweep(self, x: np.ndarray, b: np.ndarray, mode: np.ndarray, forward: bool) -> None:
+        block_gauss_seidel(self.A.indptr, self.A.indices, self.A.data, x, b,
+                           self.box.node_ptr, self.box.node_dofs, self.diag, self.inv_full,
+                           self.inv_sub, mode, self.upper_block, forward)
+
+
+def _fine_system(qp: ContactQP) -> _Fine:
+    box = box_transformation(qp)
+    A = sp.csr_matrix(box.T.T @ qp.A @ box.T)
+    A.sort_indices()
+    diag, inv_full, inv_sub = block_inverses(A, box.node_ptr, box.node_dofs)
+    bounded = np.flatnonzero(box.block_row >= 0)
+    upper = np.full(box.node_ptr.size - 1, np.inf)
+    upper[bounded] = box.upper[box.block_row[bounded]]
+    return _Fine(A, box.T.T @ qp.f, box, diag, inv_full, inv_sub, bounded, upper)
+
+
+@dataclass
+class _TruncatedHierarchy:
+    """The V-cycle of the truncated linear correction (module docstring, step 2)."""
+
+    fine: _Fine
+    P: sp.csr_matrix | None            # T^{-1} P_last: coarse level -> transformed fine
+    coarse_P: list                     # original prolongations below (coarse -> finer)
+    A_coarse: list                     # untruncated Galerkin operators, finest coarse first
+    sweeps: int
+    truncate_coarse: bool
+    patch: np.ndarray | None = None    # unknowns of the contact patch (None: no patch solve)
+    active: np.ndarray | None = None
+    A_t: list = field(default_factory=list)
+    coarse_solve: Callable | None = None
+    mode: np.ndarray | None = None
+    updates: int = 0
+    patch_keep: np.ndarray | None = None
+    patch_rows: sp.csr_matrix | None = None
+    patch_solve: Callable | None = None
+
+    def _update_patch(self, E: np.ndarray) -> None:
+        """Factorise the truncated system on the contact patch (the active pivots out)."""
+        keep = np.setdiff1d(self.patch, E, assume_unique=False)
+        self.patch_keep = keep
+        self.patch_rows = self.fine.A[keep]
+        self.patch_solve = factorize(self.patch_rows[:, keep]).solve
+
+    def _patch_step(self, c: np.ndarray, r: np.ndarray) -> None:
+        """``c += `` the exact correction on the contact patch (in place)."""
+        keep = self.patch_keep
+        c[keep] += self.patch_solve(r[keep] - self.patch_rows @ c)
+
+    def update(self, active: np.ndarray) -> None:
+        """Truncate at the active pivots (a repeated set keeps its operators)."""
+        if self.active is not None and np.array_equal(active, self.active):
+            return
+        self.updates += 1
+        self.active = active.copy()
+        fine = self.fine
+        self.mode = np.full(fine.box.node_ptr.size - 1, FREE, dtype=np.int64)
+        self.mode[fine.bounded_blocks[active[fine.box.block_row[fine.bounded_blocks]]]] = FIXED
+        E = fine.box.pivot[active]
+        if self.patch is not None and self.P is not None:
+            self._update_patch(E)
+        if self.P is None:                       # no hierarchy: exact truncated solve
+            keep = np.ones(fine.A.shape[0], dtype=bool)
+            keep[E] = False
+            idx = np.flatnonzero(keep)
+            lu = spla.splu(sp.csc_matrix(fine.A[idx][:, idx]))
+
+            def solve(r):
+                out = np.zeros_like(r)
+                out[idx] = lu.solve(r[idx])
+                return out
+            self.coarse_solve = solve
+            return
+        mats = list(self.A_coarse)
+        if self.truncate_coarse and E.size:
+            Y = self.P[E]
+            X = fine.A[E] @ self.P
+            delta = Y.T @ (fine.A[E][:, E] @ Y) - Y.T @ X - X.T @ Y
+            for lvl in range(len(mats)):
+                if lvl:
+                    Pl = self.coarse_P[-lvl]
+                    delta = Pl.T @ delta @ Pl
+                mats[lvl] = sp.csr_matrix(mats[lvl] + delta)
+        for lvl, M in enumerate(mats):      # a coarse function truncated away: identity row
+            d = M.diagonal()
+            dead = d <= 1e-14 * max(float(d.max()), 1e-300)
+            if np.any(dead):
+                mats[lvl] = sp.csr_matrix(M + sp.diags(dead.astype(float)))
+        self.A_t = mats
+        self.coarse_solve = spla.splu(sp.csc_matrix(mats[-1])).solve
+
+    def vcycle(self, r: np.ndarray) -> np.ndarray:
+        """One V(sweeps, sweeps)-cycle for the truncated system, zero start; ``r`` is zero
+        on the active pivots and so is the result."""
+        if self.P is None:
+            return self.coarse_solve(r)
+        fine = self.fine
+        E = fine.box.pivot[self.active]
+        c = np.zeros_like(r)
+        for _ in range(self.sweeps):
+            fine.sweep(c, r, self.mode, True)
+        if self.patch_solve is not None:
+            self._patch_step(c, r)
+        res = r - fine.A @ c
+        res[E] = 0.0
+        corr = self.P @ self._coarse(0, self.P.T @ res)
+        corr[E] = 0.0
+        c += corr
+        if self.patch_solve is not None:
+            self._patch_step(c, r)
+        for _ in range(self.sweeps):
+            fine.sweep(c, r, self.mode, False)
+        return c
+
+    def _coarse(self, lvl: int, b: np.ndarray) -> np.ndarray:
+        from pyamg.relaxation.relaxation import gauss_seidel
+        if lvl == len(self.A_t) - 1:
+            return self.coarse_solve(b)
+        A = self.A_t[lvl]
+        x = np.zeros_like(b)
+        gauss_seidel(A, x, b, iterations=self.sweeps, sweep="symmetric")
+        Pl = self.coarse_P[-(lvl + 1)]
+        x += Pl @ self._coarse(lvl + 1, Pl.T @ (b - A @ x))
+        gauss_seidel(A, x, b, iterations=self.sweeps, sweep="symmetric")
+        return x
+
+
+def contact_patch(qp: ContactQP, A: sp.csr_matrix, hops: int) -> np.ndarray | None:
+    """The unknowns of the constraint rows (constrained nodes and opposing facets) and
+    ``hops`` graph layers of ``A`` around them; None for ``hops = 0`` or no rows."""
+    if hops == 0 or qp.m == 0:
+        return None
+    patch = np.unique(qp.B.tocsr().indices)
+    for _ in range(hops):
+        patch = np.union1d(patch, A[patch].indices)
+    return patch
+
+
+def _hierarchy(qp: ContactQP, fine: _Fine, sweeps: int, truncate_coarse: bool, hops: int
+               ) -> _TruncatedHierarchy:
+    prolongations = [sp.csr_matrix(P) for P in qp.multilevel.prolongations]
+    if not prolongations:
+        return _TruncatedHierarchy(fine, None, [], [], sweeps, truncate_coarse)
+    P = sp.csr_matrix(fine.box.T_inv @ prolongations[-1])
+    mats = [sp.csr_matrix(P.T @ fine.A @ P)]
+    for Pl in reversed(prolongations[:-1]):
+        mats.append(sp.csr_matrix(Pl.T @ mats[-1] @ Pl))
+    return _TruncatedHierarchy(fine, P, prolongations[:-1], mats, sweeps, truncate_coarse,
+                               contact_patch(qp, fine.A, hops))
+
+
+def _energy(fine: _Fine, v: np.ndarray, r: np.ndarray) -> float:
+    """``J~(v) = 1/2 v'A~v - f~'v`` from the residual ``r = f~ - A~v``."""
+    return -0.5 * float(v @ (fine.f + r))
+
+
+def _step(fine: _Fine, v: np.ndarray, r: np.ndarray, c: np.ndarray, piv: np.ndarray,
+          upper: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+    """The new iterate from the truncated correction ``c`` (module docstring, step 3).
+
+    The exact line search along ``c`` projected onto the feasible set (``c <= upper - v``
+    at the pivots; Gräser-Kornhuber) is the safe candidate. Before it, points on the
+    projection arc ``min(v + a c, upper)`` at the pivots, ``a = 1, 1/4, ...`` down to
+    :data:`ARC_MIN` (a projected Newton step with backtracking, Bertsekas): the first
+    whose energy is lower than the line search's is taken. The arc takes every bound
+    the correction crosses at once; the projected line search is cut short by the
+    unknowns nearest their bounds and crawls when a soft body is pressed into a stiff
+    one (contrast 1e-4: hundreds of steps). The energy never rises. Returns
+    ``(v, r, step)``: the line search's length, or ``-a`` for an arc point.
+    """
+    slack = upper - v[piv]
+    d = c.copy()
+    d[piv] = np.minimum(d[piv], slack)
+    Ad = fine.A @ d
+    curvature, slope = float(d @ Ad), float(r @ d)
+    step = 0.0
+    if curvature > 0 and slope > 0:
+        step = slope / curvature
+        rising = d[piv] > 0
+        if rising.any():
+            step = min(step, float(np.min(slack[rising] / d[piv][rising])))
+    v_line, r_line = v + step * d, r - step * Ad
+    J_line = _energy(fine, v_line, r_line)
+    arc = 1.0
+    while arc >= ARC_MIN:
+        v_arc = v + arc * c
+        v_arc[piv] = np.minimum(v_arc[piv], upper)
+        r_arc = fine.f - fine.A @ v_arc
+        if _energy(fine, v_arc, r_arc) < J_line:
+            return v_arc, r_arc, -arc
+        arc *= ARC_FACTOR
+    v_line[piv] = np.minimum(v_line[piv], upper)
+    return v_line, r_line, step
+
+
+def supports(qp: ContactQP) -> tuple[bool, str]:
+    """Nodal constraints with one row per constrained node (:mod:`solvers.contact_box`)."""
+    ok, reason = check_structure(qp)
+    return ok, (f"the constraints cannot be turned into bounds: {reason}" if not ok else "")
+
+
+def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
+          u0: np.ndarray | None, p0: np.ndarray | None, opts: Options,
+          callback: Callable | None = None) -> SolveResult:
+    """Solve ``qp`` by TNNMG (module docstring). ``p0`` is not used (a primal method).
+
+    ``callback(u, p)``, if given, is called after every step, after ``history["time"]``
+    is stamped (its cost is the caller's to subtract), and stops an unverified run by
+    returning True (status ``max_iter``).
+    """
+    t_start = time.perf_counter()
+    fine = _fine_system(qp)
+    ml = _hierarchy(qp, fine, opts.sweeps, opts.coarse == "truncated", opts.patch)
+    box = fine.box
+    piv, upper = box.pivot, box.upper
+    mode_nonlinear = np.full(box.node_ptr.size - 1, FREE, dtype=np.int64)
+    mode_nonlinear[fine.bounded_blocks] = BOUNDED
+    v = np.zeros(qp.n) if u0 is None else box.to_v(np.asarray(u0, dtype=float))
+    v[piv] = np.minimum(v[piv], upper)
+    setup_time = time.perf_counter() - t_start
+    deadline = None if time_limit is None else t_start + time_limit
+
+    t_solve = time.perf_counter()
+    history = {"energy": [], "kkt_max": [], "n_active": [], "step": [], "time": []}
+    timing = {"t_smoother": 0.0, "t_truncation": 0.0, "t_vcycle": 0.0, "t_check": 0.0}
+    status, message, k = "max_iter", f"not verified after {max_iter} steps", 0
+    forward = True
+    u = box.to_u(v)
+    p = np.zeros(qp.m)
+    for k in range(1, max_iter + 1):
+        t0 = time.perf_counter()
+        for _ in range(opts.presmoothing):
+            fine.sweep(v, fine.f, mode_nonlinear, forward)
+            forward = not forward
+        t1 = time.perf_counter()
+        r = fine.f - fine.A @ v
+        active = v[piv] >= upper
+        ml.update(active)
+        t2 = time.perf_counter()
+        r_t = r.copy()
+        r_t[piv[active]] = 0.0
+        c = ml.vcycle(r_t)
+        v, r, step = _step(fine, v, r, c, piv, upper)
+        t3 = time.perf_counter()
+        u = box.to_u(v)
+        p = box.multipliers(r, v[piv] >= upper)
+        kkt = kkt_residuals(qp, u, p)
+        history["energy"].append(_energy(fine, v, r))
+        history["kkt_max"].append(kkt.max)
+        history["n_active"].append(int(np.count_nonzero(active)))
+        history["step"].append(step)
+        history["time"].append(time.perf_counter() - t_solve)
+        verified = kkt.max <= tol and certify(qp, u, p, tol).meets(tol)
+        timing["t_smoother"] += t1 - t0
+        timing["t_truncation"] += t2 - t1
+        timing["t_vcycle"] += t3 - t2
+        timing["t_check"] += time.perf_counter() - t3
+        stop = callback is not None and callback(u, p)
+        if verified:
+            status, message = "converged", f"verified after {k} steps"
+            break
+        if stop:
+            status, message = "max_iter", f"stopped by the caller after {k} steps"
+            break
+        if deadline is not None and time.perf_counter() > deadline:
+            status, message = "time_limit", f"time limit reached after {k} steps"
+            break
+    stats = {"n_steps": k, "n_vcycles": k, "presmoothing": opts.presmoothing,
+             "truncation_updates": ml.updates, "n_active": int(np.count_nonzero(p > 0)),
+             "n_levels": len(ml.A_coarse) + 1, **timing}
+    return SolveResult(u=u, p=p, claimed_status=status, message=message, iterations=k,
+                       setup_time=setup_time, solve_time=time.perf_counter() - t_solve,
+                       history=history, stats=stats)
+
+
+SOLVER = SolverSpec(
+    name="tnnmg",
+    summary="truncated nonsmooth Newton multigrid (Gräser-Kornhuber): nonlinear block "
+            "Gauss-Seidel, a truncated geometric-multigrid V-cycle, projection and an exact "
+            "line search on the Krause-Wohlmuth box-transformed problem",
+    solve=solve,
+    parameters=(
+        Parameter("presmoothing", 1, "nonlinear node-block Gauss-Seidel sweeps per step "
+                  "(alternating direction)", low=1, high=10, kind=int),
+        Parameter("sweeps", 1, "smoothing sweeps of the linear V-cycle: V(sweeps, sweeps)",
+                  low=1, high=10, kind=int),
+        Parameter("patch", 1, "graph layers of the contact patch around the constraint "
+                  "rows' unknowns, solved exactly in each V-cycle after pre- and before "
+                  "post-smoothing (0: none)", low=0, high=20, kind=int),
+        Parameter("coarse", "truncated", "coarse operators: Galerkin products of the truncated "
+                  "space (truncated) or the untruncated ones (untruncated; still monotone by "
+                  "the projection and line search, fewer updates, more steps)",
+                  choices=("truncated", "untruncated")),
+    ),
+    presets=VERIFIED_PRESETS,
+    default_max_iter=500,
+    role=Role.NEWTON,
+    # not that it solves the stabilised problem: handed over as it is, ``supports`` sees
+    # its C block and names it as the reason to skip (its slack form would hide why)
+    handles_C=True,
+    supports=supports,
+)

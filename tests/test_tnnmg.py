@@ -1,0 +1,171 @@
+"""Truncated nonsmooth Newton multigrid: the box transformation is exact on every scene, the
+block smoother minimises exactly, the iteration is monotone and agrees with the exact
+reference, and the problems it cannot take are skipped with a reason."""
+import dataclasses
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+from problems.kkt import energy_error
+from problems.qp import SharedWork
+from problems.spec import ParameterError, problems
+from solvers._block_gs import BOUNDED, FIXED, FREE, block_gauss_seidel, block_inverses
+from solvers.contact_box import TransformationError, box_transformation, check_structure
+from solvers.interface import solve
+from solvers.reference import reference_solve
+
+#: Every contact scene at a small level, with the parameters that change its structure.
+SCENES = [("circle_square", 0, {}), ("circle_square", 1, {"search": "closest_point"}),
+          ("cube_sphere", 0, {}), ("flat_blocks", 2, {}), ("roll_stack", 0, {})]
+
+
+def _build(name, level, params):
+    return problems()[name].make(level, **params)
+
+
+@pytest.fixture(scope="module", params=SCENES, ids=lambda s: f"{s[0]}-L{s[1]}-{s[2]}")
+def scene(request):
+    name, level, params = request.param
+    qp = _build(name, level, params)
+    return qp, reference_solve(qp, tol=1e-10)
+
+
+def test_the_transformation_is_exact_on_every_scene(scene):
+    """Same QP: T is invertible with the inverse it claims, B T bounds one unknown per row,
+    and the reference solution, transformed, is the box problem's KKT point."""
+    qp, ref = scene
+    box = box_transformation(qp)
+    n = qp.n
+    eye = (box.T @ box.T_inv - sp.identity(n)).tocsr()
+    assert abs(eye).max() <= 1e-12
+    BT = (qp.B @ box.T).tocsr()
+    target = sp.csr_matrix((box.scale, (np.arange(qp.m), box.pivot)), shape=BT.shape)
+    assert abs(BT - target).max() <= 1e-12 * abs(qp.B).max()
+    assert np.unique(box.pivot).size == qp.m
+    # the energy is the same function of v = T^{-1} u
+    rng = np.random.default_rng(0)
+    u = rng.normal(size=n)
+    A_v, f_v = box.T.T @ qp.A @ box.T, box.T.T @ qp.f
+    v = box.to_v(u)
+    J_v = 0.5 * v @ (A_v @ v) - f_v @ v
+    assert abs(J_v - qp.energy(u)) <= 1e-11 * (abs(qp.energy(u)) + abs(u @ (qp.A @ u)))
+    # the reference is the box problem's minimiser: bounds hold, the gradient vanishes off
+    # the pivots and points outwards (multiplier >= 0) at them
+    v_ref = box.to_v(ref.u)
+    assert np.all(v_ref[box.pivot] <= box.upper + 1e-10 * np.abs(box.upper).max())
+    r = f_v - A_v @ v_ref
+    scale = np.abs(f_v).max() + np.abs(A_v @ v_ref).max()
+    off = np.ones(n, dtype=bool)
+    off[box.pivot] = False
+    assert np.abs(r[off]).max() <= 1e-8 * scale
+    active = ref.p > 0
+    np.testing.assert_allclose(box.multipliers(r, active), ref.p,
+                               atol=1e-7 * max(ref.p.max(), 1e-300))
+
+
+def test_block_smoother_minimises_each_block_exactly():
+    """One sweep on a random SPD system with bounds: every block ends at its exact
+    constrained minimiser given the others (checked by brute force on each block)."""
+    rng = np.random.default_rng(3)
+    nb, k = 40, 3
+    n = nb * k
+    R = sp.random(n, n, density=0.05, random_state=rng)
+    A = sp.csr_matrix(R @ R.T + 3 * sp.identity(n))
+    A.sort_indices()
+    b = rng.normal(size=n)
+    node_ptr = np.arange(0, n + 1, k, dtype=np.int64)
+    node_dofs = np.arange(n, dtype=np.int64)
+    diag, inv_full, inv_sub = block_inverses(A, node_ptr, node_dofs)
+    mode = rng.choice([FREE, BOUNDED, FIXED], size=nb).astype(np.int64)
+    upper = rng.normal(scale=0.1, size=nb)
+    x = rng.normal(scale=0.1, size=n)
+    x0 = x.copy()
+    block_gauss_seidel(A.indptr, A.indices, A.data, x, b, node_ptr, node_dofs, diag, inv_full,
+                       inv_sub, mode, upper, True)
+    # the last block sees the final values of all others: check it exactly
+    blk = nb - 1
+    s = slice(k * blk, k * blk + k)
+    D = A[s, s].toarray()
+    rest = b[s] - A[s] @ x + D @ x[s]
+    if mode[blk] == FREE:
+        want = np.linalg.solve(D, rest)
+    else:
+        first = x0[k * blk] if mode[blk] == FIXED else None
+        free_min = np.linalg.solve(D, rest)
+        if mode[blk] == BOUNDED and free_min[0] <= upper[blk]:
+            want = free_min
+        else:
+            first = upper[blk] if first is None else first
+            tail = np.linalg.solve(D[1:, 1:], rest[1:] - D[1:, 0] * first)
+            want = np.r_[first, tail]
+    np.testing.assert_allclose(x[s], want, rtol=1e-12, atol=1e-12)
+    assert np.all(x[k * np.flatnonzero(mode == BOUNDED)] <= upper[mode == BOUNDED] + 1e-15)
+    np.testing.assert_array_equal(x[k * np.flatnonzero(mode == FIXED)],
+                                  x0[k * np.flatnonzero(mode == FIXED)])
+
+
+@pytest.mark.parametrize("name,level", [("circle_square", 2), ("cube_sphere", 1)])
+def test_tnnmg_agrees_with_the_reference_and_is_monotone(name, level):
+    qp = _build(name, level, {})
+    ref = reference_solve(qp, tol=1e-10)
+    res = solve(qp, solver="tnnmg", tol="high")
+    assert res.status == "converged", res.message
+    assert energy_error(qp, res.u, ref.u) <= 1e-8
+    assert res.kkt.max <= 1e-9
+    J = np.asarray(res.history["energy"])
+    assert np.all(np.diff(J) <= 1e-12 * np.abs(J).max())
+    assert res.stats["n_levels"] == len(qp.multilevel.prolongations) + 1
+
+
+def test_tnnmg_steps_stay_bounded_under_refinement():
+    """The multigrid property: steps to 1e-6 grow little from level 2 to 3 (circle-square)."""
+    steps = [solve(_build("circle_square", level, {}), solver="tnnmg", tol="mid").iterations
+             for level in (2, 3)]
+    assert steps[1] <= max(1.3 * steps[0], steps[0] + 3), steps
+
+
+@pytest.mark.parametrize("coupling,why", [("stabilised", "Sect. 7.5"),
+                                          ("mortar", "other rows")])
+def test_stabilised_and_mortar_problems_are_skipped_with_the_reason(coupling, why):
+    """The stabilised problem's reverse rows constrain the opposing surface too; mortar rows (weighted gaps, a non-diagonal D) share their constrained nodes' unknowns:
+    neither becomes bounds on single unknowns without a dense transformation."""
+    qp = _build("flat_blocks", 2, {"coupling": coupling})
+    res = solve(qp, solver="tnnmg", tol="mid")
+    assert res.status == "skipped"
+    assert "cannot be turned into bounds" in res.message and why in res.message
+    ok, reason = check_structure(qp)
+    assert not ok and reason
+    with pytest.raises(TransformationError):
+        box_transformation(qp)
+
+
+def test_bad_options_name_the_parameter():
+    qp = _build("circle_square", 0, {})
+    with pytest.raises(ParameterError, match="presmoothing"):
+        solve(qp, solver="tnnmg", presmoothing=0)
+    with pytest.raises(ParameterError, match="coarse"):
+        solve(qp, solver="tnnmg", coarse="none")
+
+
+@pytest.mark.parametrize("name,level", [("circle_square", 2), ("cube_sphere", 1),
+                                        ("roll_stack", 0)])
+def test_rounding_does_not_decide_tnnmg(name, level):
+    """The scene and a copy with every entry of A, f, B, g changed by a relative 1e-14 (the
+    size of two BLAS kernels' differences; this file also runs under the other OpenBLAS
+    kernels): both converge, to the same solution within the tolerance, in about as many
+    steps."""
+    qp = _build(name, level, {})
+    rng = np.random.default_rng(7)
+    A = qp.A.tocsr(copy=True)
+    A.data *= 1.0 + 1e-14 * rng.uniform(-1.0, 1.0, A.nnz)
+    B = qp.B.tocsr(copy=True)
+    B.data *= 1.0 + 1e-14 * rng.uniform(-1.0, 1.0, B.nnz)
+    copy = dataclasses.replace(qp, A=(0.5 * (A + A.T)).tocsr(), B=B,
+                               f=qp.f * (1.0 + 1e-14 * rng.uniform(-1.0, 1.0, qp.n)),
+                               g=qp.g * (1.0 + 1e-14 * rng.uniform(-1.0, 1.0, qp.m)),
+                               cache=SharedWork())
+    runs = [solve(problem, solver="tnnmg", tol="mid") for problem in (qp, copy)]
+    assert [r.status for r in runs] == ["converged", "converged"], [r.message for r in runs]
+    assert energy_error(qp, runs[1].u, runs[0].u) <= 2e-6
+    assert abs(runs[0].iterations - runs[1].iterations) <= 2
