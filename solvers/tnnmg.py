@@ -54,6 +54,11 @@ from solvers.cholesky import factorize
 from solvers.contact_box import BoxTransformation, box_transformation, check_structure
 
 
+#: The suite's KKT check (and the certificate) runs once the transformed problem's own
+#: stationarity residual is within this factor of tol (:func:`_stationarity`; the two
+#: scalings differ by the transformation's norm, O(1)).
+CHECK_FACTOR = 10.0
+
 #: The projection arc's backtracking: step factor and smallest step (:func:`_step`).
 ARC_FACTOR = 0.25
 ARC_MIN = 1e-4
@@ -223,6 +228,17 @@ def _hierarchy(qp: ContactQP, fine: _Fine, sweeps: int, truncate_coarse: bool, h
                                contact_patch(qp, fine.A, hops))
 
 
+def _stationarity(fine: _Fine, r: np.ndarray, bound: np.ndarray) -> float:
+    """The transformed problem's scaled stationarity residual: ``r = f~ - A~v`` off the
+    pivots at their bounds, its negative part on them (the positive part is the
+    multiplier), over ``max(|f~|, |A~v|)``. Feasibility and complementarity hold by
+    construction; it gates the suite's check (:data:`CHECK_FACTOR`)."""
+    res = r.copy()
+    res[bound] = np.minimum(res[bound], 0.0)
+    scale = max(float(np.abs(fine.f).max()), float(np.abs(fine.f - r).max()), 1e-300)
+    return float(np.abs(res).max()) / scale
+
+
 def _energy(fine: _Fine, v: np.ndarray, r: np.ndarray) -> float:
     """``J~(v) = 1/2 v'A~v - f~'v`` from the residual ``r = f~ - A~v``."""
     return -0.5 * float(v @ (fine.f + r))
@@ -233,7 +249,8 @@ def _step(fine: _Fine, v: np.ndarray, r: np.ndarray, c: np.ndarray, piv: np.ndar
     """The new iterate from the truncated correction ``c`` (module docstring, step 3).
 
     The exact line search along ``c`` projected onto the feasible set (``c <= upper - v``
-    at the pivots; Gräser-Kornhuber) is the safe candidate. Before it, points on the
+    at the pivots; Gräser-Kornhuber) is the safe candidate. Where a bound cut it short
+    (or ``c`` is no descent direction), points on the
     projection arc ``min(v + a c, upper)`` at the pivots, ``a = 1, 1/4, ...`` down to
     :data:`ARC_MIN` (a projected Newton step with backtracking, Bertsekas): the first
     whose energy is lower than the line search's is taken. The arc takes every bound
@@ -247,15 +264,16 @@ def _step(fine: _Fine, v: np.ndarray, r: np.ndarray, c: np.ndarray, piv: np.ndar
     d[piv] = np.minimum(d[piv], slack)
     Ad = fine.A @ d
     curvature, slope = float(d @ Ad), float(r @ d)
-    step = 0.0
+    step, cut = 0.0, True
     if curvature > 0 and slope > 0:
-        step = slope / curvature
+        step = free = slope / curvature
         rising = d[piv] > 0
         if rising.any():
             step = min(step, float(np.min(slack[rising] / d[piv][rising])))
+        cut = step < free
     v_line, r_line = v + step * d, r - step * Ad
     J_line = _energy(fine, v_line, r_line)
-    arc = 1.0
+    arc = 1.0 if cut else 0.0          # the arc only where a bound cut the line search short
     while arc >= ARC_MIN:
         v_arc = v + arc * c
         v_arc[piv] = np.minimum(v_arc[piv], upper)
@@ -295,7 +313,8 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
     deadline = None if time_limit is None else t_start + time_limit
 
     t_solve = time.perf_counter()
-    history = {"energy": [], "kkt_max": [], "n_active": [], "step": [], "time": []}
+    history = {"energy": [], "residual": [], "kkt_max": [], "n_active": [], "step": [],
+               "time": []}
     timing = {"t_smoother": 0.0, "t_truncation": 0.0, "t_vcycle": 0.0, "t_check": 0.0}
     status, message, k = "max_iter", f"not verified after {max_iter} steps", 0
     forward = True
@@ -316,15 +335,21 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
         c = ml.vcycle(r_t)
         v, r, step = _step(fine, v, r, c, piv, upper)
         t3 = time.perf_counter()
-        u = box.to_u(v)
-        p = box.multipliers(r, v[piv] >= upper)
-        kkt = kkt_residuals(qp, u, p)
+        bound = v[piv] >= upper
+        residual = _stationarity(fine, r, piv[bound])
         history["energy"].append(_energy(fine, v, r))
-        history["kkt_max"].append(kkt.max)
+        history["residual"].append(residual)
         history["n_active"].append(int(np.count_nonzero(active)))
         history["step"].append(step)
         history["time"].append(time.perf_counter() - t_solve)
-        verified = kkt.max <= tol and certify(qp, u, p, tol).meets(tol)
+        verified, kkt_max = False, np.nan
+        if residual <= CHECK_FACTOR * tol or callback is not None:
+            u, p = box.to_u(v), box.multipliers(r, bound)
+        if residual <= CHECK_FACTOR * tol:         # the suite's verification decides
+            kkt_max = kkt_residuals(qp, u, p).max
+            verified = kkt_max <= tol and (opts.stop == "kkt"
+                                           or certify(qp, u, p, tol).meets(tol))
+        history["kkt_max"].append(kkt_max)
         timing["t_smoother"] += t1 - t0
         timing["t_truncation"] += t2 - t1
         timing["t_vcycle"] += t3 - t2
@@ -339,6 +364,7 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
         if deadline is not None and time.perf_counter() > deadline:
             status, message = "time_limit", f"time limit reached after {k} steps"
             break
+    u, p = box.to_u(v), box.multipliers(r, v[piv] >= upper)
     stats = {"n_steps": k, "n_vcycles": k, "presmoothing": opts.presmoothing,
              "truncation_updates": ml.updates, "n_active": int(np.count_nonzero(p > 0)),
              "n_levels": len(ml.A_coarse) + 1, **timing}
@@ -361,6 +387,10 @@ SOLVER = SolverSpec(
         Parameter("patch", 1, "graph layers of the contact patch around the constraint "
                   "rows' unknowns, solved exactly in each V-cycle after pre- and before "
                   "post-smoothing (0: none)", low=0, high=20, kind=int),
+        Parameter("stop", "verified", "verified: stop when the KKT residuals and the "
+                  "certified energy bound meet tol; kkt: the KKT residuals alone (nested "
+                  "iteration's coarse levels; the interface still certifies the answer)",
+                  choices=("verified", "kkt")),
         Parameter("coarse", "truncated", "coarse operators: Galerkin products of the truncated "
                   "space (truncated) or the untruncated ones (untruncated; still monotone by "
                   "the projection and line search, fewer updates, more steps)",

@@ -132,15 +132,17 @@ def tnnmg_run(qp, u_ref, target: float, time_limit: float, coarse=()) -> dict:
     ``target``, read by a callback whose own cost is subtracted, then on to its verified stop.
 
     ``coarse``: the scene's coarser problems, coarsest first, for nested iteration from
-    the coarsest level: each solved by TNNMG to ``target`` (verified) and prolongated
+    the coarsest level: each solved by TNNMG until its KKT residuals meet ``target`` (no
+    certificate: it only gives the next level's start) and prolongated
     (``u0 = P u_coarse``); their time is ``t_coarse_levels``.
     """
     t0 = time.perf_counter()
     u0 = None
     chain = list(coarse) + [qp]
+    coarse_opts = tnnmg.SOLVER.options(stop="kkt")       # no certificate on a coarse level
     for q_c, q_f in zip(chain[:-1], chain[1:]):
-        r_c = solve(q_c, solver="tnnmg", tol=target, time_limit=time_limit,
-                    u0=None if u0 is None else u0)
+        r_c = tnnmg.solve(q_c, target, tnnmg.SOLVER.default_max_iter, time_limit, u0, None,
+                          coarse_opts)
         u0 = q_f.multilevel.prolongations[-1] @ r_c.u
     t_coarse = time.perf_counter() - t0
     rec = {"err": [], "at": [], "overhead": 0.0}
