@@ -104,7 +104,12 @@ def test_augmented_projection_study_and_its_report(tmp_path):
         "--out", str(study))
     s = pd.read_csv(study)
     assert set(s["config"]) == {"reference", "alg84", "nested_face_cg", "semismooth_newton",
-                                "amg_pcg_gmg", "amg_pcg_sa"}
+                                "tnnmg", "tnnmg_nested", "amg_pcg_gmg", "amg_pcg_sa"}
+    tnnmg = s[s.config.str.startswith("tnnmg")]
+    assert (tnnmg["status"] == "converged").all() and (tnnmg["energy_error"] <= 1e-6).all()
+    assert (tnnmg["n_to_target"] > 0).all() and (tnnmg["t_to_target"] > tnnmg["t_setup"]).all()
+    nested = tnnmg[tnnmg.config == "tnnmg_nested"].set_index("level")["t_coarse_levels"]
+    assert nested.notna().all() and (nested >= 0).all()
     newton = s[s.config == "semismooth_newton"]
     assert (newton["status"] == "converged").all() and (newton["energy_error"] <= 1e-6).all()
     assert (newton["t_to_target"] == newton["t_setup"] + newton["t_solve"]).all()
@@ -123,6 +128,8 @@ def test_augmented_projection_study_and_its_report(tmp_path):
     assert {"claim", "measured", "bar", "pass"} <= set(claims.columns) and len(claims) >= 2
     bars = claims[claims.claim.str.startswith("time to the energy-error target")].bar
     assert sorted(map(float, bars)) == [2.0, 5.0]   # 2D: the best variant 2x, Alg. 8.4 5x
+    ours = claims[claims.claim.str.startswith("tnnmg")]
+    assert len(ours) == 4 and set(ours.bar.astype(float)) == {0.15, 2.0}
 
 
 def test_laplace_scripts_and_reports(tmp_path):
