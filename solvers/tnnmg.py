@@ -318,8 +318,6 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
     timing = {"t_smoother": 0.0, "t_truncation": 0.0, "t_vcycle": 0.0, "t_check": 0.0}
     status, message, k = "max_iter", f"not verified after {max_iter} steps", 0
     forward = True
-    u = box.to_u(v)
-    p = np.zeros(qp.m)
     for k in range(1, max_iter + 1):
         t0 = time.perf_counter()
         for _ in range(opts.presmoothing):
