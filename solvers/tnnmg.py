@@ -43,6 +43,7 @@ from typing import Callable
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
+from pyamg.relaxation.relaxation import gauss_seidel
 
 from problems.kkt import kkt_residuals
 from problems.qp import ContactQP
@@ -153,8 +154,9 @@ class _TruncatedHierarchy:
         mats = list(self.A_coarse)
         if self.truncate_coarse and E.size:
             Y = self.P[E]
-            X = fine.A[E] @ self.P
-            delta = Y.T @ (fine.A[E][:, E] @ Y) - Y.T @ X - X.T @ Y
+            A_E = fine.A[E]
+            X = A_E @ self.P
+            delta = Y.T @ (A_E[:, E] @ Y) - Y.T @ X - X.T @ Y
             for lvl in range(len(mats)):
                 if lvl:
                     Pl = self.coarse_P[-lvl]
@@ -192,7 +194,6 @@ class _TruncatedHierarchy:
         return c
 
     def _coarse(self, lvl: int, b: np.ndarray) -> np.ndarray:
-        from pyamg.relaxation.relaxation import gauss_seidel
         if lvl == len(self.A_t) - 1:
             return self.coarse_solve(b)
         A = self.A_t[lvl]
