@@ -20,28 +20,68 @@ from numba import njit
 FREE, BOUNDED, FIXED = 0, 1, 2
 
 
+def unsigned_index(a: np.ndarray) -> np.ndarray:
+    """``a`` (non-negative indices) as ``uint32`` (``uint64`` if it does not fit): the
+    compiled kernels index with it without numba's test for negative indices."""
+    a = np.asarray(a)
+    big = a.size and int(a.max()) >= np.iinfo(np.uint32).max
+    return a.astype(np.uint64 if big else np.uint32)
+
+
 def block_inverses(A: sp.csr_matrix, node_ptr: np.ndarray, node_dofs: np.ndarray
                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(diag, inv_full, inv_sub)``, each ``(n_blocks, 3, 3)``: the node blocks of ``A``,
     their inverses, and the inverses of the blocks without their first unknown (stored
-    at ``[1:k, 1:k]``); padded with the identity."""
+    at ``[1:k, 1:k]``); padded with the identity. One compiled pass over ``A``'s rows."""
+    A = sp.csr_matrix(A)
     nb = node_ptr.size - 1
-    k = np.diff(node_ptr)
-    diag = np.tile(np.eye(3), (nb, 1, 1))
-    for a in range(3):
-        for c in range(3):
-            has = (k > a) & (k > c)
-            if has.any():
-                blocks = np.flatnonzero(has)
-                diag[blocks, a, c] = np.asarray(
-                    A[node_dofs[node_ptr[blocks] + a], node_dofs[node_ptr[blocks] + c]]).ravel()
-    inv_full = np.linalg.inv(diag)
-    sub = diag.copy()
-    sub[:, 0, :] = 0.0
-    sub[:, :, 0] = 0.0
-    sub[:, 0, 0] = 1.0
-    inv_sub = np.linalg.inv(sub)
+    diag = np.empty((nb, 3, 3))
+    inv_full = np.empty((nb, 3, 3))
+    inv_sub = np.empty((nb, 3, 3))
+    _block_inverses(A.indptr, A.indices, A.data, node_ptr, node_dofs, diag, inv_full, inv_sub)
     return diag, inv_full, inv_sub
+
+
+@njit(cache=True, nogil=True)
+def _inverse3(M, out):   # pragma: no cover (compiled)
+    """``out = inv(M)`` for a 3 x 3 ``M`` by cofactors."""
+    c00 = M[1, 1] * M[2, 2] - M[1, 2] * M[2, 1]
+    c01 = M[1, 2] * M[2, 0] - M[1, 0] * M[2, 2]
+    c02 = M[1, 0] * M[2, 1] - M[1, 1] * M[2, 0]
+    det = M[0, 0] * c00 + M[0, 1] * c01 + M[0, 2] * c02
+    out[0, 0] = c00 / det
+    out[1, 0] = c01 / det
+    out[2, 0] = c02 / det
+    out[0, 1] = (M[0, 2] * M[2, 1] - M[0, 1] * M[2, 2]) / det
+    out[1, 1] = (M[0, 0] * M[2, 2] - M[0, 2] * M[2, 0]) / det
+    out[2, 1] = (M[0, 1] * M[2, 0] - M[0, 0] * M[2, 1]) / det
+    out[0, 2] = (M[0, 1] * M[1, 2] - M[0, 2] * M[1, 1]) / det
+    out[1, 2] = (M[0, 2] * M[1, 0] - M[0, 0] * M[1, 2]) / det
+    out[2, 2] = (M[0, 0] * M[1, 1] - M[0, 1] * M[1, 0]) / det
+
+
+@njit(cache=True, nogil=True)
+def _block_inverses(indptr, indices, data, node_ptr, node_dofs, diag, inv_full,
+                    inv_sub):   # pragma: no cover (compiled)
+    sub = np.empty((3, 3))
+    for blk in range(node_ptr.size - 1):
+        s = node_ptr[blk]
+        k = node_ptr[blk + 1] - s
+        for a in range(3):
+            for c in range(3):
+                diag[blk, a, c] = 1.0 if a == c and a >= k else 0.0
+        for a in range(k):
+            i = node_dofs[s + a]
+            for q in range(indptr[i], indptr[i + 1]):
+                j = indices[q]
+                for c in range(k):
+                    if node_dofs[s + c] == j:
+                        diag[blk, a, c] += data[q]
+        _inverse3(diag[blk], inv_full[blk])
+        for a in range(3):
+            for c in range(3):
+                sub[a, c] = diag[blk, a, c] if a > 0 and c > 0 else (1.0 if a == c else 0.0)
+        _inverse3(sub, inv_sub[blk])
 
 
 @njit(cache=True, nogil=True)
@@ -56,8 +96,8 @@ def block_gauss_seidel(indptr, indices, data, x, b, node_ptr, node_dofs, diag, i
     nb = node_ptr.size - 1
     r = np.zeros(3)
     dx = np.zeros(3)
-    for t in range(nb):
-        blk = t if forward else nb - 1 - t
+    start, stop, stride = (0, nb, 1) if forward else (nb - 1, -1, -1)
+    for blk in range(start, stop, stride):
         s = node_ptr[blk]
         k = node_ptr[blk + 1] - s
         for a in range(k):

@@ -60,6 +60,9 @@ class BoxTransformation:
         ``node_dofs[node_ptr[k]:node_ptr[k+1]]``, components in order).
     block_row : (n_blocks,) int array
         The row of ``B`` bounding block ``k``'s first unknown, or -1.
+    changed : int array
+        The constrained nodes' unknowns: the only rows where ``T`` and ``T_inv`` differ
+        from the identity (:meth:`operator`, :meth:`prolongation`).
     """
 
     T: sp.csr_matrix
@@ -70,6 +73,36 @@ class BoxTransformation:
     node_ptr: np.ndarray
     node_dofs: np.ndarray
     block_row: np.ndarray
+    changed: np.ndarray
+
+    def operator(self, A: sp.spmatrix) -> sp.csr_matrix:
+        """``T' A T`` for a symmetric ``A``, sorted, without a product of two ``n x n``
+        matrices: with ``T = I + D`` (``D`` nonzero on the :attr:`changed` rows ``S``
+        only), ``T'AT = A + X + X' + D_S' A_SS D_S`` with ``X = D_S' A_S``."""
+        A = sp.csr_matrix(A)
+        S = self.changed
+        if S.size == 0:
+            return A.copy()
+        D_S = sp.csr_matrix(self.T[S] - sp.identity(self.T.shape[0], format="csr")[S])
+        A_S = A[S]
+        X = sp.csr_matrix(D_S.T @ A_S)
+        update = X + X.T + D_S.T @ (A_S[:, S] @ D_S)
+        out = sp.csr_matrix(A + update)
+        out.sort_indices()
+        return out
+
+    def prolongation(self, P: sp.spmatrix) -> sp.csr_matrix:
+        """``T_inv P`` (a coarse space in the new unknowns): ``P`` with its :attr:`changed`
+        rows replaced."""
+        P = sp.csr_matrix(P)
+        S = self.changed
+        if S.size == 0:
+            return P.copy()
+        n = self.T_inv.shape[0]
+        D_S = sp.csr_matrix(self.T_inv[S] - sp.identity(n, format="csr")[S])
+        update = sp.coo_matrix(D_S @ P)
+        return sp.csr_matrix(P + sp.csr_matrix((update.data, (S[update.row], update.col)),
+                                               shape=P.shape))
 
     def to_u(self, v: np.ndarray) -> np.ndarray:
         return self.T @ v
@@ -179,7 +212,7 @@ def box_transformation(qp: ContactQP) -> BoxTransformation:
     if m == 0:
         eye = sp.identity(n, format="csr")
         return BoxTransformation(eye, eye, np.zeros(0, np.int64), np.zeros(0), np.zeros(0),
-                                 node_ptr, node_dofs, block_row)
+                                 node_ptr, node_dofs, block_row, np.zeros(0, np.int64))
     B = qp.B.tocsr()
     k = node_ptr[block_of_row + 1] - node_ptr[block_of_row]          # unknowns per node
     slave = -np.ones((m, d), dtype=np.int64)                         # padded unknowns
@@ -234,4 +267,4 @@ def box_transformation(qp: ContactQP) -> BoxTransformation:
     T_inv.eliminate_zeros()
     pivot = slave[:, 0]
     return BoxTransformation(T, T_inv, pivot, beta, qp.g / beta, node_ptr, node_dofs,
-                             block_row)
+                             block_row, np.sort(slave[slave >= 0]))

@@ -14,18 +14,28 @@ by the change of variables of Krause and Wohlmuth (:mod:`solvers.contact_box`:
    coarse operators of the truncated space; these differ from the untruncated ones by
    a low-rank term on the rows of ``E``, so only that term is recomputed when ``E``
    changes (``A_c,t = A_c - Y'X - X'Y + Y'A~_EE Y``, ``Y = P~[E]``, ``X = A~[E] P~``,
-   passed down by Galerkin products of the difference);
+   passed down by Galerkin products of the difference and added in place:
+   :class:`_UpdatedOperator`; the untruncated ones are the scene's own ``P'AP``, since
+   ``P~'A~P~ = P'T'A T T^{-1} P``);
 3. projection of the correction onto the feasible set (``c <= upper - v`` at the
    pivots) and the exact line search on the energy over the feasible segment; beside it
    before it, points on the projection arc (``min(v + a c, upper)``, ``a = 1, 1/4,
    ...``), the first with a lower energy taken (:func:`_step`: the arc takes all bounds
    a correction crosses at once, where the projected line search crawls when a soft
-   body meets a stiff one).
+   body meets a stiff one);
+4. once a step leaves the active set as the previous one left it, conjugate gradients on
+   that face (:class:`_FaceCG`; Dostal's MPRGP with the truncated V-cycle as the
+   preconditioner) until a free pivot meets its bound or the negative multipliers
+   outweigh the free residual; then TNNMG steps again. A TNNMG step is a preconditioned
+   steepest descent on the face; CG is what the linear floor (multigrid-PCG) does, and
+   towards incompressibility, where one V-cycle contracts slowly, it cuts the steps by
+   two to three times.
 
 Every part decreases the energy, so the iteration is monotone and converges globally
 for any number of smoothing sweeps. The geometric hierarchy is the scene's refinement
-hierarchy (``qp.multilevel``); without one the correction is a direct solve of the
-truncated system (exact truncated Newton). It stops when the suite's verification
+hierarchy (``qp.multilevel``); without one (the roll stack) the correction is a direct
+solve of the truncated system, refactorised when the active set changes (exact
+truncated Newton; :func:`solvers.cholesky.factorize`). It stops when the suite's verification
 passes: the four KKT residuals and the certified energy bound (:func:`certify`).
 
 Nested iteration from the coarsest level is the caller's: the scene's coarser problems,
@@ -48,10 +58,11 @@ from pyamg.relaxation.relaxation import gauss_seidel
 from problems.kkt import kkt_residuals
 from problems.qp import ContactQP
 from problems.spec import Options, Parameter
-from solvers._block_gs import BOUNDED, FIXED, FREE, block_gauss_seidel, block_inverses
+from solvers._block_gs import (BOUNDED, FIXED, FREE, block_gauss_seidel, block_inverses,
+                               unsigned_index)
 from solvers.base import VERIFIED_PRESETS, Role, SolveResult, SolverSpec
 from solvers.certificate import certify
-from solvers.cholesky import factorize
+from solvers.cholesky import FactorizationError, factorize
 from solvers.contact_box import BoxTransformation, box_transformation, check_structure
 
 
@@ -77,22 +88,87 @@ class _Fine:
     inv_sub: np.ndarray
     bounded_blocks: np.ndarray
     upper_block: np.ndarray
+    kernel_index: tuple = ()
+
+    def __post_init__(self):
+        # unsigned indices: the compiled sweep then skips numba's negative-index
+        # wraparound test on every entry (measured: 40% of a sweep)
+        self.kernel_index = (unsigned_index(self.A.indptr), unsigned_index(self.A.indices),
+                             unsigned_index(self.box.node_dofs))
 
     def sweep(self, x: np.ndarray, b: np.ndarray, mode: np.ndarray, forward: bool) -> None:
-        block_gauss_seidel(self.A.indptr, self.A.indices, self.A.data, x, b,
-                           self.box.node_ptr, self.box.node_dofs, self.diag, self.inv_full,
-                           self.inv_sub, mode, self.upper_block, forward)
+        indptr, indices, node_dofs = self.kernel_index
+        block_gauss_seidel(indptr, indices, self.A.data, x, b, self.box.node_ptr, node_dofs,
+                           self.diag, self.inv_full, self.inv_sub, mode, self.upper_block,
+                           forward)
 
 
 def _fine_system(qp: ContactQP) -> _Fine:
     box = box_transformation(qp)
-    A = sp.csr_matrix(box.T.T @ qp.A @ box.T)
-    A.sort_indices()
+    A = box.operator(qp.A)
     diag, inv_full, inv_sub = block_inverses(A, box.node_ptr, box.node_dofs)
     bounded = np.flatnonzero(box.block_row >= 0)
     upper = np.full(box.node_ptr.size - 1, np.inf)
     upper[bounded] = box.upper[box.block_row[bounded]]
     return _Fine(A, box.T.T @ qp.f, box, diag, inv_full, inv_sub, bounded, upper)
+
+
+class _UpdatedOperator:
+    """A coarse operator plus a sparse update (the truncation's low-rank term), changed in
+    place where the update's pattern lies in the operator's (as it does: Galerkin products
+    of the same couplings); a coarse function truncated away entirely keeps a unit
+    diagonal (an identity row) so that the smoother and the coarse solve stay defined."""
+
+    def __init__(self, base: sp.csr_matrix, pattern: sp.spmatrix | None = None):
+        base = sp.coo_matrix(base)
+        if pattern is not None:               # explicit zeros where updates will go
+            pattern = sp.coo_matrix(pattern)
+            base = sp.coo_matrix((np.r_[base.data, np.zeros(pattern.nnz)],
+                                  (np.r_[base.row, pattern.row], np.r_[base.col, pattern.col])),
+                                 shape=base.shape)
+        base = sp.csr_matrix(base)
+        base.sum_duplicates()
+        base.sort_indices()
+        self.base = base
+        rows = np.repeat(np.arange(base.shape[0]), np.diff(base.indptr))
+        self.keys = rows * base.shape[1] + base.indices
+        diag_keys = np.arange(base.shape[0]) * (base.shape[1] + 1)
+        self.diag_pos = np.minimum(np.searchsorted(self.keys, diag_keys), base.nnz - 1)
+        if not np.array_equal(self.keys[self.diag_pos], diag_keys):
+            raise ValueError("a coarse operator without a full diagonal")
+        diag = base.data[self.diag_pos]
+        self.dead_below = 1e-14 * max(float(np.max(diag, initial=0.0)), 1e-300)
+        self.work = base.copy()
+        self.touched = np.zeros(0, dtype=np.int64)
+
+    def set(self, delta: sp.spmatrix | None) -> sp.csr_matrix:
+        """``base + delta`` (dead diagonals set to one); the returned matrix is reused."""
+        work, base = self.work, self.base
+        if work.nnz != base.nnz:                      # the last update left the pattern
+            work = self.work = base.copy()
+        else:
+            work.data[self.touched] = base.data[self.touched]
+        self.touched = np.zeros(0, dtype=np.int64)
+        if delta is None or delta.nnz == 0:
+            return work
+        delta = sp.coo_matrix(delta)
+        pos = np.searchsorted(self.keys, delta.row.astype(np.int64) * base.shape[1] + delta.col)
+        pos = np.minimum(pos, base.nnz - 1)
+        if not np.array_equal(self.keys[pos], delta.row.astype(np.int64) * base.shape[1]
+                              + delta.col):
+            work = self.work = sp.csr_matrix(base + delta)   # rare: a new coupling
+            d = work.diagonal()
+            dead = d <= self.dead_below
+            if np.any(dead):
+                work = self.work = sp.csr_matrix(work + sp.diags(dead.astype(float)))
+            return work
+        np.add.at(work.data, pos, delta.data)
+        rows = np.unique(delta.row)
+        dpos = self.diag_pos[rows]
+        dead = dpos[work.data[dpos] <= self.dead_below]
+        work.data[dead] += 1.0
+        self.touched = np.union1d(pos, dead)
+        return work
 
 
 @dataclass
@@ -114,6 +190,29 @@ class _TruncatedHierarchy:
     patch_keep: np.ndarray | None = None
     patch_rows: sp.csr_matrix | None = None
     patch_solve: Callable | None = None
+    coarse_ops: list = field(default_factory=list)
+    coarse_R: list = field(default_factory=list)
+
+    def __post_init__(self):
+        self.coarse_R = [sp.csr_matrix(Pl.T) for Pl in self.coarse_P]  # restrictions, once
+        pivots = self.fine.box.pivot
+        patterns = (self._deltas(pivots) if self.truncate_coarse and self.P is not None
+                    and pivots.size else [None] * len(self.A_coarse))
+        self.coarse_ops = [_UpdatedOperator(M, d) for M, d in zip(self.A_coarse, patterns)]
+
+    def _deltas(self, E: np.ndarray) -> list:
+        """The truncation's change of each coarse operator when the pivots ``E`` are
+        truncated: ``Y'A~_EE Y - Y'X - X'Y`` (module docstring) and its Galerkin products."""
+        Y = self.P[E]
+        A_E = self.fine.A[E]
+        X = A_E @ self.P
+        Yt = Y.T.tocsr()
+        YtX = Yt @ X
+        delta = Yt @ (A_E[:, E] @ Y) - YtX - YtX.T.tocsr()
+        deltas = [delta]
+        for Pl, Rl in zip(reversed(self.coarse_P), reversed(self.coarse_R)):
+            deltas.append(Rl @ (deltas[-1] @ Pl))
+        return deltas
 
     def _update_patch(self, E: np.ndarray) -> None:
         """Factorise the truncated system on the contact patch (the active pivots out)."""
@@ -143,32 +242,22 @@ class _TruncatedHierarchy:
             keep = np.ones(fine.A.shape[0], dtype=bool)
             keep[E] = False
             idx = np.flatnonzero(keep)
-            lu = spla.splu(sp.csc_matrix(fine.A[idx][:, idx]))
+            A_free = fine.A[idx][:, idx]
+            try:
+                factor = factorize(A_free).solve
+            except FactorizationError:         # semidefinite (a body held by nothing yet)
+                factor = spla.splu(sp.csc_matrix(A_free)).solve
 
             def solve(r):
                 out = np.zeros_like(r)
-                out[idx] = lu.solve(r[idx])
+                out[idx] = factor(r[idx])
                 return out
             self.coarse_solve = solve
             return
-        mats = list(self.A_coarse)
-        if self.truncate_coarse and E.size:
-            Y = self.P[E]
-            A_E = fine.A[E]
-            X = A_E @ self.P
-            delta = Y.T @ (A_E[:, E] @ Y) - Y.T @ X - X.T @ Y
-            for lvl in range(len(mats)):
-                if lvl:
-                    Pl = self.coarse_P[-lvl]
-                    delta = Pl.T @ delta @ Pl
-                mats[lvl] = sp.csr_matrix(mats[lvl] + delta)
-        for lvl, M in enumerate(mats):      # a coarse function truncated away: identity row
-            d = M.diagonal()
-            dead = d <= 1e-14 * max(float(d.max()), 1e-300)
-            if np.any(dead):
-                mats[lvl] = sp.csr_matrix(M + sp.diags(dead.astype(float)))
-        self.A_t = mats
-        self.coarse_solve = spla.splu(sp.csc_matrix(mats[-1])).solve
+        deltas = (self._deltas(E) if self.truncate_coarse and E.size
+                  else [None] * len(self.A_coarse))
+        self.A_t = [op.set(delta) for op, delta in zip(self.coarse_ops, deltas)]
+        self.coarse_solve = spla.splu(sp.csc_matrix(self.A_t[-1])).solve
 
     def vcycle(self, r: np.ndarray) -> np.ndarray:
         """One V(sweeps, sweeps)-cycle for the truncated system, zero start; ``r`` is zero
@@ -199,8 +288,8 @@ class _TruncatedHierarchy:
         A = self.A_t[lvl]
         x = np.zeros_like(b)
         gauss_seidel(A, x, b, iterations=self.sweeps, sweep="symmetric")
-        Pl = self.coarse_P[-(lvl + 1)]
-        x += Pl @ self._coarse(lvl + 1, Pl.T @ (b - A @ x))
+        x += self.coarse_P[-(lvl + 1)] @ self._coarse(lvl + 1,
+                                                      self.coarse_R[-(lvl + 1)] @ (b - A @ x))
         gauss_seidel(A, x, b, iterations=self.sweeps, sweep="symmetric")
         return x
 
@@ -221,10 +310,13 @@ def _hierarchy(qp: ContactQP, fine: _Fine, sweeps: int, truncate_coarse: bool, h
     prolongations = [sp.csr_matrix(P) for P in qp.multilevel.prolongations]
     if not prolongations:
         return _TruncatedHierarchy(fine, None, [], [], sweeps, truncate_coarse)
-    P = sp.csr_matrix(fine.box.T_inv @ prolongations[-1])
-    mats = [sp.csr_matrix(P.T @ fine.A @ P)]
-    for Pl in reversed(prolongations[:-1]):
-        mats.append(sp.csr_matrix(Pl.T @ mats[-1] @ Pl))
+    P = fine.box.prolongation(prolongations[-1])
+    # P~' A~ P~ = P' T' A T T^{-1} P = P' A P: the untruncated coarse operators are the
+    # scene's own Galerkin products
+    mats = [sp.csr_matrix(qp.A)]                 # all products CSR by CSR (no conversion
+    for Pl in reversed(prolongations):           # of A to CSC)
+        mats.append(sp.csr_matrix(sp.csr_matrix(Pl.T) @ (mats[-1] @ Pl)))
+    mats = mats[1:]
     return _TruncatedHierarchy(fine, P, prolongations[:-1], mats, sweeps, truncate_coarse,
                                contact_patch(qp, fine.A, hops))
 
@@ -286,6 +378,58 @@ def _step(fine: _Fine, v: np.ndarray, r: np.ndarray, c: np.ndarray, piv: np.ndar
     return v_line, r_line, step
 
 
+@dataclass
+class _FaceCG:
+    """Preconditioned CG on a face of the feasible set: the active pivots ``E`` held at
+    their bounds, the truncated V-cycle (symmetric: forward sweeps before, backward after)
+    as the preconditioner (Dostal's MPRGP, Optimal Quadratic Programming Algorithms, 2009,
+    with the multigrid preconditioner in the face).
+
+    A CG step minimises the energy over a growing Krylov space of the face, so the energy
+    never rises; the step is cut where a free pivot meets its bound (an *expansion*: the
+    face is left, the next step is TNNMG's), and the face is left too when the chopped
+    residual (the negative multipliers on ``E``) outweighs the free one (*proportioning*:
+    the next TNNMG step's smoother releases them). A face whose minimiser is not the
+    solution is left in finitely many steps, so TNNMG's global convergence stands.
+    """
+
+    E: np.ndarray
+    p: np.ndarray | None = None
+    rz: float = 0.0
+
+    def step(self, fine: _Fine, ml: "_TruncatedHierarchy", v: np.ndarray, r: np.ndarray,
+             piv: np.ndarray, upper: np.ndarray, active: np.ndarray
+             ) -> tuple[np.ndarray, np.ndarray, float, bool]:
+        """One CG step from ``v`` (residual ``r``): ``(v, r, alpha, leave)``."""
+        r_t = r.copy()
+        r_t[self.E] = 0.0
+        z = ml.vcycle(r_t)
+        rz = float(r_t @ z)
+        self.p = z if self.p is None else z + (rz / self.rz) * self.p
+        self.rz = rz
+        q = fine.A @ self.p
+        curvature = float(self.p @ q)
+        if not (curvature > 0.0 and rz > 0.0):
+            return v, r, 0.0, True
+        alpha = rz / curvature
+        d = self.p[piv]
+        rising = (d > 0) & ~active
+        leave = False
+        if rising.any():
+            room = (upper[rising] - v[piv][rising]) / d[rising]
+            if room.min() < alpha:
+                alpha, leave = max(float(room.min()), 0.0), True
+        v = v + alpha * self.p
+        r = r - alpha * q
+        v[piv] = np.minimum(v[piv], upper)
+        chopped = np.minimum(r[self.E], 0.0)
+        free = r.copy()
+        free[self.E] = 0.0
+        if float(chopped @ chopped) > float(free @ free):
+            leave = True
+        return v, r, alpha, leave
+
+
 def supports(qp: ContactQP) -> tuple[bool, str]:
     """Nodal constraints with one row per constrained node (:mod:`solvers.contact_box`)."""
     ok, reason = check_structure(qp)
@@ -315,31 +459,46 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
 
     t_solve = time.perf_counter()
     history = {"energy": [], "residual": [], "kkt_max": [], "n_active": [], "step": [],
-               "time": []}
+               "phase": [], "time": []}
     timing = {"t_smoother": 0.0, "t_truncation": 0.0, "t_vcycle": 0.0, "t_check": 0.0}
     status, message, k = "max_iter", f"not verified after {max_iter} steps", 0
-    forward = True
+    forward, cg, n_cg, previous = True, None, 0, None
     for k in range(1, max_iter + 1):
-        t0 = time.perf_counter()
-        for _ in range(opts.presmoothing):
-            fine.sweep(v, fine.f, mode_nonlinear, forward)
-            forward = not forward
-        t1 = time.perf_counter()
-        r = fine.f - fine.A @ v
-        active = v[piv] >= upper
-        ml.update(active)
-        t2 = time.perf_counter()
-        r_t = r.copy()
-        r_t[piv[active]] = 0.0
-        c = ml.vcycle(r_t)
-        v, r, step = _step(fine, v, r, c, piv, upper)
+        t0 = t1 = time.perf_counter()
+        if cg is None:                            # a TNNMG step
+            for _ in range(opts.presmoothing):
+                fine.sweep(v, fine.f, mode_nonlinear, forward)
+                forward = not forward
+            t1 = time.perf_counter()
+            r = fine.f - fine.A @ v
+            active = v[piv] >= upper
+            ml.update(active)
+            t2 = time.perf_counter()
+            r_t = r.copy()
+            r_t[piv[active]] = 0.0
+            c = ml.vcycle(r_t)
+            v, r, step = _step(fine, v, r, c, piv, upper)
+            bound = v[piv] >= upper
+            if (opts.krylov == "cg" and previous is not None
+                    and np.array_equal(active, previous) and np.array_equal(bound, active)):
+                cg = _FaceCG(piv[active])         # the face is stable: CG on it
+            previous = active
+            phase = "tnnmg"
+        else:                                     # a CG step on the face (_FaceCG)
+            t2 = t1
+            v, r, step, leave = cg.step(fine, ml, v, r, piv, upper, active)
+            bound = v[piv] >= upper
+            n_cg += 1
+            phase = "cg"
+            if leave:
+                cg = None
         t3 = time.perf_counter()
-        bound = v[piv] >= upper
         residual = _stationarity(fine, r, piv[bound])
         history["energy"].append(_energy(fine, v, r))
         history["residual"].append(residual)
-        history["n_active"].append(int(np.count_nonzero(active)))
+        history["n_active"].append(int(np.count_nonzero(bound)))
         history["step"].append(step)
+        history["phase"].append(phase)
         history["time"].append(time.perf_counter() - t_solve)
         verified, kkt_max = False, np.nan
         if residual <= CHECK_FACTOR * tol or callback is not None:
@@ -355,7 +514,7 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
         timing["t_check"] += time.perf_counter() - t3
         stop = callback is not None and callback(u, p)
         if verified:
-            status, message = "converged", f"verified after {k} steps"
+            status, message = "converged", f"verified after {k} steps ({n_cg} of them CG)"
             break
         if stop:
             status, message = "max_iter", f"stopped by the caller after {k} steps"
@@ -363,8 +522,10 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
         if deadline is not None and time.perf_counter() > deadline:
             status, message = "time_limit", f"time limit reached after {k} steps"
             break
+    if k == 0:
+        r = fine.f - fine.A @ v
     u, p = box.to_u(v), box.multipliers(r, v[piv] >= upper)
-    stats = {"n_steps": k, "n_vcycles": k, "presmoothing": opts.presmoothing,
+    stats = {"n_steps": k, "n_cg": n_cg, "n_vcycles": k, "presmoothing": opts.presmoothing,
              "truncation_updates": ml.updates, "n_active": int(np.count_nonzero(p > 0)),
              "n_levels": len(ml.A_coarse) + 1, **timing}
     return SolveResult(u=u, p=p, claimed_status=status, message=message, iterations=k,
@@ -383,13 +544,20 @@ SOLVER = SolverSpec(
                   "(alternating direction)", low=1, high=10, kind=int),
         Parameter("sweeps", 1, "smoothing sweeps of the linear V-cycle: V(sweeps, sweeps)",
                   low=1, high=10, kind=int),
-        Parameter("patch", 1, "graph layers of the contact patch around the constraint "
+        Parameter("patch", 0, "graph layers of the contact patch around the constraint "
                   "rows' unknowns, solved exactly in each V-cycle after pre- and before "
-                  "post-smoothing (0: none)", low=0, high=20, kind=int),
+                  "post-smoothing (0: none; each change of the active set refactorises it, "
+                  "which costs more than it saves once CG runs on the face)",
+                  low=0, high=20, kind=int),
         Parameter("stop", "verified", "verified: stop when the KKT residuals and the "
                   "certified energy bound meet tol; kkt: the KKT residuals alone (nested "
                   "iteration's coarse levels; the interface still certifies the answer)",
                   choices=("verified", "kkt")),
+        Parameter("krylov", "cg", "cg: once a TNNMG step leaves the active set as it found "
+                  "it (twice in a row), conjugate gradients on that face, preconditioned by "
+                  "the truncated V-cycle, until a bound or a negative multiplier ends it "
+                  "(MPRGP's expansion and proportioning); none: TNNMG steps only",
+                  choices=("cg", "none")),
         Parameter("coarse", "truncated", "coarse operators: Galerkin products of the truncated "
                   "space (truncated) or the untruncated ones (untruncated; still monotone by "
                   "the projection and line search, fewer updates, more steps)",

@@ -10,8 +10,10 @@ import scipy.sparse as sp
 from problems.kkt import energy_error
 from problems.qp import SharedWork
 from problems.spec import ParameterError, problems
-from solvers._block_gs import BOUNDED, FIXED, FREE, block_gauss_seidel, block_inverses
+from solvers._block_gs import (BOUNDED, FIXED, FREE, block_gauss_seidel, block_inverses,
+                               unsigned_index)
 from solvers.contact_box import TransformationError, box_transformation, check_structure
+from solvers import tnnmg
 from solvers.interface import solve
 from solvers.reference import reference_solve
 
@@ -62,6 +64,16 @@ def test_the_transformation_is_exact_on_every_scene(scene):
     active = ref.p > 0
     np.testing.assert_allclose(box.multipliers(r, active), ref.p,
                                atol=1e-7 * max(ref.p.max(), 1e-300))
+    # the cheap products the solver uses (updates on the constrained nodes' rows) are the
+    # products themselves; and the coarse spaces' Galerkin operators do not change
+    fast = box.operator(qp.A)
+    assert abs(fast - A_v).max() <= 1e-13 * abs(A_v).max()
+    assert fast.has_sorted_indices
+    for P in qp.multilevel.prolongations[-1:]:
+        P_v = box.prolongation(P)
+        assert abs(P_v - box.T_inv @ P).max() <= 1e-14 * abs(P).max()
+        galerkin = P.T @ qp.A @ P
+        assert abs(P_v.T @ fast @ P_v - galerkin).max() <= 1e-12 * abs(galerkin).max()
 
 
 def test_block_smoother_minimises_each_block_exactly():
@@ -77,12 +89,18 @@ def test_block_smoother_minimises_each_block_exactly():
     node_ptr = np.arange(0, n + 1, k, dtype=np.int64)
     node_dofs = np.arange(n, dtype=np.int64)
     diag, inv_full, inv_sub = block_inverses(A, node_ptr, node_dofs)
+    blocks = np.stack([A[k * i:k * i + k, k * i:k * i + k].toarray() for i in range(nb)])
+    np.testing.assert_array_equal(diag, blocks)
+    np.testing.assert_allclose(inv_full, np.linalg.inv(blocks), rtol=1e-12, atol=1e-14)
+    np.testing.assert_allclose(inv_sub[:, 1:, 1:], np.linalg.inv(blocks[:, 1:, 1:]),
+                               rtol=1e-12, atol=1e-14)
     mode = rng.choice([FREE, BOUNDED, FIXED], size=nb).astype(np.int64)
     upper = rng.normal(scale=0.1, size=nb)
     x = rng.normal(scale=0.1, size=n)
     x0 = x.copy()
-    block_gauss_seidel(A.indptr, A.indices, A.data, x, b, node_ptr, node_dofs, diag, inv_full,
-                       inv_sub, mode, upper, True)
+    block_gauss_seidel(unsigned_index(A.indptr), unsigned_index(A.indices), A.data, x, b,
+                       node_ptr, unsigned_index(node_dofs), diag, inv_full, inv_sub, mode,
+                       upper, True)
     # the last block sees the final values of all others: check it exactly
     blk = nb - 1
     s = slice(k * blk, k * blk + k)
@@ -169,3 +187,59 @@ def test_rounding_does_not_decide_tnnmg(name, level):
     assert [r.status for r in runs] == ["converged", "converged"], [r.message for r in runs]
     assert energy_error(qp, runs[1].u, runs[0].u) <= 2e-6
     assert abs(runs[0].iterations - runs[1].iterations) <= 2
+
+
+def test_truncated_coarse_operators_are_the_galerkin_products_of_the_truncated_space():
+    """The coarse operators updated in place (the truncation's low-rank term added where
+    the pattern holds it) equal the Galerkin products of the truncated prolongation
+    ``D_I T^{-1} P`` computed outright, for several active sets and back to none."""
+    qp = _build("circle_square", 2, {})
+    fine = tnnmg._fine_system(qp)
+    ml = tnnmg._hierarchy(qp, fine, 1, True, 0)
+    rng = np.random.default_rng(5)
+    m = fine.box.pivot.size
+    for active in (rng.random(m) < 0.5, np.ones(m, bool), rng.random(m) < 0.2,
+                   np.zeros(m, bool)):
+        ml.update(active)
+        keep = np.ones(qp.n)
+        keep[fine.box.pivot[active]] = 0.0
+        P = sp.diags(keep) @ ml.P
+        want = sp.csr_matrix(P.T @ fine.A @ P)
+        for lvl, got in enumerate(ml.A_t):
+            if lvl:
+                Pl = ml.coarse_P[-lvl]
+                want = sp.csr_matrix(Pl.T @ want @ Pl)
+            d = want.diagonal()
+            dead = d <= 1e-14 * d.max()
+            want = want + sp.diags(dead.astype(float))   # a function truncated away
+            assert abs(got - want).max() <= 1e-12 * abs(want).max(), (lvl, active.sum())
+
+
+def test_updated_operator_takes_couplings_outside_its_pattern():
+    """An update with entries the operator has no place for (the fallback) gives the sum
+    too, and the next update starts from the operator again."""
+    base = sp.csr_matrix(sp.diags([4.0, 4.0, 4.0, 4.0]) + sp.diags([1.0, 1.0, 1.0], 1)
+                         + sp.diags([1.0, 1.0, 1.0], -1))
+    op = tnnmg._UpdatedOperator(base)
+    inside = sp.csr_matrix(([0.5, 0.5], ([0, 1], [1, 0])), shape=(4, 4))
+    outside = sp.csr_matrix(([0.25, 0.25], ([0, 3], [3, 0])), shape=(4, 4))
+    np.testing.assert_array_equal(op.set(inside).toarray(), (base + inside).toarray())
+    np.testing.assert_array_equal(op.set(outside).toarray(), (base + outside).toarray())
+    np.testing.assert_array_equal(op.set(inside).toarray(), (base + inside).toarray())
+    np.testing.assert_array_equal(op.set(None).toarray(), base.toarray())
+
+
+def test_cg_on_the_face_is_monotone_and_cuts_the_steps_towards_incompressibility():
+    """At nu = 0.499 the V-cycle alone contracts slowly (the material locks); CG on the
+    stable face, preconditioned by it, needs less than half the steps, and the energy still
+    never rises."""
+    qp = _build("circle_square", 1, {"nu1": 0.499, "nu2": 0.499})
+    with_cg = solve(qp, solver="tnnmg", tol="mid")
+    without = solve(qp, solver="tnnmg", tol="mid", krylov="none")
+    assert with_cg.status == without.status == "converged", (with_cg.message, without.message)
+    assert with_cg.stats["n_cg"] > 0 and without.stats["n_cg"] == 0
+    assert with_cg.iterations <= 0.5 * without.iterations, (with_cg.iterations,
+                                                            without.iterations)
+    J = np.asarray(with_cg.history["energy"])
+    assert np.all(np.diff(J) <= 1e-12 * np.abs(J).max())
+    assert energy_error(qp, with_cg.u, without.u) <= 2e-6
