@@ -5,7 +5,8 @@ for one scene and, when the scene runs with the thesis's parameters, the
 thesis's table (``--thesis reference/table_9_1.csv`` for circle-square,
 Table 9.3 for cube-sphere); writes our table beside the thesis's, a claims
 table (each claim, the measured number, the bar, pass/miss) and the figures
-(T_solve against N: Figs. 9.1/9.6; kappa(S-hat) against N: Figs. 9.3/9.8).
+(T_solve against N: Figs. 9.1/9.6; kappa(S-hat) against N: Figs. 9.3/9.8; TNNMG's
+steps, time and memory against the linear floor's).
 """
 from __future__ import annotations
 
@@ -30,6 +31,9 @@ NOT_VARIANTS = ("reference", "semismooth_newton", "tnnmg", "tnnmg_nested")
 #: fastest linear multigrid-PCG solve at the finest level, 2D and 3D; step growth).
 TNNMG_ROWS = ("tnnmg", "tnnmg_nested")
 TNNMG_TIME_BAR = {2: 2.0, 3: 2.5}
+TNNMG_MEMORY_BAR = 1.5
+#: The linear floor TNNMG's figure and memory claim compare with (geometric multigrid-PCG).
+FLOOR = "amg_pcg_gmg"
 
 
 def read_thesis(path: str | Path | None) -> pd.DataFrame | None:
@@ -134,7 +138,74 @@ def tnnmg_claims(study: pd.DataFrame) -> list[dict]:
                                   f"AMG-PCG linear solve (N = {int(row['N'].iloc[0])}; coarse "
                                   "levels included)", "measured": r, "bar": bar,
                          "pass": bool(r <= bar)})
+    ratio = memory_ratio(study)
+    if np.isfinite(ratio):
+        rows.append({"claim": "tnnmg: peak memory (input + traced peak of the solve) / the "
+                              "multigrid-PCG linear solve's, finest level",
+                     "measured": ratio, "bar": TNNMG_MEMORY_BAR,
+                     "pass": bool(ratio <= TNNMG_MEMORY_BAR)})
     return rows
+
+
+def _memory(study: pd.DataFrame, config: str) -> pd.DataFrame:
+    """``(N, mem_mb)`` of ``config``'s rows that measured memory: the input both hold plus
+    the solve's traced peak."""
+    if "mem_peak_mb" not in study:
+        return pd.DataFrame(columns=["N", "mem_mb"])
+    rows = study[(study.config == config) & study["mem_peak_mb"].notna()].sort_values("N")
+    return pd.DataFrame({"N": rows["N"], "mem_mb": rows["mem_input_mb"] + rows["mem_peak_mb"],
+                         "level": rows["level"]})
+
+
+def memory_ratio(study: pd.DataFrame) -> float:
+    """TNNMG's peak memory over the multigrid-PCG linear solve's at the finest level both
+    measured (nan without memory columns)."""
+    ours, floor = _memory(study, "tnnmg"), _memory(study, FLOOR)
+    both = ours.merge(floor, on="level", suffixes=("", "_floor"))
+    if not len(both):
+        return np.nan
+    last = both.sort_values("N").iloc[-1]
+    return float(last["mem_mb"] / last["mem_mb_floor"])
+
+
+def figure_tnnmg(study: pd.DataFrame, path: str) -> None:
+    """TNNMG against the linear floor level by level: steps to the energy-error target,
+    time to it (coarse levels included) and peak memory against N, with the fitted
+    exponents (issue 23's study figure)."""
+    fig, axes = plt.subplots(1, 3, figsize=(13, 4.2))
+    lines = [("tnnmg", "v-", "TNNMG from zero"),
+             ("tnnmg_nested", "^--", "TNNMG, nested iteration"),
+             (FLOOR, "k:", "multigrid-PCG, no contact (floor)")]
+    for config, style, label in lines:
+        grp = study[(study.config == config) & (study["n_to_target"] > 0)].sort_values("N")
+        if not len(grp):
+            continue
+        axes[0].semilogx(grp["N"], grp["n_to_target"], style, ms=5, label=label)
+        t = time_to_target(grp)
+        axes[1].loglog(grp["N"], t, style, ms=5,
+                       label=f"{label}, exponent {slope(grp['N'], t):.2f}")
+        mem = _memory(study, config)
+        if len(mem):
+            axes[2].loglog(mem["N"], mem["mem_mb"], style, ms=5,
+                           label=f"{label}, exponent {slope(mem['N'], mem['mem_mb']):.2f}")
+    n = np.array([study["N"].min(), study["N"].max()], float)
+    floor = study[(study.config == FLOOR) & (study["n_to_target"] > 0)].sort_values("N")
+    if len(floor):
+        t0 = float(time_to_target(floor).iloc[0])
+        axes[1].loglog(n, t0 * n / n[0], color="0.6", lw=1, label="slope 1 guide")
+    axes[0].set_ylabel("steps to the energy-error target")
+    axes[1].set_ylabel("time to the target, setup and coarse levels incl. [s]")
+    axes[2].set_ylabel("peak memory: input + traced peak of the solve [MB]")
+    for ax in axes:
+        ax.set_xlabel("nodes N")
+        ax.grid(True, which="both", alpha=0.3)
+        if ax.get_legend_handles_labels()[0]:
+            ax.legend(fontsize=7)
+    axes[0].set_ylim(bottom=0)
+    fig.suptitle("Truncated nonsmooth Newton multigrid against the linear multigrid-PCG "
+                 "solve of the same system (exponents: least-squares fit of log-log)",
+                 fontsize=9)
+    save_figure(fig, path)
 
 
 def figure_time(study: pd.DataFrame, thesis: pd.DataFrame | None, path: str) -> None:
@@ -206,6 +277,7 @@ def main(argv=None) -> None:
     ap.add_argument("--claims", required=True)
     ap.add_argument("--fig-time", required=True, dest="fig_time")
     ap.add_argument("--fig-kappa", required=True, dest="fig_kappa")
+    ap.add_argument("--fig-tnnmg", required=True, dest="fig_tnnmg")
     args = ap.parse_args(argv)
     study = read_csv(args.study)
     thesis = read_thesis(args.thesis)
@@ -213,6 +285,7 @@ def main(argv=None) -> None:
     write_csv(args.claims, claims(study))
     figure_time(study, thesis, args.fig_time)
     figure_kappa(study, thesis, args.fig_kappa)
+    figure_tnnmg(study, args.fig_tnnmg)
 
 
 if __name__ == "__main__":

@@ -35,8 +35,8 @@ TIMING = re.compile(r"(^|_)(t|s|cpu|wall|rss|mb|peak|memory|created)($|_)|time|s
                     r"floor_ratio|ratio_to_floor")
 
 
-#: Claims whose measured value is a time ratio or a time's growth.
-TIMING_CLAIM = re.compile(r"T_solve|time|faster|speed")
+#: Claims whose measured value is a time ratio or a time's growth, or a memory ratio.
+TIMING_CLAIM = re.compile(r"T_solve|time|faster|speed|memory")
 
 
 def regenerate(cwd: Path, *extra: str, popen: bool = False, env: dict | None = None):

@@ -110,6 +110,13 @@ def test_augmented_projection_study_and_its_report(tmp_path):
     assert (tnnmg["n_to_target"] > 0).all() and (tnnmg["t_to_target"] > tnnmg["t_setup"]).all()
     nested = tnnmg[tnnmg.config == "tnnmg_nested"].set_index("level")["t_coarse_levels"]
     assert nested.notna().all() and (nested >= 0).all()
+    # memory: TNNMG from zero and the floor, per level; the input both hold is the same
+    mem = s[s["mem_peak_mb"].notna()].set_index(["config", "level"])
+    assert set(mem.index.get_level_values(0)) == {"tnnmg", "amg_pcg_gmg"} and len(mem) == 4
+    assert (mem["mem_peak_mb"] > 0).all()
+    for level in (0, 1):
+        assert mem.loc[("tnnmg", level), "mem_input_mb"] == \
+            mem.loc[("amg_pcg_gmg", level), "mem_input_mb"] > 0
     newton = s[s.config == "semismooth_newton"]
     assert (newton["status"] == "converged").all() and (newton["energy_error"] <= 1e-6).all()
     assert (newton["t_to_target"] == newton["t_setup"] + newton["t_solve"]).all()
@@ -117,10 +124,12 @@ def test_augmented_projection_study_and_its_report(tmp_path):
     runs = s[s.config == "alg84"]
     assert list(runs["NC"]) == [17, 33] and runs["stop_8_25"].all()
     assert (runs["energy_error"] < 1e-2).all() and (runs["kappa_SinvS"] < 10).all()
-    outs = [str(tmp_path / n) for n in ("table.csv", "claims.csv", "time.png", "kappa.png")]
+    outs = [str(tmp_path / n) for n in ("table.csv", "claims.csv", "time.png", "kappa.png",
+                                        "tnnmg.png")]
     run("report.augmented_projection", "--study", str(study), "--thesis",
         str(ROOT / "reference" / "table_9_1.csv"), "--table", outs[0], "--claims", outs[1],
-        "--fig-time", outs[2], "--fig-kappa", outs[3])
+        "--fig-time", outs[2], "--fig-kappa", outs[3], "--fig-tnnmg", outs[4])
+    assert Path(outs[4]).stat().st_size > 0
     table = pd.read_csv(outs[0]).set_index("level")
     assert table.loc[1, "thesis_nodes"] == 4226 and pd.isna(table.loc[0, "thesis_nodes"])
     assert table.loc[1, "thesis_n_outer_1e-03"] == 19 and table.loc[1, "n_outer_1e-03"] > 0
@@ -129,7 +138,11 @@ def test_augmented_projection_study_and_its_report(tmp_path):
     bars = claims[claims.claim.str.startswith("time to the energy-error target")].bar
     assert sorted(map(float, bars)) == [2.0, 5.0]   # 2D: the best variant 2x, Alg. 8.4 5x
     ours = claims[claims.claim.str.startswith("tnnmg")]
-    assert len(ours) == 4 and set(ours.bar.astype(float)) == {0.15, 2.0}
+    assert len(ours) == 5 and set(ours.bar.astype(float)) == {0.15, 2.0, 1.5}
+    memory = ours[ours.claim.str.contains("peak memory")]
+    want = (mem.loc[("tnnmg", 1), ["mem_input_mb", "mem_peak_mb"]].sum()
+            / mem.loc[("amg_pcg_gmg", 1), ["mem_input_mb", "mem_peak_mb"]].sum())
+    assert float(memory.measured.iloc[0]) == pytest.approx(want)
 
 
 def test_laplace_scripts_and_reports(tmp_path):

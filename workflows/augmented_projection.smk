@@ -29,6 +29,8 @@ rule augmented_projection_report:
         time=report(PATHS["ap_time"], caption="../report/captions/ap_time.rst",
                     category="{scene}", subcategory="augmented projection"),
         kappa=report(PATHS["ap_kappa"], caption="../report/captions/ap_kappa.rst",
+                     category="{scene}", subcategory="augmented projection"),
+        tnnmg=report(PATHS["ap_tnnmg"], caption="../report/captions/ap_tnnmg.rst",
                      category="{scene}", subcategory="augmented projection")
     log: log_path("augmented_projection_report")
     conda: ENV
@@ -39,4 +41,4 @@ rule augmented_projection_report:
     shell:
         "{params.py} -m report.augmented_projection --study {input} {params.thesis} "
         "--table {output.table} --claims {output.claims} --fig-time {output.time} "
-        "--fig-kappa {output.kappa} > {log} 2>&1"
+        "--fig-kappa {output.kappa} --fig-tnnmg {output.tnnmg} > {log} 2>&1"

@@ -10,9 +10,12 @@ from __future__ import annotations
 
 import threading
 import time
+import tracemalloc
 from contextlib import contextmanager
+from typing import Callable
 
 import numpy as np
+import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from solvers import multigrid as pc
@@ -63,6 +66,32 @@ def linear_solution(qp, rtol: float = 1e-13, max_iter: int = 2000) -> np.ndarray
     if info != 0:
         raise RuntimeError(f"multigrid PCG for the linear solution did not reach {rtol:g}")
     return u
+
+
+def traced_peak_mb(run: Callable[[], object]) -> float:
+    """Peak of the memory ``run()`` allocates beyond what was held before it, in MB, by
+    :mod:`tracemalloc` (numpy and scipy arrays are traced; a run is slower under it, so
+    never time one). An untimed repeat of a timed run measures its memory."""
+    was_tracing = tracemalloc.is_tracing()
+    if not was_tracing:
+        tracemalloc.start()
+    tracemalloc.reset_peak()
+    before = tracemalloc.get_traced_memory()[0]
+    try:
+        run()
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        if not was_tracing:
+            tracemalloc.stop()
+    return (peak - before) / 1e6
+
+
+def input_mb(qp) -> float:
+    """MB of what every solver of ``qp`` holds before it starts: ``A`` and the refinement
+    hierarchy's prolongations (the base of a peak-memory ratio)."""
+    mats = [qp.A, *qp.multilevel.prolongations]
+    return sum(sum(a.nbytes for a in (M.data, M.indices, M.indptr))
+               for M in (sp.csr_matrix(M) for M in mats)) / 1e6
 
 
 def amg_pcg_floor(qp, kind: str, target: float, u_exact: np.ndarray,
