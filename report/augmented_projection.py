@@ -151,7 +151,7 @@ def _memory(study: pd.DataFrame, config: str) -> pd.DataFrame:
     """``(N, mem_mb)`` of ``config``'s rows that measured memory: the input both hold plus
     the solve's traced peak."""
     if "mem_peak_mb" not in study:
-        return pd.DataFrame(columns=["N", "mem_mb"])
+        return pd.DataFrame(columns=["N", "mem_mb", "level"])
     rows = study[(study.config == config) & study["mem_peak_mb"].notna()].sort_values("N")
     return pd.DataFrame({"N": rows["N"], "mem_mb": rows["mem_input_mb"] + rows["mem_peak_mb"],
                          "level": rows["level"]})
@@ -161,6 +161,8 @@ def memory_ratio(study: pd.DataFrame) -> float:
     """TNNMG's peak memory over the multigrid-PCG linear solve's at the finest level both
     measured (nan without memory columns)."""
     ours, floor = _memory(study, "tnnmg"), _memory(study, FLOOR)
+    if not (len(ours) and len(floor)):
+        return np.nan
     both = ours.merge(floor, on="level", suffixes=("", "_floor"))
     if not len(both):
         return np.nan

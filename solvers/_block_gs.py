@@ -21,25 +21,38 @@ FREE, BOUNDED, FIXED = 0, 1, 2
 
 
 def unsigned_index(a: np.ndarray) -> np.ndarray:
-    """``a`` (non-negative indices) as ``uint32`` (``uint64`` if it does not fit): the
-    compiled kernels index with it without numba's test for negative indices."""
+    """``a`` (non-negative indices) as ``uint32``, a view of an ``int32`` array (no copy):
+    the compiled kernels then index without numba's test for negative indices (40% of
+    a sweep). An index beyond ``uint32`` stays ``int64`` (correct, slower; numba would
+    turn ``uint64 + int`` into a float)."""
     a = np.asarray(a)
-    big = a.size and int(a.max()) >= np.iinfo(np.uint32).max
-    return a.astype(np.uint64 if big else np.uint32)
+    if a.dtype == np.int32:
+        return a.view(np.uint32)
+    if a.dtype == np.uint32 or (a.size and int(a.max()) >= np.iinfo(np.uint32).max):
+        return a if a.dtype == np.uint32 else a.astype(np.int64)
+    return a.astype(np.uint32)
 
 
-def block_inverses(A: sp.csr_matrix, node_ptr: np.ndarray, node_dofs: np.ndarray
+def block_inverses(A: sp.csr_matrix, node_ptr: np.ndarray, node_dofs: np.ndarray,
+                   C: sp.csr_matrix | None = None
                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``(diag, inv_full, inv_sub)``, each ``(n_blocks, 3, 3)``: the node blocks of ``A``,
-    their inverses, and the inverses of the blocks without their first unknown (stored
-    at ``[1:k, 1:k]``); padded with the identity. One compiled pass over ``A``'s rows."""
+    """``(diag0, inv_full, inv_sub)`` of ``A + C`` (``C`` an optional sparse update):
+    the first column of each node block ``(n_blocks, w)``, the blocks' inverses and the
+    inverses of the blocks without their first unknown (stored at ``[1:k, 1:k]``),
+    ``(n_blocks, w, w)`` with ``w`` the largest block (2 in 2D, 3 in 3D), padded with the
+    identity. One compiled pass over the rows."""
     A = sp.csr_matrix(A)
+    C = sp.csr_matrix(A.shape) if C is None else sp.csr_matrix(C)
     nb = node_ptr.size - 1
-    diag = np.empty((nb, 3, 3))
-    inv_full = np.empty((nb, 3, 3))
-    inv_sub = np.empty((nb, 3, 3))
-    _block_inverses(A.indptr, A.indices, A.data, node_ptr, node_dofs, diag, inv_full, inv_sub)
-    return diag, inv_full, inv_sub
+    w = int(np.diff(node_ptr).max(initial=1))
+    if w > 3:
+        raise ValueError(f"node blocks of at most 3 unknowns, got {w}")
+    diag0 = np.empty((nb, w))
+    inv_full = np.empty((nb, w, w))
+    inv_sub = np.empty((nb, w, w))
+    _block_inverses(A.indptr, A.indices, A.data, C.indptr, C.indices, C.data, node_ptr,
+                    node_dofs, diag0, inv_full, inv_sub)
+    return diag0, inv_full, inv_sub
 
 
 @njit(cache=True, nogil=True)
@@ -61,33 +74,52 @@ def _inverse3(M, out):   # pragma: no cover (compiled)
 
 
 @njit(cache=True, nogil=True)
-def _block_inverses(indptr, indices, data, node_ptr, node_dofs, diag, inv_full,
-                    inv_sub):   # pragma: no cover (compiled)
+def _block_inverses(indptr, indices, data, c_indptr, c_indices, c_data, node_ptr, node_dofs,
+                    diag0, inv_full, inv_sub):   # pragma: no cover (compiled)
+    block = np.empty((3, 3))
     sub = np.empty((3, 3))
+    inv = np.empty((3, 3))
+    w = diag0.shape[1]
     for blk in range(node_ptr.size - 1):
         s = node_ptr[blk]
         k = node_ptr[blk + 1] - s
         for a in range(3):
             for c in range(3):
-                diag[blk, a, c] = 1.0 if a == c and a >= k else 0.0
+                block[a, c] = 1.0 if a == c and a >= k else 0.0
         for a in range(k):
             i = node_dofs[s + a]
             for q in range(indptr[i], indptr[i + 1]):
                 j = indices[q]
                 for c in range(k):
                     if node_dofs[s + c] == j:
-                        diag[blk, a, c] += data[q]
-        _inverse3(diag[blk], inv_full[blk])
+                        block[a, c] += data[q]
+            for q in range(c_indptr[i], c_indptr[i + 1]):
+                j = c_indices[q]
+                for c in range(k):
+                    if node_dofs[s + c] == j:
+                        block[a, c] += c_data[q]
+        for a in range(w):
+            diag0[blk, a] = block[a, 0]
+        _inverse3(block, inv)
+        for a in range(w):
+            for c in range(w):
+                inv_full[blk, a, c] = inv[a, c]
         for a in range(3):
             for c in range(3):
-                sub[a, c] = diag[blk, a, c] if a > 0 and c > 0 else (1.0 if a == c else 0.0)
-        _inverse3(sub, inv_sub[blk])
+                sub[a, c] = block[a, c] if a > 0 and c > 0 else (1.0 if a == c else 0.0)
+        _inverse3(sub, inv)
+        for a in range(w):
+            for c in range(w):
+                inv_sub[blk, a, c] = inv[a, c]
 
 
 @njit(cache=True, nogil=True)
-def block_gauss_seidel(indptr, indices, data, x, b, node_ptr, node_dofs, diag, inv_full,
-                       inv_sub, mode, upper, forward):   # pragma: no cover (compiled)
-    """One sweep of node-block Gauss-Seidel for ``A x = b``, in place on ``x``.
+def block_gauss_seidel(indptr, indices, data, c_indptr, c_indices, c_data, x, b, node_ptr,
+                       node_dofs, diag0, inv_full, inv_sub, mode, upper,
+                       forward):   # pragma: no cover (compiled)
+    """One sweep of node-block Gauss-Seidel for ``(A + C) x = b``, in place on ``x``
+    (``A`` and the sparse update ``C`` as CSR triples, indices unsigned:
+    :func:`unsigned_index`).
 
     ``mode[k]``: FREE (the block solve), BOUNDED (exact minimisation with
     ``x[first] <= upper[k]``), FIXED (the first unknown kept, the others solved).
@@ -105,6 +137,8 @@ def block_gauss_seidel(indptr, indices, data, x, b, node_ptr, node_dofs, diag, i
             acc = b[i]
             for q in range(indptr[i], indptr[i + 1]):
                 acc -= data[q] * x[indices[q]]
+            for q in range(c_indptr[i], c_indptr[i + 1]):
+                acc -= c_data[q] * x[c_indices[q]]
             r[a] = acc
         md = mode[blk]
         i0 = node_dofs[s]
@@ -122,9 +156,54 @@ def block_gauss_seidel(indptr, indices, data, x, b, node_ptr, node_dofs, diag, i
             for a in range(1, k):
                 acc = 0.0
                 for c in range(1, k):
-                    acc += inv_sub[blk, a, c] * (r[c] - diag[blk, c, 0] * d0)
+                    acc += inv_sub[blk, a, c] * (r[c] - diag0[blk, c] * d0)
                 dx[a] = acc
         for a in range(k):
             x[node_dofs[s + a]] += dx[a]
         if md == 3:
             x[i0] = upper[blk]
+
+
+def with_pattern(A: sp.csr_matrix, pattern: sp.csr_matrix) -> sp.csr_matrix:
+    """``A`` with explicit zeros added where ``pattern`` has entries and ``A`` has none
+    (both sorted canonical CSR); two compiled passes, no temporaries of ``A``'s size."""
+    counts = np.zeros(A.shape[0], dtype=np.int64)
+    _merge_rows(A.indptr, A.indices, A.data, pattern.indptr, pattern.indices, counts,
+                np.zeros(0, A.indices.dtype), np.zeros(0), np.zeros(1, np.int64), False)
+    indptr = np.zeros(A.shape[0] + 1, dtype=np.int64)
+    np.cumsum(counts, out=indptr[1:])
+    dtype = np.int32 if indptr[-1] < np.iinfo(np.int32).max else np.int64
+    indices = np.empty(int(indptr[-1]), dtype=dtype)
+    data = np.empty(int(indptr[-1]))
+    _merge_rows(A.indptr, A.indices, A.data, pattern.indptr, pattern.indices, counts,
+                indices, data, indptr, True)
+    return sp.csr_matrix((data, indices, indptr.astype(dtype)), shape=A.shape)
+
+
+@njit(cache=True, nogil=True)
+def _merge_rows(indptr, indices, data, p_indptr, p_indices, counts, out_indices, out_data,
+                out_indptr, fill):   # pragma: no cover (compiled)
+    """Per row, the union of two sorted index lists: counted (``fill`` False) or written
+    with ``A``'s values and zeros (``fill`` True)."""
+    for i in range(indptr.size - 1):
+        a, a_end = indptr[i], indptr[i + 1]
+        b, b_end = p_indptr[i], p_indptr[i + 1]
+        w = out_indptr[i] if fill else 0
+        n = 0
+        while a < a_end or b < b_end:
+            if b >= b_end or (a < a_end and indices[a] < p_indices[b]):
+                j, v = indices[a], data[a]
+                a += 1
+            elif a >= a_end or p_indices[b] < indices[a]:
+                j, v = p_indices[b], 0.0
+                b += 1
+            else:
+                j, v = indices[a], data[a]
+                a += 1
+                b += 1
+            if fill:
+                out_indices[w + n] = j
+                out_data[w + n] = v
+            n += 1
+        counts[i] = n
+

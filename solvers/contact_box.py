@@ -47,8 +47,10 @@ class BoxTransformation:
 
     Attributes
     ----------
-    T, T_inv : (n, n) csr
-        ``u = T v`` and ``v = T_inv u``.
+    D, D_inv : (len(changed), n) csr
+        The :attr:`changed` rows of ``T - I`` and ``T^{-1} - I``: ``u = T v`` and
+        ``v = T^{-1} u`` differ from the identity there only (:attr:`T`, :attr:`T_inv`
+        build the whole matrices, for tests and export).
     pivot : (m,) int array
         The unknown of ``v`` that row ``i`` bounds (first unknown of its node block).
     scale : (m,) array
@@ -61,12 +63,12 @@ class BoxTransformation:
     block_row : (n_blocks,) int array
         The row of ``B`` bounding block ``k``'s first unknown, or -1.
     changed : int array
-        The constrained nodes' unknowns: the only rows where ``T`` and ``T_inv`` differ
-        from the identity (:meth:`operator`, :meth:`prolongation`).
+        The constrained nodes' unknowns (sorted): the only rows where ``T`` and ``T_inv``
+        differ from the identity (:meth:`operator`, :meth:`prolongation`).
     """
 
-    T: sp.csr_matrix
-    T_inv: sp.csr_matrix
+    D: sp.csr_matrix
+    D_inv: sp.csr_matrix
     pivot: np.ndarray
     scale: np.ndarray
     upper: np.ndarray
@@ -75,19 +77,26 @@ class BoxTransformation:
     block_row: np.ndarray
     changed: np.ndarray
 
-    def operator(self, A: sp.spmatrix) -> sp.csr_matrix:
-        """``T' A T`` for a symmetric ``A``, sorted, without a product of two ``n x n``
-        matrices: with ``T = I + D`` (``D`` nonzero on the :attr:`changed` rows ``S``
-        only), ``T'AT = A + X + X' + D_S' A_SS D_S`` with ``X = D_S' A_S``."""
+    def operator_update(self, A: sp.spmatrix) -> sp.csr_matrix:
+        """``T' A T - A`` for a symmetric ``A`` (sorted CSR), without a product of two
+        ``n x n`` matrices: with ``T = I + D`` (``D`` nonzero on the :attr:`changed` rows
+        ``S`` only), ``T'AT = A + X + X' + D_S' A_SS D_S`` with ``X = D_S' A_S``. Its
+        rows are those of ``S``, the opposing facets' unknowns and their neighbours: a
+        solver keeps ``A`` and this (:meth:`operator` adds them)."""
         A = sp.csr_matrix(A)
         S = self.changed
         if S.size == 0:
-            return A.copy()
-        D_S = sp.csr_matrix(self.T[S] - sp.identity(self.T.shape[0], format="csr")[S])
+            return sp.csr_matrix(A.shape)
+        D_S = self.D
         A_S = A[S]
         X = sp.csr_matrix(D_S.T @ A_S)
-        update = X + X.T + D_S.T @ (A_S[:, S] @ D_S)
-        out = sp.csr_matrix(A + update)
+        update = sp.csr_matrix(X + X.T + D_S.T @ (A_S[:, S] @ D_S))
+        update.sort_indices()
+        return update
+
+    def operator(self, A: sp.spmatrix) -> sp.csr_matrix:
+        """``T' A T`` (sorted CSR; :meth:`operator_update`)."""
+        out = sp.csr_matrix(sp.csr_matrix(A) + self.operator_update(A))
         out.sort_indices()
         return out
 
@@ -98,17 +107,41 @@ class BoxTransformation:
         S = self.changed
         if S.size == 0:
             return P.copy()
-        n = self.T_inv.shape[0]
-        D_S = sp.csr_matrix(self.T_inv[S] - sp.identity(n, format="csr")[S])
-        update = sp.coo_matrix(D_S @ P)
+        update = sp.coo_matrix(self.D_inv @ P)
         return sp.csr_matrix(P + sp.csr_matrix((update.data, (S[update.row], update.col)),
                                                shape=P.shape))
 
+    def _whole(self, rows: sp.csr_matrix) -> sp.csr_matrix:
+        n = rows.shape[1]
+        coo = rows.tocoo()
+        scattered = sp.csr_matrix((coo.data, (self.changed[coo.row], coo.col)), shape=(n, n))
+        return sp.csr_matrix(sp.identity(n, format="csr") + scattered)
+
+    @property
+    def T(self) -> sp.csr_matrix:
+        """``T`` as a whole ``(n, n)`` matrix (built on each call)."""
+        return self._whole(self.D)
+
+    @property
+    def T_inv(self) -> sp.csr_matrix:
+        """``T^{-1}`` as a whole ``(n, n)`` matrix (built on each call)."""
+        return self._whole(self.D_inv)
+
     def to_u(self, v: np.ndarray) -> np.ndarray:
-        return self.T @ v
+        """``u = T v``."""
+        u = np.array(v, dtype=float)
+        u[self.changed] += self.D @ v
+        return u
+
+    def load(self, f: np.ndarray) -> np.ndarray:
+        """``T' f``: a load (a gradient) in the new unknowns."""
+        return np.asarray(f, dtype=float) + self.D.T @ np.asarray(f, dtype=float)[self.changed]
 
     def to_v(self, u: np.ndarray) -> np.ndarray:
-        return self.T_inv @ u
+        """``v = T^{-1} u``."""
+        v = np.array(u, dtype=float)
+        v[self.changed] += self.D_inv @ u
+        return v
 
     def multipliers(self, residual_v: np.ndarray, active: np.ndarray) -> np.ndarray:
         """``p`` of ``B u <= g`` from the residual ``f~ - A~ v`` of the transformed problem:
@@ -210,8 +243,8 @@ def box_transformation(qp: ContactQP) -> BoxTransformation:
     block_row = -np.ones(node_ptr.size - 1, dtype=np.int64)
     block_row[block_of_row] = np.arange(m)
     if m == 0:
-        eye = sp.identity(n, format="csr")
-        return BoxTransformation(eye, eye, np.zeros(0, np.int64), np.zeros(0), np.zeros(0),
+        none = sp.csr_matrix((0, n))
+        return BoxTransformation(none, none, np.zeros(0, np.int64), np.zeros(0), np.zeros(0),
                                  node_ptr, node_dofs, block_row, np.zeros(0, np.int64))
     B = qp.B.tocsr()
     k = node_ptr[block_of_row + 1] - node_ptr[block_of_row]          # unknowns per node
@@ -242,29 +275,32 @@ def box_transformation(qp: ContactQP) -> BoxTransformation:
     coo = B.tocoo()
     other = ~is_slave[coo.col]
     r_o, c_o, val_o = coo.row[other], coo.col[other], coo.data[other] / beta[coo.row[other]]
-    keep = np.flatnonzero(~is_slave)
-    rows_t, cols_t, vals_t = [keep], [keep], [np.ones(keep.size)]
-    rows_i, cols_i, vals_i = [keep], [keep], [np.ones(keep.size)]
+    changed = np.sort(slave[slave >= 0])
+    local = -np.ones(n, dtype=np.int64)
+    local[changed] = np.arange(changed.size)
+    rows_t, cols_t, vals_t = [], [], []                 # T - I on the changed rows
+    rows_i, cols_i, vals_i = [], [], []                 # T^{-1} - I on the changed rows
     for a in range(d):
         for c in range(d):
             has = (slave[:, a] >= 0) & (slave[:, c] >= 0)
             for rows, cols, vals in ((rows_t, cols_t, vals_t), (rows_i, cols_i, vals_i)):
-                rows.append(slave[has, a])
+                rows.append(local[slave[has, a]])
                 cols.append(slave[has, c])
-                vals.append(H[has, a, c])
+                vals.append(H[has, a, c] - (1.0 if a == c else 0.0))
         has = slave[r_o, a] >= 0
-        rows_t.append(slave[r_o[has], a])
+        rows_t.append(local[slave[r_o[has], a]])
         cols_t.append(c_o[has])
         vals_t.append(-normal[r_o[has], a] * val_o[has])
-    rows_i.append(slave[r_o, 0])
+    rows_i.append(local[slave[r_o, 0]])
     cols_i.append(c_o)
     vals_i.append(val_o)
-    T = sp.csr_matrix((np.concatenate(vals_t), (np.concatenate(rows_t), np.concatenate(cols_t))),
-                      shape=(n, n))
-    T_inv = sp.csr_matrix((np.concatenate(vals_i),
-                           (np.concatenate(rows_i), np.concatenate(cols_i))), shape=(n, n))
-    T.eliminate_zeros()
-    T_inv.eliminate_zeros()
-    pivot = slave[:, 0]
-    return BoxTransformation(T, T_inv, pivot, beta, qp.g / beta, node_ptr, node_dofs,
-                             block_row, np.sort(slave[slave >= 0]))
+    shape = (changed.size, n)
+    D = sp.csr_matrix((np.concatenate(vals_t), (np.concatenate(rows_t), np.concatenate(cols_t))),
+                      shape=shape)
+    D_inv = sp.csr_matrix((np.concatenate(vals_i),
+                           (np.concatenate(rows_i), np.concatenate(cols_i))), shape=shape)
+    for M in (D, D_inv):
+        M.eliminate_zeros()
+        M.sort_indices()
+    return BoxTransformation(D, D_inv, slave[:, 0], beta, qp.g / beta, node_ptr, node_dofs,
+                             block_row, changed)

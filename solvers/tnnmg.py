@@ -59,7 +59,7 @@ from problems.kkt import kkt_residuals
 from problems.qp import ContactQP
 from problems.spec import Options, Parameter
 from solvers._block_gs import (BOUNDED, FIXED, FREE, block_gauss_seidel, block_inverses,
-                               unsigned_index)
+                               unsigned_index, with_pattern)
 from solvers.base import VERIFIED_PRESETS, Role, SolveResult, SolverSpec
 from solvers.certificate import certify
 from solvers.cholesky import FactorizationError, factorize
@@ -71,6 +71,13 @@ from solvers.contact_box import BoxTransformation, box_transformation, check_str
 #: scalings differ by the transformation's norm, O(1)).
 CHECK_FACTOR = 10.0
 
+#: V-cycle sweeps by dimension (option ``sweeps=0``). Measured at the quick levels
+#: (circle-square 66k/262k nodes, cube-sphere 18k/135k, one quiet run each): in 2D V(1,1)
+#: keeps the steps level-independent (9 and 10) at the lower time, V(2,2) costs 15% more;
+#: in 3D one node-block sweep a side smooths too little for that (11 -> 13 steps per level,
+#: +18%), V(2,2) keeps it (8 -> 9) at the same time to the target.
+AUTO_SWEEPS = {2: 1, 3: 2}
+
 #: The projection arc's backtracking: step factor and smallest step (:func:`_step`).
 ARC_FACTOR = 0.25
 ARC_MIN = 1e-4
@@ -78,96 +85,121 @@ ARC_MIN = 1e-4
 
 @dataclass
 class _Fine:
-    """The transformed fine-level system and what its block smoother needs."""
+    """The transformed fine-level system ``A~ = A + C`` and what its block smoother needs:
+    the scene's ``A`` itself (not copied) and the transformation's update ``C``
+    (:meth:`~solvers.contact_box.BoxTransformation.operator_update`, rows near the
+    contact only)."""
 
     A: sp.csr_matrix
+    C: sp.csr_matrix
     f: np.ndarray
     box: BoxTransformation
-    diag: np.ndarray
+    diag0: np.ndarray
     inv_full: np.ndarray
     inv_sub: np.ndarray
     bounded_blocks: np.ndarray
     upper_block: np.ndarray
     kernel_index: tuple = ()
+    update_rows: np.ndarray | None = None
+    update_part: sp.csr_matrix | None = None
 
     def __post_init__(self):
-        # unsigned indices: the compiled sweep then skips numba's negative-index
-        # wraparound test on every entry (measured: 40% of a sweep)
-        self.kernel_index = (unsigned_index(self.A.indptr), unsigned_index(self.A.indices),
-                             unsigned_index(self.box.node_dofs))
+        # unsigned indices (views, no copies): the compiled sweep then skips numba's
+        # negative-index test on every entry
+        self.kernel_index = tuple(unsigned_index(a) for a in (
+            self.A.indptr, self.A.indices, self.C.indptr, self.C.indices,
+            self.box.node_dofs))
+        self.update_rows = np.flatnonzero(np.diff(self.C.indptr))
+        self.update_part = sp.csr_matrix(self.C[self.update_rows])
 
     def sweep(self, x: np.ndarray, b: np.ndarray, mode: np.ndarray, forward: bool) -> None:
-        indptr, indices, node_dofs = self.kernel_index
-        block_gauss_seidel(indptr, indices, self.A.data, x, b, self.box.node_ptr, node_dofs,
-                           self.diag, self.inv_full, self.inv_sub, mode, self.upper_block,
-                           forward)
+        indptr, indices, c_indptr, c_indices, node_dofs = self.kernel_index
+        block_gauss_seidel(indptr, indices, self.A.data, c_indptr, c_indices, self.C.data,
+                           x, b, self.box.node_ptr, node_dofs, self.diag0, self.inv_full,
+                           self.inv_sub, mode, self.upper_block, forward)
+
+    def matvec(self, x: np.ndarray) -> np.ndarray:
+        """``A~ x``."""
+        out = self.A @ x
+        out[self.update_rows] += self.update_part @ x
+        return out
+
+    def rows(self, idx: np.ndarray) -> sp.csr_matrix:
+        """The rows ``idx`` of ``A~``."""
+        return sp.csr_matrix(self.A[idx] + self.C[idx])
 
 
 def _fine_system(qp: ContactQP) -> _Fine:
     box = box_transformation(qp)
-    A = box.operator(qp.A)
-    diag, inv_full, inv_sub = block_inverses(A, box.node_ptr, box.node_dofs)
+    A = sp.csr_matrix(qp.A)
+    if not A.has_sorted_indices:
+        A = A.sorted_indices()
+    C = box.operator_update(A)
+    diag0, inv_full, inv_sub = block_inverses(A, box.node_ptr, box.node_dofs, C)
     bounded = np.flatnonzero(box.block_row >= 0)
     upper = np.full(box.node_ptr.size - 1, np.inf)
     upper[bounded] = box.upper[box.block_row[bounded]]
-    return _Fine(A, box.T.T @ qp.f, box, diag, inv_full, inv_sub, bounded, upper)
+    return _Fine(A, C, box.load(qp.f), box, diag0, inv_full, inv_sub, bounded, upper)
+
+
+def _positions(M: sp.csr_matrix, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+    """The positions of the entries ``(rows, cols)`` in ``M.data`` (sorted CSR), -1 where
+    ``M`` has none; looks only at the rows asked for."""
+    rows_u = np.unique(rows)
+    starts = M.indptr[rows_u].astype(np.int64)
+    lens = M.indptr[rows_u + 1] - starts
+    if lens.sum() == 0:
+        return -np.ones(rows.size, dtype=np.int64)
+    offsets = np.r_[0, np.cumsum(lens)[:-1]]
+    where = np.repeat(starts - offsets, lens) + np.arange(lens.sum())
+    keys = np.repeat(rows_u.astype(np.int64), lens) * M.shape[1] + M.indices[where]
+    want = rows.astype(np.int64) * M.shape[1] + cols
+    k = np.minimum(np.searchsorted(keys, want), keys.size - 1)
+    return np.where(keys[k] == want, where[k], -1)
 
 
 class _UpdatedOperator:
     """A coarse operator plus a sparse update (the truncation's low-rank term), changed in
-    place where the update's pattern lies in the operator's (as it does: Galerkin products
-    of the same couplings); a coarse function truncated away entirely keeps a unit
-    diagonal (an identity row) so that the smoother and the coarse solve stay defined."""
+    place where the update's pattern lies in the operator's (prepared with explicit zeros
+    where updates go, from the update with every pivot truncated), the values it changed
+    put back before the next update (no second copy of the operator); a coarse function
+    truncated away entirely keeps a unit diagonal (an identity row) so that the smoother
+    and the coarse solve stay defined. It owns ``base``: its values change in place."""
 
     def __init__(self, base: sp.csr_matrix, pattern: sp.spmatrix | None = None):
-        base = sp.coo_matrix(base)
+        work = sp.csr_matrix(base)
+        work.sum_duplicates()
+        work.sort_indices()
         if pattern is not None:               # explicit zeros where updates will go
-            pattern = sp.coo_matrix(pattern)
-            base = sp.coo_matrix((np.r_[base.data, np.zeros(pattern.nnz)],
-                                  (np.r_[base.row, pattern.row], np.r_[base.col, pattern.col])),
-                                 shape=base.shape)
-        base = sp.csr_matrix(base)
-        base.sum_duplicates()
-        base.sort_indices()
-        self.base = base
-        rows = np.repeat(np.arange(base.shape[0]), np.diff(base.indptr))
-        self.keys = rows * base.shape[1] + base.indices
-        diag_keys = np.arange(base.shape[0]) * (base.shape[1] + 1)
-        self.diag_pos = np.minimum(np.searchsorted(self.keys, diag_keys), base.nnz - 1)
-        if not np.array_equal(self.keys[self.diag_pos], diag_keys):
-            raise ValueError("a coarse operator without a full diagonal")
-        diag = base.data[self.diag_pos]
-        self.dead_below = 1e-14 * max(float(np.max(diag, initial=0.0)), 1e-300)
-        self.work = base.copy()
+            pattern = sp.csr_matrix(pattern)
+            pattern.sum_duplicates()
+            pattern.sort_indices()
+            work = with_pattern(work, pattern)
+        self.work = work
+        self.dead_below = 1e-14 * max(float(np.max(work.diagonal(), initial=0.0)), 1e-300)
         self.touched = np.zeros(0, dtype=np.int64)
+        self.saved = np.zeros(0)
 
     def set(self, delta: sp.spmatrix | None) -> sp.csr_matrix:
-        """``base + delta`` (dead diagonals set to one); the returned matrix is reused."""
-        work, base = self.work, self.base
-        if work.nnz != base.nnz:                      # the last update left the pattern
-            work = self.work = base.copy()
-        else:
-            work.data[self.touched] = base.data[self.touched]
-        self.touched = np.zeros(0, dtype=np.int64)
+        """The operator plus ``delta`` (dead diagonals set to one); the returned matrix is
+        the one the next call changes."""
+        work = self.work
+        work.data[self.touched] = self.saved
+        self.touched, self.saved = np.zeros(0, dtype=np.int64), np.zeros(0)
         if delta is None or delta.nnz == 0:
             return work
         delta = sp.coo_matrix(delta)
-        pos = np.searchsorted(self.keys, delta.row.astype(np.int64) * base.shape[1] + delta.col)
-        pos = np.minimum(pos, base.nnz - 1)
-        if not np.array_equal(self.keys[pos], delta.row.astype(np.int64) * base.shape[1]
-                              + delta.col):
-            work = self.work = sp.csr_matrix(base + delta)   # rare: a new coupling
-            d = work.diagonal()
-            dead = d <= self.dead_below
-            if np.any(dead):
-                work = self.work = sp.csr_matrix(work + sp.diags(dead.astype(float)))
-            return work
-        np.add.at(work.data, pos, delta.data)
         rows = np.unique(delta.row)
-        dpos = self.diag_pos[rows]
-        dead = dpos[work.data[dpos] <= self.dead_below]
-        work.data[dead] += 1.0
-        self.touched = np.union1d(pos, dead)
+        pos = _positions(work, delta.row, delta.col)
+        diag = _positions(work, rows, rows)
+        if np.any(pos < 0) or np.any(diag < 0):   # rare: a coupling without a place
+            out = sp.csr_matrix(work + delta)
+            dead = out.diagonal() <= self.dead_below
+            return sp.csr_matrix(out + sp.diags(dead.astype(float))) if dead.any() else out
+        self.touched = np.union1d(pos, diag)
+        self.saved = work.data[self.touched].copy()
+        np.add.at(work.data, pos, delta.data)
+        work.data[diag[work.data[diag] <= self.dead_below]] += 1.0
         return work
 
 
@@ -199,12 +231,13 @@ class _TruncatedHierarchy:
         patterns = (self._deltas(pivots) if self.truncate_coarse and self.P is not None
                     and pivots.size else [None] * len(self.A_coarse))
         self.coarse_ops = [_UpdatedOperator(M, d) for M, d in zip(self.A_coarse, patterns)]
+        self.A_coarse = [op.work for op in self.coarse_ops]   # one copy of each, not two
 
     def _deltas(self, E: np.ndarray) -> list:
         """The truncation's change of each coarse operator when the pivots ``E`` are
         truncated: ``Y'A~_EE Y - Y'X - X'Y`` (module docstring) and its Galerkin products."""
         Y = self.P[E]
-        A_E = self.fine.A[E]
+        A_E = self.fine.rows(E)
         X = A_E @ self.P
         Yt = Y.T.tocsr()
         YtX = Yt @ X
@@ -218,7 +251,7 @@ class _TruncatedHierarchy:
         """Factorise the truncated system on the contact patch (the active pivots out)."""
         keep = np.setdiff1d(self.patch, E, assume_unique=False)
         self.patch_keep = keep
-        self.patch_rows = self.fine.A[keep]
+        self.patch_rows = self.fine.rows(keep)
         self.patch_solve = factorize(self.patch_rows[:, keep]).solve
 
     def _patch_step(self, c: np.ndarray, r: np.ndarray) -> None:
@@ -242,7 +275,7 @@ class _TruncatedHierarchy:
             keep = np.ones(fine.A.shape[0], dtype=bool)
             keep[E] = False
             idx = np.flatnonzero(keep)
-            A_free = fine.A[idx][:, idx]
+            A_free = fine.rows(idx)[:, idx]
             try:
                 factor = factorize(A_free).solve
             except FactorizationError:         # semidefinite (a body held by nothing yet)
@@ -271,7 +304,7 @@ class _TruncatedHierarchy:
             fine.sweep(c, r, self.mode, True)
         if self.patch_solve is not None:
             self._patch_step(c, r)
-        res = r - fine.A @ c
+        res = r - fine.matvec(c)
         res[E] = 0.0
         corr = self.P @ self._coarse(0, self.P.T @ res)
         corr[E] = 0.0
@@ -294,14 +327,14 @@ class _TruncatedHierarchy:
         return x
 
 
-def contact_patch(qp: ContactQP, A: sp.csr_matrix, hops: int) -> np.ndarray | None:
+def contact_patch(qp: ContactQP, fine: _Fine, hops: int) -> np.ndarray | None:
     """The unknowns of the constraint rows (constrained nodes and opposing facets) and
-    ``hops`` graph layers of ``A`` around them; None for ``hops = 0`` or no rows."""
+    ``hops`` graph layers of ``A~`` around them; None for ``hops = 0`` or no rows."""
     if hops == 0 or qp.m == 0:
         return None
     patch = np.unique(qp.B.tocsr().indices)
     for _ in range(hops):
-        patch = np.union1d(patch, A[patch].indices)
+        patch = np.union1d(patch, fine.rows(patch).indices)
     return patch
 
 
@@ -313,12 +346,12 @@ def _hierarchy(qp: ContactQP, fine: _Fine, sweeps: int, truncate_coarse: bool, h
     P = fine.box.prolongation(prolongations[-1])
     # P~' A~ P~ = P' T' A T T^{-1} P = P' A P: the untruncated coarse operators are the
     # scene's own Galerkin products
-    mats = [sp.csr_matrix(qp.A)]                 # all products CSR by CSR (no conversion
+    mats = [fine.A]                              # all products CSR by CSR (no conversion
     for Pl in reversed(prolongations):           # of A to CSC)
         mats.append(sp.csr_matrix(sp.csr_matrix(Pl.T) @ (mats[-1] @ Pl)))
     mats = mats[1:]
     return _TruncatedHierarchy(fine, P, prolongations[:-1], mats, sweeps, truncate_coarse,
-                               contact_patch(qp, fine.A, hops))
+                               contact_patch(qp, fine, hops))
 
 
 def _stationarity(fine: _Fine, r: np.ndarray, bound: np.ndarray) -> float:
@@ -355,7 +388,7 @@ def _step(fine: _Fine, v: np.ndarray, r: np.ndarray, c: np.ndarray, piv: np.ndar
     slack = upper - v[piv]
     d = c.copy()
     d[piv] = np.minimum(d[piv], slack)
-    Ad = fine.A @ d
+    Ad = fine.matvec(d)
     curvature, slope = float(d @ Ad), float(r @ d)
     step, cut = 0.0, True
     if curvature > 0 and slope > 0:
@@ -370,7 +403,7 @@ def _step(fine: _Fine, v: np.ndarray, r: np.ndarray, c: np.ndarray, piv: np.ndar
     while arc >= ARC_MIN:
         v_arc = v + arc * c
         v_arc[piv] = np.minimum(v_arc[piv], upper)
-        r_arc = fine.f - fine.A @ v_arc
+        r_arc = fine.f - fine.matvec(v_arc)
         if _energy(fine, v_arc, r_arc) < J_line:
             return v_arc, r_arc, -arc
         arc *= ARC_FACTOR
@@ -407,7 +440,7 @@ class _FaceCG:
         rz = float(r_t @ z)
         self.p = z if self.p is None else z + (rz / self.rz) * self.p
         self.rz = rz
-        q = fine.A @ self.p
+        q = fine.matvec(self.p)
         curvature = float(self.p @ q)
         if not (curvature > 0.0 and rz > 0.0):
             return v, r, 0.0, True
@@ -447,7 +480,8 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
     """
     t_start = time.perf_counter()
     fine = _fine_system(qp)
-    ml = _hierarchy(qp, fine, opts.sweeps, opts.coarse == "truncated", opts.patch)
+    ml = _hierarchy(qp, fine, opts.sweeps or AUTO_SWEEPS.get(qp.dim, 2),
+                    opts.coarse == "truncated", opts.patch)
     box = fine.box
     piv, upper = box.pivot, box.upper
     mode_nonlinear = np.full(box.node_ptr.size - 1, FREE, dtype=np.int64)
@@ -470,7 +504,7 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
                 fine.sweep(v, fine.f, mode_nonlinear, forward)
                 forward = not forward
             t1 = time.perf_counter()
-            r = fine.f - fine.A @ v
+            r = fine.f - fine.matvec(v)
             active = v[piv] >= upper
             ml.update(active)
             t2 = time.perf_counter()
@@ -523,7 +557,7 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
             status, message = "time_limit", f"time limit reached after {k} steps"
             break
     if k == 0:
-        r = fine.f - fine.A @ v
+        r = fine.f - fine.matvec(v)
     u, p = box.to_u(v), box.multipliers(r, v[piv] >= upper)
     stats = {"n_steps": k, "n_cg": n_cg, "n_vcycles": k, "presmoothing": opts.presmoothing,
              "truncation_updates": ml.updates, "n_active": int(np.count_nonzero(p > 0)),
@@ -542,8 +576,8 @@ SOLVER = SolverSpec(
     parameters=(
         Parameter("presmoothing", 1, "nonlinear node-block Gauss-Seidel sweeps per step "
                   "(alternating direction)", low=1, high=10, kind=int),
-        Parameter("sweeps", 1, "smoothing sweeps of the linear V-cycle: V(sweeps, sweeps)",
-                  low=1, high=10, kind=int),
+        Parameter("sweeps", 0, "smoothing sweeps of the linear V-cycle: V(sweeps, sweeps); "
+                  "0: by dimension (AUTO_SWEEPS: 1 in 2D, 2 in 3D)", low=0, high=10, kind=int),
         Parameter("patch", 0, "graph layers of the contact patch around the constraint "
                   "rows' unknowns, solved exactly in each V-cycle after pre- and before "
                   "post-smoothing (0: none; each change of the active set refactorises it, "

@@ -7,6 +7,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 import pytest
 import yaml
@@ -143,6 +144,27 @@ def test_augmented_projection_study_and_its_report(tmp_path):
     want = (mem.loc[("tnnmg", 1), ["mem_input_mb", "mem_peak_mb"]].sum()
             / mem.loc[("amg_pcg_gmg", 1), ["mem_input_mb", "mem_peak_mb"]].sum())
     assert float(memory.measured.iloc[0]) == pytest.approx(want)
+
+
+def test_augmented_projection_study_beyond_a_factorisation(tmp_path):
+    """The route for sizes no Cholesky reaches: TNNMG to 1e-10, verified, as the reference,
+    and no Alg. 8.4 configuration; its energy error agrees with the exact reference's."""
+    study = tmp_path / "study.csv"
+    run("workflows.scripts.augmented_projection_study", *SCENE, "--levels", "1", "--configs",
+        "--no-newton", "--reference", "tnnmg", "--ref-cache", str(tmp_path), "--out",
+        str(study))
+    s = pd.read_csv(study).set_index("config")
+    assert set(s.index) == {"reference", "tnnmg", "tnnmg_nested", "amg_pcg_gmg", "amg_pcg_sa"}
+    assert s.loc["reference", "reference"] == "tnnmg"
+    assert s.loc["reference", "status"] == "converged"
+    assert s.loc["reference", "kkt_max"] <= 1e-10
+    assert (s.loc[["tnnmg", "tnnmg_nested"], "energy_error"] <= 1e-6).all()
+    from problems.kkt import energy_error
+    from problems.spec import problems
+    from solvers.reference import reference_solve
+    qp = problems()["circle_square"].make(1)
+    cached = np.load(tmp_path / "circle_square_L1.npz")
+    assert energy_error(qp, cached["u"], reference_solve(qp, tol=1e-10).u) <= 1e-8
 
 
 def test_laplace_scripts_and_reports(tmp_path):
