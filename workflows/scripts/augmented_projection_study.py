@@ -1,11 +1,14 @@
 """Complexity study of the augmented projection method (thesis Table 9.1, Fig. 9.1).
 
-For each level of a scene: the exact reference (PDAS), the chosen configurations
-of Alg. 8.4, the semismooth Newton solver (the method a contact-mechanics user
-would pick instead; :func:`newton_run`) and, as the floor, AMG-PCG for the linear
-elasticity system ``A u = f`` without contact (geometric MG and pyamg SA
-preconditioners), run to the same energy accuracy in the same process. One tidy
-CSV row per (level, configuration), written atomically.
+For each level of a scene: the reference (the exact PDAS, or ``--reference tnnmg`` beyond
+a factorisation: :data:`REFERENCES`), the chosen configurations of Alg. 8.4, the
+semismooth Newton solver (the method a contact-mechanics user would pick instead;
+:func:`newton_run`), truncated nonsmooth Newton multigrid from zero and nested
+(:func:`tnnmg_run`) and, as the floor, AMG-PCG for the linear elasticity system
+``A u = f`` without contact (geometric MG and pyamg SA preconditioners), run to the same
+energy accuracy in the same process; TNNMG's and the geometric floor's peak memory by
+untimed repeats (:func:`tnnmg_memory`). One tidy CSV row per (level, configuration),
+written atomically.
 
 Each configuration runs once with a tiny (8.25) tolerance; ``n_outer`` and
 ``t_solve`` are read off the history where (8.25) first reaches ``--eps``
