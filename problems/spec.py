@@ -362,6 +362,23 @@ def lookup(registry: dict[str, Any], name: str, what: str) -> Any:
         raise ParameterError(f"unknown {what} {name!r}; allowed: {', '.join(registry)}") from None
 
 
+def contact_scene_error(problem: Any, params: dict | None) -> tuple[str, str] | None:
+    """What is wrong with a scene entry ``{problem, params}`` that must name a registered
+    contact problem with valid parameters: ``(key, message)`` (key ``problem`` or
+    ``params``), or None. Configs and test sets prefix the message with where it stands."""
+    registry = problems()
+    if problem not in registry:
+        return "problem", (f"{problem!r} is not a registered problem; allowed: "
+                           f"{', '.join(registry)}")
+    if registry[problem].kind != "contact":
+        return "problem", f"{problem!r} is not a contact problem"
+    try:
+        registry[problem].options(**(params or {}))
+    except ParameterError as err:
+        return "params", str(err)
+    return None
+
+
 def problems() -> dict[str, ProblemSpec]:
     """All registered problems, ``{name: ProblemSpec}``."""
     return discover("problems", "PROBLEM")

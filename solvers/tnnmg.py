@@ -53,7 +53,7 @@ normal unknowns, which hold a body that only contact holds. The stabilised probl
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import InitVar, dataclass, field
 from typing import Callable
 
 import numpy as np
@@ -216,7 +216,8 @@ class _TruncatedHierarchy:
     fine: _Fine
     P: sp.csr_matrix | None            # T^{-1} P_last: coarse level -> transformed fine
     coarse_P: list                     # original prolongations below (coarse -> finer)
-    A_coarse: list                     # untruncated Galerkin operators, finest coarse first
+    A_coarse: InitVar[list]            # untruncated Galerkin operators, finest coarse first
+                                       # (handed to coarse_ops, which own them)
     sweeps: int
     truncate_coarse: bool
     patch: np.ndarray | None = None    # unknowns of the contact patch (None: no patch solve)
@@ -231,13 +232,12 @@ class _TruncatedHierarchy:
     coarse_ops: list = field(default_factory=list)
     coarse_R: list = field(default_factory=list)
 
-    def __post_init__(self):
+    def __post_init__(self, A_coarse):
         self.coarse_R = [sp.csr_matrix(Pl.T) for Pl in self.coarse_P]  # restrictions, once
         pivots = self.fine.box.pivot
         patterns = (self._deltas(pivots) if self.truncate_coarse and self.P is not None
-                    and pivots.size else [None] * len(self.A_coarse))
-        self.coarse_ops = [_UpdatedOperator(M, d) for M, d in zip(self.A_coarse, patterns)]
-        self.A_coarse = [op.work for op in self.coarse_ops]   # one copy of each, not two
+                    and pivots.size else [None] * len(A_coarse))
+        self.coarse_ops = [_UpdatedOperator(M, d) for M, d in zip(A_coarse, patterns)]
 
     def _deltas(self, E: np.ndarray) -> list:
         """The truncation's change of each coarse operator when the pivots ``E`` are
@@ -294,7 +294,7 @@ class _TruncatedHierarchy:
             self.coarse_solve = solve
             return
         deltas = (self._deltas(E) if self.truncate_coarse and E.size
-                  else [None] * len(self.A_coarse))
+                  else [None] * len(self.coarse_ops))
         self.A_t = [op.set(delta) for op, delta in zip(self.coarse_ops, deltas)]
         self.coarse_solve = spla.splu(sp.csc_matrix(self.A_t[-1])).solve
 
@@ -567,7 +567,7 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
     u, p = box.to_u(v), box.multipliers(r, v[piv] >= upper)
     stats = {"n_steps": k, "n_cg": n_cg, "n_vcycles": k, "presmoothing": opts.presmoothing,
              "truncation_updates": ml.updates, "n_active": int(np.count_nonzero(p > 0)),
-             "n_levels": len(ml.A_coarse) + 1, **timing}
+             "n_levels": len(ml.coarse_ops) + 1, **timing}
     return SolveResult(u=u, p=p, claimed_status=status, message=message, iterations=k,
                        setup_time=setup_time, solve_time=time.perf_counter() - t_solve,
                        history=history, stats=stats)

@@ -498,23 +498,15 @@ def check_config(config: dict) -> None:
     ConfigError
         Naming the config key and what is allowed.
     """
-    from problems.spec import ParameterError, problems
+    from problems.spec import contact_scene_error, problems
     from solvers.augmented_projection import VARIANTS
 
     config = {**config, "scenes": scenes_with_families(config)}
     registry = problems()
     for scene, entry in config.get("scenes", {}).items():
-        problem = entry["problem"]
-        if problem not in registry:
-            raise ConfigError(f"config 'scenes.{scene}.problem': {problem!r} is not a registered "
-                              f"problem; allowed: {', '.join(registry)}")
-        if registry[problem].kind != "contact":
-            raise ConfigError(f"config 'scenes.{scene}.problem': {problem!r} is not a contact "
-                              "problem")
-        try:
-            registry[problem].options(**(entry.get("params") or {}))
-        except ParameterError as err:
-            raise ConfigError(f"config 'scenes.{scene}.params': {err}") from None
+        wrong = contact_scene_error(entry["problem"], entry.get("params"))
+        if wrong is not None:
+            raise ConfigError(f"config 'scenes.{scene}.{wrong[0]}': {wrong[1]}")
     for name in STUDIES:
         for scene, levels in scenes_of(config, name).items():
             if scene not in config.get("scenes", {}):

@@ -25,7 +25,7 @@ from pathlib import Path
 
 import yaml
 
-from problems.spec import ParameterError, problems
+from problems.spec import contact_scene_error, problems
 
 #: Where the sets live, and the one ``contactbench export`` uses by default.
 SETS_DIR = Path(__file__).resolve().parent / "config" / "test_sets"
@@ -160,11 +160,6 @@ def check(ts: TestSet) -> None:
                 raise TestSetError(f"test set {ts.id} 'classes.{cls}.{problem}': levels {bad} "
                                    f"are not allowed; allowed: {lo}..{hi}")
     for fam, entry in ts.families.items():
-        problem = entry.get("problem")
-        if problem not in registry or registry[problem].kind != "contact":
-            raise TestSetError(f"test set {ts.id} 'families.{fam}.problem': {problem!r} is "
-                               "not a registered contact problem")
-        try:
-            registry[problem].options(**(entry.get("params") or {}))
-        except ParameterError as err:
-            raise TestSetError(f"test set {ts.id} 'families.{fam}.params': {err}") from None
+        wrong = contact_scene_error(entry.get("problem"), entry.get("params"))
+        if wrong is not None:
+            raise TestSetError(f"test set {ts.id} 'families.{fam}.{wrong[0]}': {wrong[1]}")
