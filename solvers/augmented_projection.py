@@ -44,6 +44,20 @@ gamma_bar (A - Ah)``), so its default is ``tau = 1`` (measured: half the outer
 steps of ``tau = 1/alpha_bar``); the additive update keeps the thesis's
 ``tau = 1/alpha_bar``.
 
+Beyond the thesis, two things keep the method's outer step count bounded where the
+thesis's ingredients lose their spectral equivalence (issue 24):
+
+* Towards incompressibility a V-cycle's ``kappa(V A)`` grows like ``(1 - 2 nu)^-0.75``
+  (70 at nu = 0.499, 450 at 0.4999, independent of h): ``A-hat^{-1}`` is then a Chebyshev
+  polynomial in the V-cycle whose degree comes from the measured spectrum
+  (:func:`solvers.multigrid.scaled_vcycle`, ``ahat.degree = 0``), and ``S-hat = auto``
+  takes ``S_in`` where the multilevel operator's ``kappa(S-hat^{-1} S_in)`` exceeds
+  :data:`SCHUR_KAPPA_LIMIT`.
+* A body held only by contact (the roll stack's work roll) is treated by FETI's natural
+  coarse space (:class:`FloatingCoarseSpace`): ``A-hat`` on the complement of its rigid
+  modes, its equilibrium ``G p = e`` in every projection (:func:`smalbe`), its rigid
+  motion moved by the equality's multiplier.
+
 Nested iteration (Alg. 8.5) is :func:`nested_initial_guess`; the solver itself
 never builds coarser problems.
 """
@@ -59,8 +73,8 @@ import numpy as np
 from problems.floating import floating_modes
 from problems.kkt import kkt_residuals
 from problems.qp import ContactQP
-from problems.spec import Component, ComponentParameter, Options, Parameter
-from solvers.multigrid import AHAT, scaled_vcycle, vcycle_kind
+from problems.spec import Component, ComponentParameter, Options, Parameter, ParameterError
+from solvers.multigrid import AHAT_SCALED, scaled_vcycle, vcycle_kind
 from solvers.schur import SchurPreconditioner, build_schur, kappa_schur_exact
 from solvers.base import Role, SolveResult, SolverSpec
 from solvers.certificate import certify
@@ -160,6 +174,86 @@ def mprgp(S_hat: Callable, d: np.ndarray, q0: np.ndarray, alpha_bar: float, rtol
     return x, steps
 
 
+#: SMALBE's relative tolerance on the floating bodies' equilibrium ``||G q - e|| / ||e||``
+#: per projection. The outer iteration corrects what one projection leaves (the roll
+#: stack, level 0: 29 outer steps at 1e-12, 1e-8 and 1e-4 alike; 20, 9 and 2.5
+#: augmented-Lagrangian steps per projection).
+EQ_RTOL = 1e-6
+
+
+def smalbe(S_hat: Callable, G: np.ndarray, e: np.ndarray, d: np.ndarray, q0: np.ndarray,
+           lam_max: float, rtol: float, max_steps: int, eq_rtol: float = EQ_RTOL,
+           max_outer: int = 100) -> tuple[np.ndarray, np.ndarray, int]:
+    """(8.24) with the equilibrium of floating bodies: ``min 1/2 q'S-hat q - d'q`` over
+    ``q >= 0, G q = e`` (Dostal's SMALBE, *Optimal Quadratic Programming Algorithms*,
+    2009, Ch. 9: augmented Lagrangians with MPRGP for the bound-constrained steps).
+
+    Each outer step minimises ``L(q, mu) = 1/2 q'S-hat q - d'q + mu'(Gq - e) +
+    rho/2 ||Gq - e||^2`` over ``q >= 0`` by :func:`mprgp` (from the last ``q``) and
+    updates ``mu += rho (Gq - e)``; ``rho = lam_max / ||G||^2`` doubles the largest
+    eigenvalue at most and contracts the multiplier error by at least 1/2 per step.
+
+    Returns
+    -------
+    (q, mu, n_steps)
+        ``mu`` the multiplier of ``G q = e`` (``S-hat q - d + G'mu >= 0``, complementary
+        to ``q``); ``n_steps`` the MPRGP steps of all outer steps.
+    """
+    G = np.atleast_2d(G)
+    norm_G2 = float(np.linalg.eigvalsh(G @ G.T)[-1])
+    rho = lam_max / norm_G2
+    H = lambda q: S_hat(q) + rho * (G.T @ (G @ q))          # noqa: E731
+    mu = np.zeros(G.shape[0])
+    q, n = np.maximum(q0, 0.0), 0
+    goal = eq_rtol * max(float(np.linalg.norm(e)), 1e-300)
+    for _ in range(max_outer):
+        q, steps = mprgp(H, d - G.T @ mu + rho * (G.T @ e), q, 1.0 / (2.0 * lam_max), rtol,
+                         max_steps)
+        n += steps
+        r = G @ q - e
+        mu = mu + rho * r
+        if np.linalg.norm(r) <= goal:
+            break
+    return q, mu, n
+
+
+# ---------------------------------------------------------------------------
+# Floating bodies: FETI's natural coarse space in the multiplier space
+# ---------------------------------------------------------------------------
+@dataclass
+class FloatingCoarseSpace:
+    """The rigid modes ``R`` of bodies held only by contact (and weak springs) and
+    ``G = R'B'``, FETI's natural coarse space (C. Farhat, J. Mandel, F.-X. Roux 1994;
+    Z. Dostal et al. for contact).
+
+    With ``u = u_perp + R alpha`` (``R'u_perp = 0``) the modes leave ``A``'s part:
+    ``A-hat`` acts on the complement of ``R`` only (:func:`solvers.multigrid.scaled_vcycle`,
+    ``near_kernel``), so ``S_in = B A-hat^{-1} B'`` and ``S-hat`` lose the one eigenvalue
+    that the springs' ~1e-9 stiffness puts ~4e4 times above the rest of ``S``. The
+    floating body's equilibrium ``R'(f - A u - B'p) = 0`` becomes the equality ``G p = e``
+    (``e = R'(f - A u)``, the load on the modes; the springs' share of it is ~1e-5)
+    imposed in every projection (8.24) (:func:`smalbe`), and its multiplier ``mu``
+    moves the rigid part: ``alpha <- alpha - mu / tau`` (at the fixed point
+    ``tau w_p = G'mu - nu``, so this choice of ``alpha`` makes the gap ``nu / tau >= 0``
+    complementary to ``p``; ``mu = 0`` at the solution).
+    """
+
+    R: np.ndarray          # (n, k) orthonormal floating modes
+    G: np.ndarray          # (k, m) = R'B'
+
+    def balance(self, d_u: np.ndarray, p: np.ndarray) -> np.ndarray:
+        """``e = R'(f - A u)`` from the residual ``d_u = f - A u - B'p``."""
+        return self.R.T @ d_u + self.G @ p
+
+
+def floating_coarse_space(qp: ContactQP) -> FloatingCoarseSpace | None:
+    """The coarse space of ``qp``'s floating modes (None if it has none)."""
+    R = floating_modes(qp)
+    if R.shape[1] == 0:
+        return None
+    return FloatingCoarseSpace(R, np.asarray((qp.B @ R).T))
+
+
 # ---------------------------------------------------------------------------
 # Alg. 8.4
 # ---------------------------------------------------------------------------
@@ -196,6 +290,10 @@ class Alg84:
     project : callable
         ``project(d, p_k) -> (p_{k+1}, n_inner)``: approximate minimiser of
         ``1/2 q'S_hat q - d'q`` over ``q >= 0`` ((8.24), Alg. 8.3 or MPRGP).
+    coarse : FloatingCoarseSpace, optional
+        Floating modes: ``A_hat_inv`` acts on their complement, and the projection is
+        ``project_balanced(d, p_k, G, e) -> (p_{k+1}, mu, n_inner)`` onto ``q >= 0,
+        G q = e`` (:func:`smalbe`).
     """
 
     A: object
@@ -208,6 +306,8 @@ class Alg84:
     gamma_bar: float
     tau: float
     project: Callable
+    coarse: FloatingCoarseSpace | None = None
+    project_balanced: Callable | None = None
 
     def Cp(self, p):
         return self.C @ p if self.C is not None else 0.0
@@ -233,11 +333,18 @@ class Alg84:
             d_u, w_u = residual
         w_p = B @ w_u - (self.G - B @ u + self.Cp(p))           # (8.23)
         t0 = time.perf_counter()
-        p_new, n_inner = self.project(self.S_hat(p) + tau * w_p, p)  # p^{k+1} = P~(S-hat p^k + tau w_p)
+        if self.coarse is None:
+            p_new, n_inner = self.project(self.S_hat(p) + tau * w_p, p)  # P~(S-hat p^k + tau w_p)
+        else:   # the floating bodies' equilibrium G p = e as well; mu moves their rigid part
+            cs = self.coarse
+            p_new, mu, n_inner = self.project_balanced(self.S_hat(p) + tau * w_p, p, cs.G,
+                                                       cs.balance(d_u, p))
         t_proj = time.perf_counter() - t0
         u_new = u + (tau / gamma) * w_u                         # additive update
         if update == "multiplicative":
             u_new = u_new + (tau / gamma) * self.A_hat_inv(B.T @ (p - p_new))
+        if self.coarse is not None:
+            u_new = u_new - self.coarse.R @ (mu / tau)
         eta = float(w_u @ d_u + (p_new - p) @ w_p)              # (8.25)
         return u_new, p_new, eta, n_inner, t_proj, d_u, w_u, w_p
 
@@ -438,8 +545,35 @@ def make_projection(projection: Component, S_hat: SchurPreconditioner, tau_2_hat
     raise ValueError(f"unknown projection {projection.kind!r}; allowed: mprgp, richardson")
 
 
+def balanced_projection(projection: Component, S_hat: SchurPreconditioner) -> Callable:
+    """``project_balanced(d, p_k, G, e) -> (p_{k+1}, mu, n_inner)``: (8.24) with the floating
+    bodies' equilibrium ``G q = e`` (:func:`smalbe`, MPRGP inside with the projection's
+    ``rtol`` and ``max_steps``; the MPRGP settings also serve ``richardson``)."""
+    o = projection.options
+    rtol = o.get("rtol", 0.1)
+    return lambda d, p, G, e: smalbe(S_hat, G, e, d, p, S_hat.lam_max, rtol, o["max_steps"])
+
+
+#: ``schur="auto"`` keeps the multilevel ``S-hat`` while its measured
+#: ``kappa(S-hat^{-1} S_in)`` is at most this, and takes ``S_in`` itself beyond. The
+#: multilevel operator models ``S`` as an H^{-1/2} norm; a locking P1 material stiffens
+#: ``S`` on the fine surface modes, and the ratio grows (circle-square level 1: 2.6 at
+#: nu = 0.3, 3.8 at 0.49, 7.6 at 0.499, 15 at 0.4999; cube-sphere 3.8, 6.0, 15, 27). The
+#: V-cycles of a whole solve cross over near 6 (2D: 285 vs 375 at 0.49, 1617 vs 1442 at
+#: 0.499; 3D: 693 vs 588 at 0.49; ``S_in`` costs an ``A-hat`` per inner step).
+SCHUR_KAPPA_LIMIT = 6.0
+
+#: ... and assembles ``S_in`` (``m`` products with ``A-hat``, then dense products) up to
+#: this many constraints: a matrix-free ``S_in`` costs an ``A-hat`` per inner step, and a
+#: solve takes hundreds to thousands of them (the roll stack, level 0, m = 12: 1,209
+#: inner steps, 56 s matrix-free, 3.7 s assembled).
+ASSEMBLE_LIMIT = 400
+
+
 def resolve_kinds(qp: ContactQP, ahat: Component, schur: Component) -> tuple[str, str]:
-    """The A-hat and S-hat kinds ``auto`` stands for on this problem."""
+    """The A-hat and S-hat kinds ``auto`` stands for on this problem, before measuring
+    (:func:`solve` may still replace an automatic multilevel ``S-hat`` by ``S_in``,
+    :data:`SCHUR_KAPPA_LIMIT`)."""
     a = vcycle_kind(qp, ahat.kind)
     s = schur.kind
     if s == "auto":
@@ -474,10 +608,26 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
         raise ValueError("augmented projection needs at least one constraint")
     ahat_kind, schur_kind = resolve_kinds(qp, opts.ahat, opts.schur)
     a, s = opts.ahat.options, opts.schur.options
+    coarse = floating_coarse_space(qp)
+    if coarse is not None and opts.projection.kind != "mprgp":
+        raise ParameterError("parameter 'projection': 'richardson' (Alg. 8.3) is not allowed "
+                             "on a problem with floating bodies (it has no equality "
+                             "constraint); allowed: mprgp (SMALBE)")
+    if coarse is not None and opts.accelerate == "face_cg":
+        raise ParameterError("parameter 'accelerate': 'face_cg' is not allowed on a problem "
+                             "with floating bodies (no coarse space in its CG phase); "
+                             "allowed: none")
     A_hat_inv = scaled_vcycle(qp.A, ahat_kind, qp.multilevel, qp.dim, qp.free_dofs,
-                                 seed=opts.seed, **a)
+                              seed=opts.seed, near_kernel=None if coarse is None else coarse.R,
+                              **a)
     gamma_bar = A_hat_inv.gamma_bar
     S_hat = build_schur(schur_kind, qp, A_hat_inv, s["lanczos_steps"], opts.seed)
+    if opts.schur.kind == "auto" and S_hat.kappa_Sin > SCHUR_KAPPA_LIMIT:
+        # the sparse S-hat has lost its equivalence (locking, a poor surface hierarchy):
+        # S_in itself, assembled once when that costs fewer A-hat products than the
+        # inner steps would
+        schur_kind = "inexact_assembled" if qp.m <= ASSEMBLE_LIMIT else "inexact"
+        S_hat = build_schur(schur_kind, qp, A_hat_inv, s["lanczos_steps"], opts.seed)
     alpha_low, alpha_bar = theorem_8_8_alpha(gamma_bar)
     tau = opts.tau
     if tau <= 0.0:  # Sect. 8.5: tau = 1/alpha_bar; block Gauss-Seidel (multiplicative): 1
@@ -490,7 +640,8 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
     rho = 1.0 - 0.5 * tau * alpha_low * mu * (1.0 - rho_P)
     if opts.accelerate == "face_cg" and opts.update != "multiplicative":
         raise ValueError("accelerate='face_cg' uses the multiplicative update")
-    op = Alg84(qp.A, qp.B, qp.C, qp.f, qp.g, A_hat_inv, S_hat, gamma_bar, tau, project)
+    op = Alg84(qp.A, qp.B, qp.C, qp.f, qp.g, A_hat_inv, S_hat, gamma_bar, tau, project,
+               coarse, None if coarse is None else balanced_projection(opts.projection, S_hat))
     setup_time = time.perf_counter() - t_start
     vcycles_setup = A_hat_inv.n_applications
 
@@ -572,6 +723,8 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
         "tau": tau, "eps": eps_eff, "n_cg": n_cg,
         "gamma_bar": gamma_bar, "ritz_AhatA_min": A_hat_inv.ritz[0],
         "ritz_AhatA_max": A_hat_inv.ritz[1], "amg_levels": len(A_hat_inv.ml.levels),
+        "ahat_degree": A_hat_inv.degree,
+        "kappa_vcycle": A_hat_inv.ritz_vcycle[1] / A_hat_inv.ritz_vcycle[0],
         "operator_complexity": A_hat_inv.operator_complexity(),
         "kappa_S": S_hat.kappa, "kappa_SinvSin": S_hat.kappa_Sin, "kappa_SinvS": kappa_SinvS,
         "alpha_low": alpha_low * mu, "alpha_bar": alpha_bar, "rho_bound": rho,
@@ -620,14 +773,18 @@ def nested_initial_guess(qp_coarse: ContactQP, result_coarse, qp_fine: ContactQP
 
 
 def supports(qp: ContactQP) -> tuple[bool, str]:
-    """Alg. 8.4 as implemented has no coarse space for floating bodies: a body held only
-    by contact and weak springs puts one eigenvalue of ``S = B A^{-1} B'`` ~4e4 times
-    above the next (the roll stack: 729 outer steps to a KKT residual of 0.5 in 120 s),
-    so such a problem is refused at once (the FETI-style coarse space is issue 24)."""
-    k = floating_modes(qp).shape[1]
+    """Floating bodies are treated by their coarse space (:class:`FloatingCoarseSpace`),
+    which needs every floating mode to meet the contact: ``G = R'B'`` of full row rank.
+    A mode no constraint touches is held by the springs alone, and Alg. 8.4 would
+    iterate on a system ~1e9 times worse conditioned: refused at once."""
+    R = floating_modes(qp)
+    k = R.shape[1]
     if k:
-        return False, (f"{k} floating rigid mode(s) (a body held only by weak springs): "
-                       "Alg. 8.4 has no coarse space for them yet and stalls")
+        sv = np.linalg.svd(np.asarray((qp.B @ R).T), compute_uv=False)
+        scale = float(np.sqrt(qp.B.multiply(qp.B).sum()))          # ||B||_F
+        if qp.m == 0 or sv.size < k or sv[-1] <= 1e-8 * max(scale, 1e-300):
+            return False, (f"{k} floating rigid mode(s), and the contact constraints do "
+                           "not hold all of them (R'B' rank-deficient)")
     return True, ""
 
 
@@ -637,14 +794,15 @@ SOLVER = SolverSpec(
             "Bramble-Pasciak-transformed problem, multigrid A-hat, sparse S-hat, MPRGP projection",
     solve=solve,
     parameters=(
-        AHAT,
+        AHAT_SCALED,
         ComponentParameter(
             "schur", "auto", {k: (Parameter("lanczos_steps", 24, "Lanczos steps for the spectral bounds", low=5,
                                         kind=int),) for k in
                               ("auto", "multilevel", "inexact", "inexact_assembled", "jacobi")},
             "S-hat: multilevel surface operator (O(N^C)), inexact S_in (matrix-free), "
             "inexact_assembled (N^C V-cycles) or jacobi B diag(A)^-1 B'; auto = multilevel "
-            "if the scene supplies its surface hierarchy"),
+            "if the scene supplies its surface hierarchy and kappa(S-hat^-1 S_in) <= 6, "
+            "else inexact (assembled up to 400 constraints)"),
         ComponentParameter(
             "projection", "mprgp",
             {"mprgp": (Parameter("rtol", 0.1, "relative projected-gradient reduction", low=0.0,

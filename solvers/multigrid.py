@@ -196,12 +196,74 @@ def _vcycle(ml, lvl: int, b: np.ndarray) -> np.ndarray:
     return x
 
 
+def chebyshev_degree(lo: float, hi: float, gamma_target: float) -> int:
+    """Smallest degree ``d`` of the Chebyshev polynomial in ``V A`` whose spectral ratio
+    on ``[lo, hi]`` is at most ``gamma_target``: ``(1 + e) / (1 - e) <= gamma_target``
+    with ``e = 1 / T_d((hi + lo) / (hi - lo))`` (1 if ``hi / lo`` already meets it)."""
+    if hi / lo <= gamma_target or gamma_target <= 1.0:
+        return 1
+    eps = (gamma_target - 1.0) / (gamma_target + 1.0)
+    sigma = (hi + lo) / (hi - lo)
+    return int(np.ceil(np.arccosh(1.0 / eps) / np.arccosh(sigma)))
+
+
+def chebyshev_vcycle(apply_A: Apply, vcycle_raw: Apply, lo: float, hi: float,
+                     degree: int) -> Apply:
+    """``x = p(V A) V r``: ``degree`` steps of Chebyshev semi-iteration for ``A x = r``
+    preconditioned by the V-cycle ``V``, from ``x = 0``, on the interval ``[lo, hi]`` of
+    ``lambda(V A)``.
+
+    A fixed polynomial, so the result is a linear, symmetric operator (``V p(AV) =
+    p(VA) V``); positive definite when ``hi`` bounds ``lambda(V A)`` from above (the
+    residual polynomial lies in ``(0, 1)`` below ``lo``), so it is an ``A-hat^{-1}``
+    in the sense of (8.18), with ``kappa`` reduced from ``hi / lo`` to
+    ``(1 + e) / (1 - e)``, ``e = 1 / T_degree((hi + lo) / (hi - lo))``. One product with
+    ``A`` and one V-cycle per degree (Y. Saad, *Iterative Methods for Sparse Linear
+    Systems*, Alg. 12.1).
+    """
+    theta, delta = 0.5 * (hi + lo), 0.5 * (hi - lo)
+    sigma = theta / delta
+
+    def apply(r: np.ndarray) -> np.ndarray:
+        d = vcycle_raw(r) / theta
+        x = d.copy()
+        rho = 1.0 / sigma
+        for _ in range(degree - 1):
+            z = vcycle_raw(r - apply_A(x))
+            rho_new = 1.0 / (2.0 * sigma - rho)
+            d = (rho_new * rho) * d + (2.0 * rho_new / delta) * z
+            x += d
+            rho = rho_new
+        return x
+
+    return apply
+
+
+#: Passes of the automatic degree: choose, measure the polynomial's Ritz values, correct
+#: the V-cycle's smallest eigenvalue from them, choose again.
+CHEBYSHEV_PASSES = 3
+
+
+def _below_interval(lo: float, hi: float, degree: int, lam_poly: float) -> float:
+    """The eigenvalue ``lambda < lo`` of ``V A`` that the Chebyshev polynomial of
+    :func:`chebyshev_vcycle` on ``[lo, hi]`` maps to ``lam_poly = lambda p(lambda)``."""
+    theta, delta = 0.5 * (hi + lo), 0.5 * (hi - lo)
+    t_sigma = np.cosh(degree * np.arccosh(theta / delta))
+    target = (1.0 - lam_poly) * t_sigma
+    if target <= 1.0:
+        return lo
+    return float(theta - delta * np.cosh(np.arccosh(target) / degree))
+
+
 @dataclass
 class ScaledVCycle:
-    """``A-hat^{-1}`` = one V-cycle divided by ``gamma_low`` (Remark 8.14).
+    """``A-hat^{-1}`` = one V-cycle (or a Chebyshev polynomial in it) divided by
+    ``gamma_low`` (Remark 8.14).
 
     After scaling ``A-hat < A <= gamma_bar A-hat`` (8.18) with
-    ``gamma_bar = gamma_high / gamma_low``.
+    ``gamma_bar = gamma_high / gamma_low``. ``complement``, if set, is the
+    orthogonal projection onto the complement of a near-kernel (floating bodies,
+    :func:`scaled_vcycle`); the operator then acts on that complement only.
     """
 
     kind: str
@@ -213,18 +275,32 @@ class ScaledVCycle:
     lanczos_time: float
     n_applications: int = 0
     time: float = 0.0
+    degree: int = 1
+    ritz_vcycle: tuple = (np.nan, np.nan)
+    polynomial: Apply | None = None
+    complement: Apply | None = None
 
     @property
     def gamma_bar(self) -> float:
         return self.gamma_high / self.gamma_low
 
-    def raw(self, r: np.ndarray) -> np.ndarray:
-        """One unscaled V-cycle with zero start (symmetric smoothing)."""
+    def vcycle_once(self, r: np.ndarray) -> np.ndarray:
+        """One plain V-cycle with zero start (symmetric smoothing), on the complement."""
         t0 = time.perf_counter()
+        if self.complement is not None:
+            r = self.complement(r)
         x = _vcycle(self.ml, 0, np.asarray(r, dtype=float))
+        if self.complement is not None:
+            x = self.complement(x)
         self.time += time.perf_counter() - t0
         self.n_applications += 1
         return x
+
+    def raw(self, r: np.ndarray) -> np.ndarray:
+        """The unscaled operator: one V-cycle, or the Chebyshev polynomial in it."""
+        if self.polynomial is None:
+            return self.vcycle_once(r)
+        return self.polynomial(r)
 
     def __call__(self, r: np.ndarray) -> np.ndarray:
         """``A-hat^{-1} r`` (scaled)."""
@@ -276,7 +352,9 @@ def component_vcycle(qp: ContactQP, ahat) -> ScaledVCycle:
 
 def scaled_vcycle(A: sp.spmatrix, kind: str, multilevel: Multilevel | None, dim: int,
                   free_dofs: np.ndarray | None, *, smoother: str, sweeps: int,
-                  lanczos_steps: int, max_coarse: int = 0, seed: int = 0) -> ScaledVCycle:
+                  lanczos_steps: int, max_coarse: int = 0, seed: int = 0,
+                  degree: int = 1, gamma_target: float = 2.0,
+                  near_kernel: np.ndarray | None = None) -> ScaledVCycle:
     """Build ``A-hat`` (:func:`vcycle`) and scale it by Lanczos so that (8.18) holds.
 
     Parameters
@@ -285,20 +363,61 @@ def scaled_vcycle(A: sp.spmatrix, kind: str, multilevel: Multilevel | None, dim:
         As :func:`vcycle`.
     lanczos_steps : int
         Steps of preconditioned Lanczos for ``lambda(A-hat^{-1} A)``.
+    degree : int
+        ``A-hat^{-1}`` as a Chebyshev polynomial of this degree in the V-cycle
+        (:func:`chebyshev_vcycle`; 1 = the V-cycle itself); 0 = the smallest degree
+        that brings the Ritz ratio of the V-cycle's ``lambda(V A)`` to at most
+        ``gamma_target`` (:func:`chebyshev_degree`). A V-cycle loses its spectral
+        equivalence with ``A`` as the material locks (``nu -> 1/2``: ``kappa(V A)`` ~70
+        at nu = 0.499, ~450 at 0.4999, independent of h): the polynomial restores a
+        bounded ``gamma_bar`` at ``~sqrt(kappa)`` V-cycles per application.
+    near_kernel : (n, k) array, optional
+        Orthonormal floating modes (:func:`problems.floating.floating_modes`): the
+        operator acts on their orthogonal complement (FETI's natural coarse space;
+        the augmented projection treats the modes in the multiplier space).
 
-    The defaults of these options are declared once, in
-    :data:`solvers.augmented_projection.SOLVER` (``ahat``).
+    The defaults of these options are declared once, in :data:`AHAT_SCALED`.
 
     Returns
     -------
     ScaledVCycle
         With ``gamma_low = LOW_SAFETY * ritz_min`` and
-        ``gamma_high = HIGH_SAFETY * ritz_max``.
+        ``gamma_high = HIGH_SAFETY * ritz_max`` of the final operator.
     """
     vc = vcycle(A, kind, multilevel, dim, free_dofs, smoother=smoother, sweeps=sweeps,
                 max_coarse=max_coarse)
+    apply_A = lambda x: A @ x                                     # noqa: E731
+    if near_kernel is not None and near_kernel.shape[1]:
+        R = np.asarray(near_kernel, dtype=float)
+        vc.complement = lambda x: x - R @ (R.T @ x)
+        apply_A = lambda x: vc.complement(A @ vc.complement(x))   # noqa: E731
     t0 = time.perf_counter()
-    lo, hi = lanczos_extremes(lambda x: A @ x, A.shape[0], lanczos_steps, vc.raw, seed)
+    lo, hi = lanczos_extremes(apply_A, A.shape[0], lanczos_steps, vc.vcycle_once, seed)
+    vc.ritz_vcycle = (lo, hi)
+    vc.degree = chebyshev_degree(lo, hi, gamma_target) if degree == 0 else int(degree)
+    # the interval: lambda_max of a symmetric V-cycle is <= 1 in theory; the Ritz value
+    # under-estimates it, so take the larger with a margin (a larger upper end keeps the
+    # polynomial positive; eigenvalues below the lower end are damped less)
+    top = HIGH_SAFETY * max(hi, 1.0)
+    for _ in range(CHEBYSHEV_PASSES if degree == 0 else 1):
+        if vc.degree <= 1:
+            break
+        vc.polynomial = chebyshev_vcycle(apply_A, vc.vcycle_once, lo, top, vc.degree)
+        lo_p, hi_p = lanczos_extremes(apply_A, A.shape[0], lanczos_steps, vc.raw, seed)
+        if degree or hi_p / lo_p <= gamma_target:
+            break
+        # Ritz values over-estimate lambda_min(V A) when kappa is large: read the smallest
+        # eigenvalue off the polynomial's measured lambda_min (1 - lambda p(lambda) =
+        # T_d((theta - lambda) / delta) / T_d(sigma) below the interval) and choose again
+        lam = _below_interval(lo, top, vc.degree, lo_p)
+        if not lam < lo:
+            break
+        lo = lam
+        vc.ritz_vcycle = (lo, vc.ritz_vcycle[1])
+        new = chebyshev_degree(lo, top, gamma_target)
+        vc.degree = max(new, vc.degree + 1)
+    if vc.polynomial is not None:
+        lo, hi = lanczos_extremes(apply_A, A.shape[0], lanczos_steps, vc.raw, seed)
     vc.lanczos_time = time.perf_counter() - t0
     vc.ritz = (lo, hi)
     vc.gamma_low, vc.gamma_high = LOW_SAFETY * lo, HIGH_SAFETY * hi
@@ -322,6 +441,21 @@ AHAT = ComponentParameter(
     "A-hat (8.18): one symmetric V-cycle of geometric MG on the refinement hierarchy "
     "(gmg) or pyamg SA with rigid-body modes (sa), scaled by Lanczos (Remark 8.14) where a "
     "solver needs spectral bounds; auto = gmg if the problem has a hierarchy")
+
+
+_DEGREE = Parameter("degree", 0, "A-hat^-1 as a Chebyshev polynomial of this degree in the "
+                    "V-cycle (1 = the V-cycle); 0 = auto: the smallest degree that brings "
+                    "kappa(A-hat^-1 A) to gamma_target (more V-cycles as nu -> 1/2)", low=0,
+                    high=200, kind=int)
+_GAMMA_TARGET = Parameter("gamma_target", 2.5, "kappa(A-hat^-1 A) the automatic degree aims at",
+                          low=1.0, low_open=True)
+
+#: ``A-hat`` of the augmented projection (8.18): :data:`AHAT` plus the polynomial
+#: acceleration that keeps ``gamma_bar`` bounded towards incompressibility.
+AHAT_SCALED = ComponentParameter(
+    "ahat", "auto", {k: opts + (_DEGREE, _GAMMA_TARGET) for k, opts in AHAT.kinds.items()},
+    AHAT.help + "; a Chebyshev polynomial in the V-cycle of the given degree (0 = chosen "
+    "from the measured kappa(V A), i.e. from the material)")
 
 
 def ahat_component(kind: str = "auto", **options) -> Component:

@@ -16,7 +16,7 @@ from solvers import multigrid as mg
 from solvers.schur import build_schur, kappa_schur_exact
 from solvers.augmented_projection import (SOLVER, Alg84, augmented_projection_algorithm,
                                           face_cg_variant, make_projection, mprgp,
-                                          nested_initial_guess, projected_richardson,
+                                          nested_initial_guess, projected_richardson, smalbe,
                                           theorem_8_8_alpha)
 from solvers.interface import solve
 
@@ -221,6 +221,69 @@ def test_projections_solve_the_box_qp():
         assert np.all(q >= 0)
         assert np.max(np.abs(np.where(q > 0, g, np.minimum(g, 0)))) < 1e-8
     assert n_m < n_r
+
+
+def test_smalbe_projects_onto_the_balanced_set():
+    """(8.24) with a floating body's equilibrium G q = e: the KKT conditions of
+    min 1/2 q'Sq - d'q, q >= 0, G q = e hold for SMALBE's q and multiplier mu."""
+    rng = np.random.default_rng(3)
+    M = rng.standard_normal((30, 30))
+    S = M @ M.T + 30 * np.eye(30)
+    d = rng.standard_normal(30) * 10
+    G = rng.uniform(0.5, 1.5, (1, 30))
+    e = np.array([4.0])
+    lam = np.linalg.eigvalsh(S)
+    q, mu, n = smalbe(lambda x: S @ x, G, e, d, np.zeros(30), lam[-1], 1e-12, 500,
+                      eq_rtol=1e-12)
+    assert n > 0 and np.all(q >= 0)
+    assert abs((G @ q - e)[0]) <= 1e-10 * e[0]
+    g = S @ q - d + G.T @ mu                    # = the bounds' multipliers: >= 0, on q = 0
+    free = q > 0
+    assert free.any() and (~free).any()         # both kinds of component occur
+    assert np.abs(g[free]).max() < 1e-8 * np.abs(d).max()
+    assert g[~free].min() > -1e-8 * np.abs(d).max()
+
+
+def test_chebyshev_polynomial_maps_the_spectrum_as_theory_says():
+    """A-hat^-1 = p(VA)V: lambda p(lambda) lies in [1 - e, 1 + e] on the interval, with
+    e = 1/T_d(sigma) and d the smallest degree for the target; it stays positive below
+    the interval, where _below_interval reads the eigenvalue back from its image."""
+    lo, hi = 1e-3, 1.0
+    lam = np.concatenate([[1e-4], np.geomspace(lo, hi, 120)])
+    A = sp.diags(lam).tocsr()
+    d = mg.chebyshev_degree(lo, hi, 2.0)
+    e = 1.0 / np.cosh(d * np.arccosh((hi + lo) / (hi - lo)))
+    e_less = 1.0 / np.cosh((d - 1) * np.arccosh((hi + lo) / (hi - lo)))
+    assert (1 + e) / (1 - e) <= 2.0 < (1 + e_less) / (1 - e_less)
+    apply = mg.chebyshev_vcycle(lambda x: A @ x, lambda r: np.array(r, dtype=float), lo, hi, d)
+    P = np.column_stack([apply(c) for c in np.eye(lam.size)])
+    np.testing.assert_allclose(P, P.T, atol=1e-12 * np.abs(P).max())
+    image = np.diag(P) * lam                                 # lambda p(lambda)
+    assert image[1:].min() >= 1 - e - 1e-9 and image[1:].max() <= 1 + e + 1e-9
+    assert 0 < image[0] < 1 - e
+    assert mg._below_interval(lo, hi, d, image[0]) == pytest.approx(1e-4, rel=1e-6)
+    assert mg.chebyshev_degree(0.5, 1.0, 2.5) == 1           # a good V-cycle stays one
+
+
+@pytest.mark.parametrize("scene", ["circle_square", "cube_sphere"])
+def test_outer_steps_stay_bounded_towards_incompressibility(scene):
+    """Issue 24: the V-cycle's kappa(VA) grows like (1 - 2 nu)^-0.75 (h-independent); the
+    automatic Chebyshev degree keeps gamma_bar near its target, and S-hat = S_in where
+    the multilevel one loses its equivalence, so n_o at nu = 0.4999 is at most twice
+    n_o at nu = 0.3 (level 1)."""
+    from problems.spec import problems as registry
+
+    spec = registry()[scene]
+    runs = {nu: solve(spec.make(1, nu1=nu, nu2=nu), solver="augmented_projection", tol="mid")
+            for nu in (0.3, 0.4999)}
+    for nu, r in runs.items():
+        assert r.status == "converged", (nu, r.message)
+        assert r.stats["gamma_bar"] < 3.5
+    soft, hard = runs[0.3].stats, runs[0.4999].stats
+    assert soft["ahat_degree"] == 1 and soft["schur_kind"] == "multilevel"
+    assert hard["kappa_vcycle"] > 100 and hard["ahat_degree"] >= 8
+    assert hard["schur_kind"].startswith("inexact")
+    assert runs[0.4999].iterations <= 2 * runs[0.3].iterations
 
 
 def test_nested_initial_guess_saves_outer_steps(problems):

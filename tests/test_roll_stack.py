@@ -114,10 +114,12 @@ def test_bad_parameters_are_refused():
 #: singular (springs only, ~1e-9 of the elastic stiffness): a plain factorisation of A
 #: returns metres of rigid motion where the answer is 0.1 mm, so pdas's dual route keeps
 #: the roll's translation apart (FloatingCholesky) and is exact; the augmented
-#: projection has no coarse space for the floating roll and says so at once (skipped).
+#: projection treats it by FETI's natural coarse space (the roll's equilibrium in every
+#: projection, A-hat on the complement of its translation).
 EXPECTED = {"pdas": "converged", "osqp": "converged", "piqp": "converged",
             "semismooth_newton": "converged", "proxsuite": "inaccurate",
-            "clarabel": "inaccurate", "qpalm": "inaccurate", "augmented_projection": "skipped"}
+            "clarabel": "inaccurate", "qpalm": "inaccurate",
+            "augmented_projection": "converged"}
 
 
 @pytest.mark.parametrize("name", sorted(EXPECTED))
@@ -131,6 +133,16 @@ def test_solvers_on_the_coarsest_level(quarter, name):
         return
     # even the inaccurate ones agree with the reference in the contact force to 1e-4
     assert abs(res.p.sum() / ref.p.sum() - 1) < 1e-4
+
+
+def test_alg84_options_without_a_coarse_space_are_refused_by_name(quarter):
+    """The floating roll needs the equality in the projection (SMALBE): Alg. 8.3 and the
+    face-CG phase have none, and say so naming the parameter."""
+    _, qp, _ = quarter
+    with pytest.raises(ParameterError, match="parameter 'projection': 'richardson'"):
+        solve(qp, "augmented_projection", projection="richardson")
+    with pytest.raises(ParameterError, match="parameter 'accelerate': 'face_cg'.*allowed: none"):
+        solve(qp, "augmented_projection", accelerate="face_cg")
 
 
 def test_pdas_schur_is_exact_on_the_floating_roll(quarter):

@@ -452,15 +452,23 @@ def test_certificate_is_computed_once_per_pair(references):
 
 # --------------------------------------------------------------------------- skipped
 def test_a_solver_that_cannot_take_a_problem_says_skipped_at_once():
-    """benchopt's skip: the augmented projection refuses a floating body (the roll stack)
-    before it iterates, with its reason; no verification is spent on nothing."""
+    """benchopt's skip: the augmented projection refuses a floating body that no contact
+    constraint holds (its coarse space needs R'B' of full rank) before it iterates, with
+    its reason; no verification is spent on nothing."""
+    import dataclasses
+
+    from problems.floating import floating_modes
     from problems.roll_stack import PROBLEM as ROLL_STACK
     from solvers.interface import Role
 
-    qp = ROLL_STACK.make(0)
+    held = ROLL_STACK.make(0)
     spec = solvers()["augmented_projection"]
+    assert spec.check(held)[0]                     # the contact holds the floating work roll
+    R = floating_modes(held)
+    # the same constraints with the work roll's floating mode taken out of every row
+    qp = dataclasses.replace(held, B=sp.csr_matrix(held.B - (held.B @ R) @ R.T))
     ok, reason = spec.check(qp)
-    assert not ok and "floating" in reason
+    assert not ok and "floating" in reason and "R'B'" in reason
     res = solve(qp, "augmented_projection", "mid")
     assert res.status == res.claimed_status == "skipped" and res.iterations == 0
     assert res.message == f"skipped: {reason}" and res.kkt is None and res.gap is None
