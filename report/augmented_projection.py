@@ -97,18 +97,20 @@ def claims(study: pd.DataFrame, config: str = MAIN) -> pd.DataFrame:
         t_floor = floor["t_to_target"].min()
         runs = finest[~finest.config.isin(NOT_VARIANTS) & ~finest.config.str.startswith("amg_pcg")]
         best = runs.loc[[runs["t_total"].idxmin()]] if runs["t_total"].notna().any() else runs.iloc[:0]
-        # the bars of the performance issue: Alg. 8.4 as written 5x; the best variant 2x in
-        # 2D, 3x in 3D
-        best_bar = 2.0 if ("dim" not in finest or int(finest["dim"].iloc[0]) == 2) else 3.0
-        for label, row, bar in ((config + " (Alg. 8.4 as written)", runs[runs.config == config], 5.0),
-                                ("best configuration", best, best_bar)):
+        # issue 24's decision: the thesis claims O(N), bounded n_o and kappa(S-hat) = O(h^-1)
+        # for Alg. 8.4 (checked above); its cost as a multiple of one linear multigrid solve
+        # was never published, so it is a measured figure here, not a pass/miss bar (the
+        # bar for "close to one linear solve" is TNNMG's, below)
+        for label, row in ((config + " (Alg. 8.4 as written)", runs[runs.config == config]),
+                           ("best configuration", best)):
             if not len(row):
                 continue
             r = float(row["t_total"].iloc[0] / t_floor)
             rows.append({"claim": f"time to the energy-error target, {label}: {row['config'].iloc[0]}, "
                                   f"/ fastest AMG-PCG linear solve (N = {int(row['N'].iloc[0])}; "
-                                  "coarse levels of nested iteration included)",
-                         "measured": r, "bar": bar, "pass": bool(r <= bar)})
+                                  "coarse levels of nested iteration included; reported, "
+                                  "no published bar)",
+                         "measured": r, "bar": "-", "pass": None})
     rows += tnnmg_claims(study)
     return pd.DataFrame(rows)
 

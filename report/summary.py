@@ -42,6 +42,7 @@ CLAIMS: dict[str, Callable[[pd.DataFrame], pd.DataFrame]] = {
     "adaptive_pileup": lambda t: adaptive.claims(pileup=t),
     "patch_table": lambda t: adaptive.claims(patch=t),
     "hard_table": hard_cases.claims,
+    "hard_nu_claims": lambda t: t,
     "roll_claims": lambda t: t,
 }
 

@@ -59,3 +59,43 @@ def test_hard_case_report_from_the_test_set_runs(tmp_path):
     assert t.loc[t.status == "converged", "accurate"].all()
     assert (t.loc[t.case == "hard_grazing", "dropped_rows"] > 0).all()
     assert (tmp_path / "h.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_incompressibility_table_script_and_report(tmp_path):
+    """Issue 24's table of the hard-case study: Alg. 8.4 with its defaults against the
+    thesis's V-cycle pair over nu, and its claims (robust n_o bounded, all verified)."""
+    from report.incompressibility import claims, main as report_main
+    from workflows.scripts.incompressibility import main as script
+
+    out = tmp_path / "inc.csv"
+    script(["--scenes", "circle_square", "--level", "0", "--nus", "0.3", "0.499",
+            "--out", str(out)])
+    t = pd.read_csv(out).set_index(["nu", "variant"])
+    assert len(t) == 4 and (t.loc[(0.3, "robust"), "ahat_degree"] == 1)
+    assert t.loc[(0.499, "robust"), "ahat_degree"] > 1
+    assert t.loc[(0.499, "robust"), "gamma_bar"] < t.loc[(0.499, "vcycle"), "gamma_bar"] / 3
+    assert (t.xs("robust", level="variant").status == "converged").all()
+    report_main(["--table", str(out), "--claims", str(tmp_path / "c.csv"),
+                 "--figure", str(tmp_path / "f.png")])
+    c = pd.read_csv(tmp_path / "c.csv")
+    assert len(c) == 2 and c["pass"].astype(bool).all() and (tmp_path / "f.png").stat().st_size
+    # a run short of convergence is not judged, and a growth beyond 2x fails
+    fake = pd.read_csv(out)
+    fake.loc[(fake.variant == "robust") & (fake.nu == 0.499), "n_outer"] *= 10
+    grown = claims(fake)
+    assert grown["pass"].tolist() == [True, False]
+    fake.loc[(fake.variant == "robust") & (fake.nu == 0.499), "status"] = "max_iter"
+    assert claims(fake)["pass"].tolist()[0] is False and pd.isna(claims(fake)["pass"].iloc[1])
+
+
+def test_incompressibility_script_refuses_bad_arguments(capsys):
+    from workflows.scripts.incompressibility import main as script
+
+    with pytest.raises(SystemExit):
+        script(["--scenes", "laplace_nonmatching", "--level", "0", "--nus", "0.3",
+                "--out", "x.csv"])
+    assert "allowed: circle_square" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        script(["--scenes", "circle_square", "--level", "0", "--nus", "0.7", "--out", "x.csv"])
+    err = capsys.readouterr().err
+    assert "--nus" in err and "0.7" in err

@@ -47,14 +47,15 @@ def _study(t_of_n, n_outer, kappa, fast=None):
 def test_claims_pass_and_fail_on_synthetic_studies():
     good = claims(_study(lambda n: 1e-5 * n, [8, 8, 8, 8], [34, 68, 136, 272],
                          fast=1.8)).set_index("claim")
-    assert good["pass"].all()
+    assert list(good["pass"].iloc[:3]) == [True, True, True]
     assert abs(good["measured"].iloc[2] - 1.0) < 1e-12       # slope of t ~ N
-    assert abs(good["measured"].iloc[3] - 4.0) < 1e-12       # 2 t / (t / 2), bar 5
-    assert abs(good["measured"].iloc[4] - 1.8) < 1e-12       # the best variant, bar 2 (2D)
-    # Alg. 8.4 at 4x is within its bar of 5x, but as the best variant it misses the 2x bar
+    assert abs(good["measured"].iloc[3] - 4.0) < 1e-12       # 2 t / (t / 2)
+    assert abs(good["measured"].iloc[4] - 1.8) < 1e-12       # the best variant
+    # issue 24: the ratios to a linear solve are reported figures, never judged
+    assert good["pass"].iloc[3:5].isna().all() and list(good["bar"].iloc[3:5]) == ["-", "-"]
     alone = claims(_study(lambda n: 1e-5 * n, [8, 8, 8, 8], [34, 68, 136, 272]))
-    assert list(alone["pass"].iloc[3:5]) == [True, False]
-    assert list(alone["bar"].iloc[3:5]) == [5.0, 2.0]
+    assert alone["pass"].iloc[3:5].isna().all()
+    assert "alg84" in alone["claim"].iloc[4] and abs(alone["measured"].iloc[4] - 4.0) < 1e-12
     bad = claims(_study(lambda n: 1e-8 * n ** 1.5, [8, 9, 12, 20], [34, 68, 136, 272]))
     assert not bad["pass"].iloc[0] and not bad["pass"].iloc[2]
     assert abs(bad["measured"].iloc[2] - 1.5) < 1e-12

@@ -136,8 +136,10 @@ def test_augmented_projection_study_and_its_report(tmp_path):
     assert table.loc[1, "thesis_n_outer_1e-03"] == 19 and table.loc[1, "n_outer_1e-03"] > 0
     claims = pd.read_csv(outs[1])
     assert {"claim", "measured", "bar", "pass"} <= set(claims.columns) and len(claims) >= 2
-    bars = claims[claims.claim.str.startswith("time to the energy-error target")].bar
-    assert sorted(map(float, bars)) == [2.0, 5.0]   # 2D: the best variant 2x, Alg. 8.4 5x
+    ratios = claims[claims.claim.str.startswith("time to the energy-error target")]
+    # issue 24: Alg. 8.4's and its best variant's ratios to a linear solve are reported, not judged
+    assert len(ratios) == 2 and set(ratios.bar) == {"-"} and ratios["pass"].isna().all()
+    assert (ratios.measured.astype(float) > 0).all()
     ours = claims[claims.claim.str.startswith("tnnmg")]
     assert len(ours) == 5 and set(ours.bar.astype(float)) == {0.15, 2.0, 1.5}
     memory = ours[ours.claim.str.contains("peak memory")]
@@ -256,6 +258,10 @@ def test_a_new_scene_joins_a_study_by_config_alone(tmp_path):
     (lambda c: c["adaptive"]["max_nodes"].pop("cube_sphere"), "no node budget"),
     (lambda c: c["adaptive"]["patch_test"]["scenes"].update(circle_square=[0]),
      "no 'coupling' parameter"),
+    (lambda c: c["hard_cases"]["incompressibility"].update(scenes=["laplace_nonmatching"]),
+     "'hard_cases.incompressibility.scenes': 'laplace_nonmatching' is not allowed"),
+    (lambda c: c["hard_cases"]["incompressibility"].update(level=9),
+     "'hard_cases.incompressibility' for 'circle_square'"),
 ])
 def test_config_errors_name_the_key(change, needle):
     config = yaml.safe_load((ROOT / "workflows/config/quick.yaml").read_text())

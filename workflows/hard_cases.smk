@@ -17,3 +17,33 @@ rule hard_cases_report:
     shell:
         "{params.py} -m report.hard_cases --inputs {input} --cases {params.cases} "
         "--preset {params.preset} --table {output.table} --heatmap {output.heatmap} > {log} 2>&1"
+
+HCI = HC.get("incompressibility", {})
+
+rule hard_cases_incompressibility:
+    output: PATHS["hard_nu_runs"]
+    log: log_path("hard_cases_incompressibility", "all")
+    benchmark: bench_path("hard_cases_incompressibility", "all")
+    resources: **rule_resources(config, "hard_cases_incompressibility")
+    conda: ENV
+    params:
+        py=PY, scenes=" ".join(HCI.get("scenes", [])), level=HCI.get("level"),
+        nus=" ".join(f"{v:g}" for v in HCI.get("nus", [])), time_limit=HCI.get("time_limit")
+    shell:
+        "{params.py} -m workflows.scripts.incompressibility --scenes {params.scenes} "
+        "--level {params.level} --nus {params.nus} --time-limit {params.time_limit} "
+        "--out {output} > {log} 2>&1"
+
+rule hard_cases_incompressibility_report:
+    input: PATHS["hard_nu_runs"]
+    output:
+        claims=report(PATHS["hard_nu_claims"], caption="../report/captions/hard_nu_claims.rst",
+                      category="hard cases", subcategory="incompressibility"),
+        figure=report(PATHS["hard_nu_figure"], caption="../report/captions/hard_nu_figure.rst",
+                      category="hard cases", subcategory="incompressibility")
+    log: log_path("hard_cases_incompressibility_report", "all")
+    conda: ENV
+    params: py=PY
+    shell:
+        "{params.py} -m report.incompressibility --table {input} --claims {output.claims} "
+        "--figure {output.figure} > {log} 2>&1"

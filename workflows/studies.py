@@ -90,6 +90,9 @@ PATHS = {
     # hard_cases: the test set's runs on its hard families; one table and heat map
     "hard_table": "results/hard_cases/hard_cases.csv",
     "hard_heatmap": "results/hard_cases/hard_cases.png",
+    "hard_nu_runs": "results/hard_cases/incompressibility.csv",
+    "hard_nu_claims": "results/hard_cases/incompressibility_claims.csv",
+    "hard_nu_figure": "results/hard_cases/incompressibility.png",
     # roll_stack (Sect. 9.3): both strip forces at one level, profiles, fields, solvers
     "roll_runs": "results/{scene}/roll_stack_runs.csv",
     "roll_profiles": "results/{scene}/roll_stack_profiles.csv",
@@ -310,9 +313,11 @@ STUDIES = {
                     "own process with a hard time limit, on hard variants of the scenes (stiffness contrast, near "
                     "incompressibility, mesh ratio, single-node and whole-edge contact, no "
                     "contact, initial penetration, SI units, grazing contact, a thin body): "
-                    "verified status, certified bound, errors against the reference, time",
+                    "verified status, certified bound, errors against the reference, time; "
+                    "Alg. 8.4's outer steps against Poisson's ratio up to 0.4999",
             thesis="Ch. 8 solvers on variants of Sects. 9.1, 9.2",
-            outputs=("hard_table", "hard_heatmap"),
+            outputs=("hard_table", "hard_heatmap", "hard_nu_runs", "hard_nu_claims",
+                     "hard_nu_figure"),
         ),
         Study(
             name="adaptive",
@@ -451,6 +456,8 @@ def roll_args(config: dict, scene: str) -> str:
     if rs.get("solver_levels"):
         args += ["--solver-levels " + " ".join(map(str, rs["solver_levels"])),
                  "--solvers " + " ".join(rs["solvers"])]
+    if rs.get("alg84_levels"):
+        args.append("--alg84-levels " + " ".join(map(str, rs["alg84_levels"])))
     return " ".join(args)
 
 
@@ -537,12 +544,36 @@ def check_config(config: dict) -> None:
                               f"{runs.get(scene, [])}")
     _check_adaptive(config, registry)
     _check_roll_stack(config, registry)
+    _check_incompressibility(config, registry)
     _check_test_set(config)
     for rule, study in HEAVY_RULES.items():
         if study in config and not {"mem_mb", "runtime"} <= set(
                 config.get("resources", {}).get(rule, {})):
             raise ConfigError(f"config 'resources.{rule}': the study {study!r} runs, so declare "
                               "its measured mem_mb and runtime (minutes)")
+
+
+def _check_incompressibility(config: dict, registry: dict) -> None:
+    """The hard cases' incompressibility table: registered contact problems, a level and
+    Poisson's ratios each scene accepts."""
+    from problems.spec import ParameterError
+
+    inc = config.get("hard_cases", {}).get("incompressibility")
+    if not inc:
+        return
+    contact = sorted(n for n, s in registry.items() if s.kind == "contact")
+    for name in inc["scenes"]:
+        if name not in contact:
+            raise ConfigError(f"config 'hard_cases.incompressibility.scenes': {name!r} is not "
+                              f"allowed; allowed: {', '.join(contact)}")
+        spec = registry[name]
+        try:
+            spec.check_level(inc["level"])
+            for nu in inc["nus"]:
+                spec.options(nu1=nu, nu2=nu)
+        except ParameterError as err:
+            raise ConfigError(f"config 'hard_cases.incompressibility' for {name!r}: {err}") \
+                from None
 
 
 def _check_adaptive(config: dict, registry: dict) -> None:
@@ -684,6 +715,7 @@ HEAVY_RULES = {
     "adaptive_study": "adaptive",
     "patch_test": "adaptive",
     "roll_stack_study": "roll_stack",
+    "hard_cases_incompressibility": "hard_cases",
 }
 
 

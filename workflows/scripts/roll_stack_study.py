@@ -31,8 +31,9 @@ Writes, into ``--outdir``: ``roll_stack_runs.csv`` (one row per force and crown)
 ``roll_stack_profiles.csv`` (per force, crown, source and ``x``: ``fe`` per x layer,
 ``beam``, ``strip`` the strip's line load per interval between layers),
 ``roll_stack_contact.csv`` (per constrained node of the crowned runs), ``roll_stack_solvers.csv``
-(every solver in ``--solvers`` at ``--solver-levels``, 15 MN crowned; n_o is the outer
-iteration count of the augmented projection), and ``roll_stack_F{MN}MN.vtu`` per force
+(every solver in ``--solvers`` at ``--solver-levels``, and the augmented projection alone at
+``--alg84-levels``, 15 MN crowned; n_o is the outer iteration count of the augmented
+projection, with its kappa(S-hat), gamma_bar, Chebyshev degree, S-hat kind and V-cycles), and ``roll_stack_F{MN}MN.vtu`` per force
 (crowned). Every file is written atomically with its provenance sidecar.
 
 Example::
@@ -254,6 +255,11 @@ def beam_profiles(p) -> tuple[dict, pd.DataFrame]:
     return row, frame
 
 
+#: Alg. 8.4's own columns in the solver table (Sect. 9.3 reports its times): kappa(S-hat),
+#: gamma_bar of A-hat, the Chebyshev degree of A-hat, the S-hat kind and the V-cycles.
+ALG84_STATS = ("kappa_S", "gamma_bar", "ahat_degree", "schur_kind", "n_vcycles")
+
+
 def solver_runs(spec, params, levels, names, time_limit) -> pd.DataFrame:
     """Every solver in ``names`` on the 15 MN crowned scene at each level (tolerance 1e-6,
     the ``mid`` preset): verified status, iterations (n_o for the augmented projection),
@@ -275,7 +281,8 @@ def solver_runs(spec, params, levels, names, time_limit) -> pd.DataFrame:
                          "status": res.status, "claimed_status": res.claimed_status,
                          "iterations": res.iterations, "setup_time": res.setup_time,
                          "solve_time": res.solve_time, "wall_time": wall,
-                         "kkt_max": kkt, "energy_bound": bound, "message": res.message[:200]})
+                         "kkt_max": kkt, "energy_bound": bound, "message": res.message[:200],
+                         **{k: res.stats.get(k, np.nan) for k in ALG84_STATS}})
             log(f"solver {label} at level {level}: {res.status} ({res.iterations} it, "
                 f"{wall:.1f} s, KKT {kkt:.1e})" + (f": {res.message}" if res.status == "skipped"
                                                   else ""))
@@ -296,6 +303,9 @@ def main(argv=None) -> None:
                         help="levels of the solver comparison (15 MN, first crown)")
     parser.add_argument("--solvers", nargs="*", default=[],
                         help="registered solvers (and 'pdas_kkt') for the comparison")
+    parser.add_argument("--alg84-levels", type=int, nargs="*", default=[],
+                        help="further levels at which the augmented projection (Alg. 8.4) "
+                             "alone runs (Sect. 9.3 reports its times)")
     parser.add_argument("--time-limit", type=float, default=600.0, help="seconds per solve (> 0)")
     parser.add_argument("--outdir", required=True)
     args = parser.parse_args(argv)
@@ -304,6 +314,7 @@ def main(argv=None) -> None:
         parser.error(f"argument --problem: {spec.name!r} is not allowed; allowed: roll_stack")
     (level,) = check_levels(parser, spec, [args.level])
     solver_levels = check_levels(parser, spec, args.solver_levels)
+    alg84_levels = check_levels(parser, spec, args.alg84_levels)
     known = set(solvers()) | {"pdas_kkt"}
     bad = [s for s in args.solvers if s not in known]
     if bad:
@@ -357,10 +368,14 @@ def main(argv=None) -> None:
     write_csv(out / "roll_stack_profiles.csv", pd.concat(profiles, ignore_index=True))
     write_csv(out / "roll_stack_contact.csv", pd.concat(contacts, ignore_index=True))
     p0 = spec.options(**{**params.flat(), "force": args.forces[0], "crown": args.crowns[0]})
-    sol = solver_runs(spec, p0, solver_levels, args.solvers, args.time_limit)
+    sol = pd.concat([solver_runs(spec, p0, solver_levels, args.solvers, args.time_limit),
+                     solver_runs(spec, p0, [lv for lv in alg84_levels if lv not in solver_levels
+                                            or "augmented_projection" not in args.solvers],
+                                 ["augmented_projection"], args.time_limit)], ignore_index=True)
     write_csv(out / "roll_stack_solvers.csv", sol if len(sol) else pd.DataFrame(
         columns=["level", "N", "n", "m", "solver", "status", "claimed_status", "iterations",
-                 "setup_time", "solve_time", "wall_time", "kkt_max", "energy_bound", "message"]))
+                 "setup_time", "solve_time", "wall_time", "kkt_max", "energy_bound", "message",
+                 *ALG84_STATS]))
     log("done")
 
 
