@@ -17,8 +17,8 @@ from problems.spec import Parameter, ParameterError, problems, resolve_parameter
 from solvers.interface import solve, solvers
 from workflows.cli import main
 
-#: the roll stack's floating work roll defeats pdas's Schur route and the augmented
-#: projection; tests/test_roll_stack.py asserts every solver's status on it instead
+#: the roll stack (a floating work roll, minutes for some QP libraries at its size) is left
+#: out here; tests/test_roll_stack.py asserts every solver's status on it instead
 CONTACT_SCENES = sorted(n for n, s in problems().items()
                         if s.kind == "contact" and n != "roll_stack")
 SOLVERS = sorted(solvers())
@@ -104,12 +104,13 @@ def test_every_solver_runs_through_the_cli(tmp_path, references, scene, solver):
 
 def test_a_skipped_solve_is_reported_through_the_cli(tmp_path, capsys):
     out = tmp_path / "run.json"
-    assert main(["solve", "--problem", "roll_stack", "--level", "0", "--solver",
-                 "augmented_projection", "--out", str(out)]) == 0
+    assert main(["solve", "--problem", "flat_blocks", "--level", "1", "--set",
+                 "coupling=mortar", "--solver", "tnnmg", "--out", str(out)]) == 0
     data = json.loads(out.read_text())
-    assert data["status"] == "skipped" and "floating" in data["message"]
+    assert data["status"] == "skipped" and "cannot be turned into bounds" in data["message"]
     assert data["kkt"] is None and data["contact"] is None
-    assert "skipped (skipped: 1 floating rigid mode" in capsys.readouterr().out
+    assert "skipped (skipped: the constraints cannot be turned into bounds" in \
+        capsys.readouterr().out
 
 
 @pytest.mark.parametrize("solver", SOLVERS)
