@@ -547,11 +547,10 @@ def make_projection(projection: Component, S_hat: SchurPreconditioner, tau_2_hat
 
 def balanced_projection(projection: Component, S_hat: SchurPreconditioner) -> Callable:
     """``project_balanced(d, p_k, G, e) -> (p_{k+1}, mu, n_inner)``: (8.24) with the floating
-    bodies' equilibrium ``G q = e`` (:func:`smalbe`, MPRGP inside with the projection's
-    ``rtol`` and ``max_steps``; the MPRGP settings also serve ``richardson``)."""
+    bodies' equilibrium ``G q = e`` (:func:`smalbe`, MPRGP inside with the ``mprgp``
+    projection's ``rtol`` and ``max_steps``; Alg. 8.3 has no equality and is refused)."""
     o = projection.options
-    rtol = o.get("rtol", 0.1)
-    return lambda d, p, G, e: smalbe(S_hat, G, e, d, p, S_hat.lam_max, rtol, o["max_steps"])
+    return lambda d, p, G, e: smalbe(S_hat, G, e, d, p, S_hat.lam_max, o["rtol"], o["max_steps"])
 
 
 #: ``schur="auto"`` keeps the multilevel ``S-hat`` while its measured
