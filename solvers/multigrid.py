@@ -399,12 +399,15 @@ def scaled_vcycle(A: sp.spmatrix, kind: str, multilevel: Multilevel | None, dim:
     # under-estimates it, so take the larger with a margin (a larger upper end keeps the
     # polynomial positive; eigenvalues below the lower end are damped less)
     top = HIGH_SAFETY * max(hi, 1.0)
-    for _ in range(CHEBYSHEV_PASSES if degree == 0 else 1):
+    passes = CHEBYSHEV_PASSES if degree == 0 else 1
+    measured = None         # the Ritz values of the polynomial built last
+    for k in range(passes):
         if vc.degree <= 1:
             break
         vc.polynomial = chebyshev_vcycle(apply_A, vc.vcycle_once, lo, top, vc.degree)
-        lo_p, hi_p = lanczos_extremes(apply_A, A.shape[0], lanczos_steps, vc.raw, seed)
-        if degree or hi_p / lo_p <= gamma_target:
+        measured = lanczos_extremes(apply_A, A.shape[0], lanczos_steps, vc.raw, seed)
+        lo_p, hi_p = measured
+        if degree or hi_p / lo_p <= gamma_target or k == passes - 1:
             break
         # Ritz values over-estimate lambda_min(V A) when kappa is large: read the smallest
         # eigenvalue off the polynomial's measured lambda_min (1 - lambda p(lambda) =
@@ -414,10 +417,9 @@ def scaled_vcycle(A: sp.spmatrix, kind: str, multilevel: Multilevel | None, dim:
             break
         lo = lam
         vc.ritz_vcycle = (lo, vc.ritz_vcycle[1])
-        new = chebyshev_degree(lo, top, gamma_target)
-        vc.degree = max(new, vc.degree + 1)
-    if vc.polynomial is not None:
-        lo, hi = lanczos_extremes(apply_A, A.shape[0], lanczos_steps, vc.raw, seed)
+        vc.degree = max(chebyshev_degree(lo, top, gamma_target), vc.degree + 1)
+    if measured is not None:
+        lo, hi = measured
     vc.lanczos_time = time.perf_counter() - t0
     vc.ritz = (lo, hi)
     vc.gamma_low, vc.gamma_high = LOW_SAFETY * lo, HIGH_SAFETY * hi
