@@ -48,7 +48,7 @@ from problems.fem.contact import RENAMED_SEARCHES, SEARCHES
 from problems.fem.mesh import (Hierarchy, nested_prolongation, netgen_ball, project_to_circle,
                                structured_cube, uniform_hierarchy)
 from problems.fem.surface import tensor_coarsening
-from problems.fem.two_body import Body, TwoBodyScene, assemble_two_body
+from problems.fem.two_body import ELEMENT_DEGREE, Body, TwoBodyScene, assemble_two_body
 from problems.qp import ContactQP, HertzSetup
 from problems.spec import Options, Parameter, ProblemSpec
 from reference.hertz import effective_modulus
@@ -105,7 +105,8 @@ def scene(level: int, p: Options) -> TwoBodyScene:
 
 def build(level: int, p: Options) -> ContactQP:
     """The cube-sphere ContactQP at uniform level ``level`` (see module docstring)."""
-    return assemble_two_body(scene(level, p), level, name=f"cube_sphere level {level}")
+    return assemble_two_body(scene(level, p), level, degree=p.degree,
+                             name=f"cube_sphere level {level}" + (" P2" if p.degree == 2 else ""))
 
 
 PROBLEM = ProblemSpec(
@@ -135,6 +136,7 @@ PROBLEM = ProblemSpec(
                   renamed=RENAMED_SEARCHES),
         Parameter("order", "cube_first", "bodies' order in memory (a solution must not depend "
                   "on it)", choices=("cube_first", "ball_first")),
+        ELEMENT_DEGREE,
     ),
     build=build,
     thesis_tables={"augmented_projection": "table_9_3", "adaptive": "table_9_4"},

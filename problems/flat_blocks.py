@@ -53,7 +53,7 @@ import scipy.sparse as sp
 from problems.fem.mesh import Hierarchy, nested_prolongation, structured_square
 from problems.fem.stabilised import stabilise
 from problems.fem.surface import tensor_coarsening
-from problems.fem.two_body import Body, TwoBodyScene, assemble_two_body
+from problems.fem.two_body import ELEMENT_DEGREE, Body, TwoBodyScene, assemble_two_body
 from problems.qp import ContactQP
 from problems.spec import Options, Parameter, ParameterError, ProblemSpec
 
@@ -163,9 +163,14 @@ def build(level: int, p: Options) -> ContactQP:
     if p.gap >= p.indent:
         raise ParameterError(f"parameter 'gap': {p.gap!r} is not allowed; allowed: a number "
                              f"below indent = {p.indent!r} (else the blocks never touch)")
+    if p.degree == 2 and p.coupling != "nodal":
+        raise ParameterError(f"parameter 'degree': 2 is not allowed with coupling="
+                             f"{p.coupling!r}; allowed: degree=1, or degree=2 with coupling=nodal "
+                             "(the mortar and stabilised couplings are built for P1)")
     sc = scene(level, p)
-    qp = assemble_two_body(sc, level, name=f"flat_blocks level {level} ({p.coupling}, "
-                                           f"{p.constrained} side constrained)")
+    qp = assemble_two_body(sc, level, degree=p.degree,
+                           name=f"flat_blocks level {level} ({p.coupling}, "
+                                f"{p.constrained} side constrained)" + (" P2" if p.degree == 2 else ""))
     if p.coupling == "stabilised":
         return stabilise(qp, p.alpha, p.penalty)
     return mortar(qp, sc, p.gap) if p.coupling == "mortar" else qp
@@ -195,6 +200,7 @@ PROBLEM = ProblemSpec(
                   high=0.2, low_open=True),
         Parameter("gap", 0.001, "initial gap between the blocks (must be < indent)", low=0.0,
                   high=0.1),
+        ELEMENT_DEGREE,
     ),
     build=build,
 )

@@ -39,8 +39,9 @@ class Mesh:
     ----------
     points : (N, d) array
         Node coordinates of both bodies (one global numbering).
-    cells : (n_cells, d + 1) int array
-        Simplices (triangles in 2D, tetrahedra in 3D).
+    cells : (n_cells, d + 1) or P2 (n_cells, 6 or 10) int array
+        Simplices (triangles in 2D, tetrahedra in 3D); P2 cells list the vertices,
+        then the edge midpoints (:mod:`problems.fem.quadratic`).
     body_of_node : (N,) int array
         Index into ``bodies`` of each node.
     E_cell, nu_cell : (n_cells,) arrays
@@ -63,6 +64,12 @@ class Mesh:
     @property
     def dim(self) -> int:
         return self.points.shape[1]
+
+    @property
+    def degree(self) -> int:
+        """Lagrange order of the cells: 1 (``d + 1`` nodes each) or 2 (vertices first,
+        then edge midpoints; :mod:`problems.fem.quadratic`)."""
+        return 1 if self.cells.shape[1] == self.dim + 1 else 2
 
 
 @dataclass
@@ -87,6 +94,10 @@ class ContactSurface:
     dropped : int
         Nodes of the constrained surface that found no opposing facet (e.g. beyond
         the opposing body's reach in grazing contact) and carry no constraint.
+    pressure_map : (m, m) sparse, optional
+        The nodal pressure of the multipliers, ``pressure = pressure_map @ p``, where
+        ``p / mass`` is not it (P2: :func:`problems.fem.two_body.quadratic_pressure_map`);
+        ``None``: ``p / mass`` (Sect. 8.6).
     """
 
     nodes: np.ndarray
@@ -96,6 +107,12 @@ class ContactSurface:
     opposing_facets: np.ndarray
     search: str = "along_direction"
     dropped: int = 0
+    pressure_map: sp.spmatrix | None = None
+
+    def pressure(self, p: np.ndarray) -> np.ndarray:
+        """Nodal contact pressure of the multipliers ``p`` on these rows (Sect. 8.6)."""
+        p = np.asarray(p, dtype=float)
+        return p / self.mass if self.pressure_map is None else self.pressure_map @ p
 
 
 @dataclass
@@ -428,10 +445,16 @@ def surface_multipliers(qp: ContactQP, p: np.ndarray) -> np.ndarray:
     ``p`` itself without a stabilisation; with one (Sect. 7.5) the reverse rows'
     multipliers are spread onto the constrained nodes of the facet each one hits,
     ``p_c + T' p_r`` (``T = stabilisation.transfer``): the total force on the
-    constrained surface. The pressure is this over ``contact.mass`` (Sect. 8.6).
+    constrained surface. The pressure is :func:`surface_pressure`.
     """
     p = np.asarray(p, dtype=float)
     if qp.stabilisation is None:
         return p
     mc = qp.m_contact
     return p[:mc] + qp.stabilisation.transfer.T @ p[mc:]
+
+
+def surface_pressure(qp: ContactQP, p: np.ndarray) -> np.ndarray:
+    """Nodal contact pressure at the constrained nodes: :func:`surface_multipliers`
+    turned into a pressure by :meth:`ContactSurface.pressure`."""
+    return qp.contact.pressure(surface_multipliers(qp, p))

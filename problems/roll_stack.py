@@ -94,7 +94,8 @@ from scipy.spatial import Delaunay
 
 from problems.fem.elasticity import boundary_facets
 from problems.fem.mesh import Hierarchy, orient_positive
-from problems.fem.two_body import Body, Springs, Traction, TwoBodyScene, assemble_two_body
+from problems.fem.two_body import (ELEMENT_DEGREE, Body, Springs, Traction, TwoBodyScene,
+                                   assemble_two_body)
 from problems.qp import ContactQP, HertzSetup
 from problems.spec import Options, Parameter, ProblemSpec
 from reference.hertz import effective_modulus
@@ -335,7 +336,8 @@ def scene(level: int, p: Options) -> TwoBodyScene:
 
 def build(level: int, p: Options) -> ContactQP:
     """The roll-stack ContactQP at mesh level ``level`` (see the module docstring)."""
-    qp = assemble_two_body(scene(level, p), 0, name=f"roll_stack level {level} ({p.model})")
+    qp = assemble_two_body(scene(level, p), 0, degree=p.degree,
+                           name=f"roll_stack level {level} ({p.model})" + (" P2" if p.degree == 2 else ""))
     qp.level = level
     return qp
 
@@ -362,6 +364,7 @@ PROBLEM = ProblemSpec(
                   "fine zone), m", low=0.004, high=0.1),
         Parameter("spring", 1e-8, "work-roll spring per node relative to E * R_w", low=0.0,
                   high=1e-4, low_open=True),
+        ELEMENT_DEGREE,
     ),
     build=build,
 )

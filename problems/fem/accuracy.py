@@ -102,14 +102,21 @@ def locate(points: np.ndarray, cells: np.ndarray, targets: np.ndarray, k: int = 
 def interpolation_matrix(points: np.ndarray, cells: np.ndarray, targets: np.ndarray,
                          cell_group: np.ndarray | None = None,
                          target_group: np.ndarray | None = None) -> sp.csr_matrix:
-    """``(n_targets, n_nodes)`` P1 interpolation from a simplex mesh to points.
+    """``(n_targets, n_nodes)`` P1 or P2 interpolation from a simplex mesh to points.
 
-    With groups (e.g. the body of each cell and of each target), a target is only
+    ``cells`` with ``d + 1`` columns are P1; with 6 (triangles) or 10 (tetrahedra) P2
+    (:mod:`problems.fem.quadratic`: located by their vertices, weighted by the P2 shape
+    functions; exact on nested meshes, whose P2 nodes are then points of the coarse
+    cells). With groups (e.g. the body of each cell and of each target), a target is only
     located among the cells of its own group, so that two bodies touching at a
     point never exchange values.
     """
+    from problems.fem.quadratic import shape_functions
+
     x = np.asarray(targets, dtype=float)
     t = np.asarray(cells, dtype=np.int64)
+    d = np.asarray(points).shape[1]
+    quadratic = t.shape[1] > d + 1
     if cell_group is None:
         cell_group, target_group = np.zeros(len(t), int), np.zeros(len(x), int)
     rows, cols, vals = [], [], []
@@ -118,10 +125,10 @@ def interpolation_matrix(points: np.ndarray, cells: np.ndarray, targets: np.ndar
         sel_c = np.flatnonzero(cell_group == g)
         if not sel_c.size:
             raise ValueError(f"parameter 'cell_group': no cell in group {g} for its targets")
-        c, lam = locate(points, t[sel_c], x[sel_x])
+        c, lam = locate(points, t[sel_c][:, :d + 1], x[sel_x])
         rows.append(np.repeat(sel_x, t.shape[1]))
         cols.append(t[sel_c][c].ravel())
-        vals.append(lam.ravel())
+        vals.append((shape_functions(lam) if quadratic else lam).ravel())
     P = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
                       shape=(len(x), len(points)))
     P.eliminate_zeros()

@@ -665,6 +665,38 @@ def _assemble(rows, facet_nodes, w, n, n_nodes, dim) -> sp.csr_matrix:
     return B
 
 
+def quadratic_constraints(cc: ContactConstraints, facet_nodes: np.ndarray,
+                          n_nodes: int) -> ContactConstraints:
+    """The constraints ``cc`` for P2 elements (Remark 7.11).
+
+    The opposing point ``Q`` stays the one found on the flat facet through the
+    opposing facet's vertices; ``u(Q)`` is interpolated by the facet's P2 shape
+    functions (:func:`problems.fem.quadratic.facet_shape_functions`) instead of the
+    barycentric weights (7.14). The P2 weights reproduce affine functions, so the
+    gap ``g`` and :func:`gap_after` are unchanged.
+
+    Parameters
+    ----------
+    cc : ContactConstraints
+        Found on the vertex facets (``cc.facet_nodes`` ``(m, dim)``).
+    facet_nodes : (m, 3) or (m, 6) int array
+        The same facets with their edges' midpoints
+        (:func:`problems.fem.quadratic.quadratic_facets`).
+    n_nodes : int
+        Number of P2 nodes (columns of ``B`` over ``dim``).
+    """
+    from dataclasses import replace
+
+    from problems.fem.quadratic import facet_shape_functions
+
+    w = facet_shape_functions(cc.weights)
+    if facet_nodes.shape != w.shape:
+        raise ValueError(f"parameter 'facet_nodes': shape {facet_nodes.shape} is not allowed; "
+                         f"allowed: {w.shape} (the facets' vertices, then their midpoints)")
+    return replace(cc, B=_assemble(cc.rows, facet_nodes, w, cc.direction, n_nodes, cc.dim),
+                   facet_nodes=facet_nodes, weights=w)
+
+
 def restrict_to_free(B, free_dofs) -> sp.csr_matrix:
     """Columns ``free_dofs`` of ``B`` (full nodal DOFs -> unknowns), as CSR.
 

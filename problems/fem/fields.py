@@ -7,7 +7,8 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from problems.fem.elasticity import von_mises
-from problems.qp import ContactQP, surface_multipliers
+from problems.fem.quadratic import linear_subcells
+from problems.qp import ContactQP, surface_multipliers, surface_pressure
 
 
 def contact_fields(qp: ContactQP, u: np.ndarray, p: np.ndarray) -> dict[str, np.ndarray]:
@@ -20,15 +21,20 @@ def contact_fields(qp: ContactQP, u: np.ndarray, p: np.ndarray) -> dict[str, np.
         (``p / contact mass`` at the constrained nodes, zero elsewhere; with the
         stabilisation of Sect. 7.5 the reverse rows' multipliers are spread onto the
         constrained nodes first, :func:`problems.qp.surface_multipliers`),
-        ``body (N,)`` and ``von_mises (n_cells,)``.
+        ``body (N,)`` and ``von_mises (n_cells,)``. P2 meshes are given as their
+        sub-simplices (:func:`problems.fem.quadratic.linear_subcells`), the von Mises stress
+        there of the P1 interpolant on them (for plots).
     """
     mesh = qp.mesh
     disp = qp.full_displacement(u)
     pressure = np.zeros(mesh.n_nodes)
     if qp.contact is not None:
-        pressure[qp.contact.nodes] = surface_multipliers(qp, p) / qp.contact.mass
-    vm = von_mises(mesh.points, mesh.cells, disp, mesh.E_cell, mesh.nu_cell)
-    return {"points": mesh.points, "cells": mesh.cells, "displacement": disp,
+        pressure[qp.contact.nodes] = surface_pressure(qp, p)
+    cells = mesh.cells if mesh.degree == 1 else linear_subcells(mesh.points, mesh.cells)
+    per_sub = len(cells) // len(mesh.cells)
+    vm = von_mises(mesh.points, cells, disp, np.repeat(mesh.E_cell, per_sub),
+                   np.repeat(mesh.nu_cell, per_sub))
+    return {"points": mesh.points, "cells": cells, "displacement": disp,
             "contact_pressure": pressure, "body": mesh.body_of_node, "von_mises": vm}
 
 
@@ -48,7 +54,7 @@ def contact_state(qp: ContactQP, u: np.ndarray, p: np.ndarray,
     if qp.contact is not None:
         pc = surface_multipliers(qp, p)
         out["x"] = qp.constrained_points()
-        out["pressure"] = pc / qp.contact.mass
+        out["pressure"] = qp.contact.pressure(pc)
         out["force"] = (pc[:, None] * qp.contact.direction).sum(axis=0)
     return out
 
@@ -78,7 +84,7 @@ def hertz_comparison(qp: ContactQP, p: np.ndarray) -> dict[str, float]:
         raise ValueError(f"{qp.name or 'this problem'} has no Hertz reference (qp.hertz)")
     kind, R, E_star = qp.hertz.kind, qp.hertz.radius, qp.hertz.E_star
     p = surface_multipliers(qp, p)
-    pressure = p / qp.contact.mass
+    pressure = qp.contact.pressure(p)
     x = in_plane(qp)
     P = float(p.sum())
     a_h = hertz.contact_size(kind, P, R, E_star)

@@ -47,10 +47,13 @@ def _line_size(s: np.ndarray) -> np.ndarray:
 
 def facet_sizes(points: np.ndarray, facets: np.ndarray, nodes: np.ndarray) -> np.ndarray:
     """Local mesh size at ``nodes``: the largest adjacent facet's length (2D segments)
-    or ``sqrt(2 area)`` (3D triangles; the leg of a right isosceles triangle)."""
+    or ``sqrt(2 area)`` (3D triangles; the leg of a right isosceles triangle).
+
+    ``facets`` are ``(k, d)`` vertex facets or quadratic ones (the vertices first, then
+    the edge midpoints, :func:`problems.fem.quadratic.quadratic_facets`)."""
     pts = np.asarray(points, dtype=float)
-    verts = pts[facets]
-    if facets.shape[1] == 2:
+    verts = pts[facets[:, :pts.shape[1]]]
+    if pts.shape[1] == 2:
         size = np.linalg.norm(verts[:, 1] - verts[:, 0], axis=1)
     else:
         area = 0.5 * np.linalg.norm(np.cross(verts[:, 1] - verts[:, 0], verts[:, 2] - verts[:, 0]),

@@ -6,12 +6,20 @@ which nodes form the constrained surface and which facets the opposing one
 (:class:`TwoBodyScene`). :func:`assemble_two_body` then
 
 1. stacks both bodies in one node numbering (the second body's ids offset),
-2. assembles the P1 stiffness and the loads (Sect. 2.1, Sect. 5.1),
+2. assembles the P1 or P2 stiffness and the loads (Sect. 2.1, Sect. 5.1, Remark 7.11),
 3. splits off the prescribed DOFs (Dirichlet lift),
 4. builds the nodal contact constraints of Alg. 7.1 and the lumped contact mass,
 5. restricts everything to the free DOFs,
 6. collects the multilevel data: prolongations on the free DOFs of every
    level, rigid-body modes per body, the constrained surface on every level.
+
+With ``degree=2`` (Remark 7.11) the finest level is the P2 space on the finest
+mesh (:mod:`problems.fem.quadratic`): its constrained surface holds the
+vertices and the edge midpoints, each opposing point is parametrised on the
+flat facet through the opposing facet's vertices and weighted by the P2 shape
+functions, and the hierarchy below it is P1 on every mesh level, so a
+multilevel solver's first coarsening is a p-multigrid step (P2 -> P1 on the same
+mesh, exact interpolation) and the geometric P1 hierarchy follows.
 
 Pure functions: no files, no clocks.
 """
@@ -23,13 +31,22 @@ from typing import Callable
 import numpy as np
 import scipy.sparse as sp
 
-from problems.fem.contact import contact_constraints
+from problems.fem.contact import contact_constraints, quadratic_constraints
 from problems.fem.elasticity import (body_force_vector, boundary_facets, dirichlet_split,
                                      lumped_surface_mass, rigid_body_modes, stiffness_matrix,
                                      traction_vector)
 from problems.fem.mesh import Hierarchy, dof_prolongation
+from problems.fem.quadratic import (FACET_EDGES, body_force_vector_p2, edge_lookup, linear_to_quadratic,
+                                    midpoint_supports, quadratic_facets, quadratic_mesh,
+                                    stiffness_matrix_p2, surface_mass_p2, traction_vector_p2)
 from problems.fem.surface import facet_sizes, surface_levels
+from problems.spec import Parameter
 from problems.qp import ContactQP, ContactSurface, HertzSetup, Mesh, Multilevel
+
+#: The scenes' element order (one declaration, every two-body scene lists it).
+ELEMENT_DEGREE = Parameter(
+    "degree", 1, "Lagrange elements' order: 1 (P1) or 2 (P2, Remark 7.11: constraints at the "
+    "vertices and edge midpoints of the constrained surface)", low=1, high=2)
 
 #: ``dirichlet(points, body_of_node) -> (fixed_dofs, values)`` on one level's stacked mesh.
 Supports = Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]
@@ -167,12 +184,75 @@ def _constrained_surface(scene: TwoBodyScene, points, cells, body_of_node):
     return nodes, surface_facets, mass, facet_sizes(points, surface_facets, nodes)
 
 
+def _quadratic_surface(quad, points, nodes, facets):
+    """The P2 constrained surface on the vertex surface ``(nodes, facets)``: its vertices
+    and edge midpoints (sorted lexicographically), the quadratic facets, their HRZ lumped
+    mass (:func:`problems.fem.quadratic.surface_mass_p2`) and local mesh size."""
+    qf = quadratic_facets(quad, facets)
+    nodes = np.unique(qf)
+    nodes = nodes[np.lexsort(points[nodes].T[::-1])]
+    mass = surface_mass_p2(points, qf)[nodes]
+    return nodes, qf, mass, 0.5 * facet_sizes(points, qf, nodes)
+
+
+def quadratic_pressure_map(surface) -> sp.csr_matrix:
+    """Nodal pressure of P2 contact forces (Remark 7.11): restricted to the vertices by the
+    p-multigrid prolongation's transpose, divided by the P1 lumped mass there and
+    interpolated back to the midpoints, ``P diag(1 / m_1) P'``.
+
+    P2's nodal forces alternate between vertices and midpoints (with the HRZ mass of
+    :func:`problems.fem.quadratic.surface_mass_p2` by about +-20 % on circle-square
+    level 2; in 3D a vertex function integrates to zero, so ``p / mass`` is no pressure
+    there). Aggregating each midpoint's force half onto each of its vertices is exact
+    for a constant pressure in 2D and 3D and removes the alternation.
+
+    Parameters
+    ----------
+    surface : SurfaceHierarchy
+        Whose last level is the P2 surface and the one below it P1 on the same mesh.
+    """
+    P = sp.csr_matrix(surface.prolongations[-1])
+    return (P @ sp.diags(1.0 / surface.masses[-2]) @ P.T).tocsr()
+
+
+def _quadratic_level(scene: TwoBodyScene, linear):
+    """The P2 level on the finest mesh level ``linear`` (:func:`_level`'s tuple): its
+    stacked mesh, free DOFs, lifted prescribed values and the :class:`QuadraticMesh`.
+
+    The vertices keep their ids; a boundary edge's midpoint is prescribed where both
+    of its vertices are, to their mean (:func:`problems.fem.quadratic.midpoint_supports`).
+    """
+    points, cells, body_of_node, offsets, _free, _u = linear
+    dim = points.shape[1]
+    quad = quadratic_mesh(points, cells)
+    body2 = np.concatenate([body_of_node, body_of_node[quad.edges[:, 0]]])
+    fixed, values = scene.supports(points, body_of_node)
+    facets = boundary_facets(cells)
+    pairs = FACET_EDGES[dim]
+    on_boundary = np.unique(np.concatenate(
+        [edge_lookup(quad.edges, quad.n_vertices, facets[:, i], facets[:, j]) for i, j in pairs]))
+    fixed2, values2 = midpoint_supports(quad.edges, quad.n_vertices, dim, fixed, values,
+                                        on_boundary)
+    free, u_fixed = dirichlet_split(dim * len(quad.points), fixed2, values2)
+    return (quad.points, quad.cells, body2, offsets, free, u_fixed), quad
+
+
 def _opposing_facets(scene: TwoBodyScene, points, cells, body_of_node):
     """Boundary facets of the opposing body selected by centroid, oriented outward
     (as case a of Alg. 7.1 needs)."""
     body = 1 - scene.constrained_body
     facets = boundary_facets(cells[body_of_node[cells[:, 0]] == body], points)
     return facets[scene.on_opposing(points[facets].mean(axis=1))]
+
+
+def _body_modes(points: np.ndarray, on_body: np.ndarray) -> np.ndarray:
+    """Rigid-body modes of the nodes ``on_body`` on all DOFs (zero elsewhere)."""
+    dim = points.shape[1]
+    idx = np.flatnonzero(on_body)
+    modes = rigid_body_modes(points[idx])
+    out = np.zeros((points.size, modes.shape[1]))
+    out[(idx[:, None] * dim + np.arange(dim)).ravel()] = modes
+    return out
 
 
 def spring_matrix(scene: TwoBodyScene, points: np.ndarray, body_of_node: np.ndarray):
@@ -193,8 +273,18 @@ def spring_forces(scene: TwoBodyScene, qp: ContactQP, u: np.ndarray) -> np.ndarr
     return -(K @ qp.full_displacement(u).ravel()).reshape(-1, qp.dim).sum(axis=0)
 
 
-def assemble_two_body(scene: TwoBodyScene, level: int, name: str = "") -> ContactQP:
+def assemble_two_body(scene: TwoBodyScene, level: int, name: str = "",
+                      degree: int = 1) -> ContactQP:
     """The ContactQP of ``scene`` on mesh level ``level`` (see the module docstring).
+
+    Parameters
+    ----------
+    scene : TwoBodyScene
+    level : int
+        The finest mesh level.
+    name : str
+    degree : {1, 2}
+        Lagrange elements of first or second order (Remark 7.11).
 
     Returns
     -------
@@ -203,26 +293,45 @@ def assemble_two_body(scene: TwoBodyScene, level: int, name: str = "") -> Contac
         DOFs from level 0 up, rigid-body modes per body, body of each DOF, the
         constrained surface on every level) and ``hertz``.
     """
+    if degree not in (1, 2):
+        raise ValueError(f"parameter 'degree': {degree!r} is not allowed; allowed: 1 (P1) or "
+                         "2 (P2, Remark 7.11)")
     levels = [_level(scene, k) for k in range(level + 1)]
+    vertex_points, vertex_cells, vertex_body = levels[-1][:3]
+    quad = None
+    if degree == 2:
+        quadratic, quad = _quadratic_level(scene, levels[-1])
+        levels.append(quadratic)
     points, cells, body_of_node, offsets, free, u_fixed = levels[-1]
     dim = points.shape[1]
     n_nodes = len(points)
     body_of_cell = body_of_node[cells[:, 0]]
     E_cell = np.array([scene.bodies[b].E for b in body_of_cell], dtype=float)
     nu_cell = np.array([scene.bodies[b].nu for b in body_of_cell], dtype=float)
-    A_full = stiffness_matrix(points, cells, E_cell, nu_cell) + spring_matrix(scene, points,
-                                                                             body_of_node)
     force = np.array([scene.bodies[b].body_force for b in range(len(scene.bodies))], dtype=float)
-    f_full = body_force_vector(points, cells, force[body_of_cell])
+    if quad is None:
+        A_full = stiffness_matrix(points, cells, E_cell, nu_cell)
+        f_full = body_force_vector(points, cells, force[body_of_cell])
+    else:
+        A_full = stiffness_matrix_p2(quad, E_cell, nu_cell)
+        f_full = body_force_vector_p2(points, cells, force[body_of_cell])
+    A_full = A_full + spring_matrix(scene, points, body_of_node)
     for tr in scene.tractions:
-        facets = boundary_facets(cells[body_of_cell == tr.body], points)
-        facets = facets[tr.on(points[facets].mean(axis=1))]
-        f_full += traction_vector(points, facets, np.asarray(tr.traction, dtype=float))
+        facets = boundary_facets(vertex_cells[body_of_cell == tr.body], vertex_points)
+        facets = facets[tr.on(vertex_points[facets].mean(axis=1))]
+        traction = np.asarray(tr.traction, dtype=float)
+        f_full += (traction_vector(points, facets, traction) if quad is None else
+                   traction_vector_p2(points, quadratic_facets(quad, facets), traction))
 
-    nodes, surface_facets, mass, size = _constrained_surface(scene, points, cells, body_of_node)
-    opposing = _opposing_facets(scene, points, cells, body_of_node)
+    nodes, surface_facets, mass, size = _constrained_surface(scene, vertex_points, vertex_cells,
+                                                             vertex_body)
+    if quad is not None:
+        nodes, _, mass, size = _quadratic_surface(quad, points, nodes, surface_facets)
+    opposing = _opposing_facets(scene, vertex_points, vertex_cells, vertex_body)
     cc = contact_constraints(points, nodes, opposing, direction=np.asarray(scene.direction, float),
                              search=scene.search, n_nodes=n_nodes)
+    if quad is not None:
+        cc = quadratic_constraints(cc, quadratic_facets(quad, cc.facet_nodes), n_nodes)
     if cc.m == 0:
         raise ValueError("no constrained node finds an opposing facet: the bodies never face "
                          "each other along the contact direction (check on_opposing)")
@@ -233,14 +342,16 @@ def assemble_two_body(scene: TwoBodyScene, level: int, name: str = "") -> Contac
     g = cc.g - cc.B @ u_fixed
 
     body_of_dof = np.repeat(body_of_node, dim)[free]
-    modes = np.vstack([rigid_body_modes(points[a:b]) for a, b in zip(offsets[:-1], offsets[1:])])
-    rbm = np.hstack([modes[free] * (body_of_dof == b)[:, None] for b in range(len(scene.bodies))])
+    rbm = np.hstack([_body_modes(points, body_of_node == b)[free]
+                     for b in range(len(scene.bodies))])
 
     node_P = [sp.block_diag([b.meshes.prolongations[k] for b in scene.bodies], format="csr")
               for k in range(level)]
+    if quad is not None:                    # the p-multigrid step: P1 -> P2 on the finest mesh
+        node_P.append(linear_to_quadratic(quad.n_vertices, quad.edges))
     prolongations = [dof_prolongation(node_P[k], dim, levels[k + 1][4], levels[k][4])
-                     for k in range(level)]
-    surf = [(nodes, None, mass, size) if k == level else
+                     for k in range(len(node_P))]
+    surf = [(nodes, None, mass, size) if k == len(levels) - 1 else
             _constrained_surface(scene, pts_k, cells_k, body_k)
             for k, (pts_k, cells_k, body_k, *_rest) in enumerate(levels)]
     coarsening = None
@@ -261,7 +372,9 @@ def assemble_two_body(scene: TwoBodyScene, level: int, name: str = "") -> Contac
                   nu_cell=nu_cell, bodies=tuple(b.name for b in scene.bodies)),
         contact=ContactSurface(nodes=cc.rows, mass=mass[cc.found], direction=cc.direction,
                                facets=surface_facets, opposing_facets=opposing,
-                               search=scene.search, dropped=int(nodes.size - cc.m)),
+                               search=scene.search, dropped=int(nodes.size - cc.m),
+                               pressure_map=None if quad is None else
+                               quadratic_pressure_map(surface)),
         multilevel=Multilevel(prolongations=prolongations, rigid_body_modes=rbm,
                               body_of_dof=body_of_dof, surface=surface),
         hertz=scene.hertz, name=name, units=scene.units, level=level,
