@@ -168,7 +168,6 @@ def _level(scene: TwoBodyScene, k: int):
 def _constrained_surface(scene: TwoBodyScene, points, cells, body_of_node):
     """Constrained nodes (sorted lexicographically), their facets, lumped mass and local
     mesh size."""
-    dim = points.shape[1]
     body = scene.constrained_body
     facets = boundary_facets(cells[body_of_node[cells[:, 0]] == body], points)
     on = np.zeros(len(points), dtype=bool)

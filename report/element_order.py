@@ -1,0 +1,129 @@
+"""P1 against P2 on a contact problem (issue 25): the claims and the figure from
+``workflows/scripts/element_order.py``'s tables (one per scene).
+
+Claims, per scene: every compared solve converged; the fitted energy-error rates of P1
+and P2 against N (reported, not judged: the contact's square-root edge and the polygonal
+boundary limit both); P2's error at the finest level against P1's at the same number
+of nodes; Alg. 8.4 on P2 -- ``n_o`` over the last two levels at most +15 % and the
+fitted solve-time exponent over the last three at most 1.15 (issue 25's bars); Hertz
+(moments of the nodal forces) within 5 % at the finest P2 level. The figure shows the
+energy error against N and against solve time, with the fitted rates in the legend.
+
+Example::
+
+    python -m report.element_order --tables results/circle_square/element_order.csv \\
+        --claims c.csv --figure f.png
+"""
+from __future__ import annotations
+
+import argparse
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import pandas as pd  # noqa: E402
+
+from report.figures import save_figure  # noqa: E402
+from workflows.io import read_csv, write_csv  # noqa: E402
+
+#: Issue 25's bars for Alg. 8.4 on P2.
+N_OUTER_GROWTH_BAR = 1.15
+TIME_EXPONENT_BAR = 1.15
+HERTZ_BAR = 0.05
+
+
+def slope(x, y) -> float:
+    """Least-squares slope of ``log y`` against ``log x`` (NaN below two points)."""
+    x, y = np.asarray(x, float), np.asarray(y, float)
+    ok = np.isfinite(x) & np.isfinite(y) & (x > 0) & (y > 0)
+    return float(np.polyfit(np.log(x[ok]), np.log(y[ok]), 1)[0]) if ok.sum() >= 2 else np.nan
+
+
+def claims(t: pd.DataFrame) -> pd.DataFrame:
+    """The claims of the module docstring, per scene."""
+    rows = []
+    for scene, g in t[t.role == "compared"].groupby("scene", sort=True):
+        ok = int((g.status == "converged").sum())
+        rows.append({"claim": f"{scene}: Alg. 8.4 verified converged on every P1 and P2 level",
+                     "measured": f"{ok} of {len(g)}", "bar": "all", "pass": ok == len(g)})
+        c = g[g.status == "converged"]
+        for deg in (1, 2):
+            h = c[c.degree == deg].sort_values("N")
+            rows.append({"claim": f"{scene}: P{deg} energy error ~ N^rate (fitted)",
+                         "measured": slope(h.N, h.err_energy), "bar": "-", "pass": None})
+        p1, p2 = c[c.degree == 1], c[c.degree == 2].sort_values("N")
+        if len(p2):
+            top = p2.iloc[-1]
+            same = p1[p1.N == top.N]
+            if len(same):
+                rows.append({"claim": f"{scene}: P2 energy error over P1's at N = {int(top.N)}",
+                             "measured": float(top.err_energy / same.err_energy.iloc[0]),
+                             "bar": "-", "pass": None})
+            worst = max(abs(top.dev_a), abs(top.dev_p0))
+            rows.append({"claim": f"{scene}: P2 level {int(top.level)} contact half-width and "
+                                  "peak pressure against Hertz (|deviation|)",
+                         "measured": float(worst), "bar": HERTZ_BAR,
+                         "pass": bool(worst <= HERTZ_BAR)})
+        judged = len(p2) >= 2
+        growth = p2.n_outer.iloc[-1] / p2.n_outer.iloc[-2] if judged else np.nan
+        rows.append({"claim": f"{scene}: Alg. 8.4 on P2, n_o over the last two levels",
+                     "measured": growth, "bar": N_OUTER_GROWTH_BAR,
+                     "pass": bool(growth <= N_OUTER_GROWTH_BAR) if judged else None})
+        last = p2.tail(3)
+        expo = slope(last.N, last.t_solve) if len(last) >= 3 else np.nan
+        rows.append({"claim": f"{scene}: Alg. 8.4 on P2, fitted solve-time exponent against N "
+                              "(last three levels)",
+                     "measured": expo, "bar": TIME_EXPONENT_BAR,
+                     "pass": bool(expo <= TIME_EXPONENT_BAR) if np.isfinite(expo) else None})
+    return pd.DataFrame(rows, columns=["claim", "measured", "bar", "pass"])
+
+
+def figure(t: pd.DataFrame, path: str) -> None:
+    """Energy error against N and against solve time, P1 and P2, per scene."""
+    scenes = sorted(t.scene.unique())
+    fig, ax = plt.subplots(len(scenes), 2, figsize=(11, 4.2 * len(scenes)), squeeze=False)
+    for i, scene in enumerate(scenes):
+        g = t[(t.scene == scene) & (t.role == "compared") & (t.status == "converged")]
+        for deg, style in ((1, "o-"), (2, "s-")):
+            h = g[g.degree == deg].sort_values("N")
+            if not len(h):
+                continue
+            ax[i, 0].loglog(h.N, h.err_energy, style, color=f"C{deg - 1}",
+                            label=f"P{deg}: rate {slope(h.N, h.err_energy):.2f}")
+            ax[i, 1].loglog(h.t_solve, h.err_energy, style, color=f"C{deg - 1}",
+                            label=f"P{deg}: rate {slope(h.t_solve, h.err_energy):.2f}")
+        if len(g):
+            n0, e0 = float(g.N.min()), float(g.err_energy.max())
+            n = np.array([n0, float(g.N.max())])
+            for r, ls in ((-0.5, ":"), (-0.75, "--")):
+                ax[i, 0].loglog(n, e0 * (n / n0) ** r, ls, color="gray",
+                                label=f"N^{r:g} (h^{-r * 2:g} in 2D)" if "circle" in scene
+                                else f"N^{r:g}")
+        ax[i, 0].set_xlabel("nodes N")
+        ax[i, 1].set_xlabel("Alg. 8.4 solve time (s)")
+        for a in ax[i]:
+            a.set_ylabel("relative energy error against the P2 reference")
+            a.set_title(scene)
+            a.grid(True, which="both", alpha=0.3)
+            a.legend(fontsize=8)
+    fig.tight_layout()
+    save_figure(fig, path)
+    plt.close(fig)
+
+
+def main(argv=None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--tables", nargs="+", required=True)
+    parser.add_argument("--claims", required=True)
+    parser.add_argument("--figure", required=True)
+    args = parser.parse_args(argv)
+    t = pd.concat([read_csv(p) for p in args.tables], ignore_index=True)
+    write_csv(args.claims, claims(t))
+    figure(t, args.figure)
+
+
+if __name__ == "__main__":
+    main()
