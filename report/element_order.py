@@ -26,6 +26,7 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
 from report.figures import save_figure  # noqa: E402
+from report.rates import fitted_slope  # noqa: E402
 from workflows.io import read_csv, write_csv  # noqa: E402
 
 #: Issue 25's bars for Alg. 8.4 on P2.
@@ -35,10 +36,8 @@ HERTZ_BAR = 0.05
 
 
 def slope(x, y) -> float:
-    """Least-squares slope of ``log y`` against ``log x`` (NaN below two points)."""
-    x, y = np.asarray(x, float), np.asarray(y, float)
-    ok = np.isfinite(x) & np.isfinite(y) & (x > 0) & (y > 0)
-    return float(np.polyfit(np.log(x[ok]), np.log(y[ok]), 1)[0]) if ok.sum() >= 2 else np.nan
+    """Fitted slope of ``log y`` against ``log x`` over all points (NaN below two)."""
+    return fitted_slope(x, y, last=len(x))
 
 
 def claims(t: pd.DataFrame) -> pd.DataFrame:
@@ -71,8 +70,7 @@ def claims(t: pd.DataFrame) -> pd.DataFrame:
         rows.append({"claim": f"{scene}: Alg. 8.4 on P2, n_o over the last two levels",
                      "measured": growth, "bar": N_OUTER_GROWTH_BAR,
                      "pass": bool(growth <= N_OUTER_GROWTH_BAR) if judged else None})
-        last = p2.tail(3)
-        expo = slope(last.N, last.t_solve) if len(last) >= 3 else np.nan
+        expo = fitted_slope(p2.N, p2.t_solve, last=3) if len(p2) >= 3 else np.nan
         rows.append({"claim": f"{scene}: Alg. 8.4 on P2, fitted solve-time exponent against N "
                               "(last three levels)",
                      "measured": expo, "bar": TIME_EXPONENT_BAR,
@@ -108,9 +106,7 @@ def figure(t: pd.DataFrame, path: str) -> None:
             a.set_title(scene)
             a.grid(True, which="both", alpha=0.3)
             a.legend(fontsize=8)
-    fig.tight_layout()
     save_figure(fig, path)
-    plt.close(fig)
 
 
 def main(argv=None) -> None:

@@ -55,7 +55,7 @@ the gaps are comparable to the facet size (see :func:`contact_constraints`).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import scipy.sparse as sp
@@ -685,8 +685,6 @@ def quadratic_constraints(cc: ContactConstraints, facet_nodes: np.ndarray,
     n_nodes : int
         Number of P2 nodes (columns of ``B`` over ``dim``).
     """
-    from dataclasses import replace
-
     from problems.fem.quadratic import facet_shape_functions
 
     w = facet_shape_functions(cc.weights)

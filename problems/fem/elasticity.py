@@ -31,7 +31,7 @@ import scipy.sparse as sp
 
 __all__ = [
     "lame_parameters", "barycentric_gradients", "stiffness_matrix", "body_force_vector",
-    "traction_vector", "lumped_surface_mass", "boundary_facets", "strain_stress",
+    "traction_vector", "facet_measures", "lumped_surface_mass", "boundary_facets", "strain_stress",
     "von_mises", "rigid_body_modes", "dirichlet_split",
 ]
 
@@ -322,7 +322,7 @@ def _scatter_vertex_loads(elems: np.ndarray, share: np.ndarray, n_nodes: int) ->
     return out.ravel()
 
 
-def _facet_measures(pts: np.ndarray, f: np.ndarray) -> np.ndarray:
+def facet_measures(pts: np.ndarray, f: np.ndarray) -> np.ndarray:
     """Length (2D segments) or area (3D triangles) of each boundary facet."""
     if pts.shape[1] == 2:
         return np.linalg.norm(pts[f[:, 1]] - pts[f[:, 0]], axis=1)
@@ -352,7 +352,7 @@ def traction_vector(points, facets, traction) -> np.ndarray:
     d = pts.shape[1]
     f = _check_index_array(facets, "facets", d, pts.shape[0], "facets")
     tr = _per_item_vector(traction, "traction", f.shape[0], d, "facet")
-    return _scatter_vertex_loads(f, (_facet_measures(pts, f) / d)[:, None] * tr, pts.shape[0])
+    return _scatter_vertex_loads(f, (facet_measures(pts, f) / d)[:, None] * tr, pts.shape[0])
 
 
 def lumped_surface_mass(points, facets, n_nodes: int | None = None) -> np.ndarray:
@@ -382,7 +382,7 @@ def lumped_surface_mass(points, facets, n_nodes: int | None = None) -> np.ndarra
     if isinstance(n_nodes, bool) or not isinstance(n_nodes, (int, np.integer)) or n_nodes < 1:
         raise ValueError(f"parameter 'n_nodes': {n_nodes!r} is not allowed; allowed: a positive integer")
     f = _check_index_array(facets, "facets", d, min(int(n_nodes), pts.shape[0]), "facets")
-    w = np.repeat(_facet_measures(pts, f) / d, d)
+    w = np.repeat(facet_measures(pts, f) / d, d)
     return np.bincount(f.ravel(), weights=w, minlength=int(n_nodes)).astype(float)
 
 

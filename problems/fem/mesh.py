@@ -206,15 +206,22 @@ def orient_positive(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
     return cells
 
 
-def tet_edges(cells: np.ndarray, n_nodes: int):
-    """Unique edges ``(n_edges, 2)`` (sorted pairs, lexicographic) and each cell's six
-    edges ``(n_cells, 6)`` in the local order :data:`TET_EDGES`."""
-    a = cells[:, TET_EDGES[:, 0]].astype(np.int64)
-    b = cells[:, TET_EDGES[:, 1]].astype(np.int64)
+def simplex_edges(cells: np.ndarray, n_nodes: int, local_edges: np.ndarray):
+    """Unique edges ``(n_edges, 2)`` (sorted pairs, lexicographic) and each cell's edges
+    ``(n_cells, len(local_edges))`` in the local order ``local_edges``."""
+    a = cells[:, local_edges[:, 0]].astype(np.int64)
+    b = cells[:, local_edges[:, 1]].astype(np.int64)
     key = np.minimum(a, b) * n_nodes + np.maximum(a, b)
     del a, b
     uniq, inv = np.unique(key.ravel(), return_inverse=True)
-    return np.stack([uniq // n_nodes, uniq % n_nodes], axis=1), inv.reshape(cells.shape[0], 6)
+    return (np.stack([uniq // n_nodes, uniq % n_nodes], axis=1),
+            inv.reshape(cells.shape[0], len(local_edges)))
+
+
+def tet_edges(cells: np.ndarray, n_nodes: int):
+    """Unique edges and each tetrahedron's six in the local order :data:`TET_EDGES`
+    (:func:`simplex_edges`)."""
+    return simplex_edges(cells, n_nodes, TET_EDGES)
 
 
 def boundary_triangles(cells: np.ndarray, n_nodes: int) -> np.ndarray:

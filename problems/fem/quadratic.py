@@ -33,7 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from problems.fem.mesh import TET_EDGES, orient_positive
+from problems.fem.mesh import TET_EDGES, orient_positive, simplex_edges
 
 __all__ = [
     "CELL_EDGES", "QuadraticMesh", "quadratic_mesh", "linear_to_quadratic",
@@ -106,13 +106,9 @@ def quadratic_mesh(points: np.ndarray, cells: np.ndarray) -> QuadraticMesh:
         raise ValueError(f"parameter 'cells': shape {cells.shape} is not allowed; allowed: "
                          f"(n_cells, {d + 1}) vertex ids of {d}D simplices")
     n = len(points)
-    loc = CELL_EDGES[d]
-    a, b = cells[:, loc[:, 0]], cells[:, loc[:, 1]]
-    key = np.minimum(a, b) * n + np.maximum(a, b)
-    uniq, inv = np.unique(key.ravel(), return_inverse=True)
-    edges = np.stack([uniq // n, uniq % n], axis=1)
+    edges, cell_edges = simplex_edges(cells, n, CELL_EDGES[d])
     mid = 0.5 * (points[edges[:, 0]] + points[edges[:, 1]])
-    cells2 = np.hstack([cells, n + inv.reshape(cells.shape[0], len(loc))])
+    cells2 = np.hstack([cells, n + cell_edges])
     return QuadraticMesh(points=np.vstack([points, mid]), cells=cells2, edges=edges, n_vertices=n)
 
 
@@ -290,14 +286,12 @@ def stiffness_matrix_p2(mesh: QuadraticMesh, E, nu, chunk: int = 50_000) -> sp.c
 
 
 def _simplex_measures(points: np.ndarray, verts: np.ndarray) -> np.ndarray:
-    x = points[verts]
-    e = x[:, 1:] - x[:, :1]
-    k = verts.shape[1] - 1
-    if e.shape[2] == k:
-        return np.abs(np.linalg.det(e)) / (1.0 if k == 1 else 2.0 if k == 2 else 6.0)
-    if k == 1:
-        return np.linalg.norm(e[:, 0], axis=1)
-    return 0.5 * np.linalg.norm(np.cross(e[:, 0], e[:, 1]), axis=1)
+    """Measures of cells (``d + 1`` vertices) or facets (``d`` vertices)."""
+    from problems.fem.elasticity import facet_measures, barycentric_gradients
+
+    if verts.shape[1] == points.shape[1] + 1:
+        return barycentric_gradients(points, verts)[1]
+    return facet_measures(points, verts)
 
 
 def _scatter(elems: np.ndarray, share: np.ndarray, n_nodes: int) -> np.ndarray:

@@ -185,13 +185,14 @@ def _constrained_surface(scene: TwoBodyScene, points, cells, body_of_node):
 
 def _quadratic_surface(quad, points, nodes, facets):
     """The P2 constrained surface on the vertex surface ``(nodes, facets)``: its vertices
-    and edge midpoints (sorted lexicographically), the quadratic facets, their HRZ lumped
-    mass (:func:`problems.fem.quadratic.surface_mass_p2`) and local mesh size."""
+    and edge midpoints (sorted lexicographically), their HRZ lumped mass
+    (:func:`problems.fem.quadratic.surface_mass_p2`) and local node spacing (half the
+    facet size: the multilevel S-hat treats the P2 surface as one level finer)."""
     qf = quadratic_facets(quad, facets)
     nodes = np.unique(qf)
     nodes = nodes[np.lexsort(points[nodes].T[::-1])]
     mass = surface_mass_p2(points, qf)[nodes]
-    return nodes, qf, mass, 0.5 * facet_sizes(points, qf, nodes)
+    return nodes, mass, 0.5 * facet_sizes(points, qf, nodes)
 
 
 def quadratic_pressure_map(surface) -> sp.csr_matrix:
@@ -325,7 +326,7 @@ def assemble_two_body(scene: TwoBodyScene, level: int, name: str = "",
     nodes, surface_facets, mass, size = _constrained_surface(scene, vertex_points, vertex_cells,
                                                              vertex_body)
     if quad is not None:
-        nodes, _, mass, size = _quadratic_surface(quad, points, nodes, surface_facets)
+        nodes, mass, size = _quadratic_surface(quad, points, nodes, surface_facets)
     opposing = _opposing_facets(scene, vertex_points, vertex_cells, vertex_body)
     cc = contact_constraints(points, nodes, opposing, direction=np.asarray(scene.direction, float),
                              search=scene.search, n_nodes=n_nodes)
