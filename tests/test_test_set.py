@@ -17,7 +17,7 @@ import pytest
 from workflows.cli import main as cli
 from workflows.export import load_problem
 from workflows.export import objective as suite_objective
-from workflows.test_set import CLASSES, CURRENT, TestSetError, load
+from workflows.test_set import CLASSES, CURRENT, TestSet, TestSetError, check, load
 
 SMALL_LIMIT = 20_000          # the quick run's budget: the small class stays below it
 
@@ -35,6 +35,32 @@ def test_the_set_has_at_least_80_named_problems_in_three_classes():
     assert any(p.get("coupling") == "stabilised" for p in params)
     assert any(p.get("nu1", 0) >= 0.4999 for p in params)
     assert any(p.get("gap", 0) < 0 for p in params)
+
+
+def test_version_2_keeps_every_problem_of_version_1_and_adds_p2_families():
+    old = {p.name: p for p in load("contact-qp-1").problems()}
+    new = {p.name: p for p in load("contact-qp-2").problems()}
+    assert all(new[name] == p for name, p in old.items())
+    added = [p for name, p in new.items() if name not in old]
+    assert added and all(p.params["degree"] == 2 for p in added)
+    # a P2 family's own levels: level 0 in the small class (the nodes of P1 level 1)
+    small = {p.name for p in added if p.size_class == "small"}
+    assert small == {"circle_square_p2_L0", "cube_sphere_p2_L0", "hard_incompressible_p2_L0"}
+
+
+def test_a_familys_own_levels_are_checked_by_name():
+    ts = load()
+    families = {"c": {"problem": "circle_square", "levels": {"small": [0, 99]}}}
+    with pytest.raises(TestSetError, match=r"'families.c.levels.small': levels \[99\].*"
+                                           r"allowed: integers 0\.\."):
+        check(TestSet(ts.name, ts.version, "", ts.classes, families))
+    with pytest.raises(TestSetError, match="allowed: small, medium, large"):
+        check(TestSet(ts.name, ts.version, "", ts.classes,
+                      {"c": {"problem": "circle_square", "levels": {"tiny": [0]}}}))
+    with pytest.raises(TestSetError, match=r"'families.c': keys \['level'\].*allowed: "
+                                           "problem, params, levels"):
+        check(TestSet(ts.name, ts.version, "", ts.classes,
+                      {"c": {"problem": "circle_square", "level": {"small": [0]}}}))
 
 
 def test_bad_set_and_class_names_are_refused():

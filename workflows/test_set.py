@@ -11,8 +11,12 @@ A test set is a YAML file under ``workflows/config/test_sets/`` (the current one
     families:                 # a family = a scene: a registered problem + overrides
       circle_square: {problem: circle_square}
       hard_si_units: {problem: circle_square, params: {E1: 2.1e+11, ...}}
+      circle_square_p2:       # its own levels per class (P2 has 4x the nodes of P1)
+        {problem: circle_square, params: {degree: 2}, levels: {small: [0], medium: [1, 2]}}
 
-A problem is a family at one level of a class, named ``<family>_L<level>``. The
+A problem is a family at one level of a class, named ``<family>_L<level>``; a family's
+``levels`` (class -> levels) replace its problem's levels of ``classes`` (a class it
+leaves out has none of its problems). The
 families are also the workflow's scenes (:func:`workflows.studies.scenes_with_families`),
 so a hard case or a scene variant is typed once. Loading checks every name,
 problem, parameter and level (:class:`TestSetError` names the key and what is
@@ -29,7 +33,7 @@ from problems.spec import contact_scene_error, problems
 
 #: Where the sets live, and the one ``contactbench export`` uses by default.
 SETS_DIR = Path(__file__).resolve().parent / "config" / "test_sets"
-CURRENT = "contact-qp-1"
+CURRENT = "contact-qp-2"
 #: Size classes, smallest first.
 CLASSES = ("small", "medium", "large")
 
@@ -103,10 +107,18 @@ class TestSet:
         for fam in chosen:
             entry = self.families[fam]
             for cls in CLASSES if size_class is None else (size_class,):
-                for level in self.classes.get(cls, {}).get(entry["problem"], []):
+                for level in self.levels(fam, cls):
                     out.append(SetProblem(f"{fam}_L{level}", fam, entry["problem"],
                                           dict(entry.get("params") or {}), int(level), cls))
         return out
+
+    def levels(self, family: str, size_class: str) -> list[int]:
+        """The levels of ``family`` in ``size_class``: its own ``levels`` if it declares
+        them, else its problem's in ``classes``."""
+        entry = self.families[family]
+        if entry.get("levels") is not None:
+            return list(entry["levels"].get(size_class) or [])
+        return list(self.classes.get(size_class, {}).get(entry["problem"]) or [])
 
 
 def available() -> list[str]:
@@ -154,12 +166,29 @@ def check(ts: TestSet) -> None:
             if problem not in registry or registry[problem].kind != "contact":
                 raise TestSetError(f"test set {ts.id} 'classes.{cls}.{problem}': not a "
                                    "registered contact problem")
-            lo, hi = registry[problem].levels
-            bad = [x for x in lv if not lo <= x <= hi]
-            if bad:
-                raise TestSetError(f"test set {ts.id} 'classes.{cls}.{problem}': levels {bad} "
-                                   f"are not allowed; allowed: {lo}..{hi}")
+            _check_levels(ts, f"classes.{cls}.{problem}", problem, lv)
     for fam, entry in ts.families.items():
+        unknown = sorted(set(entry) - {"problem", "params", "levels"})
+        if unknown:
+            raise TestSetError(f"test set {ts.id} 'families.{fam}': keys {unknown} are not "
+                               "allowed; allowed: problem, params, levels")
         wrong = contact_scene_error(entry.get("problem"), entry.get("params"))
         if wrong is not None:
             raise TestSetError(f"test set {ts.id} 'families.{fam}.{wrong[0]}': {wrong[1]}")
+        if entry.get("levels") is not None:
+            if not isinstance(entry["levels"], dict):
+                raise TestSetError(f"test set {ts.id} 'families.{fam}.levels': "
+                                   f"{entry['levels']!r} is not allowed; allowed: a mapping "
+                                   f"size class -> levels ({', '.join(CLASSES)})")
+            for cls, lv in entry["levels"].items():
+                check_class(cls)
+                _check_levels(ts, f"families.{fam}.levels.{cls}", entry["problem"], lv)
+
+
+def _check_levels(ts: TestSet, key: str, problem: str, levels) -> None:
+    """``levels`` of ``problem`` (at ``key`` of the set) are in the problem's range."""
+    lo, hi = problems()[problem].levels
+    bad = [x for x in levels or [] if not (isinstance(x, int) and lo <= x <= hi)]
+    if bad:
+        raise TestSetError(f"test set {ts.id} '{key}': levels {bad} are not allowed; "
+                           f"allowed: integers {lo}..{hi}")
