@@ -13,7 +13,8 @@ from snakemake.utils import validate
 from workflows.io import sweep_results
 
 from workflows.studies import (PATHS, adaptive_args, adaptive_variant_file, all_targets,
-                               bench_path, check_config, coarser_levels, exact_args, log_path,
+                               bench_path, check_config, coarser_levels, element_order_args,
+                               exact_args, log_path,
                                roll_args, roll_fields, rule_resources, scenes_of,
                                scenes_with_families, set_args, summary_items,
                                test_set_hard_cases, test_set_of, test_set_runs, thesis_table)
@@ -54,6 +55,7 @@ include: "workflows/hard_cases.smk"
 include: "workflows/summary.smk"
 include: "workflows/adaptive.smk"
 include: "workflows/roll_stack.smk"
+include: "workflows/element_order.smk"
 
 rule all:
     input:

@@ -176,7 +176,7 @@ def test_degree_is_validated_by_name():
         flat_blocks.PROBLEM.make(0, degree=2, coupling="mortar")
 
 
-def test_element_order_study_script_and_report(tmp_path):
+def test_element_order_study_script_and_report(tmp_path, capsys):
     """The P1/P2 study's entry points on the smallest case: P1 at levels 0, 1 and P2 at
     level 0 against the P2 reference at level 1."""
     import pandas as pd
@@ -185,8 +185,8 @@ def test_element_order_study_script_and_report(tmp_path):
     from workflows.scripts.element_order import main as script
 
     out = tmp_path / "eo.csv"
-    script(["--scene", "circle_square", "--levels", "0", "--reference-level", "1",
-            "--out", str(out)])
+    script(["--problem", "circle_square", "--levels", "0", "--reference-level", "1",
+            "--time-limit", "60", "--out", str(out)])
     t = pd.read_csv(out)
     cmp = t[t.role == "compared"]
     assert list(zip(cmp.degree, cmp.level)) == [(1, 0), (1, 1), (2, 0)]
@@ -200,9 +200,18 @@ def test_element_order_study_script_and_report(tmp_path):
     c = claims(t)
     assert bool(c["pass"].iloc[0])                      # every compared solve converged
     assert (tmp_path / "f.png").stat().st_size > 10_000
-    with pytest.raises(SystemExit):
-        script(["--scene", "laplace_nonmatching", "--levels", "0", "--reference-level", "1",
-                "--out", str(out)])
-    with pytest.raises(SystemExit):
-        script(["--scene", "circle_square", "--levels", "1", "--reference-level", "1",
-                "--out", str(out)])
+    for argv, refusal in (
+            (["--problem", "flat_blocks", "--set", "coupling=mortar"],
+             "allowed: degree=1, or degree=2 with coupling=nodal"),
+            (["--problem", "laplace_nonmatching"], "not a contact problem"),
+            (["--problem", "circle_square", "--set", "degree=2"], "'degree' is not allowed"),
+            (["--problem", "circle_square", "--levels", "1"], "above every level (1)"),
+            (["--problem", "circle_square", "--time-limit", "0"], "allowed: > 0")):
+        args = {"--levels": "0", "--reference-level": "1", "--time-limit": "60",
+                "--out": str(out)}
+        args.update({k: v for k, v in zip(argv[::2], argv[1::2]) if k != "--set"})
+        extra = argv[argv.index("--set"):argv.index("--set") + 2] if "--set" in argv else []
+        with pytest.raises(SystemExit) as exit_:
+            script([x for kv in args.items() for x in kv] + extra)
+        assert exit_.value.code == 2
+        assert refusal in capsys.readouterr().err

@@ -262,6 +262,14 @@ def test_a_new_scene_joins_a_study_by_config_alone(tmp_path):
      "'hard_cases.incompressibility.scenes': 'laplace_nonmatching' is not allowed"),
     (lambda c: c["hard_cases"]["incompressibility"].update(level=9),
      "'hard_cases.incompressibility' for 'circle_square'"),
+    (lambda c: c["element_order"]["reference_level"].update(circle_square=2),
+     "'element_order.reference_level.circle_square': 2 is not allowed; allowed: a level in 3.."),
+    (lambda c: c["element_order"]["reference_level"].update(ghost=2),
+     "'element_order.reference_level.ghost': not among element_order.scenes"),
+    (lambda c: (c["scenes"].update(cs_p2={"problem": "circle_square",
+                                          "params": {"degree": 2}}),
+                c["element_order"]["scenes"].update(cs_p2=[0])),
+     "'element_order.scenes.cs_p2': the scene sets 'degree'"),
 ])
 def test_config_errors_name_the_key(change, needle):
     config = yaml.safe_load((ROOT / "workflows/config/quick.yaml").read_text())

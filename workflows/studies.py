@@ -108,6 +108,10 @@ PATHS = {
     "roll_line_load": "results/{scene}/roll_stack_line_load.png",
     "roll_sag": "results/{scene}/roll_stack_sag.png",
     "roll_strip": "results/{scene}/roll_stack_strip_profile.png",
+    # element_order (Remark 7.11): P1 against P2, Alg. 8.4 on P2
+    "eo_study": "results/{scene}/element_order.csv",
+    "eo_claims": "results/{scene}/element_order_claims.csv",
+    "eo_figure": "results/{scene}/element_order.png",
     # the summary page at the top of the report (report/summary.py)
     "summary_html": "results/summary/summary.html",
     "summary_claims": "results/summary/claims.csv",
@@ -344,6 +348,15 @@ STUDIES = {
             outputs=("roll_table", "roll_claims", "roll_solver_table", "roll_pressure",
                      "roll_mesh", "roll_stress", "roll_line_load", "roll_sag", "roll_strip"),
         ),
+        Study(
+            name="element_order",
+            summary="P1 against P2 elements on a contact scene (Remark 7.11): the energy error "
+                    "against a common P2 reference per unknown and per second of solve time, "
+                    "with fitted rates; Hertz at the finest P2 level; Alg. 8.4 on P2 with its "
+                    "p-multigrid step (Table 9.1's columns: n_o, kappa(S-hat), times)",
+            thesis="Remark 7.11, Sect. 8.6 (p0 = 0 for quadratic elements), Table 9.1 for P2",
+            outputs=("eo_study", "eo_claims", "eo_figure"),
+        ),
     )
 }
 
@@ -415,6 +428,10 @@ THESIS_ITEMS = (
                "cylindrical work rolls", "roll_strip", "roll_stack"),
     ThesisItem("Sect. 9.3 (numbers)", "roll stack: FE beside plane-strain Hertz and the beam "
                "model", "roll_table", "roll_stack"),
+    ThesisItem("Remark 7.11 (2D)", "second-order elements, circle-square: P1 against P2, "
+               "Alg. 8.4 on P2", "eo_figure", "circle_square"),
+    ThesisItem("Remark 7.11 (3D)", "second-order elements, cube-sphere: P1 against P2, "
+               "Alg. 8.4 on P2", "eo_figure", "cube_sphere"),
 )
 
 
@@ -465,6 +482,15 @@ def roll_fields(config: dict, scene: str) -> list[str]:
     """The VTU files of the roll_stack study (one per strip force, crowned roll)."""
     return [PATHS["roll_fields"].format(scene=scene, force=f"{f / 1e6:g}")
             for f in config["roll_stack"]["forces"]]
+
+
+def element_order_args(config: dict, scene: str) -> str:
+    """A scene's settings of the element_order study as arguments of
+    ``workflows/scripts/element_order.py``."""
+    eo = config["element_order"]
+    levels = " ".join(map(str, scenes_of(config, "element_order")[scene]))
+    return (f"--levels {levels} --reference-level {eo['reference_level'][scene]} "
+            f"--time-limit {eo['time_limit']}")
 
 
 def adaptive_variant_file(variant: str) -> str:
@@ -545,6 +571,7 @@ def check_config(config: dict) -> None:
     _check_adaptive(config, registry)
     _check_roll_stack(config, registry)
     _check_incompressibility(config, registry)
+    _check_element_order(config, registry)
     _check_test_set(config)
     for rule, study in HEAVY_RULES.items():
         if study in config and not {"mem_mb", "runtime"} <= set(
@@ -574,6 +601,32 @@ def _check_incompressibility(config: dict, registry: dict) -> None:
         except ParameterError as err:
             raise ConfigError(f"config 'hard_cases.incompressibility' for {name!r}: {err}") \
                 from None
+
+
+def _check_element_order(config: dict, registry: dict) -> None:
+    """The element_order study: scenes whose problem has the 'degree' parameter, each with a
+    reference level above its levels and within the problem's range."""
+    eo = config.get("element_order")
+    if not eo:
+        return
+    runs = scenes_of(config, "element_order")
+    for scene in eo["reference_level"]:
+        if scene not in runs:
+            raise ConfigError(f"config 'element_order.reference_level.{scene}': not among "
+                              f"element_order.scenes ({', '.join(runs)})")
+    for scene, levels in runs.items():
+        spec = registry[config["scenes"][scene]["problem"]]
+        if "degree" not in {p.name for p in spec.parameters}:
+            raise ConfigError(f"config 'element_order.scenes.{scene}': problem {spec.name!r} "
+                              "has no 'degree' parameter; allowed: a problem with P2 elements")
+        if "degree" in (config["scenes"][scene].get("params") or {}):
+            raise ConfigError(f"config 'element_order.scenes.{scene}': the scene sets "
+                              "'degree'; allowed: a scene without it (the study runs P1 and P2)")
+        ref = eo["reference_level"].get(scene)
+        lo, hi = spec.levels
+        if ref is None or not max(levels) < ref <= hi:
+            raise ConfigError(f"config 'element_order.reference_level.{scene}': {ref} is not "
+                              f"allowed; allowed: a level in {max(levels) + 1}..{hi}")
 
 
 def _check_adaptive(config: dict, registry: dict) -> None:
@@ -716,6 +769,7 @@ HEAVY_RULES = {
     "patch_test": "adaptive",
     "roll_stack_study": "roll_stack",
     "hard_cases_incompressibility": "hard_cases",
+    "element_order_study": "element_order",
 }
 
 

@@ -1,7 +1,9 @@
 """P1 against P2 on a contact problem (issue 25, thesis Remark 7.11): accuracy against
 unknowns and against solve time, and Alg. 8.4 on P2 (Table 9.1's columns).
 
-For one scene: a reference solution, P2 (``degree=2``) at ``--reference-level``
+For one scene (a registered problem with the ``degree`` parameter and parameter
+overrides, ``--problem P --set key=value``): a reference solution, P2
+(``degree=2``) at ``--reference-level``
 (:func:`solvers.reference.reference_solve`: the exact PDAS or, beyond the direct
 limit, the augmented projection to verified KKT <= 1e-10); then P1 at ``--levels``
 and one level more (the same number of nodes as P2 at the finest level), and P2
@@ -13,13 +15,14 @@ reference:
   of ``u_h`` (P1 or P2) at the reference's P2 nodes (exact on nested meshes; the
   curved boundary's nodes projected onto the circle/sphere get the linear extension)
   and ``A`` the reference's P2 stiffness;
-* ``dev_a`` / ``dev_p0`` -- the contact zone against Hertz (moments of the nodal forces);
+* ``dev_a`` / ``dev_p0`` -- the contact zone against Hertz (moments of the nodal forces;
+  scenes with a Hertz reference);
 * Alg. 8.4's ``n_outer``, ``kappa(S-hat)``, ``kappa(S-hat^-1 S_in)``, setup and solve time.
 
 Example::
 
-    python -m workflows.scripts.element_order --scene circle_square --levels 0 1 2 \\
-        --reference-level 3 --out results/circle_square/element_order.csv
+    python -m workflows.scripts.element_order --problem circle_square --levels 0 1 2 \\
+        --reference-level 3 --time-limit 120 --out results/circle_square/element_order.csv
 """
 from __future__ import annotations
 
@@ -33,10 +36,11 @@ from tqdm import tqdm
 from problems.fem.accuracy import interpolation_matrix
 from problems.fem.fields import hertz_comparison
 from problems.fem.quadratic import quadratic_mesh, stiffness_matrix_p2
-from problems.spec import problems
+from problems.spec import ParameterError, problems
 from solvers.interface import solve
 from solvers.reference import reference_solve
 from workflows.io import write_csv
+from workflows.scene_args import add_scene_arguments, check_levels, parse_sets, scene_from_args
 
 
 def prolongation(qp, ref) -> "np.ndarray":
@@ -53,10 +57,12 @@ def energy_error(qp, u, ref, u_ref_full, A_ref) -> float:
     return float(np.sqrt(max(e @ (A_ref @ e), 0.0) / (u_ref_full @ (A_ref @ u_ref_full))))
 
 
-def run(spec, level: int, degree: int, ref, u_ref_full, A_ref, time_limit: float) -> dict:
-    """One solve of ``spec`` at ``level`` with elements of ``degree``: its row."""
+def run(spec, params: dict, level: int, degree: int, ref, u_ref_full, A_ref,
+        time_limit: float) -> dict:
+    """One solve of the scene (``spec`` with ``params``) at ``level`` with elements of
+    ``degree``: its row."""
     t0 = time.perf_counter()
-    qp = spec.make(level, degree=degree)
+    qp = spec.make(level, **params, degree=degree)
     t_build = time.perf_counter() - t0
     res = solve(qp, "augmented_projection", tol="mid", time_limit=time_limit)
     s = res.stats
@@ -68,6 +74,7 @@ def run(spec, level: int, degree: int, ref, u_ref_full, A_ref, time_limit: float
            "kkt_max": res.kkt.max if res.kkt is not None else np.nan}
     if res.status == "converged":
         row["err_energy"] = energy_error(qp, res.u, ref, u_ref_full, A_ref)
+    if res.status == "converged" and qp.hertz is not None:
         h = hertz_comparison(qp, res.p)
         row.update(dev_a=h["dev_a_moment"], dev_p0=h["dev_p0_moment"], a_over_h=h["a_over_h"])
     return row
@@ -76,32 +83,36 @@ def run(spec, level: int, degree: int, ref, u_ref_full, A_ref, time_limit: float
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--scene", required=True, help="a registered contact problem with a "
-                        "Hertz reference and the 'degree' parameter")
+    add_scene_arguments(parser)
     parser.add_argument("--levels", type=int, nargs="+", required=True,
                         help="mesh levels of the P2 runs (P1 runs one level more)")
     parser.add_argument("--reference-level", type=int, required=True,
                         help="mesh level of the P2 reference (above every level)")
-    parser.add_argument("--time-limit", type=float, default=120.0, help="seconds per solve (> 0)")
+    parser.add_argument("--time-limit", type=float, required=True, help="seconds per solve (> 0)")
     parser.add_argument("--out", required=True)
     args = parser.parse_args(argv)
-    registry = problems()
-    spec = registry.get(args.scene)
-    if spec is None or spec.kind != "contact" or "degree" not in {p.name for p in spec.parameters}:
-        allowed = sorted(n for n, s in registry.items() if s.kind == "contact"
+    spec, _ = scene_from_args(parser, args)
+    params = parse_sets(args.set)
+    if "degree" not in {p.name for p in spec.parameters}:
+        allowed = sorted(n for n, s in problems().items() if s.kind == "contact"
                          and "degree" in {p.name for p in s.parameters})
-        parser.error(f"argument --scene: {args.scene!r} is not allowed; allowed: "
-                     f"{', '.join(allowed)}")
-    lo, hi = spec.levels
-    if args.reference_level > hi or args.reference_level <= max(args.levels) or min(args.levels) < lo:
-        parser.error(f"argument --reference-level/--levels: levels {args.levels} and reference "
-                     f"{args.reference_level} are not allowed; allowed: levels in [{lo}, {hi}] "
-                     "below the reference level")
+        parser.error(f"argument --problem: {spec.name!r} is not allowed; allowed: "
+                     f"{', '.join(allowed)} (problems with the 'degree' parameter)")
+    if "degree" in params:
+        parser.error("argument --set: 'degree' is not allowed; the study runs degree 1 and 2")
+    levels = check_levels(parser, spec, [*args.levels, args.reference_level])[:-1]
+    if args.reference_level <= max(levels):
+        parser.error(f"argument --reference-level: {args.reference_level} is not allowed; "
+                     f"allowed: above every level ({max(levels)})")
     if args.time_limit <= 0:
         parser.error(f"argument --time-limit: {args.time_limit} is not allowed; allowed: > 0")
 
-    print(f"reference: {args.scene} P2 level {args.reference_level}", flush=True)
-    ref = spec.make(args.reference_level, degree=2)
+    scene = " ".join([spec.name, *args.set])
+    print(f"reference: {scene} P2 level {args.reference_level}", flush=True)
+    try:
+        ref = spec.make(args.reference_level, **params, degree=2)
+    except ParameterError as err:            # a combination the problem refuses for P2
+        parser.error(str(err))
     t0 = time.perf_counter()
     ref_res = reference_solve(ref, tol=1e-10)
     t_ref = time.perf_counter() - t0
@@ -110,13 +121,13 @@ def main(argv=None) -> None:
     rows = [{"degree": 2, "level": args.reference_level, "N": ref.n_nodes, "n": ref.n,
              "NC": ref.m, "status": ref_res.status, "role": "reference",
              "solver": ref_res.solver, "t_solve": t_ref}]
-    cases = [(1, level) for level in sorted(set(args.levels) | {max(args.levels) + 1})]
-    cases += [(2, level) for level in sorted(args.levels)]
-    for degree, level in tqdm(cases, desc=f"{args.scene} P1/P2", unit="solve"):
-        row = run(spec, level, degree, ref, u_ref_full, A_ref, args.time_limit)
+    cases = [(1, level) for level in sorted(set(levels) | {max(levels) + 1})]
+    cases += [(2, level) for level in sorted(set(levels))]
+    for degree, level in tqdm(cases, desc=f"{scene} P1/P2", unit="solve"):
+        row = run(spec, params, level, degree, ref, u_ref_full, A_ref, args.time_limit)
         rows.append({**row, "role": "compared", "solver": "augmented_projection"})
     out = pd.DataFrame(rows)
-    out.insert(0, "scene", args.scene)
+    out.insert(0, "scene", scene)
     write_csv(args.out, out)
 
 
