@@ -79,3 +79,22 @@ def test_claims_ignore_runs_that_stopped_short():
     study.loc[(study.config == "alg84") & (study.level == 4), "stop_8_25"] = False
     got = claims(study).set_index("claim")["measured"]
     assert got.iloc[0] == 0.0  # growth measured over the levels that did reach (8.25)
+
+
+def test_hertz_claims_ask_for_a_falling_deviation_only_above_the_model_floor():
+    import pandas as pd
+
+    from report.contact import HERTZ_MODEL_FLOOR, claims as hertz_claims
+
+    def table(devs):
+        return pd.DataFrame({"level": range(len(devs)), "a_over_h": 10.0,
+                             "dev_a_moment": devs, "dev_p0_moment": devs})
+
+    def passes(devs):
+        return hertz_claims(table(devs))["pass"].tolist()
+
+    assert passes([0.04, 0.02]) == [True, True, True, True]           # falls
+    assert passes([0.008, -0.010]) == [True, True, True, True]        # at the floor
+    assert passes([0.02, 0.03]) == [True, False, True, False]         # rises above it
+    assert passes([0.04, 0.06]) == [False, False, False, False]       # beyond the bar
+    assert HERTZ_MODEL_FLOOR < 0.05
