@@ -14,7 +14,6 @@ from problems.fem.adaptive import adaptive_loop, adaptive_start
 from problems.fem.estimators import estimate
 from problems.fem.mesh import project_to_circle, structured_square
 from problems.fem.two_body import assemble_two_body
-from problems.kkt import kkt_residuals
 from solvers.interface import solve
 
 OPTS = circle_square.PROBLEM.options()

@@ -60,7 +60,6 @@ def marked_near(points, cells, x0, factor=3.0):
 
 def inside_coarse(cp, cc, fp, fc, tol=1e-9):
     """Whether every fine cell lies in one coarse cell (its centroid's), by barycentrics."""
-    d = cp.shape[1]
     cen = cp[cc].mean(axis=1)
     tree = cKDTree(cen)
     fcen = fp[fc].mean(axis=1)

@@ -52,7 +52,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from problems.fem.elasticity import boundary_facets, traction_vector
+from problems.fem.elasticity import boundary_facets
 from problems.fem.fields import contact_fields
 from problems.fem.two_body import assemble_two_body, spring_forces
 from problems.roll_stack import SHOULDER, UNITS, _radius, scene, stack_geometry
