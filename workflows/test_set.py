@@ -166,7 +166,7 @@ def check(ts: TestSet) -> None:
             if problem not in registry or registry[problem].kind != "contact":
                 raise TestSetError(f"test set {ts.id} 'classes.{cls}.{problem}': not a "
                                    "registered contact problem")
-            _check_levels(ts, f"classes.{cls}.{problem}", problem, lv)
+            _check_levels(ts, f"classes.{cls}.{problem}", registry[problem], lv)
     for fam, entry in ts.families.items():
         unknown = sorted(set(entry) - {"problem", "params", "levels"})
         if unknown:
@@ -181,13 +181,16 @@ def check(ts: TestSet) -> None:
                                    f"{entry['levels']!r} is not allowed; allowed: a mapping "
                                    f"size class -> levels ({', '.join(CLASSES)})")
             for cls, lv in entry["levels"].items():
-                check_class(cls)
-                _check_levels(ts, f"families.{fam}.levels.{cls}", entry["problem"], lv)
+                if cls not in CLASSES:
+                    raise TestSetError(f"test set {ts.id} 'families.{fam}.levels': size class "
+                                       f"{cls!r} is not allowed; allowed: {', '.join(CLASSES)}")
+                _check_levels(ts, f"families.{fam}.levels.{cls}", registry[entry["problem"]],
+                              lv)
 
 
-def _check_levels(ts: TestSet, key: str, problem: str, levels) -> None:
-    """``levels`` of ``problem`` (at ``key`` of the set) are in the problem's range."""
-    lo, hi = problems()[problem].levels
+def _check_levels(ts: TestSet, key: str, spec, levels) -> None:
+    """``levels`` (at ``key`` of the set) are in the range of the problem ``spec``."""
+    lo, hi = spec.levels
     bad = [x for x in levels or [] if not (isinstance(x, int) and lo <= x <= hi)]
     if bad:
         raise TestSetError(f"test set {ts.id} '{key}': levels {bad} are not allowed; "
