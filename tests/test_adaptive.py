@@ -155,6 +155,12 @@ def test_marking_rules():
     assert mark_equidistribution(e, 16.0).tolist() == [True, False, False, False]  # share 4
     with pytest.raises(ValueError, match="theta"):
         mark_doerfler(e, 1.5)
+    # a minimum share of the cells, the largest errors first
+    assert mark_doerfler(e, 0.4, min_fraction=0.5).tolist() == [True, True, False, False]
+    assert mark_doerfler(e, 0.5, min_fraction=0.6).tolist() == [True, True, True, False]
+    assert mark_doerfler(e, 0.5, min_fraction=0.1).tolist() == [True, True, False, False]
+    with pytest.raises(ValueError, match="min_fraction"):
+        mark_doerfler(e, 0.5, min_fraction=1.5)
     with pytest.raises(ValueError, match="tol"):
         mark_equidistribution(e, 0.0)
 

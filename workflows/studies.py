@@ -500,11 +500,12 @@ def adaptive_variant_file(variant: str) -> str:
 
 def adaptive_args(config: dict, scene: str) -> str:
     """A scene's settings of the adaptive study as arguments of
-    ``workflows/scripts/adaptive_study.py`` (start level, node budget, marking, the
+    ``workflows/scripts/adaptive_study.py`` (start level, node budget, marking and its minimum share, the
     eta_2 constant, the stabilisation, variants; uniform levels of the accuracy comparison, if any)."""
     ad = config["adaptive"]
     args = [f"--start-level {scenes_of(config, 'adaptive')[scene][0]}",
             f"--max-nodes {ad['max_nodes'][scene]}", f"--theta {ad.get('theta', 0.5)}",
+            f"--min-marked {ad.get('min_marked', 0.0)}",
             f"--eta2-weight {ad['eta2_weight']}", f"--time-limit {ad.get('time_limit', 120)}",
             f"--tol {ad.get('tol', 1e-8)}",
             f"--alpha {ad.get('stabilisation', {}).get('alpha', 1.0)}",
