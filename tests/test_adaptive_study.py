@@ -215,6 +215,12 @@ def test_adaptive_study_script(study):
     first = eta2.sort_values("step").iloc[0]
     assert first["eta2_weight"] * first["sum_eta2_sq"] == pytest.approx(first["sum_eta1_sq"])
     assert (eta2["n_outer_1e-03"] > 0).all() and (eta2["kappa_S"] > 1).all()
+    # n_o(eps) from (0, 0) as Table 9.1; the nested guess (Alg. 8.5) reaches the same
+    # absolute estimate, and local smoothing keeps the work per V-cycle below the sum of
+    # the levels' sizes once the hierarchy has adaptive levels
+    assert (eta2["n_outer_nested_1e-03"] >= 1).all() and eta2["t_solve_nested_1e-03"].notna().all()
+    graded = eta2[eta2["mg_levels"] >= 3]
+    assert len(graded) and (graded["mg_work_ratio"] < graded["mg_size_ratio"]).all()
     assert (s.loc[s.variant.isin(["eta1", "stabilised"]), "eta2_weight"] == 0).all()
     stab = s[s.variant == "stabilised"]
     assert (stab.discretisation == "stabilised").all() and (stab.estimator == "eta1").all()
