@@ -163,10 +163,10 @@ def changed_dofs(A: sp.csr_matrix, P: sp.spmatrix) -> np.ndarray:
     (k,) int array, sorted
     """
     P = sp.csr_matrix(P)
-    count = np.diff(P.indptr)
-    first = P.data[np.minimum(P.indptr[:-1], max(len(P.data) - 1, 0))] if len(P.data) \
-        else np.zeros(P.shape[0])
-    new = np.flatnonzero((count != 1) | (first != 1.0))
+    single = np.flatnonzero(np.diff(P.indptr) == 1)
+    injected = np.zeros(P.shape[0], dtype=bool)
+    injected[single] = P.data[P.indptr[single]] == 1.0
+    new = np.flatnonzero(~injected)
     mark = np.zeros(A.shape[0], dtype=bool)
     mark[new] = True
     if new.size:
