@@ -43,6 +43,7 @@ import numpy as np
 from problems.fem.contact import RENAMED_SEARCHES, SEARCHES
 from problems.fem.mesh import (Hierarchy, nested_prolongation, netgen_disk, project_to_circle,
                                structured_rectangle, uniform_hierarchy)
+from problems.fem.stabilised import COUPLING_PARAMETERS, check_coupling, couple
 from problems.fem.surface import tensor_coarsening
 from problems.fem.two_body import ELEMENT_DEGREE, Body, TwoBodyScene, assemble_two_body
 from problems.qp import ContactQP, HertzSetup
@@ -107,8 +108,10 @@ def scene(level: int, p: Options) -> TwoBodyScene:
 
 def build(level: int, p: Options) -> ContactQP:
     """The circle-square ContactQP at uniform level ``level`` (see module docstring)."""
-    return assemble_two_body(scene(level, p), level, degree=p.degree,
-                             name=f"circle_square level {level}" + (" P2" if p.degree == 2 else ""))
+    check_coupling(p)
+    return couple(assemble_two_body(scene(level, p), level, degree=p.degree,
+                                    name=f"circle_square level {level}" + (" P2" if p.degree == 2 else "")),
+                  p)
 
 
 PROBLEM = ProblemSpec(
@@ -146,6 +149,7 @@ PROBLEM = ProblemSpec(
         Parameter("order", "square_first", "bodies' order in memory (a solution must not depend on it)",
                   choices=("square_first", "circle_first")),
         ELEMENT_DEGREE,
+        *COUPLING_PARAMETERS,
     ),
     build=build,
     thesis_tables={"augmented_projection": "table_9_1", "adaptive": "table_9_2"},

@@ -47,6 +47,7 @@ import numpy as np
 from problems.fem.contact import RENAMED_SEARCHES, SEARCHES
 from problems.fem.mesh import (Hierarchy, nested_prolongation, netgen_ball, project_to_circle,
                                structured_cube, uniform_hierarchy)
+from problems.fem.stabilised import COUPLING_PARAMETERS, check_coupling, couple
 from problems.fem.surface import tensor_coarsening
 from problems.fem.two_body import ELEMENT_DEGREE, Body, TwoBodyScene, assemble_two_body
 from problems.qp import ContactQP, HertzSetup
@@ -105,8 +106,10 @@ def scene(level: int, p: Options) -> TwoBodyScene:
 
 def build(level: int, p: Options) -> ContactQP:
     """The cube-sphere ContactQP at uniform level ``level`` (see module docstring)."""
-    return assemble_two_body(scene(level, p), level, degree=p.degree,
-                             name=f"cube_sphere level {level}" + (" P2" if p.degree == 2 else ""))
+    check_coupling(p)
+    return couple(assemble_two_body(scene(level, p), level, degree=p.degree,
+                                    name=f"cube_sphere level {level}" + (" P2" if p.degree == 2 else "")),
+                  p)
 
 
 PROBLEM = ProblemSpec(
@@ -137,6 +140,7 @@ PROBLEM = ProblemSpec(
         Parameter("order", "cube_first", "bodies' order in memory (a solution must not depend "
                   "on it)", choices=("cube_first", "ball_first")),
         ELEMENT_DEGREE,
+        *COUPLING_PARAMETERS,
     ),
     build=build,
     thesis_tables={"augmented_projection": "table_9_3", "adaptive": "table_9_4"},

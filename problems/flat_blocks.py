@@ -51,7 +51,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from problems.fem.mesh import Hierarchy, nested_prolongation, structured_square
-from problems.fem.stabilised import stabilise
+from problems.fem.stabilised import COUPLING_PARAMETERS, stabilise
 from problems.fem.surface import tensor_coarsening
 from problems.fem.two_body import ELEMENT_DEGREE, Body, TwoBodyScene, assemble_two_body
 from problems.qp import ContactQP
@@ -189,10 +189,7 @@ PROBLEM = ProblemSpec(
                   "one (fewer cells; the lower at 2:3) or the fine one", choices=("coarse", "fine")),
         Parameter("coupling", "nodal", "nodal constraints (Alg. 7.1), mortar weighted gaps "
                   "or the stabilised two-sided nodal constraints (Sect. 7.5)", choices=COUPLINGS),
-        Parameter("alpha", 1.0, "stabilised coupling: exponent alpha of h^(-2 alpha) in (7.10)",
-                  low=0.0, high=2.0),
-        Parameter("penalty", 1.0, "stabilised coupling: penalty factor (k = penalty E* "
-                  "l^(2 alpha - 1), problems/fem/stabilised.py)", low=0.0, low_open=True),
+        *COUPLING_PARAMETERS[1:],     # alpha, penalty
         Parameter("E", 1.0, "Young's modulus of both blocks", low=0.0, low_open=True),
         Parameter("nu", 0.3, "Poisson ratio of both blocks", low=-1.0, high=0.5, low_open=True,
                   high_open=True),

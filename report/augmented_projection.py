@@ -74,6 +74,7 @@ def thesis_table(study: pd.DataFrame, thesis: pd.DataFrame | None,
 def claims(study: pd.DataFrame, config: str = MAIN) -> pd.DataFrame:
     """The checkable claims of Ch. 8 / the issue's bars, measured."""
     ours = study[study.config == config].sort_values("N")
+    stabilised = "coupling" in study and bool((study["coupling"] == "stabilised").any())
     if "stop_8_25" in ours:  # a run cut short (max_iter, time limit) measures nothing
         ours = ours[ours["stop_8_25"].astype(bool)]
     rows = []
@@ -84,13 +85,25 @@ def claims(study: pd.DataFrame, config: str = MAIN) -> pd.DataFrame:
                      "measured": growth, "bar": 0.15, "pass": bool(growth <= 0.15)})
         k = ours["kappa_S"].to_numpy(float)
         ratio = k[-1] / k[-2]
-        rows.append({"claim": "kappa(S-hat) = O(h^-1) (Lemma 8.13): ratio per refinement (2 expected)",
-                     "measured": ratio, "bar": "[1.5, 2.6]", "pass": bool(1.5 <= ratio <= 2.6)})
+        if stabilised:   # C_r ~ h^(2 alpha) (7.11) makes S itself worse than O(h^-1)
+            rows.append({"claim": "kappa(S-hat), stabilised (7.10)/(7.11): ratio per refinement "
+                                  "(Lemma 8.13 is for the nodal rows; reported, no bar)",
+                         "measured": ratio, "bar": "-", "pass": None})
+        else:
+            rows.append({"claim": "kappa(S-hat) = O(h^-1) (Lemma 8.13): ratio per refinement "
+                                  "(2 expected)",
+                         "measured": ratio, "bar": "[1.5, 2.6]",
+                         "pass": bool(1.5 <= ratio <= 2.6)})
     if len(ours) >= 3:
-        s = slope(ours["N"], ours["t_setup"] + ours["t_solve"])
-        rows.append({"claim": "T_solve = O(N) (Example 8.1): slope of log T_solve (setup incl.) "
+        # the stabilised rows' (8.25) point is short of the KKT tolerance (the estimate
+        # sees the penalised rows' near-null direction late): timed to the energy target
+        t = ours["t_to_target"] if stabilised else ours["t_setup"] + ours["t_solve"]
+        s = slope(ours["N"], t)
+        what = ("time to the energy-error target (setup incl.), stabilised (7.10)/(7.11)"
+                if stabilised else "T_solve (setup incl.)")
+        rows.append({"claim": f"T_solve = O(N) (Example 8.1): slope of log {what} "
                               "vs log N, finest three levels",
-                     "measured": s, "bar": 1.15, "pass": bool(s <= 1.15)})
+                     "measured": s, "bar": 1.15, "pass": bool(np.isfinite(s) and s <= 1.15)})
     finest = study[study.level == study.level.max()].assign(t_total=time_to_target)
     floor = finest[finest.config.str.startswith("amg_pcg")]
     if len(floor) and np.isfinite(floor["t_to_target"]).any():

@@ -44,7 +44,7 @@ gamma_bar (A - Ah)``), so its default is ``tau = 1`` (measured: half the outer
 steps of ``tau = 1/alpha_bar``); the additive update keeps the thesis's
 ``tau = 1/alpha_bar``.
 
-Beyond the thesis, two things keep the method's outer step count bounded where the
+Beyond the thesis, three things keep the method's outer step count bounded where the
 thesis's ingredients lose their spectral equivalence (issue 24):
 
 * Towards incompressibility a V-cycle's ``kappa(V A)`` grows like ``(1 - 2 nu)^-0.75``
@@ -57,6 +57,11 @@ thesis's ingredients lose their spectral equivalence (issue 24):
   coarse space (:class:`FloatingCoarseSpace`): ``A-hat`` on the complement of its rigid
   modes, its equilibrium ``G p = e`` in every projection (:func:`smalbe`), its rigid
   motion moved by the equality's multiplier.
+* The stabilised problem (Sect. 7.5) adds reverse rows on the opposing surface, for which
+  the thesis has no multilevel ``S-hat`` (Remark 7.10: it falls back to ``S_in``, not
+  O(N)): :func:`solvers.schur.stabilised_schur_apply` carries them to the constrained
+  surface's multilevel operator through their transfer and adds the mismatch on the
+  fine scale, so the method stays O(N) there too.
 
 Nested iteration (Alg. 8.5) is :func:`nested_initial_guess`; the solver itself
 never builds coarser problems.
@@ -70,6 +75,7 @@ from typing import Callable
 import numpy as np
 
 
+from problems.fem.adaptive import prolongate_solution
 from problems.floating import floating_modes
 from problems.kkt import kkt_residuals
 from problems.qp import ContactQP
@@ -559,8 +565,12 @@ def balanced_projection(projection: Component, S_hat: SchurPreconditioner) -> Ca
 #: ``S`` on the fine surface modes, and the ratio grows (circle-square level 1: 2.6 at
 #: nu = 0.3, 3.8 at 0.49, 7.6 at 0.499, 15 at 0.4999; cube-sphere 3.8, 6.0, 15, 27). The
 #: V-cycles of a whole solve cross over near 6 (2D: 285 vs 375 at 0.49, 1617 vs 1442 at
-#: 0.499; 3D: 693 vs 588 at 0.49; ``S_in`` costs an ``A-hat`` per inner step).
-SCHUR_KAPPA_LIMIT = 6.0
+#: 0.499; 3D: 693 vs 588 at 0.49; ``S_in`` costs an ``A-hat`` per inner step). The
+#: stabilised problem's operator (:func:`solvers.schur.stabilised_schur_apply`) starts
+#: higher at nu = 0.3 (2D levels 1-3: 5.6, 6.3, 6.7; 3D levels 1-2: 6.3, 7.8) and still
+#: wins (2D level 3: 3.3 s against 4.3 s for the assembled ``S_in``, whose assembly grows
+#: like m N), so its limit is twice the nodal one.
+SCHUR_KAPPA_LIMIT = {"nodal": 6.0, "stabilised": 12.0}
 
 #: ... and assembles ``S_in`` (``m`` products with ``A-hat``, then dense products) up to
 #: this many constraints: a matrix-free ``S_in`` costs an ``A-hat`` per inner step, and a
@@ -576,8 +586,7 @@ def resolve_kinds(qp: ContactQP, ahat: Component, schur: Component) -> tuple[str
     a = vcycle_kind(qp, ahat.kind)
     s = schur.kind
     if s == "auto":
-        s = ("multilevel" if (qp.multilevel.surface is not None and qp.m > 2
-                              and qp.stabilisation is None) else "inexact")
+        s = "multilevel" if (qp.multilevel.surface is not None and qp.m > 2) else "inexact"
     return a, s
 
 
@@ -621,7 +630,8 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
                               **a)
     gamma_bar = A_hat_inv.gamma_bar
     S_hat = build_schur(schur_kind, qp, A_hat_inv, s["lanczos_steps"], opts.seed)
-    if opts.schur.kind == "auto" and S_hat.kappa_Sin > SCHUR_KAPPA_LIMIT:
+    limit = SCHUR_KAPPA_LIMIT["nodal" if qp.stabilisation is None else "stabilised"]
+    if opts.schur.kind == "auto" and S_hat.kappa_Sin > limit:
         # the sparse S-hat has lost its equivalence (locking, a poor surface hierarchy):
         # S_in itself, assembled once when that costs fewer A-hat products than the
         # inner steps would
@@ -746,7 +756,9 @@ def nested_initial_guess(qp_coarse: ContactQP, result_coarse, qp_fine: ContactQP
     ``p0 = M_L Prolongate(M_{L-1}^{-1} p_{L-1})``: the pressure
     ``p / contact mass`` is a grid function on the constrained surface,
     prolongated with the surface prolongation of the last mesh level and
-    multiplied by the fine lumped mass, so ``p0 >= 0``.
+    multiplied by the fine lumped mass, so ``p0 >= 0``; on the stabilised problem
+    (Sect. 7.5) the reverse rows' pressure as well
+    (:func:`problems.fem.adaptive.prolongate_solution`, which this is on uniform levels).
 
     Parameters
     ----------
@@ -759,17 +771,7 @@ def nested_initial_guess(qp_coarse: ContactQP, result_coarse, qp_fine: ContactQP
     (u0, p0)
     """
     u_c, p_c = (result_coarse.u, result_coarse.p) if hasattr(result_coarse, "u") else result_coarse
-    ml = qp_fine.multilevel
-    if not ml.prolongations or ml.surface is None:
-        raise ValueError("nested iteration needs qp_fine.multilevel.prolongations and .surface")
-    P = ml.prolongations[-1]
-    P_s = ml.surface.prolongations[-1]
-    if P.shape != (qp_fine.n, qp_coarse.n) or P_s.shape != (qp_fine.m, qp_coarse.m):
-        raise ValueError(f"prolongations have shapes {P.shape}, {P_s.shape}; expected "
-                         f"{(qp_fine.n, qp_coarse.n)}, {(qp_fine.m, qp_coarse.m)}: the problems "
-                         "are not consecutive levels of one scene")
-    pressure = P_s @ (p_c / qp_coarse.contact.mass)
-    return P @ u_c, np.maximum(pressure, 0.0) * qp_fine.contact.mass
+    return prolongate_solution(qp_coarse, u_c, p_c, qp_fine)
 
 
 def supports(qp: ContactQP) -> tuple[bool, str]:

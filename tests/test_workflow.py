@@ -257,7 +257,7 @@ def test_a_new_scene_joins_a_study_by_config_alone(tmp_path):
     (lambda c: c["adaptive"]["scenes"].update(circle_square=[0, 1]), "one start level"),
     (lambda c: c["adaptive"]["max_nodes"].pop("cube_sphere"), "no node budget"),
     (lambda c: c["adaptive"]["patch_test"]["scenes"].update(circle_square=[0]),
-     "no 'coupling' parameter"),
+     "does not offer the couplings ['mortar']"),
     (lambda c: c["hard_cases"]["incompressibility"].update(scenes=["laplace_nonmatching"]),
      "'hard_cases.incompressibility.scenes': 'laplace_nonmatching' is not allowed"),
     (lambda c: c["hard_cases"]["incompressibility"].update(level=9),

@@ -659,9 +659,13 @@ def _check_adaptive(config: dict, registry: dict) -> None:
             raise ConfigError(f"config 'adaptive.patch_test.scenes.{scene}': no such scene; "
                               f"defined: {', '.join(config.get('scenes', {}))}")
         spec = registry[config["scenes"][scene]["problem"]]
-        if "coupling" not in {p.name for p in spec.parameters}:
+        offered = next((p.choices for p in spec.parameters if p.name == "coupling"), None) or ()
+        missing = [c for c in ad["patch_test"].get("couplings", ()) if c not in offered]
+        if missing:
             raise ConfigError(f"config 'adaptive.patch_test.scenes.{scene}': problem "
-                              f"{spec.name!r} has no 'coupling' parameter (a patch-test scene)")
+                              f"{spec.name!r} does not offer the couplings {missing} "
+                              f"(offered: {list(offered)}; a patch-test scene offers every one "
+                              "in adaptive.patch_test.couplings)")
         lo, hi = spec.levels
         bad = [lv for lv in levels if not lo <= lv <= hi]
         if bad:

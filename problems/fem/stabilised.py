@@ -46,6 +46,7 @@ from problems.fem.contact import contact_constraints
 from problems.fem.elasticity import lumped_surface_mass
 from problems.fem.surface import facet_sizes
 from problems.qp import ContactQP, SharedWork, Stabilisation
+from problems.spec import Options, Parameter, ParameterError
 from reference.hertz import effective_modulus as hertz_modulus
 
 
@@ -114,3 +115,28 @@ def stabilise(qp: ContactQP, alpha: float = 1.0, penalty: float = 1.0) -> Contac
         stabilisation=Stabilisation(nodes=cc.rows, mass=mass, size=size, transfer=transfer,
                                     alpha=float(alpha), modulus=float(k)),
         name=f"{qp.name} (stabilised, alpha = {alpha:g})", cache=SharedWork())
+
+
+#: A scene's choice between the nodal constraints and their stabilised form, with the
+#: stabilisation's settings: one declaration for every scene that offers it.
+COUPLING_PARAMETERS = (
+    Parameter("coupling", "nodal", "nodal constraints (Alg. 7.1) or the stabilised two-sided "
+              "nodal constraints (Sect. 7.5, (7.10)/(7.11))", choices=("nodal", "stabilised")),
+    Parameter("alpha", 1.0, "stabilised coupling: exponent alpha of h^(-2 alpha) in (7.10)",
+              low=0.0, high=2.0),
+    Parameter("penalty", 1.0, "stabilised coupling: penalty factor (k = penalty E* "
+              "l^(2 alpha - 1), problems/fem/stabilised.py)", low=0.0, low_open=True),
+)
+
+
+def check_coupling(p: Options) -> None:
+    """Refuse a coupling the P2 elements do not have (the stabilisation is built for P1)."""
+    if getattr(p, "degree", 1) == 2 and p.coupling != "nodal":
+        raise ParameterError(f"parameter 'degree': 2 is not allowed with coupling="
+                             f"{p.coupling!r}; allowed: degree=1, or degree=2 with coupling=nodal "
+                             "(the stabilised coupling is built for P1)")
+
+
+def couple(qp: ContactQP, p: Options) -> ContactQP:
+    """The scene's nodal ContactQP, or its stabilised form when ``p.coupling`` asks for it."""
+    return stabilise(qp, p.alpha, p.penalty) if p.coupling == "stabilised" else qp

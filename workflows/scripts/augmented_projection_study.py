@@ -106,6 +106,7 @@ def run_config(qp, u_ref, opts, eps, target, max_iter, time_limit, u0=None, p0=N
         "t_solve": float(t_hist[k]), "t_proj": float(np.sum(h["t_proj"][:k + 1])),
         "kappa_S": s["kappa_S"], "kappa_SinvSin": s["kappa_SinvSin"],
         "kappa_SinvS": s["kappa_SinvS"], "gamma_bar": s["gamma_bar"], "tau": s["tau"],
+        "schur_kind": s["schur_kind"],
         "energy_error": float(err[k]), "kkt_max": float(rec["kkt"][k].max),
         **rec["kkt"][k].as_dict(),
         # n_o(eps) is defined by (8.25); the verified status asks the KKT residuals too
@@ -144,6 +145,9 @@ def tnnmg_run(qp, u_ref, target: float, time_limit: float, coarse=()) -> dict:
     :data:`NESTED_TOL` (no certificate: it only gives the next level's start) and
     prolongated (``u0 = P u_coarse``); their time is ``t_coarse_levels``.
     """
+    ok, reason = tnnmg.supports(qp)
+    if not ok:          # a row that says why, at once (the stabilised rows, Sect. 7.5)
+        return {"status": "skipped", "message": reason}
     t0 = time.perf_counter()
     u0 = None
     chain = list(coarse) + [qp]
@@ -261,7 +265,8 @@ def main(argv=None) -> None:
     for level in levels:
         progress.set_postfix_str(f"level {level}: building, reference")
         qp = spec.build(level, params)
-        base = {"level": level, "dim": qp.dim, "N": qp.n_nodes, "NC": qp.m, "n": qp.n}
+        base = {"level": level, "dim": qp.dim, "N": qp.n_nodes, "NC": qp.m, "n": qp.n,
+                "coupling": "nodal" if qp.stabilisation is None else "stabilised"}
         u_ref = _reference(qp, level, spec.name, args.ref_cache, rows, base, args.reference)
         progress.update()
         measured = set()   # kappa(S-hat^-1 S) costs a PCG solve per product: once per S-hat kind
@@ -303,7 +308,8 @@ def main(argv=None) -> None:
                 rows.append({**base, "config": name,
                              **tnnmg_run(qp, u_ref, args.target, args.time_limit, coarse)})
                 progress.update()
-            rows[-len(TNNMG)].update(tnnmg_memory(qp, args.target, args.time_limit))
+            if rows[-len(TNNMG)]["status"] != "skipped":
+                rows[-len(TNNMG)].update(tnnmg_memory(qp, args.target, args.time_limit))
         if not args.no_floor:
             progress.set_postfix_str(f"level {level}: multigrid-PCG floor")
             u_lin = linear_solution(qp)
