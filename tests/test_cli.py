@@ -168,7 +168,7 @@ BAD_INPUTS = [
     (["--problem", "circle_square", "--set", "radius"], "'--set': 'radius' is not allowed; allowed: key=value"),
     (["--problem", "circle_square", "--set", "=3"], "'--set': '=3' is not allowed"),
     (["--problem", "circle_square", "--set", "E1=2", "--set", "E1=3"], "'E1' is given twice"),
-    (["--problem", "circle_square", "--set", "alpha=1"], "has no parameter 'alpha'"),
+    (["--problem", "circle_square", "--set", "beta=1"], "has no parameter 'beta'"),
     (["--problem", "circle_square", "--set", "nu1=0.5"], "'nu1': 0.5 is out of range"),
     (["--problem", "circle_square", "--set", "E1=nan"], "'E1': nan is not finite"),
     (["--problem", "circle_square", "--set", "load=inf"], "'load': inf is not finite"),
