@@ -51,7 +51,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from problems.fem.mesh import Hierarchy, nested_prolongation, structured_square
-from problems.fem.stabilised import COUPLING_PARAMETERS, stabilise
+from problems.fem.stabilised import COUPLING_PARAMETERS, check_coupling, stabilise
 from problems.fem.surface import tensor_coarsening
 from problems.fem.two_body import ELEMENT_DEGREE, Body, TwoBodyScene, assemble_two_body
 from problems.qp import ContactQP
@@ -163,10 +163,7 @@ def build(level: int, p: Options) -> ContactQP:
     if p.gap >= p.indent:
         raise ParameterError(f"parameter 'gap': {p.gap!r} is not allowed; allowed: a number "
                              f"below indent = {p.indent!r} (else the blocks never touch)")
-    if p.degree == 2 and p.coupling != "nodal":
-        raise ParameterError(f"parameter 'degree': 2 is not allowed with coupling="
-                             f"{p.coupling!r}; allowed: degree=1, or degree=2 with coupling=nodal "
-                             "(the mortar and stabilised couplings are built for P1)")
+    check_coupling(p)
     sc = scene(level, p)
     qp = assemble_two_body(sc, level, degree=p.degree,
                            name=f"flat_blocks level {level} ({p.coupling}, "

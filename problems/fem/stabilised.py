@@ -130,11 +130,12 @@ COUPLING_PARAMETERS = (
 
 
 def check_coupling(p: Options) -> None:
-    """Refuse a coupling the P2 elements do not have (the stabilisation is built for P1)."""
+    """Refuse a coupling the P2 elements do not have (every coupling but the nodal one is
+    built for P1)."""
     if getattr(p, "degree", 1) == 2 and p.coupling != "nodal":
         raise ParameterError(f"parameter 'degree': 2 is not allowed with coupling="
                              f"{p.coupling!r}; allowed: degree=1, or degree=2 with coupling=nodal "
-                             "(the stabilised coupling is built for P1)")
+                             f"(the {p.coupling} coupling is built for P1)")
 
 
 def couple(qp: ContactQP, p: Options) -> ContactQP:
