@@ -507,6 +507,29 @@ def test_a_solver_that_gave_up_at_a_coarser_level_is_skipped_there():
     assert gave_up_at_coarser_levels([], 2) == {}
 
 
+def test_a_solver_predicted_beyond_the_time_limit_is_skipped():
+    """Issue 26: the time fitted as c n^e over the two finest converged coarser levels
+    predicts the next level's; beyond the limit the run is skipped with the prediction."""
+    import pandas as pd
+
+    from workflows.scripts.solver_comparison import predicted_beyond_the_limit
+
+    t = pd.DataFrame({"level": [0, 1, 2, 1, 2, 2], "n": [1e3, 4e3, 1.6e4, 4e3, 1.6e4, 1.6e4],
+                      "solver": ["osqp"] * 3 + ["pdas"] * 2 + ["piqp"],
+                      "preset": ["mid"] * 6,
+                      "status": ["converged"] * 5 + ["time_limit"],
+                      "total_time": [0.1, 1.0, 8.0, 0.2, 0.4, 60.0]})
+    got = predicted_beyond_the_limit([t], 3, 6.4e4, 50.0)
+    # osqp: exponent log(8)/log(4) = 1.5 over levels 1-2, 8 * 4^1.5 = 64 s > 50 s;
+    # pdas: exponent 0.5, 0.8 s; piqp has one converged level only (and timed out: the
+    # other rule's case)
+    assert list(got) == [("osqp", "mid")]
+    assert got["osqp", "mid"] == ("predicted 64 s > time limit 50 s (time exponent 1.50 in n "
+                                  "over levels 1-2)")
+    assert predicted_beyond_the_limit([t], 3, 6.4e4, 70.0) == {}
+    assert predicted_beyond_the_limit([], 3, 6.4e4, 50.0) == {}
+
+
 # --------------------------------------------------------------------------- the library table
 def test_a_qpsolvers_library_is_one_table_row(references):
     """Adding a library qpsolvers reaches is one row: here OSQP again under another name,

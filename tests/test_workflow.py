@@ -73,6 +73,28 @@ def test_contact_solution_in_3d(tmp_path):
         assert (tmp_path / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
+def test_solver_comparison_skips_by_the_coarser_levels(tmp_path):
+    """Issue 26: ``--coarser`` results make a run that timed out there, or whose fitted
+    time predicts more than the limit here, a ``skipped`` row with the reason."""
+    from workflows.io import write_csv
+    n = {0: 2000, 1: 8000}
+    for level in (0, 1):
+        write_csv(tmp_path / f"L{level}.csv", pd.DataFrame({
+            "level": level, "n": n[level], "solver": ["osqp", "piqp"], "preset": "mid",
+            "status": ["converged", "time_limit" if level else "converged"],
+            "total_time": [0.5 * 16 ** level, 1.0], "message": ""}))
+    run("workflows.scripts.solver_comparison", *SCENE, "--level", "2", "--presets", "mid",
+        "--solvers", "osqp", "piqp", "pdas", "--time-limit", "60",
+        "--coarser", str(tmp_path / "L0.csv"), str(tmp_path / "L1.csv"),
+        "--out", str(tmp_path / "L2.csv"))
+    t = pd.read_csv(tmp_path / "L2.csv").set_index(["solver", "preset"])
+    assert t.loc[("osqp", "mid"), "status"] == "skipped"      # exponent 2: 8 s x ~17 > 60 s
+    assert re.fullmatch(r"skipped: predicted 1\d\d s > time limit 60 s \(time exponent 2\.00 in n "
+                        r"over levels 0-1\)", t.loc[("osqp", "mid"), "message"])
+    assert t.loc[("piqp", "mid"), "message"] == "skipped: timed out at level 1"
+    assert t.loc[("pdas", "mid"), "status"] == "converged"
+
+
 def test_solver_comparison_and_its_report(tmp_path):
     run("workflows.scripts.solver_comparison", *SCENE, "--level", "0", "--presets", "mid",
         "--time-limit", "60", "--out", str(tmp_path / "solvers_L0.csv"))

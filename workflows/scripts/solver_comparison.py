@@ -12,8 +12,9 @@ run is a child process with a hard wall-clock limit
 are rows, not gaps. A solver that cannot take the problem is a ``skipped`` row with its
 reason (:meth:`solvers.base.SolverSpec.check`); one that timed out or failed at a
 coarser level of the same scene (``--coarser``, that level's results) is ``skipped``
-here with the reason "timed out at level k" / "failed at level k". Called by the rule
-``solver_comparison``.
+here with the reason "timed out at level k" / "failed at level k", and so is one whose
+time, fitted over the two finest coarser levels, predicts more than the time limit here
+(:func:`predicted_beyond_the_limit`). Called by the rule ``solver_comparison``.
 
 Example::
 
@@ -83,7 +84,9 @@ def main(argv=None) -> None:
                      "solve_time": floor["t_to_target"] - floor["t_setup"],
                      "total_time": floor["t_to_target"], "energy_error": floor["energy_error"],
                      "message": "multigrid PCG for A u = f without contact (the floor)"})
-    given_up = gave_up_at_coarser_levels([read_csv(f) for f in args.coarser], level)
+    coarser = [read_csv(f) for f in args.coarser]
+    given_up = {**predicted_beyond_the_limit(coarser, level, qp.n, args.time_limit),
+                **gave_up_at_coarser_levels(coarser, level)}
     for solver, preset in tqdm([(s, p) for s in names for p in args.presets],
                                desc=f"solvers on {qp.name}"):
         t0 = time.perf_counter()
@@ -122,6 +125,31 @@ def gave_up_at_coarser_levels(tables: list[pd.DataFrame], level: int) -> dict:
         else:
             verb = "timed out" if r["status"] == "time_limit" else "failed"
             out[key] = f"{verb} at level {int(r['level'])}"
+    return out
+
+
+def predicted_beyond_the_limit(tables: list[pd.DataFrame], level: int, n: int,
+                               time_limit: float) -> dict:
+    """``{(solver, preset): reason}`` for the solvers whose time, fitted as ``c n^e`` over
+    the two finest coarser levels where they converged, predicts more than
+    ``time_limit`` at this level's ``n`` unknowns (issue 26: time limits used as
+    information). The reason gives the prediction, the exponent and the levels."""
+    out = {}
+    if not tables:
+        return out
+    t = pd.concat(tables, ignore_index=True)
+    t = t[(t["level"] < level) & (t["status"] == "converged") & (t["total_time"] > 0)]
+    for (solver, preset), g in t.groupby(["solver", "preset"]):
+        g = g.sort_values("level").drop_duplicates("level", keep="last").tail(2)
+        if len(g) < 2 or g["n"].iloc[1] <= g["n"].iloc[0]:
+            continue
+        e = float(np.log(g["total_time"].iloc[1] / g["total_time"].iloc[0])
+                  / np.log(g["n"].iloc[1] / g["n"].iloc[0]))
+        predicted = float(g["total_time"].iloc[1] * (n / g["n"].iloc[1]) ** e)
+        if predicted > time_limit:
+            out[solver, preset] = (f"predicted {predicted:.0f} s > time limit {time_limit:g} s "
+                                   f"(time exponent {e:.2f} in n over levels "
+                                   f"{int(g['level'].iloc[0])}-{int(g['level'].iloc[1])})")
     return out
 
 
