@@ -13,7 +13,7 @@ rule augmented_projection_study:
     params:
         py=PY, scene=lambda w: set_args(config, w.scene),
         levels=lambda w: " ".join(map(str, scenes_of(config, "augmented_projection")[w.scene])),
-        configs=" ".join(AP.get("configs", [])), limit=AP.get("time_limit", 120)
+        configs=" ".join(AP.get("configs", [])), limit=AP["time_limit"]
     shell:
         "{params.py} -m workflows.scripts.augmented_projection_study {params.scene} "
         "--levels {params.levels} --configs {params.configs} --time-limit {params.limit} "

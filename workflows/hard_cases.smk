@@ -13,7 +13,7 @@ rule hard_cases_report:
                        category="hard cases", subcategory="solvers")
     log: log_path("hard_cases_report", "all")
     conda: ENV
-    params: py=PY, cases=" ".join(HC_CASES), preset=HC.get("preset", "mid")
+    params: py=PY, cases=" ".join(HC_CASES), preset=HC["preset"]
     shell:
         "{params.py} -m report.hard_cases --inputs {input} --cases {params.cases} "
         "--preset {params.preset} --table {output.table} --heatmap {output.heatmap} > {log} 2>&1"

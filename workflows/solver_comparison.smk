@@ -16,7 +16,7 @@ rule solver_comparison:
     threads: 2  # timings: nothing else runs beside it
     conda: ENV
     params:
-        py=PY, scene=lambda w: set_args(config, w.scene), limit=SC.get("time_limit", 120),
+        py=PY, scene=lambda w: set_args(config, w.scene), limit=SC["time_limit"],
         presets=" ".join(SC.get("presets", [])),
         solvers=" ".join(["--solvers", *SC["solvers"]]) if SC.get("solvers") else ""
     shell:

@@ -501,15 +501,16 @@ def adaptive_variant_file(variant: str) -> str:
 def adaptive_args(config: dict, scene: str) -> str:
     """A scene's settings of the adaptive study as arguments of
     ``workflows/scripts/adaptive_study.py`` (start level, node budget, marking and its minimum share, the
-    eta_2 constant, the stabilisation, variants; uniform levels of the accuracy comparison, if any)."""
+    eta_2 constant, the stabilisation, variants; uniform levels of the accuracy comparison, if any),
+    from the validated config (the schema's defaults filled in: :mod:`workflows.settings`)."""
     ad = config["adaptive"]
     args = [f"--start-level {scenes_of(config, 'adaptive')[scene][0]}",
-            f"--max-nodes {ad['max_nodes'][scene]}", f"--theta {ad.get('theta', 0.5)}",
-            f"--min-marked {ad.get('min_marked', 0.0)}",
-            f"--eta2-weight {ad['eta2_weight']}", f"--time-limit {ad.get('time_limit', 120)}",
-            f"--tol {ad.get('tol', 1e-8)}",
-            f"--alpha {ad.get('stabilisation', {}).get('alpha', 1.0)}",
-            f"--penalty {ad.get('stabilisation', {}).get('penalty', 1.0)}",
+            f"--max-nodes {ad['max_nodes'][scene]}", f"--theta {ad['theta']}",
+            f"--min-marked {ad['min_marked']}",
+            f"--eta2-weight {ad['eta2_weight']}", f"--time-limit {ad['time_limit']}",
+            f"--tol {ad['tol']}",
+            f"--alpha {ad['stabilisation']['alpha']}",
+            f"--penalty {ad['stabilisation']['penalty']}",
             "--variants " + " ".join(f"'{v}'" for v in ad["variants"])]
     acc = ad.get("accuracy", {}).get(scene)
     if acc:
@@ -745,7 +746,7 @@ def _check_test_set(config: dict) -> None:
                               f"among the test set's runs; allowed: a family of "
                               f"test_set.families at a level of test_set.classes "
                               f"{cfg['classes']}")
-    if hc and hc.get("preset", "mid") not in cfg["presets"]:
+    if hc and hc["preset"] not in cfg["presets"]:
         raise ConfigError(f"config 'hard_cases.preset': {hc.get('preset')!r} is not run; "
                           f"allowed: one of test_set.presets {cfg['presets']}")
 

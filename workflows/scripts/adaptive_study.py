@@ -85,9 +85,13 @@ from solvers.interface import linear_solver, solve, verify
 from solvers.reference import DIRECT_REFERENCE_LIMIT, reference_solve
 from workflows.io import write_csv, write_vtu
 from workflows.scene_args import add_scene_arguments, check_levels, scene_from_args
+from workflows.settings import study_defaults
 
 #: The tolerances of (8.25) at which the thesis's tables count outer steps and time.
 TABLE_EPS = (1e-2, 1e-3)
+
+#: The study's defaults, declared once in the config schema (workflows/settings.py).
+DEFAULTS = study_defaults("adaptive")
 
 
 # --------------------------------------------------------------------------- solvers
@@ -495,8 +499,9 @@ def main(argv=None) -> None:
                         choices=list(STUDY_VARIANTS))
     parser.add_argument("--max-nodes", type=int, required=True)
     parser.add_argument("--max-steps", type=int, default=60)
-    parser.add_argument("--theta", type=float, default=0.5, help="Doerfler's bulk parameter")
-    parser.add_argument("--min-marked", type=float, default=0.0,
+    parser.add_argument("--theta", type=float, default=DEFAULTS["theta"],
+                        help="Doerfler's bulk parameter")
+    parser.add_argument("--min-marked", type=float, default=DEFAULTS["min_marked"],
                         help="mark at least this share of the cells, in [0, 1] (0: the bulk "
                              "set alone; problems.fem.adaptive.mark_doerfler)")
     parser.add_argument("--eta2-weight", default="calibrated",
@@ -508,12 +513,14 @@ def main(argv=None) -> None:
     parser.add_argument("--table-variant", default="eta1+eta2",
                         help="the variant solved by Alg. 8.4 for the thesis's table; 'none': "
                              "every variant exact")
-    parser.add_argument("--tol", type=float, default=1e-8,
+    parser.add_argument("--tol", type=float, default=DEFAULTS["tol"],
                         help="verified KKT target where Alg. 8.4 must finish without PDAS")
-    parser.add_argument("--time-limit", type=float, default=120.0, help="seconds per solve")
-    parser.add_argument("--alpha", type=float, default=1.0,
+    parser.add_argument("--time-limit", type=float, default=DEFAULTS["time_limit"],
+                        help="seconds per solve")
+    parser.add_argument("--alpha", type=float, default=DEFAULTS["stabilisation"]["alpha"],
                         help="the stabilised variant's exponent alpha of (7.10), in [0, 2]")
-    parser.add_argument("--penalty", type=float, default=1.0,
+    parser.add_argument("--penalty", type=float,
+                        default=DEFAULTS["stabilisation"]["penalty"],
                         help="the stabilised variant's penalty factor (> 0; "
                              "problems/fem/stabilised.py)")
     parser.add_argument("--steps", required=True, help="output: the per-step table (CSV)")
