@@ -11,6 +11,7 @@ import sys
 from snakemake.utils import validate
 
 from workflows.io import sweep_results
+from workflows.settings import SCHEMA
 
 from workflows.studies import (PATHS, adaptive_args, adaptive_variant_file, all_targets,
                                bench_path, check_config, coarser_levels, element_order_args,
@@ -26,7 +27,7 @@ if not workflow.overwrite_configfiles:
 report: "report/workflow.rst"
 # the test set's families are scenes too (workflows/config/test_sets/): typed once there
 config["scenes"] = scenes_with_families(config)
-validate(config, os.path.join(workflow.basedir, "workflows/config.schema.yaml"))
+validate(config, str(SCHEMA))   # fills in the schema's defaults (workflows/settings.py)
 check_config(config)   # scenes exist, problems and parameters valid, variant names known
 
 # provenance of every result names the config; corrupted results and partial files of a

@@ -149,6 +149,11 @@ def multilevel_schur_apply(surface: SurfaceHierarchy, embedding: sp.spmatrix | N
     return apply, diag
 
 
+def jacobi_product(B: sp.spmatrix, A: sp.spmatrix) -> sp.csr_matrix:
+    """``B diag(A)^{-1} B^T``, sparse (the Jacobi-type Schur complement)."""
+    return sp.csr_matrix(B @ sp.diags(1.0 / A.diagonal()) @ B.T)
+
+
 def stabilised_schur_apply(qp: ContactQP) -> tuple[Apply, np.ndarray]:
     """A multilevel ``S-hat`` over both surfaces' rows of the stabilised problem
     (Sect. 7.5, (7.10)/(7.11)) and its diagonal, without ``C``.
@@ -177,7 +182,7 @@ def stabilised_schur_apply(qp: ContactQP) -> tuple[Apply, np.ndarray]:
     B = sp.csr_matrix(qp.B)
     E = (B - K @ B[:m_c]).tocsr()
     E.eliminate_zeros()
-    EDE = (E @ sp.diags(1.0 / qp.A.diagonal()) @ E.T).tocsr()
+    EDE = jacobi_product(E, qp.A)
     base, diag = multilevel_schur_apply(qp.multilevel.surface, embedding=K)
     return (lambda q: base(q) + EDE @ q), diag + EDE.diagonal()
 
@@ -226,7 +231,7 @@ def build_schur(kind: str, qp: ContactQP, Ainv: ScaledVCycle, lanczos_steps: int
         Sd = 0.5 * (Sd + Sd.T)
         sh = SchurPreconditioner("inexact_assembled", lambda q: Sd @ q, m, np.diag(Sd).copy())
     elif kind == "jacobi":
-        Sj = sp.csr_matrix(B @ sp.diags(1.0 / qp.A.diagonal()) @ Bt)
+        Sj = jacobi_product(B, qp.A)
         if C is not None:
             Sj = Sj + C
         sh = SchurPreconditioner("jacobi", lambda q: Sj @ q, m, Sj.diagonal().copy())
