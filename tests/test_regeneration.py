@@ -75,6 +75,7 @@ def tiny_run(tmp_path_factory) -> Path:
     cwd = tmp_path_factory.mktemp("tiny")
     out = regenerate(cwd)
     assert out.returncode == 0, (out.stdout + out.stderr)[-4000:]
+    (cwd / "snakemake.log").write_text(out.stdout + out.stderr)
     return cwd
 
 
@@ -128,6 +129,42 @@ def test_tiny_regeneration_makes_every_target(tiny_run):
     assert len(claims) >= 10 and set(claims["result"]) <= {"pass", "miss", "n/a"}
     out = regenerate(tiny_run, "-n")
     assert out.returncode == 0 and "Nothing to be done" in out.stdout + out.stderr
+
+
+def job_events(log: str) -> list[tuple[str, int, str]]:
+    """``("start" | "finish", jobid, rule)`` in the order Snakemake's ``log`` reports them."""
+    events, rule = [], None
+    for line in log.splitlines():
+        if m := re.match(r"^(?:local)?rule (\w+):$", line):
+            rule = m[1]
+        elif (m := re.match(r"^\s+jobid: (\d+)$", line)) and rule is not None:
+            events.append(("start", int(m[1]), rule))
+            rule = None
+        elif m := re.match(r"^Finished jobid: (\d+)", line):
+            events.append(("finish", int(m[1]), ""))
+    return events
+
+
+def test_timing_jobs_run_alone(tiny_run):
+    """The profile's named resource (``machine_share``, studies.RUNS_ALONE) at work on two
+    cores: no job starts while a timing job runs, and a timing job starts only when
+    nothing else runs."""
+    from workflows.studies import RUNS_ALONE
+
+    events = job_events((tiny_run / "snakemake.log").read_text())
+    started = {jobid: rule for kind, jobid, rule in events if kind == "start"}
+    assert RUNS_ALONE <= set(started.values()), RUNS_ALONE - set(started.values())
+    assert len(started) > 50 and {j for k, j, _ in events if k == "finish"} == set(started)
+    running, overlapped = set(), 0
+    for kind, jobid, rule in events:
+        if kind == "finish":
+            running.discard(jobid)
+            continue
+        alone = [started[j] for j in running | {jobid} if started[j] in RUNS_ALONE]
+        assert not (alone and running), (rule, [started[j] for j in running])
+        overlapped += bool(running)
+        running.add(jobid)
+    assert overlapped > 0      # the other jobs did run two at a time: the check can fail
 
 
 def test_every_result_has_provenance(tiny_run):

@@ -325,14 +325,17 @@ def test_studies_declare_their_outputs_once():
     assert "results/" not in smk          # every path comes from workflows/studies.py
 
 
-def test_slurm_profile_dry_run_plans_every_job_with_its_resources():
+@pytest.mark.parametrize("scale", ["quick", "huge"])
+def test_slurm_profile_dry_run_plans_every_job_with_its_resources(scale):
     """Under workflows/profiles/slurm (the executor plugin is in the test extra) a dry run
     plans every job; each heavy rule's jobs carry the mem_mb and runtime its config
-    declares, every other job the profile's defaults."""
+    declares, every other job the profile's defaults. ``huge`` is the scale meant for
+    a cluster (issue 26's acceptance command)."""
     from workflows.studies import HEAVY_RULES
 
-    config = yaml.safe_load((ROOT / "workflows/config/quick.yaml").read_text())
-    out = snakemake("-n", "--forceall", "--profile", "workflows/profiles/slurm")
+    config = yaml.safe_load((ROOT / f"workflows/config/{scale}.yaml").read_text())
+    out = snakemake("-n", "--forceall", "--profile", "workflows/profiles/slurm",
+                    "--configfile", f"workflows/config/{scale}.yaml")
     assert out.returncode == 0, (out.stdout + out.stderr)[-3000:]
     jobs = re.findall(r"^rule (\w+):\n(.*?)(?=^\[|\Z)", out.stdout, flags=re.M | re.S)
     counts = dict(re.findall(r"^(\w+)\s+(\d+)$", out.stdout, flags=re.M))
@@ -354,9 +357,29 @@ def test_every_heavy_rule_has_a_benchmark_and_measured_resources():
         text = next(t for t in smk.values() if f"rule {rule}:" in t)
         block = text.split(f"rule {rule}:")[1].split("\nrule ")[0]
         assert f'bench_path("{rule}"' in block and f'rule_resources(config, "{rule}")' in block
-    for scale in ("tiny", "quick", "full"):
+    for scale in ("tiny", "quick", "full", "huge"):
         config = yaml.safe_load((ROOT / f"workflows/config/{scale}.yaml").read_text())
         check_config(config)                         # a configured study needs its resources
         config["resources"].pop("contact_level")
         with pytest.raises(ConfigError, match="'resources.contact_level'"):
             check_config(config)
+    config["resources"]["contact_levels"] = {"mem_mb": 100, "runtime": 1}
+    with pytest.raises(ConfigError, match="'resources.contact_levels': not a heavy rule"):
+        check_config(config)
+
+
+def test_timing_rules_take_the_whole_machine_share():
+    """"Run alone" is a named resource, not ``threads: 2``: the local profile provides
+    the share, every job takes 1 by default and a timing rule all of it."""
+    from workflows.studies import MACHINE_SHARE, RUNS_ALONE
+
+    name, whole = MACHINE_SHARE
+    profile = yaml.safe_load((ROOT / "workflows/profiles/default/config.yaml").read_text())
+    assert profile["resources"][name] == whole and profile["default-resources"][name] == 1
+    out = snakemake("-n", "--forceall", "--profile", "workflows/profiles/default")
+    assert out.returncode == 0, (out.stdout + out.stderr)[-3000:]
+    jobs = re.findall(r"^rule (\w+):\n(.*?)(?=^\[|\Z)", out.stdout, flags=re.M | re.S)
+    shares = {rule: int(re.search(rf"{name}=(\d+)", block)[1]) for rule, block in jobs}
+    assert RUNS_ALONE <= set(shares)
+    assert all((share == whole) == (rule in RUNS_ALONE) for rule, share in shares.items()), shares
+    assert not any("threads:" in p.read_text() for p in (ROOT / "workflows").glob("*.smk"))

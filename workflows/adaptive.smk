@@ -1,7 +1,7 @@
 # Study adaptive (thesis Sects. 7.3-7.5): adaptive runs per variant from each scene's start
 # level, Tables 9.2/9.4 beside the thesis, Figs. 7.3/7.4, 9.2/9.4/9.7, accuracy per node
 # against a common finer reference (2D), the pile-up quantified; and the contact patch test.
-# The study times Alg. 8.4 (Tables 9.2/9.4), so it runs alone (threads: 2).
+# The study times Alg. 8.4 (Tables 9.2/9.4), so it runs alone (studies.RUNS_ALONE).
 # Paths: workflows/studies.py.
 AD = config.get("adaptive", {})
 AD_VARIANTS = AD.get("variants", [])
@@ -16,7 +16,6 @@ rule adaptive_study:
     log: log_path("adaptive_study")
     benchmark: bench_path("adaptive_study")
     resources: **rule_resources(config, "adaptive_study")
-    threads: 2
     conda: ENV
     params:
         py=PY, scene=lambda w: set_args(config, w.scene),

@@ -1,5 +1,5 @@
 # Study augmented_projection: the thesis's solver (Alg. 8.4) level by level in one process,
-# alone on the machine (threads: 2 keeps snakemake from running anything beside it), with
+# alone on the machine (studies.RUNS_ALONE: nothing runs beside it), with
 # the multigrid-PCG linear solve as the floor; the thesis's table beside ours.
 AP = config.get("augmented_projection", {})
 
@@ -8,7 +8,6 @@ rule augmented_projection_study:
     log: log_path("augmented_projection_study")
     benchmark: bench_path("augmented_projection_study")
     resources: **rule_resources(config, "augmented_projection_study")
-    threads: 2
     conda: ENV
     params:
         py=PY, scene=lambda w: set_args(config, w.scene),

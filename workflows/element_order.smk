@@ -6,7 +6,6 @@ rule element_order_study:
     log: log_path("element_order_study")
     benchmark: bench_path("element_order_study")
     resources: **rule_resources(config, "element_order_study")
-    threads: 2  # timings: nothing else runs beside it
     conda: ENV
     params:
         py=PY, scene=lambda w: set_args(config, w.scene),

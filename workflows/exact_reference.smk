@@ -1,5 +1,5 @@
 # Study exact_reference: the suite's exact reference two ways on each configured scene, one
-# process, one solve after the other (threads: 2 keeps snakemake from running anything
+# process, one solve after the other (studies.RUNS_ALONE: snakemake runs nothing
 # beside it). Paths: workflows/studies.py.
 
 rule exact_reference:
@@ -7,7 +7,6 @@ rule exact_reference:
     log: log_path("exact_reference")
     benchmark: bench_path("exact_reference")
     resources: **rule_resources(config, "exact_reference")
-    threads: 2
     conda: ENV
     params: py=PY, scene=lambda w: set_args(config, w.scene), levels=lambda w: exact_args(config, w.scene)
     shell:

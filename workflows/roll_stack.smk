@@ -1,6 +1,6 @@
 # Study roll_stack: the roll stack of thesis Sect. 9.3 (Figs. 9.10-9.16) at one level, both
 # strip forces, crowned and cylindrical work rolls, and the solvers on the scene at coarser
-# levels; one process (threads: 2 keeps snakemake from running anything beside it, so the
+# levels; one process (studies.RUNS_ALONE: snakemake runs nothing beside it, so the
 # recorded times are comparable). Paths: workflows/studies.py.
 
 rule roll_stack_study:
@@ -12,7 +12,6 @@ rule roll_stack_study:
     log: log_path("roll_stack_study")
     benchmark: bench_path("roll_stack_study")
     resources: **rule_resources(config, "roll_stack_study")
-    threads: 2
     conda: ENV
     params:
         py=PY, scene=lambda w: set_args(config, w.scene), args=lambda w: roll_args(config, w.scene),

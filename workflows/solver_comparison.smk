@@ -13,7 +13,6 @@ rule solver_comparison:
     benchmark: bench_path("solver_comparison", "{scene}_L{level}")
     resources: **rule_resources(config, "solver_comparison")
     wildcard_constraints: level=r"\d+"
-    threads: 2  # timings: nothing else runs beside it
     conda: ENV
     params:
         py=PY, scene=lambda w: set_args(config, w.scene), limit=SC["time_limit"],

@@ -575,6 +575,10 @@ def check_config(config: dict) -> None:
     _check_incompressibility(config, registry)
     _check_element_order(config, registry)
     _check_test_set(config)
+    unknown = sorted(set(config.get("resources", {})) - set(HEAVY_RULES))
+    if unknown:
+        raise ConfigError(f"config 'resources.{unknown[0]}': not a heavy rule; allowed: "
+                          f"{', '.join(sorted(HEAVY_RULES))}")
     for rule, study in HEAVY_RULES.items():
         if study in config and not {"mem_mb", "runtime"} <= set(
                 config.get("resources", {}).get(rule, {})):
@@ -779,13 +783,32 @@ HEAVY_RULES = {
 }
 
 
+#: The heavy rules that time solvers, so that nothing may run beside them on the machine.
+RUNS_ALONE = frozenset({"solver_comparison", "augmented_projection_study", "exact_reference",
+                        "test_set_runs", "adaptive_study", "roll_stack_study",
+                        "element_order_study"})
+
+#: "Run alone" as a named resource: the local profile provides ``machine_share=100``
+#: and gives every job 1 by default; a rule of :data:`RUNS_ALONE` takes all 100, so
+#: Snakemake starts nothing beside it, however many cores it is given. On a cluster
+#: (no global share) such a job asks for :data:`ALONE_CPUS` CPUs of its own instead.
+MACHINE_SHARE = ("machine_share", 100)
+ALONE_CPUS = 2
+
+
 def rule_resources(config: dict, rule: str) -> dict:
     """``resources:`` of a heavy rule: ``mem_mb`` and ``runtime`` (minutes) from the
     config's ``resources`` section, measured per scale from the rules' benchmark files
-    (``check_config`` requires them for every configured study; empty otherwise)."""
+    (``check_config`` requires them for every configured study; empty otherwise), and
+    for a rule of :data:`RUNS_ALONE` the whole :data:`MACHINE_SHARE` and
+    ``cpus_per_task`` (the Slurm executor's CPUs per job)."""
     if rule not in HEAVY_RULES:
         raise KeyError(f"rule {rule!r} is not a heavy rule; allowed: {sorted(HEAVY_RULES)}")
-    return dict(config.get("resources", {}).get(rule, {}))
+    declared = dict(config.get("resources", {}).get(rule, {}))
+    if rule in RUNS_ALONE:
+        name, whole = MACHINE_SHARE
+        declared.update({name: whole, "cpus_per_task": ALONE_CPUS})
+    return declared
 
 
 def summary_items(config: dict) -> str:

@@ -24,7 +24,6 @@ rule test_set_runs:
     log: log_path("test_set_runs", "{set}_{size_class}_{scene}")
     benchmark: bench_path("test_set_runs", "{set}_{size_class}_{scene}")
     resources: **rule_resources(config, "test_set_runs")
-    threads: 2  # timings: nothing else runs beside it
     conda: ENV
     params:
         py=PY, presets=" ".join(TS.get("presets", [])), limit=TS.get("time_limit"),

@@ -334,6 +334,8 @@ def adaptive_loop(make_scene: Callable, meshes, solve: SolveCallback, *,
         elif step == max_steps:
             reason = "max_steps"
         marked = np.zeros(len(eta_sq), dtype=bool) if reason else np.asarray(marking(eta_sq))
+        if run.qps:      # a finished step's factorisations and solvers are not used again
+            run.qps[-1].cache = type(qp.cache)()
         run.qps.append(qp)
         run.solutions.append((u, p))
         run.estimates.append(est)

@@ -106,6 +106,22 @@ def exact_solve(qp: ContactQP, u0=None, p0=None, tol: float = 1e-8,
                  accelerate="face_cg")
 
 
+def release_steps(run, compared_max_nodes: int | None) -> None:
+    """Free what a finished run no longer needs: the problems of its steps beyond the
+    accuracy comparison (``compared_max_nodes``; None: no comparison) except the last
+    (its fields are written), and the shared work (factorisations, linear solvers)
+    cached on every problem. A full-scale 3D run holds ~15 steps of up to 100k
+    nodes; three variants kept whole would not fit the 16 GB budget (issue 26)."""
+    last = len(run.qps) - 1
+    for i, (rec, qp) in enumerate(zip(run.records, run.qps)):
+        if qp is None:
+            continue
+        qp.cache = type(qp.cache)()
+        if i != last and not (compared_max_nodes is not None
+                              and (rec.N <= compared_max_nodes or i == 0)):
+            run.qps[i] = None
+
+
 def table_solve(qp: ContactQP, u0, p0, tol: float, time_limit: float):
     """The thesis's columns of Alg. 8.4 (``alg84``) on this step, then the step's solution.
 
@@ -404,6 +420,7 @@ def run_study(spec, params, start_level: int, variants: list[str], max_nodes: in
                    **contact_measures(qp, u, p)}
             rows.append(row)
         finals[variant] = (run.qps[-1], *run.solutions[-1])
+        release_steps(run, error_max_nodes if uniform_levels else None)
 
     # ---------------------------------------------------------------- accuracy (2D)
     if uniform_levels:
