@@ -11,6 +11,7 @@ import sys
 from snakemake.utils import validate
 
 from workflows.io import sweep_results
+from workflows.progress import clear as clear_progress, start_reporter
 from workflows.settings import SCHEMA
 
 from workflows.studies import (PATHS, adaptive_args, adaptive_variant_file, all_targets,
@@ -37,6 +38,11 @@ shell.prefix(f"export CONTACTBENCH_CONFIGFILE={','.join(map(str, workflow.config
              f"CONTACTBENCH_CONFIG_SHA256={CONFIG_SHA256}; ")
 for removed in sweep_results("results"):
     print(f"removed a corrupted or partial result, to be rebuilt: {removed}", file=sys.stderr)
+
+# one line per running study every minute (which job, how far, the declared runtime)
+onstart:
+    clear_progress()
+    start_reporter()
 
 # the configuration's name(s), e.g. "quick", for the summary page
 SCALE = "+".join(os.path.splitext(os.path.basename(str(f)))[0]

@@ -118,6 +118,7 @@ PROBLEM = ProblemSpec(
             "(thesis Sect. 9.2, Table 9.3)",
     kind="contact",
     levels=(0, 4),
+    dim=3,
     default_level=1,
     parameters=(
         Parameter("radius", 0.866, "ball radius", low=0.1, high=5.0),

@@ -348,6 +348,7 @@ PROBLEM = ProblemSpec(
             "model (thesis Sect. 9.3, Figs. 9.10-9.16)",
     kind="contact",
     levels=(0, 4),
+    dim=3,
     default_level=0,
     parameters=(
         Parameter("force", 15e6, "strip force on the whole work roll, N", low=2e6, high=1e8),

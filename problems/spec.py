@@ -295,6 +295,9 @@ class ProblemSpec:
         e.g. the Laplace problem of Ch. 6) and any QP solver is meaningless.
     levels : tuple[int, int]
         Smallest and largest admissible refinement level.
+    dim : int
+        Spatial dimension: one uniform level multiplies the nodes by about ``2**dim``
+        (the resource planner, ``workflows/planning.py``, reads it).
     parameters : tuple[Parameter, ...]
         Scene parameters (declared here once), overridable from the CLI.
     build : callable
@@ -314,6 +317,7 @@ class ProblemSpec:
     levels: tuple[int, int]
     parameters: tuple[Parameter, ...]
     build: Callable[..., Any]
+    dim: int = 2
     default_level: int = 1
     thesis_tables: dict = field(default_factory=dict)
 

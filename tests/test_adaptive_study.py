@@ -320,3 +320,27 @@ def test_bound_weight_follows_the_thesis_bound(tmp_path):
     first = s.sort_values("step").iloc[0]
     assert first["eta2_weight"] == pytest.approx(pstar / np.sqrt(first["sum_eta2_sq"]), rel=1e-6)
     assert s["eta2_weight"].nunique() > 1                  # chosen anew at every step
+
+
+@pytest.mark.parametrize("problem, coupling", [("circle_square", "nodal"),
+                                               ("cube_sphere", "stabilised")])
+def test_the_iterative_exact_solve_is_verified_and_agrees_with_the_direct_one(
+        problem, coupling, monkeypatch):
+    """Beyond the direct limit (here forced: limit 0) a variant's step is solved by
+    Alg. 8.4 with the multilevel S-hat to verified KKT <= tol, tightening its own stop
+    until the certified energy bound agrees (the stabilised rows need it); it matches
+    PDAS's answer."""
+    from problems.fem.stabilised import stabilise
+    from problems.kkt import energy_error
+    from problems.spec import problems
+    from workflows.scripts import adaptive_study as ad
+
+    qp = problems()[problem].make(1)
+    if coupling == "stabilised":
+        qp = stabilise(qp, 1.0, 1.0)
+    exact = ad.exact_solve(qp, tol=1e-8)
+    assert exact.solver == "pdas" and exact.status == "converged"
+    monkeypatch.setattr(ad, "DIRECT_REFERENCE_LIMIT", {})
+    res = ad.exact_solve(qp, tol=1e-8, time_limit=300)
+    assert res.status == "converged" and res.kkt.max <= 1e-8 and res.gap.meets(1e-8)
+    assert energy_error(qp, res.u, exact.u) < 1e-6

@@ -31,7 +31,6 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from tqdm import tqdm
 
 from problems.kkt import energy_error, kkt_residuals
 from solvers import augmented_projection as ap
@@ -40,6 +39,7 @@ from solvers.interface import solve, verify
 from solvers.reference import reference_solve
 from workflows.io import atomic_path, check_result, write_csv
 from workflows.measure import amg_pcg_floor, input_mb, linear_solution, traced_peak_mb
+from workflows.progress import study_progress
 from workflows.scene_args import add_scene_arguments, check_levels, scene_from_args
 
 
@@ -261,7 +261,8 @@ def main(argv=None) -> None:
     steps = ["reference", *args.configs, *([] if args.no_newton else [NEWTON]),
              *([] if args.no_tnnmg else TNNMG),
              *([] if args.no_floor else ["floor"])]
-    progress = tqdm(total=len(levels) * len(steps), desc=f"augmented projection on {spec.name}")
+    progress = study_progress(total=len(levels) * len(steps), rule="augmented_projection_study",
+                              out=args.out, desc=f"augmented projection on {spec.name}")
     for level in levels:
         progress.set_postfix_str(f"level {level}: building, reference")
         qp = spec.build(level, params)

@@ -31,7 +31,6 @@ import time
 
 import numpy as np
 import pandas as pd
-from tqdm import tqdm
 
 from problems.fem.accuracy import interpolation_matrix
 from problems.fem.fields import hertz_comparison
@@ -40,6 +39,7 @@ from problems.spec import ParameterError, problems
 from solvers.interface import solve
 from solvers.reference import reference_solve
 from workflows.io import write_csv
+from workflows.progress import study_progress
 from workflows.scene_args import add_scene_arguments, check_levels, parse_sets, scene_from_args
 
 
@@ -123,7 +123,8 @@ def main(argv=None) -> None:
              "solver": ref_res.solver, "t_solve": t_ref}]
     cases = [(1, level) for level in sorted(set(levels) | {max(levels) + 1})]
     cases += [(2, level) for level in sorted(set(levels))]
-    for degree, level in tqdm(cases, desc=f"{scene} P1/P2", unit="solve"):
+    for degree, level in study_progress(cases, rule="element_order_study", out=args.out,
+                                        desc=f"{scene} P1/P2", unit="solve"):
         row = run(spec, params, level, degree, ref, u_ref_full, A_ref, args.time_limit)
         rows.append({**row, "role": "compared", "solver": "augmented_projection"})
     out = pd.DataFrame(rows)

@@ -21,12 +21,12 @@ import time
 
 import numpy as np
 import pandas as pd
-from tqdm import tqdm
 
 from problems.kkt import energy_error
 from solvers.interface import solve
 from workflows.io import write_csv
 from workflows.measure import peak_rss
+from workflows.progress import study_progress
 from workflows.scene_args import add_scene_arguments, check_levels, scene_from_args
 
 METHODS = ("schur", "kkt")
@@ -65,7 +65,8 @@ def main(argv=None) -> None:
     if args.time_limit <= 0:
         parser.error(f"argument --time-limit: {args.time_limit} is not allowed; allowed: > 0")
     rows = []
-    for level in tqdm(levels, desc=f"exact reference on {spec.name}"):
+    for level in study_progress(levels, rule="exact_reference", out=args.out,
+                                desc=f"exact reference on {spec.name}"):
         qp = spec.build(level, params)
         base = {"scene_problem": spec.name, "level": level, "n": qp.n, "m": qp.m,
                 "N": qp.n_nodes}

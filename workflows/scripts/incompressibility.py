@@ -32,6 +32,7 @@ from tqdm import tqdm
 from problems.spec import ParameterError, problems
 from solvers.interface import solve
 from workflows.io import write_csv
+from workflows.progress import study_progress
 
 #: The two configurations of the table: the solver's defaults, and the thesis's pair.
 VARIANTS = {"robust": {}, "vcycle": {"ahat.degree": 1, "schur": "multilevel"}}
@@ -84,7 +85,9 @@ def main(argv=None) -> None:
             parser.error(str(err).replace("parameter 'nu1'", "argument --nus")
                          .replace("parameter 'level'", "argument --level"))
     rows = []
-    for name, level, nu, params in tqdm(cases, desc="incompressibility", unit="scene"):
+    for name, level, nu, params in study_progress(
+            cases, rule="hard_cases_incompressibility", out=args.out, desc="incompressibility",
+            unit="scene"):
         qp = registry[name].build(level, params)
         for variant in VARIANTS:
             row = run(qp, variant, args.max_iter, args.time_limit)

@@ -8,10 +8,10 @@ import argparse
 import time
 
 import pandas as pd
-from tqdm import tqdm
 
 from problems.laplace_nonmatching import CASES, VARIANTS, solve
 from workflows.io import write_csv
+from workflows.progress import study_progress
 
 
 def main(argv=None) -> None:
@@ -24,7 +24,9 @@ def main(argv=None) -> None:
     args = ap.parse_args(argv)
     rows = []
     jobs = [(v, L) for v in VARIANTS for L in args.levels]
-    for variant, level in tqdm(jobs, desc=f"laplace {args.case}/{args.constrained}", unit="solve"):
+    for variant, level in study_progress(jobs, rule="laplace_errors", out=args.out,
+                                          desc=f"laplace {args.case}/{args.constrained}",
+                                          unit="solve"):
         t0 = time.perf_counter()
         sol = solve(level, case=args.case, variant=variant, ratio=args.ratio,
                     constrained=args.constrained)

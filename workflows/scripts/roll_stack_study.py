@@ -46,6 +46,7 @@ from __future__ import annotations
 
 import argparse
 import gc
+import sys
 import time
 from pathlib import Path
 
@@ -62,15 +63,23 @@ from reference.hertz import effective_modulus, two_cylinders
 from solvers.interface import solve, solvers
 from workflows.io import write_csv, write_vtu
 from workflows.measure import peak_rss
+from workflows.progress import study_progress
 from workflows.scene_args import add_scene_arguments, check_levels, scene_from_args
 
 #: Verified KKT tolerance of the study's solves (the reference's).
 TOL = 1e-10
 
 
+#: The running study's bar (:mod:`workflows.progress`), set by :func:`main`.
+_PROGRESS: list = []
+
+
 def log(msg: str) -> None:
-    """Progress on stdout (the rule's log)."""
+    """Progress on stdout (the rule's log) and on the console's progress line."""
     print(f"[{time.strftime('%H:%M:%S')}] {msg}", flush=True)
+    for bar in _PROGRESS:
+        bar.set_postfix_str(msg[:120])
+        bar.update()
 
 
 def work_roll_weight(points: np.ndarray, cells: np.ndarray, body_of_node: np.ndarray,
@@ -330,6 +339,8 @@ def main(argv=None) -> None:
         parser.error(str(err).replace("parameter 'force'", "argument --forces").replace(
             "parameter 'crown'", "argument --crowns"))
     out = Path(args.outdir)
+    _PROGRESS[:] = [study_progress(rule="roll_stack_study", out=out / "roll_stack_runs.csv",
+                                   desc="roll stack", unit="step", file=sys.stderr)]
     rows, profiles, contacts = [], [], []
     for p in cases:
         tag = f"F = {p.force / 1e6:g} MN, crown {p.crown * 1e6:g} um"
@@ -377,6 +388,7 @@ def main(argv=None) -> None:
                  "setup_time", "solve_time", "wall_time", "kkt_max", "energy_bound", "message",
                  *ALG84_STATS]))
     log("done")
+    _PROGRESS.pop().close()
 
 
 if __name__ == "__main__":

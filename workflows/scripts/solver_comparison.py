@@ -29,7 +29,6 @@ import time
 
 import numpy as np
 import pandas as pd
-from tqdm import tqdm
 
 from problems.kkt import energy_error
 from solvers.interface import TOLERANCES, SolveResult, solvers
@@ -37,6 +36,7 @@ from solvers.reference import reference_solve
 from workflows.io import read_csv, write_csv
 from workflows.isolation import solve_isolated
 from workflows.measure import amg_pcg_floor, linear_solution
+from workflows.progress import study_progress
 from workflows.scene_args import add_scene_arguments, check_levels, scene_from_args
 
 
@@ -87,8 +87,9 @@ def main(argv=None) -> None:
     coarser = [read_csv(f) for f in args.coarser]
     given_up = {**predicted_beyond_the_limit(coarser, level, qp.n, args.time_limit),
                 **gave_up_at_coarser_levels(coarser, level)}
-    for solver, preset in tqdm([(s, p) for s in names for p in args.presets],
-                               desc=f"solvers on {qp.name}"):
+    for solver, preset in study_progress([(s, p) for s in names for p in args.presets],
+                                        rule="solver_comparison", out=args.out,
+                                        desc=f"solvers on {qp.name}"):
         t0 = time.perf_counter()
         if (solver, preset) in given_up:
             res = skipped_result(qp, solver, preset, given_up[solver, preset])

@@ -27,7 +27,6 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import scipy.sparse.linalg as spla
-from tqdm import tqdm
 
 from problems.kkt import energy_error
 from solvers.interface import TOLERANCES, solvers
@@ -35,6 +34,7 @@ from workflows.export import load_problem, objective, qp_arrays
 from workflows.io import write_csv
 from workflows.isolation import solve_batch_isolated
 from workflows.measure import multiplier_errors
+from workflows.progress import study_progress
 from workflows.test_set import TestSetError, check_class, load
 
 #: Largest relative difference between a rebuilt problem and its exported arrays.
@@ -116,7 +116,8 @@ def main(argv=None) -> None:
         parser.error(f"argument --solvers: unknown {unknown}; allowed: {', '.join(registry)}")
     names = args.solvers or list(registry)
     rows = []
-    for item in tqdm(items, desc=f"{args.family} ({args.size_class})"):
+    for item in study_progress(items, rule="test_set_runs", out=args.out,
+                               desc=f"{args.family} ({args.size_class})"):
         rows += run_problem(item, Path(args.export) / item.name, names, args.presets,
                             args.time_limit)
     write_csv(args.out, pd.DataFrame(rows))
