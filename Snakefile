@@ -1,6 +1,6 @@
 # Regenerates every table and figure of the suite.
 #   snakemake --cores 2                                           (quick scale, minutes)
-#   snakemake --cores 2 --configfile workflows/config/full.yaml   (the thesis's sizes, hours)
+#   snakemake --cores 2 --configfile workflows/config/full.yaml   (the thesis's sizes, ~1.5 h)
 # Studies, their outputs and every path template are declared once in workflows/studies.py;
 # each study's rules live in workflows/<study>.smk and run on the scenes its config lists.
 import hashlib

@@ -47,6 +47,7 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 from matplotlib.tri import Triangulation  # noqa: E402
 
+from report.claims import Claim  # noqa: E402
 from report.figures import save_figure  # noqa: E402
 from report.rates import fitted_slope  # noqa: E402
 from workflows.io import write_csv  # noqa: E402
@@ -528,47 +529,55 @@ def figure_pressure(steps: pd.DataFrame, surfaces: dict, path: str) -> None:
 
 
 # --------------------------------------------------------------------------- patch test
+#: The adaptive study's claims (report/claims.py).
+CLAIMS = {
+    "node_saving": Claim("Sect. 7.4, issue 9", "adaptive {variant}: nodes saved for the energy "
+                         "error of uniform N = {N}", ">=", 3.0),
+    "pileup": Claim("Figs. 7.3/7.4", "eta_2 removes the pile-up (Figs. 7.3/7.4): opposing / "
+                    "constrained surface nodes in the contact zone at {at}", "given",
+                    "eta1+eta2 < eta1"),
+    "zigzag": Claim("Fig. 7.5", "the stabilisation (7.10) smooths the nodal pressure (Fig. 7.5, "
+                    "both marked by eta_1): zig-zag rms / p0 at {at}", "given",
+                    "stabilised < eta1"),
+    "patch_mortar": Claim("Ch. 6 (mortar: the patch test passes)", "patch test, mortar "
+                          "coupling: transmits the uniform pressure", "<", 1e-8),
+    "patch_nodal": Claim("Ch. 6 (nodal constraints on non-matching meshes)", "patch test, "
+                         "nodal coupling: cannot transmit it on non-matching meshes (Ch. 6)",
+                         ">=", 1e-3),
+    "patch_stabilised": Claim("Sect. 7.5", "patch test, stabilised coupling (Sect. 7.5): the "
+                              "pressure deviation shrinks under refinement (smallest fitted "
+                              "rate in h over both constrained sides; the penalty grows like "
+                              "h^-2alpha)", ">", 0.25),
+}
+
+
 def claims(accuracy: pd.DataFrame | None = None, pileup: pd.DataFrame | None = None,
            patch: pd.DataFrame | None = None) -> pd.DataFrame:
-    """The adaptive study's claims, measured (claim, measured, bar, pass): adaptivity
-    saves nodes (issue 9: at least 3x for the uniform finest level's energy error),
-    eta_2 removes the pile-up of Fig. 7.3, and the contact patch test."""
+    """The adaptive study's claims, measured (claim, thesis, measured, bar, pass):
+    adaptivity saves nodes (issue 9: at least 3x for the uniform finest level's energy
+    error), eta_2 removes the pile-up of Fig. 7.3, and the contact patch test."""
     rows = []
     if accuracy is not None and "node_saving_factor" in accuracy:
         for _, r in accuracy.dropna(subset=["node_saving_factor"]).iterrows():
-            rows.append({"claim": f"adaptive {r.variant}: nodes saved for the energy error of "
-                                  f"uniform N = {int(r.uniform_N)}",
-                         "measured": float(r.node_saving_factor), "bar": ">= 3",
-                         "pass": bool(r.node_saving_factor >= 3.0)})
+            rows.append(CLAIMS["node_saving"].row(float(r.node_saving_factor), variant=r.variant,
+                                                  N=int(r.uniform_N)))
     if pileup is not None and {"variant", "zone_ratio"} <= set(pileup.columns):
         common = pileup[pileup["at"].astype(str).str.startswith("N ~")]   # comparable N
-        for column, worse, better, claim in (
-                ("zone_ratio", "eta1", "eta1+eta2", "eta_2 removes the pile-up (Figs. 7.3/7.4): "
-                 "opposing / constrained surface nodes in the contact zone"),
-                ("zigzag_rms", "eta1", "stabilised", "the stabilisation (7.10) smooths the nodal "
-                 "pressure (Fig. 7.5, both marked by eta_1): zig-zag rms / p0")):
+        for column, worse, better, key in (("zone_ratio", "eta1", "eta1+eta2", "pileup"),
+                                           ("zigzag_rms", "eta1", "stabilised", "zigzag")):
             v = common.groupby("variant")[column].last() if column in common else pd.Series()
             if {worse, better} <= set(v.index):
-                rows.append({"claim": f"{claim} at {common['at'].iloc[0]}",
-                             "measured": f"{worse} {v[worse]:.3f}, {better} {v[better]:.3f}",
-                             "bar": f"{better} < {worse}", "pass": bool(v[better] < v[worse])})
+                rows.append(CLAIMS[key].row(f"{worse} {v[worse]:.3f}, {better} {v[better]:.3f}",
+                                            passed=v[better] < v[worse], at=common["at"].iloc[0]))
     if patch is not None and len(patch):
-        for coupling, expect in (("mortar", True), ("nodal", False)):
+        for coupling in ("mortar", "nodal"):
             g = patch[patch.coupling == coupling]
             if len(g):
-                worst = float(g["dev_max_finest"].abs().max())
-                rows.append({"claim": f"patch test, {coupling} coupling: "
-                                      + ("transmits the uniform pressure" if expect else
-                                         "cannot transmit it on non-matching meshes (Ch. 6)"),
-                             "measured": worst, "bar": "< 1e-8" if expect else ">= 1e-3",
-                             "pass": bool(worst < 1e-8) if expect else bool(worst >= 1e-3)})
+                rows.append(CLAIMS[f"patch_{coupling}"].row(
+                    float(g["dev_max_finest"].abs().max())))
         g = patch[patch.coupling == "stabilised"]
         if len(g) and g["rate_h_dev_rms"].notna().all():
-            rate = float(g["rate_h_dev_rms"].min())
-            rows.append({"claim": "patch test, stabilised coupling (Sect. 7.5): the pressure "
-                                  "deviation shrinks under refinement (smallest fitted rate in h "
-                                  "over both constrained sides; the penalty grows like h^-2alpha)",
-                         "measured": rate, "bar": "> 0.25", "pass": bool(rate > 0.25)})
+            rows.append(CLAIMS["patch_stabilised"].row(float(g["rate_h_dev_rms"].min())))
     return pd.DataFrame(rows)
 
 

@@ -23,6 +23,7 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 from matplotlib.tri import Triangulation  # noqa: E402
 
+from report.claims import Claim  # noqa: E402
 from report.figures import save_figure  # noqa: E402
 from workflows.io import read_checked, read_csv, write_csv  # noqa: E402
 
@@ -38,26 +39,32 @@ HERTZ_BAR = 0.05
 HERTZ_MODEL_FLOOR = 0.015
 
 
+#: The Hertz claims of Sects. 9.1/9.2 (report/claims.py).
+CLAIMS = {
+    "hertz_finest": Claim("Sects. 9.1/9.2", "Hertz {name}: relative deviation at the finest "
+                          "level (level {level}, a/h = {a_over_h:.1f})", "|<=|", HERTZ_BAR),
+    "hertz_trend": Claim("Sects. 9.1/9.2", "Hertz {name}: deviation falls under refinement "
+                         "(level {first_level} -> {level}) or is at Hertz's model floor",
+                         "given", f"|finest| < |coarsest| or |finest| <= {HERTZ_MODEL_FLOOR}"),
+}
+
+
 def claims(hertz: pd.DataFrame) -> pd.DataFrame:
-    """Hertz at the finest level and its trend (claim, measured, bar, pass): the contact
-    half-width and peak pressure from the pressure's moments (Sects. 9.1/9.2)."""
+    """Hertz at the finest level and its trend (claim, thesis, measured, bar, pass): the
+    contact half-width and peak pressure from the pressure's moments (Sects. 9.1/9.2)."""
     h = hertz.sort_values("level")
     f = h.iloc[-1]
     rows = []
     for col, name in (("dev_a_moment", "half-width a"), ("dev_p0_moment", "peak pressure p0")):
         dev = float(f[col])
-        rows.append({"claim": f"Hertz {name}: relative deviation at the finest level "
-                              f"(level {int(f.level)}, a/h = {f.a_over_h:.1f})",
-                     "measured": dev, "bar": f"|.| <= {HERTZ_BAR}",
-                     "pass": bool(abs(dev) <= HERTZ_BAR)})
+        rows.append(CLAIMS["hertz_finest"].row(dev, name=name, level=int(f.level),
+                                               a_over_h=f.a_over_h))
         if len(h) >= 2:
             first = float(h[col].iloc[0])
-            rows.append({"claim": f"Hertz {name}: deviation falls under refinement "
-                                  f"(level {int(h.level.iloc[0])} -> {int(f.level)}) or is at "
-                                  "Hertz's model floor",
-                         "measured": f"{first:+.3f} -> {dev:+.3f}",
-                         "bar": f"|finest| < |coarsest| or |finest| <= {HERTZ_MODEL_FLOOR}",
-                         "pass": bool(abs(dev) < abs(first) or abs(dev) <= HERTZ_MODEL_FLOOR)})
+            rows.append(CLAIMS["hertz_trend"].row(
+                f"{first:+.3f} -> {dev:+.3f}",
+                passed=abs(dev) < abs(first) or abs(dev) <= HERTZ_MODEL_FLOOR,
+                name=name, first_level=int(h.level.iloc[0]), level=int(f.level)))
     return pd.DataFrame(rows)
 
 

@@ -25,6 +25,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
+from report.claims import Claim  # noqa: E402
 from report.figures import save_figure  # noqa: E402
 from report.rates import fitted_slope  # noqa: E402
 from workflows.io import read_csv, write_csv  # noqa: E402
@@ -40,43 +41,48 @@ def slope(x, y) -> float:
     return fitted_slope(x, y, last=len(x))
 
 
+#: The element-order study's claims (report/claims.py).
+CLAIMS = {
+    "converged": Claim("issue 25", "{scene}: Alg. 8.4 verified converged on every P1 and P2 "
+                       "level", "given", "all"),
+    "rate": Claim("Remark 7.11", "{scene}: P{deg} energy error ~ N^rate (fitted)"),
+    "p2_over_p1": Claim("Remark 7.11", "{scene}: P2 energy error over P1's at N = {N}"),
+    "hertz": Claim("Sects. 9.1/9.2", "{scene}: P2 level {level} contact half-width and peak "
+                   "pressure against Hertz (|deviation|)", "<=", HERTZ_BAR),
+    "n_outer": Claim("Sect. 8.6, issue 25", "{scene}: Alg. 8.4 on P2, n_o over the last two "
+                     "levels", "<=", N_OUTER_GROWTH_BAR),
+    "time": Claim("Example 8.1, issue 25", "{scene}: Alg. 8.4 on P2, fitted solve-time "
+                  "exponent against N (last three levels)", "<=", TIME_EXPONENT_BAR),
+}
+
+
 def claims(t: pd.DataFrame) -> pd.DataFrame:
     """The claims of the module docstring, per scene."""
     rows = []
     for scene, g in t[t.role == "compared"].groupby("scene", sort=True):
         ok = int((g.status == "converged").sum())
-        rows.append({"claim": f"{scene}: Alg. 8.4 verified converged on every P1 and P2 level",
-                     "measured": f"{ok} of {len(g)}", "bar": "all", "pass": ok == len(g)})
+        rows.append(CLAIMS["converged"].row(f"{ok} of {len(g)}", passed=ok == len(g),
+                                            scene=scene))
         c = g[g.status == "converged"]
         for deg in (1, 2):
             h = c[c.degree == deg].sort_values("N")
-            rows.append({"claim": f"{scene}: P{deg} energy error ~ N^rate (fitted)",
-                         "measured": slope(h.N, h.err_energy), "bar": "-", "pass": None})
+            rows.append(CLAIMS["rate"].row(slope(h.N, h.err_energy), scene=scene, deg=deg))
         p1, p2 = c[c.degree == 1], c[c.degree == 2].sort_values("N")
         if len(p2):
             top = p2.iloc[-1]
             same = p1[p1.N == top.N]
             if len(same):
-                rows.append({"claim": f"{scene}: P2 energy error over P1's at N = {int(top.N)}",
-                             "measured": float(top.err_energy / same.err_energy.iloc[0]),
-                             "bar": "-", "pass": None})
+                rows.append(CLAIMS["p2_over_p1"].row(
+                    float(top.err_energy / same.err_energy.iloc[0]), scene=scene, N=int(top.N)))
             worst = float(np.max(np.abs([top.get("dev_a", np.nan), top.get("dev_p0", np.nan)])))
             if np.isfinite(worst):     # scenes with a Hertz reference
-                rows.append({"claim": f"{scene}: P2 level {int(top.level)} contact half-width and "
-                                      "peak pressure against Hertz (|deviation|)",
-                             "measured": float(worst), "bar": HERTZ_BAR,
-                             "pass": bool(worst <= HERTZ_BAR)})
+                rows.append(CLAIMS["hertz"].row(worst, scene=scene, level=int(top.level)))
         judged = len(p2) >= 2
         growth = p2.n_outer.iloc[-1] / p2.n_outer.iloc[-2] if judged else np.nan
-        rows.append({"claim": f"{scene}: Alg. 8.4 on P2, n_o over the last two levels",
-                     "measured": growth, "bar": N_OUTER_GROWTH_BAR,
-                     "pass": bool(growth <= N_OUTER_GROWTH_BAR) if judged else None})
+        rows.append(CLAIMS["n_outer"].row(growth, judged=judged, scene=scene))
         expo = fitted_slope(p2.N, p2.t_solve, last=3) if len(p2) >= 3 else np.nan
-        rows.append({"claim": f"{scene}: Alg. 8.4 on P2, fitted solve-time exponent against N "
-                              "(last three levels)",
-                     "measured": expo, "bar": TIME_EXPONENT_BAR,
-                     "pass": bool(expo <= TIME_EXPONENT_BAR) if np.isfinite(expo) else None})
-    return pd.DataFrame(rows, columns=["claim", "measured", "bar", "pass"])
+        rows.append(CLAIMS["time"].row(expo, judged=bool(np.isfinite(expo)), scene=scene))
+    return pd.DataFrame(rows, columns=["claim", "thesis", "measured", "bar", "pass"])
 
 
 def figure(t: pd.DataFrame, path: str) -> None:

@@ -10,6 +10,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
+from report.claims import Claim  # noqa: E402
 from report.figures import save_figure  # noqa: E402
 from report.rates import rate_table  # noqa: E402
 from workflows.io import read_csv, write_csv  # noqa: E402
@@ -19,24 +20,30 @@ STYLE = {"conforming": ("k", "o", "-"), "nodal": ("tab:red", "s", "--"),
          "mortar": ("tab:green", "v", "-")}
 
 
+#: Ch. 6's claims (report/claims.py).
+CLAIMS = {
+    "nodal_h1": Claim("Sect. 6.2", "nodal constraints: H1 rate >= 1/2 (Sect. 6.2) -- {where}",
+                      ">=", 0.45),
+    "stabilised_h1": Claim("Sect. 6.3", "stabilised alpha = 1: optimal H1 rate (Sect. 6.3) "
+                           "-- {where}", ">=", 0.95),
+    "stabilised_l2": Claim("Sect. 6.3", "stabilised alpha = 1: optimal L2 rate (Sect. 6.3) "
+                           "-- {where}", ">=", 1.9),
+}
+
+
 def claims(rates: pd.DataFrame) -> pd.DataFrame:
-    """Ch. 6's claims, measured (claim, measured, bar, pass): nodal constraints on the
-    non-matching grid converge at least like O(h^1/2) in H^1 (Sect. 6.2), the
+    """Ch. 6's claims, measured (claim, thesis, measured, bar, pass): nodal constraints on
+    the non-matching grid converge at least like O(h^1/2) in H^1 (Sect. 6.2), the
     stabilised constraints with alpha = 1 (h^-2) at the optimal rates (Sect. 6.3)."""
     rows = []
     for (case, side), g in rates.groupby(["case", "constrained"], sort=False):
         g = g.set_index("variant")
         where = f"{case}, {side} side constrained"
         if "nodal" in g.index:
-            r = float(g.loc["nodal", "rate_h1"])
-            rows.append({"claim": f"nodal constraints: H1 rate >= 1/2 (Sect. 6.2) -- {where}",
-                         "measured": r, "bar": ">= 0.45", "pass": bool(r >= 0.45)})
+            rows.append(CLAIMS["nodal_h1"].row(float(g.loc["nodal", "rate_h1"]), where=where))
         if "stabilised_a1" in g.index:
-            for col, name, bar in (("rate_h1", "H1", 0.95), ("rate_l2", "L2", 1.9)):
-                r = float(g.loc["stabilised_a1", col])
-                rows.append({"claim": f"stabilised alpha = 1: optimal {name} rate (Sect. 6.3) "
-                                      f"-- {where}",
-                             "measured": r, "bar": f">= {bar}", "pass": bool(r >= bar)})
+            for col, key in (("rate_h1", "stabilised_h1"), ("rate_l2", "stabilised_l2")):
+                rows.append(CLAIMS[key].row(float(g.loc["stabilised_a1", col]), where=where))
     return pd.DataFrame(rows)
 
 

@@ -37,6 +37,7 @@ import matplotlib.tri as mtri
 import numpy as np
 import pandas as pd
 
+from report.claims import Claim
 from report.figures import save_figure
 from workflows.io import read_checked, read_csv, write_csv
 
@@ -71,30 +72,35 @@ def table(runs: pd.DataFrame) -> pd.DataFrame:
     return t.sort_values(["crown_um", "force_MN"], ascending=[False, True]).reset_index(drop=True)
 
 
+#: Sect. 9.3's checks (report/claims.py).
+CLAIMS = {
+    "equilibrium": Claim("Sect. 9.3", "equilibrium: contact resultant = strip force - "
+                         "work-roll weight (max relative error over the runs)", "<=",
+                         EQUILIBRIUM),
+    "springs": Claim("Sect. 9.3 (the floating work roll)", "weak springs on the floating work "
+                     "roll: force / strip force", "<", SPRINGS),
+    "verified": Claim("Sect. 9.3", "every solve verified (KKT <= 1e-10, certified energy "
+                      "bound)", "given", "all"),
+    "hertz": Claim("Sect. 9.3 (Hertz, plane strain)", "{force:g} MN, level {level}: Hertz "
+                   "{name} at the barrel centre (plane strain, FE line load; {cells:.1f} cells "
+                   f"across 2b, judged from {MIN_CELLS:g})", "<=", HERTZ),
+}
+
+
 def claims(t: pd.DataFrame) -> pd.DataFrame:
-    """The measured claims (claim, measured, bar, pass) of a :func:`table`; Hertz is judged
-    only where ``cells_across_2b >= MIN_CELLS`` (``pass`` empty otherwise)."""
-    rows = []
-    worst = float(t.equilibrium_error.abs().max())
-    rows.append({"claim": "equilibrium: contact resultant = strip force - work-roll weight "
-                          "(max relative error over the runs)",
-                 "measured": worst, "bar": EQUILIBRIUM, "pass": bool(worst <= EQUILIBRIUM)})
-    spring = float(t.spring_fraction.max())
-    rows.append({"claim": "weak springs on the floating work roll: force / strip force",
-                 "measured": spring, "bar": SPRINGS, "pass": bool(spring < SPRINGS)})
+    """The measured claims (claim, thesis, measured, bar, pass) of a :func:`table`; Hertz is
+    judged only where ``cells_across_2b >= MIN_CELLS`` (``pass`` empty otherwise)."""
+    rows = [CLAIMS["equilibrium"].row(float(t.equilibrium_error.abs().max())),
+            CLAIMS["springs"].row(float(t.spring_fraction.max()))]
     ok = int((t.status == "converged").sum())
-    rows.append({"claim": "every solve verified (KKT <= 1e-10, certified energy bound)",
-                 "measured": f"{ok}/{len(t)}", "bar": "all", "pass": bool(ok == len(t))})
+    rows.append(CLAIMS["verified"].row(f"{ok}/{len(t)}", passed=ok == len(t)))
     crowned = t[t.crown_um == t.crown_um.max()]
     for _, r in crowned.iterrows():
-        resolved = r.cells_across_2b >= MIN_CELLS
+        resolved = bool(r.cells_across_2b >= MIN_CELLS)
         for name, dev in (("half-width b", r.dev_b0), ("peak pressure p0 (nodal)", r.dev_p0_nodal)):
-            rows.append({"claim": f"{r.force_MN:g} MN, level {int(r.level)}: Hertz {name} at the "
-                                  f"barrel centre (plane strain, FE line load; "
-                                  f"{r.cells_across_2b:.1f} cells across 2b, judged from "
-                                  f"{MIN_CELLS:g})",
-                         "measured": float(abs(dev)), "bar": HERTZ,
-                         "pass": bool(abs(dev) <= HERTZ) if resolved else None})
+            rows.append(CLAIMS["hertz"].row(float(abs(dev)), judged=resolved, force=r.force_MN,
+                                            level=int(r.level), name=name,
+                                            cells=r.cells_across_2b))
     return pd.DataFrame(rows)
 
 

@@ -39,6 +39,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
+from report.claims import Claim  # noqa: E402
 from report.figures import save_figure  # noqa: E402
 from solvers.certificate import certifiable  # noqa: E402
 from solvers.interface import TOLERANCES  # noqa: E402
@@ -177,23 +178,29 @@ def work_precision(t: pd.DataFrame, family: str, path: str) -> None:
     save_figure(fig, path)
 
 
+#: The verification's promises over the test set (report/claims.py).
+CLAIMS = {
+    "accurate": Claim("Ch. 8 (the solvers' stopping rules), issue 5",
+                      "test set: every verified-converged run is within tol of the exact "
+                      "reference (energy error; {problems} problems, {runs} runs)", "given", "0"),
+    "refuted": Claim("issue 5", "test set: claims of convergence refuted by the verification "
+                     "(information: a solver's own stopping test against the suite's KKT and "
+                     "certified bound)"),
+}
+
+
 def claims(t: pd.DataFrame) -> pd.DataFrame:
-    """The verification's promises over the whole test set (claim, measured, bar, pass),
-    and the count of problems and runs."""
+    """The verification's promises over the whole test set (claim, thesis, measured, bar,
+    pass), and the count of problems and runs."""
     conv = t["status"] == "converged"
     accurate = accurate_runs(t)
     wrong = int((conv & ~accurate).sum())
     claimed = t["claimed_status"] == "converged"
     refuted = int((claimed & ~conv).sum())
-    n_problems = t["problem"].nunique()
     return pd.DataFrame([
-        {"claim": f"test set: every verified-converged run is within tol of the exact reference "
-                  f"(energy error; {n_problems} problems, {len(t)} runs)",
-         "measured": f"{wrong} of {int(conv.sum())} converged runs inaccurate", "bar": "0",
-         "pass": wrong == 0},
-        {"claim": "test set: claims of convergence refuted by the verification (information: "
-                  "a solver's own stopping test against the suite's KKT and certified bound)",
-         "measured": f"{refuted} of {int(claimed.sum())} claimed", "bar": "-", "pass": None}])
+        CLAIMS["accurate"].row(f"{wrong} of {int(conv.sum())} converged runs inaccurate",
+                               passed=wrong == 0, problems=t["problem"].nunique(), runs=len(t)),
+        CLAIMS["refuted"].row(f"{refuted} of {int(claimed.sum())} claimed")])
 
 
 def main(argv=None) -> None:

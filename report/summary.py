@@ -98,13 +98,16 @@ def collect_claims(items) -> pd.DataFrame:
         if len(c):
             frames.append(c.assign(study=study_of(key), scene=scene or "-", source=path))
     if not frames:
-        return pd.DataFrame(columns=["study", "scene", "claim", "measured", "bar", "result",
-                                     "source"])
+        return pd.DataFrame(columns=["study", "scene", "claim", "thesis", "measured", "bar",
+                                     "result", "source"])
     c = pd.concat(frames, ignore_index=True)
     c["result"] = [("n/a" if p is None or (isinstance(p, float) and np.isnan(p)) else
                     "pass" if str(p).lower() in ("true", "1", "1.0") else "miss")
                    for p in c["pass"]]
-    return c[["study", "scene", "claim", "measured", "bar", "result", "source"]]
+    if "thesis" not in c:
+        c["thesis"] = "-"
+    c["thesis"] = c["thesis"].fillna("-")
+    return c[["study", "scene", "claim", "thesis", "measured", "bar", "result", "source"]]
 
 
 def read_provenance(paths: list[str]) -> tuple[dict, dict[str, Counter]]:
@@ -239,8 +242,8 @@ def page(items, claims: pd.DataFrame, prov: dict, varying: dict, res: pd.DataFra
                  f"<span class='pass'>{counts.get('pass', 0)} pass</span>"
                  f"<span class='miss'>{counts.get('miss', 0)} miss</span>"
                  f"<span class='na'>{counts.get('n/a', 0)} not judged at this scale</span></p>")
-    parts.append(table_html(claims.drop(columns=["source"]), left=("study", "scene", "claim",
-                                                                  "bar", "measured"),
+    parts.append(table_html(claims.drop(columns=["source"]),
+                            left=("study", "scene", "claim", "thesis", "bar", "measured"),
                             classes={"result": {"pass": "pass", "miss": "miss", "n/a": "na"}},
                             max_rows=500))
     # thesis items

@@ -127,6 +127,7 @@ def test_tiny_regeneration_makes_every_target(tiny_run):
     assert not missing
     claims = pd.read_csv(tiny_run / PATHS["summary_claims"], keep_default_na=False)
     assert len(claims) >= 10 and set(claims["result"]) <= {"pass", "miss", "n/a"}
+    assert (claims["thesis"].str.len() > 1).all()     # every claim names its source
     out = regenerate(tiny_run, "-n")
     assert out.returncode == 0 and "Nothing to be done" in out.stdout + out.stderr
 

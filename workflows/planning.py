@@ -42,7 +42,7 @@ from workflows.studies import HEAVY_RULES, scenes_of, scenes_with_families, test
 #: exponents of the rule that runs the same kind of solves.
 PROXY = {"test_set_runs": "solver_comparison", "test_set_export": "contact_level",
          "hard_cases_incompressibility": "augmented_projection_study",
-         "patch_test": "contact_level"}
+         "patch_test": "contact_level", "element_order_study": "contact_level"}
 
 #: Headroom of the declared resources over the prediction.
 MEMORY_HEADROOM, TIME_HEADROOM = 1.5, 2.0
@@ -81,8 +81,9 @@ def rule_jobs(config: dict, rule: str) -> list[tuple[str, str, float]]:
     if rule == "element_order_study":
         return [(s, s, _size(config, s, cfg["reference_level"][s])) for s in cfg["scenes"]]
     if rule == "hard_cases_incompressibility":
-        inc = cfg["incompressibility"]
-        return [("all", s, _size(config, s, inc["level"])) for s in inc["scenes"]]
+        inc = cfg["incompressibility"]      # one job over all scenes: sized by the 3D one
+        scene = max(inc["scenes"], key=lambda s: _dim(config, s))
+        return [("all", scene, _size(config, scene, inc["level"]))]
     if rule in ("test_set_runs", "test_set_export"):
         ts, jobs = test_set_of(config), []
         for c in cfg["classes"]:
@@ -154,19 +155,23 @@ def plan(measured: list[tuple[dict, Path]], target: dict,
         if pts is None or not len(pts):
             raise ValueError(f"rule {rule!r}: no measured benchmark file; allowed: a rule "
                              "the measured scales ran")
+        bases = []
+        for pattern, scene, size in jobs:
+            own = pts[pts["scene"] == scene]
+            base = (own if len(own) else pts).sort_values(["size", "scale"]).iloc[-1]
+            bases.append((pattern, base, size / base["size"] if len(own) else 1.0))
         fit, basis = fits.get(rule), rule
         if fit is None:
             basis = PROXY.get(rule)
             fit = fits.get(basis)
-            if fit is None:
+        if fit is None:
+            if any(grow > 1.0 for _, _, grow in bases):
                 raise ValueError(f"rule {rule!r}: no scene measured at two sizes and no "
                                  f"measured proxy rule ({basis!r})")
+            fit, basis = (0.0, 0.0, "no growth: measured at the target's sizes"), rule
         e_t, e_m, how = fit
         worst = None
-        for pattern, scene, size in jobs:
-            own = pts[pts["scene"] == scene]
-            base = (own if len(own) else pts).sort_values(["size", "scale"]).iloc[-1]
-            grow = size / base["size"] if len(own) else 1.0
+        for pattern, base, grow in bases:
             t = base["t"] * max(grow, 1.0) ** e_t
             mb = floor_mb + (base["mb"] - floor_mb) * max(grow, 1.0) ** e_m
             if worst is None or t > worst["t_pred"]:

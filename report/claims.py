@@ -1,0 +1,90 @@
+"""Checked claims declared as data (issue 26).
+
+Every study's report module declares its claims once, at its top, as a ``CLAIMS`` dict
+of :class:`Claim`: where the claim comes from (the thesis's item, or the issue that set
+the bar), the measured quantity (a text template), the comparison and the bar. Its
+``claims()`` function only measures and calls :meth:`Claim.row`; the summary page
+(``report/summary.py``) collects the rows, and ``tests/test_claims.py`` checks that
+every row comes from a declared claim.
+"""
+from __future__ import annotations
+
+import math
+import operator
+from dataclasses import dataclass
+from typing import Any
+
+#: The comparisons a claim can make: measured ``compare`` bar.
+COMPARE = {
+    "<=": operator.le, ">=": operator.ge, "<": operator.lt, ">": operator.gt,
+    "|<=|": lambda x, bar: abs(x) <= bar,
+    "in": lambda x, bar: bar[0] <= x <= bar[1],
+}
+#: Comparisons without a numeric rule: ``"-"`` reported without a bar; ``"given"`` judged
+#: by the measuring code (two measured values against each other, "all runs converged"),
+#: the bar a sentence.
+UNJUDGED, GIVEN = "-", "given"
+
+
+@dataclass(frozen=True)
+class Claim:
+    """One checkable claim of a study.
+
+    Attributes
+    ----------
+    thesis : str
+        Where it comes from: the thesis's item ("Sect. 6.2", "Lemma 8.13") or the issue
+        that set the bar ("issue 24").
+    quantity : str
+        The measured quantity, a template formatted with the row's fields
+        (``"H1 rate -- {where}"``).
+    compare : str
+        One of :data:`COMPARE`, :data:`UNJUDGED` or :data:`GIVEN`.
+    bar : float, (lo, hi), str or None
+        The bar: a number, an interval for ``"in"``, a sentence for ``"given"``.
+    """
+
+    thesis: str
+    quantity: str
+    compare: str = UNJUDGED
+    bar: Any = None
+
+    def __post_init__(self):
+        allowed = (*COMPARE, UNJUDGED, GIVEN)
+        if self.compare not in allowed:
+            raise ValueError(f"parameter 'compare': {self.compare!r} is not allowed; allowed: "
+                             f"{', '.join(allowed)}")
+        if (self.compare == UNJUDGED) != (self.bar is None):
+            raise ValueError("parameter 'bar': a claim without a bar has compare '-', and "
+                             "only such a claim has no bar")
+
+    def bar_text(self):
+        """The bar as the claims tables show it (a plain number for ``<=``)."""
+        if self.compare == UNJUDGED:
+            return "-"
+        if self.compare == "<=" or self.compare == GIVEN:
+            return self.bar
+        if self.compare == "in":
+            return f"[{self.bar[0]:g}, {self.bar[1]:g}]"
+        if self.compare == "|<=|":
+            return f"|.| <= {self.bar:g}"
+        return f"{self.compare} {self.bar:g}"
+
+    def row(self, measured, judged: bool = True, passed: bool | None = None,
+            **fields) -> dict:
+        """The claims-table row: claim, thesis, measured, bar, pass.
+
+        ``judged=False``: this scale does not reach what the bar is about (pass empty).
+        ``passed``: the verdict of a ``"given"`` claim (its measuring code decides).
+        """
+        if self.compare == GIVEN:
+            if judged and passed is None:
+                raise ValueError(f"claim {self.quantity!r}: a 'given' claim needs 'passed'")
+            verdict = bool(passed) if judged else None
+        elif self.compare == UNJUDGED or not judged:
+            verdict = None
+        else:
+            x = float(measured)
+            verdict = bool(math.isfinite(x) and COMPARE[self.compare](x, self.bar))
+        return {"claim": self.quantity.format(**fields), "thesis": self.thesis,
+                "measured": measured, "bar": self.bar_text(), "pass": verdict}

@@ -1,0 +1,67 @@
+"""Claims declared as data (report/claims.py, issue 26)."""
+from __future__ import annotations
+
+import importlib
+import inspect
+import math
+import pkgutil
+
+import pytest
+
+import report
+from report.claims import Claim
+
+
+@pytest.mark.parametrize("compare, bar, measured, verdict", [
+    ("<=", 0.15, 0.15, True), ("<=", 0.15, 0.16, False), ("<=", 0.15, math.nan, False),
+    (">=", 3.0, 3.0, True), (">=", 3.0, 2.9, False), ("<", 1e-8, 1e-8, False),
+    (">", 0.25, 0.3, True), ("|<=|", 0.05, -0.04, True), ("|<=|", 0.05, -0.06, False),
+    ("in", (1.5, 2.6), 2.0, True), ("in", (1.5, 2.6), 2.7, False)])
+def test_a_claim_judges_by_its_comparison(compare, bar, measured, verdict):
+    row = Claim("Lemma 8.13", "ratio at level {level}", compare, bar).row(measured, level=3)
+    assert row["pass"] is verdict and row["claim"] == "ratio at level 3"
+    assert row["thesis"] == "Lemma 8.13" and row["measured"] is measured
+
+
+def test_bars_read_as_before_and_unjudged_rows_have_no_verdict():
+    assert Claim("x", "q", "<=", 0.15).bar_text() == 0.15        # a plain number, as tables had
+    assert Claim("x", "q", "in", (1.5, 2.6)).bar_text() == "[1.5, 2.6]"
+    assert Claim("x", "q", ">=", 0.45).bar_text() == ">= 0.45"
+    assert Claim("x", "q", "|<=|", 0.05).bar_text() == "|.| <= 0.05"
+    assert Claim("x", "q").row(2.0) == {"claim": "q", "thesis": "x", "measured": 2.0, "bar": "-",
+                                        "pass": None}
+    assert Claim("x", "q", "<=", 1.0).row(5.0, judged=False)["pass"] is None
+    given = Claim("x", "q", "given", "all")
+    assert given.row("3 of 3", passed=True)["pass"] is True and given.bar_text() == "all"
+    with pytest.raises(ValueError, match="needs 'passed'"):
+        given.row("3 of 3")
+
+
+def test_a_claim_names_a_wrong_declaration():
+    with pytest.raises(ValueError, match="parameter 'compare': '=<' is not allowed"):
+        Claim("x", "q", "=<", 1.0)
+    with pytest.raises(ValueError, match="parameter 'bar'"):
+        Claim("x", "q", "<=")
+    with pytest.raises(ValueError, match="parameter 'bar'"):
+        Claim("x", "q", "-", 1.0)
+
+
+def _report_modules():
+    for info in pkgutil.iter_modules(report.__path__):
+        module = importlib.import_module(f"report.{info.name}")
+        if hasattr(module, "claims") and inspect.isfunction(module.claims):
+            yield module
+
+
+def test_every_study_declares_its_claims_in_one_place():
+    """Each report module that measures claims declares them in ``CLAIMS`` (thesis item,
+    quantity, comparison, bar) and builds its rows only through them."""
+    modules = list(_report_modules())
+    assert {m.__name__ for m in modules} >= {
+        "report.laplace", "report.contact", "report.augmented_projection", "report.adaptive",
+        "report.exact_reference", "report.hard_cases", "report.incompressibility",
+        "report.roll_stack", "report.element_order", "report.solver_summary"}
+    for module in modules:
+        assert module.CLAIMS and all(isinstance(c, Claim) and c.thesis and c.quantity
+                                     for c in module.CLAIMS.values()), module.__name__
+        assert '"claim":' not in inspect.getsource(module), module.__name__
