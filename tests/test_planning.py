@@ -85,3 +85,21 @@ def test_the_cli_names_a_wrong_argument(tmp_path, capsys):
         pr.main(["--measured", f"{tmp_path}/none.yaml={tmp_path}", "--target", "x.yaml"])
     assert e.value.code == 2
     assert "CONFIG.yaml=BENCHMARK_DIR" in capsys.readouterr().err
+
+
+def test_the_cli_writes_the_plan_and_prints_the_resources(tmp_path, capsys):
+    quick = tmp_path / "quick"
+    for lv in (1, 2):
+        _bench(quick, "contact_level", f"circle_square_L{lv}", 4.0 ** lv, 300.0 + 4.0 ** lv)
+    paths = {}
+    for name, levels in (("quick", [1, 2]), ("huge", [1, 2, 3])):
+        paths[name] = tmp_path / f"{name}.yaml"
+        paths[name].write_text(yaml.safe_dump(_config(levels, [])))
+    out = tmp_path / "plan.csv"
+    assert pr.main(["--measured", f"{paths['quick']}={quick}", "--target", str(paths["huge"]),
+                    "--out", str(out)]) == 0
+    printed = yaml.safe_load(capsys.readouterr().out)["resources"]
+    plan = pd.read_csv(out).set_index("rule")
+    assert plan.loc["contact_level", "t_pred_s"] == pytest.approx(64.0)
+    assert printed == {"contact_level": {"mem_mb": int(plan.loc["contact_level", "mem_mb"]),
+                                         "runtime": 3}}
