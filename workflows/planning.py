@@ -51,7 +51,7 @@ MEMORY_HEADROOM, TIME_HEADROOM = 1.5, 2.0
 def _dim(config: dict, scene: str) -> int:
     from problems.spec import problems
 
-    return problems()[scenes_with_families(config)[scene]["problem"]].dim
+    return problems()[config["scenes"][scene]["problem"]].dim
 
 
 def _size(config: dict, scene: str, level: int) -> float:
@@ -142,6 +142,8 @@ def plan(measured: list[tuple[dict, Path]], target: dict,
     and the resources to declare (``mem_mb``, ``runtime`` in minutes). Memory grows
     above ``floor_mb`` (the interpreter and its imports; default: the smallest measured
     peak of any job)."""
+    measured = [(_with_families(c), bench) for c, bench in measured]
+    target = _with_families(target)
     points = {rule: measured_points(measured, rule) for rule in HEAVY_RULES}
     if floor_mb is None:
         floor_mb = float(pd.concat([p for p in points.values() if len(p)])["mb"].min())
@@ -208,10 +210,13 @@ def _measured(arg: str) -> tuple[dict, Path]:
     return _load(config), Path(bench)
 
 
+def _with_families(config: dict) -> dict:
+    """``config`` with the test set's families among its scenes (read once per config)."""
+    return {**config, "scenes": scenes_with_families(config)}
+
+
 def _load(path: str) -> dict:
-    config = yaml.safe_load(Path(path).read_text())
-    config["scenes"] = scenes_with_families(config)
-    return config
+    return yaml.safe_load(Path(path).read_text())
 
 
 def main(argv: list[str] | None = None) -> int:

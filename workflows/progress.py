@@ -115,6 +115,11 @@ def study_progress(iterable=None, *, rule: str, out: str | os.PathLike, **kwargs
                          **kwargs)
 
 
+def _directory(root: str | os.PathLike) -> Path:
+    """Where the running jobs' files live: one subdirectory per rule."""
+    return Path(root) / Path(PROGRESS).parent.parent
+
+
 def _alive(pid: int) -> bool:
     try:
         os.kill(pid, 0)
@@ -128,7 +133,7 @@ def _alive(pid: int) -> bool:
 def progress_lines(root: str | os.PathLike = ".", now: float | None = None) -> list[str]:
     """One line per running study (its process alive), oldest first."""
     now = time.time() if now is None else now
-    directory = Path(root) / Path(PROGRESS).parent.parent
+    directory = _directory(root)
     states = []
     for path in directory.glob("*/*.json"):
         try:
@@ -151,7 +156,7 @@ def progress_lines(root: str | os.PathLike = ".", now: float | None = None) -> l
 
 def clear(root: str | os.PathLike = ".") -> None:
     """Remove the progress files of an earlier regeneration (none of its jobs runs)."""
-    directory = Path(root) / Path(PROGRESS).parent.parent
+    directory = _directory(root)
     for path in directory.glob("*/*.json"):
         path.unlink(missing_ok=True)
 

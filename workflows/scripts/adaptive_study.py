@@ -97,6 +97,12 @@ DEFAULTS = study_defaults("adaptive")
 
 
 # --------------------------------------------------------------------------- solvers
+def _alg84_options():
+    """Alg. 8.4 as the table runs it (``alg84``), stopped by the caller's callback."""
+    return ap.SOLVER.options(**ap.VARIANTS["alg84"].options, stop="estimate", eps=1e-14,
+                             record_kkt=False, diagnostics=False)
+
+
 def exact_solve(qp: ContactQP, u0=None, p0=None, tol: float = 1e-8,
                 time_limit: float | None = None):
     """PDAS (exact: ``A`` factorised once, the dual problem on the contact rows) where a
@@ -108,8 +114,7 @@ def exact_solve(qp: ContactQP, u0=None, p0=None, tol: float = 1e-8,
     3D that ran into the 600 s limit where ``alg84`` takes about a minute.)"""
     if qp.n <= DIRECT_REFERENCE_LIMIT.get(qp.dim, 0):
         return solve(qp, "pdas", tol=1e-10, u0=u0, p0=p0)
-    opts = ap.SOLVER.options(**ap.VARIANTS["alg84"].options, stop="estimate", eps=1e-14,
-                             record_kkt=False, diagnostics=False)
+    opts = _alg84_options()
     deadline = None if time_limit is None else time.perf_counter() + time_limit
     target = tol
     for _ in range(5):   # the certified energy bound may need a tighter KKT (stabilised rows)
@@ -157,8 +162,7 @@ def table_solve(qp: ContactQP, u0, p0, tol: float, time_limit: float):
     """
     direct = qp.n <= DIRECT_REFERENCE_LIMIT.get(qp.dim, 0)
     eps_min = min(TABLE_EPS)
-    opts = ap.SOLVER.options(**ap.VARIANTS["alg84"].options, stop="estimate", eps=1e-14,
-                             record_kkt=False, diagnostics=False)
+    opts = _alg84_options()
     cold = ap.solve(qp, 1e-12, 2000, time_limit, None, None, opts,
                     callback=lambda step: step.eta_rel <= eps_min)
     h, s = cold.history, cold.stats
