@@ -83,7 +83,7 @@ def thesis_table(steps: pd.DataFrame, thesis: pd.DataFrame | None,
     keep = ["step", "N", "NC", "n_outer_1e-02", "n_outer_1e-03", "n_inner_mean_1e-02",
             "n_inner_mean_1e-03", "t_solve_1e-02", "t_solve_1e-03", "t_proj_1e-02",
             "t_proj_1e-03", "n_outer_nested_1e-03", "t_solve_nested_1e-03", "kappa_S", "mg_levels",
-            "mg_work_ratio", "mg_size_ratio", "t_vcycle_per_node_us",
+            "mg_refinement_levels", "mg_work_ratio", "mg_deep_ratio", "mg_size_ratio", "t_vcycle_per_node_us",
             "t_setup", "t_solve_per_node_us_1e-03",
             "n_outer_total", "solver", "kkt_max", "eta2_weight"]
     ours = ours[[c for c in keep if c in ours.columns]]

@@ -3,8 +3,10 @@
 * ``A-hat`` (thesis (8.18)): one symmetric V-cycle per application, either pyamg
   smoothed aggregation with the rigid-body modes of each body as near-null space, or
   geometric multigrid on the refinement hierarchy (``qp.multilevel``) with Galerkin
-  coarse operators; on an adaptive hierarchy each level smooths only the unknowns it
-  changed (local smoothing, :func:`changed_dofs`), so a V-cycle costs O(N) there as on
+  coarse operators; on an adaptive hierarchy the many small refinement steps are merged
+  into levels that grow by a factor (:func:`merge_levels`, exact solves where a merged
+  level refined a region twice), and a level smooths only the unknowns it changed
+  (local smoothing, :func:`changed_dofs`), so a V-cycle costs O(N) there as on
   uniform hierarchies. :func:`scaled_vcycle` scales it by Lanczos (Remark 8.14) so that
   ``A-hat < A <= gamma_bar A-hat``; :func:`vcycle` is the plain V-cycle a PCG needs.
 * :data:`AHAT`: the V-cycle as a solver option (kind and settings), declared once here
@@ -22,6 +24,7 @@ from typing import Callable
 import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
+import scipy.sparse.linalg as spla
 
 from problems.qp import ContactQP, Multilevel
 from problems.spec import Component, ComponentParameter, Parameter, resolve_parameters
@@ -187,9 +190,94 @@ def _relax(smoother: str, sweeps: int) -> Callable:
 #: :func:`changed_dofs`), which keeps a V-cycle O(N) on adaptive hierarchies.
 SMOOTHING = ("local", "full")
 
+#: ``local`` smooths a level in full where it changed more than this share of its
+#: unknowns: the sweep over the principal submatrix then saves less than its index
+#: bookkeeping costs (measured at 115k nodes: 21.5 ms a cycle in full, 23.8 ms local,
+#: with 97 % of each kept level changed after :func:`merge_levels`).
+LOCAL_SHARE = 0.8
+
+#: A merged level solves its deep unknowns exactly (:func:`geometric_hierarchy`,
+#: ``depths``) only while they are at most this share of the level: around singular
+#: points, not where a whole level was refined twice (then the deep block would be the
+#: level, and the merge itself the mistake).
+DEEP_SHARE = 0.1
+
+
+def refinement_depth(prolongations: list) -> np.ndarray:
+    """How often each unknown's neighbourhood was refined along ``prolongations``: 0 for an
+    unknown of the coarsest level, and for a new unknown (a row of ``P`` that is not an
+    injection) one more than the deepest of the unknowns it is interpolated from.
+
+    A merged level (:func:`merge_levels`) is one refinement of most of its region, but
+    around singular points an adaptive sequence refines the same cells at every step:
+    there the level spans several octaves, which one smoothing sweep does not reach.
+    """
+    Ps = [sp.csr_matrix(P) for P in prolongations]
+    depth = np.zeros(Ps[0].shape[1]) if Ps else np.zeros(0)
+    for P in Ps:
+        counts = np.diff(P.indptr)
+        injected = (counts == 1) & (P.data[np.minimum(P.indptr[:-1], len(P.data) - 1)] == 1.0)
+        deepest = np.zeros(P.shape[0])
+        np.maximum.at(deepest, np.repeat(np.arange(P.shape[0]), counts), depth[P.indices])
+        depth = np.where(injected, P @ depth, deepest + 1.0)
+    return depth
+
+
+def merge_levels(prolongations: list, min_growth: float) -> tuple[list, list]:
+    """The refinement levels a V-cycle keeps: from the finest down, the next kept level is
+    the finest one with at most ``1 / min_growth`` of the unknowns of the last kept; the
+    prolongations in between are multiplied together (nested meshes: the product is the
+    interpolation between the kept levels).
+
+    An adaptive sequence adds a few per cent of the nodes per step (the full-scale
+    circle-square run has 31 levels from 1k to 115k nodes, their sizes summing to 8.3 N),
+    so every level costs a transfer of its full size and a call overhead. With
+    ``min_growth >= 2`` the kept sizes sum to at most 2 N, and a V-cycle is O(N) even
+    with full smoothing; uniform refinement (x4 in 2D, x8 in 3D per level) keeps every
+    level. ``min_growth <= 1`` keeps every level.
+
+    A merge also stops where more than :data:`DEEP_SHARE` of the finer level's unknowns
+    would have been refined twice or more (:func:`refinement_depth`): those regions
+    span several octaves, which :func:`geometric_hierarchy` solves exactly, so they
+    must stay small (around the singular points). On the early steps, which refine
+    broad regions, fewer levels merge.
+
+    Parameters
+    ----------
+    prolongations : list of sparse
+        ``P_k`` from level ``k`` to ``k + 1``, coarse to fine.
+    min_growth : float
+
+    Returns
+    -------
+    (kept, depths) : lists
+        The kept levels' prolongations (CSR), coarse to fine, and for each the
+        :func:`refinement_depth` of the fine level's unknowns over the merged steps
+        (1 where one step refined, 2 or more where a region was refined again).
+    """
+    Ps = [sp.csr_matrix(P) for P in prolongations]
+    if min_growth <= 1.0 or not Ps:
+        return Ps, [refinement_depth([P]) for P in Ps]
+    sizes = [P.shape[1] for P in Ps] + [Ps[-1].shape[0]]
+    kept, depths, fine = [], [], len(Ps)
+    while fine > 0:
+        coarse, depth = fine - 1, refinement_depth(Ps[fine - 1:fine])
+        while coarse > 0 and sizes[fine] < min_growth * sizes[coarse]:
+            wider = refinement_depth(Ps[coarse - 1:fine])
+            if np.mean(wider >= 2) > DEEP_SHARE:      # refined again in too wide a region
+                break
+            coarse, depth = coarse - 1, wider
+        P = Ps[coarse]
+        for k in range(coarse + 1, fine):
+            P = Ps[k] @ P
+        kept.append(sp.csr_matrix(P))
+        depths.append(depth)
+        fine = coarse
+    return kept[::-1], depths[::-1]
+
 
 def geometric_hierarchy(A: sp.spmatrix, prolongations: list, smoother: str, sweeps: int,
-                        smoothing: str = "local"):
+                        smoothing: str = "local", depths: list | None = None):
     """Geometric multigrid on the refinement hierarchy, Galerkin coarse operators.
 
     Parameters
@@ -206,6 +294,13 @@ def geometric_hierarchy(A: sp.spmatrix, prolongations: list, smoother: str, swee
         uniform spectral equivalence of local multigrid (Wu, Chen 2006). The smoothed
         rows are ``level.smooth_rows`` and the residual after pre-smoothing is formed
         from their columns alone (``level.smooth_columns``).
+    depths : list of arrays, optional
+        Per prolongation, the :func:`refinement_depth` of its fine unknowns
+        (:func:`merge_levels`). Where a level refined a region more than once, its
+        unknowns of depth >= 2 and their neighbours are solved exactly (a sparse LU of
+        that principal submatrix) after pre- and before post-smoothing: the octaves
+        the level skipped there. The blocks are small (1 % of the unknowns on the
+        full-scale adaptive run) and the cycle stays symmetric.
     """
     from pyamg.multilevel import MultilevelSolver
     from pyamg.relaxation.smoothing import change_smoothers
@@ -226,9 +321,16 @@ def geometric_hierarchy(A: sp.spmatrix, prolongations: list, smoother: str, swee
     sm = _smoother(smoother, sweeps, blocked=False)
     with _seeded_global_rng():
         change_smoothers(ml, presmoother=sm, postsmoother=sm)
-    for lvl in levels[:-1]:
+    for lvl, depth in zip(levels[:-1], reversed(depths or [None] * len(levels[:-1]))):
         n = lvl.A.shape[0]
+        deep = np.flatnonzero(depth >= 2) if depth is not None else np.zeros(0, dtype=int)
+        if 0 < deep.size <= DEEP_SHARE * n:
+            deep = np.unique(lvl.A[deep].indices)          # and their neighbours
+            rows = lvl.A[deep].tocsr()
+            lvl.deep = {"rows": deep, "A_rows": rows, "lu": spla.splu(rows[:, deep].tocsc())}
         idx = changed_dofs(lvl.A, lvl.P) if smoothing == "local" else np.arange(n)
+        if len(idx) > LOCAL_SHARE * n:
+            idx = np.arange(n)
         lvl.smooth_rows = idx
         if len(idx) < n:
             # the smoother runs on the principal submatrix (a contiguous sweep), the rest
@@ -268,22 +370,27 @@ def _vcycle(ml, lvl: int, b: np.ndarray) -> np.ndarray:
         return ml.coarse_solver(levels[0].A, b)
     level = levels[lvl]
     local = getattr(level, "local", None)
+    deep = getattr(level, "deep", None)
     x = np.zeros_like(b)
     if local is None:
         level.presmoother(level.A, x, b)
-        residual = b - level.A @ x
     else:                   # from zero: x is zero off the smoothed rows
         rows = local["rows"]
         x_rows = np.zeros(len(rows))
         local["relax"](local["block"], x_rows, b[rows])
         x[rows] = x_rows
-        residual = b - local["columns"] @ x_rows
+    if deep is not None:
+        _deep_solve(deep, x, b)
+    residual = b - (local["columns"] @ x_rows if local is not None and deep is None
+                    else level.A @ x)
     coarse_b = level.R @ residual
     if lvl == len(levels) - 2:
         coarse_x = ml.coarse_solver(levels[-1].A, coarse_b)
     else:
         coarse_x = _vcycle(ml, lvl + 1, coarse_b)
     x += level.P @ coarse_x
+    if deep is not None:
+        _deep_solve(deep, x, b)
     if local is None:
         level.postsmoother(level.A, x, b)
     else:
@@ -291,6 +398,13 @@ def _vcycle(ml, lvl: int, b: np.ndarray) -> np.ndarray:
         local["relax"](local["block"], x_rows, b[rows] - local["off"] @ x)
         x[rows] = x_rows
     return x
+
+
+def _deep_solve(deep: dict, x: np.ndarray, b: np.ndarray) -> None:
+    """``x`` corrected in place by the exact solve on a level's deep block
+    (:func:`geometric_hierarchy`, ``depths``)."""
+    rows = deep["rows"]
+    x[rows] += deep["lu"].solve(b[rows] - deep["A_rows"] @ x)
 
 
 def chebyshev_degree(lo: float, hi: float, gamma_target: float) -> int:
@@ -410,18 +524,26 @@ class ScaledVCycle:
         """Unknowns smoothed per V-cycle over the finest level's (:func:`smoothing_work`)."""
         return smoothing_work(self.ml)
 
+    def deep_work(self) -> float:
+        """Unknowns of the exact deep-block solves (:func:`geometric_hierarchy`,
+        ``depths``) per V-cycle over the finest level's (each solved twice a cycle)."""
+        rows = [len(lvl.deep["rows"]) for lvl in self.ml.levels if hasattr(lvl, "deep")]
+        return float(np.sum(rows)) / self.ml.levels[0].A.shape[0]
+
 
 def vcycle(A: sp.spmatrix, kind: str, multilevel: Multilevel | None, dim: int,
            free_dofs: np.ndarray | None, *, smoother: str, sweeps: int,
-           max_coarse: int = 0, smoothing: str = "local") -> ScaledVCycle:
+           max_coarse: int = 0, smoothing: str = "local", min_growth: float = 1.0
+           ) -> ScaledVCycle:
     """One symmetric V-cycle as a preconditioner, unscaled (``gamma_low = 1``).
 
     ``kind`` {"gmg", "sa"}: geometric multigrid on ``multilevel.prolongations``
     or pyamg smoothed aggregation (rigid-body modes as near-null space);
     V(sweeps, sweeps) with the named symmetric smoother; ``max_coarse`` (SA
     only) the largest coarsest level; ``smoothing`` (gmg only) local or full
-    (:func:`geometric_hierarchy`). What a multigrid-PCG linear solve needs;
-    :func:`scaled_vcycle` adds the scaling of (8.18).
+    (:func:`geometric_hierarchy`); ``min_growth`` (gmg only) which refinement levels
+    the cycle keeps (:func:`merge_levels`; 1 = every one). What a multigrid-PCG
+    linear solve needs; :func:`scaled_vcycle` adds the scaling of (8.18).
     """
     multilevel = multilevel or Multilevel()
     t0 = time.perf_counter()
@@ -429,8 +551,8 @@ def vcycle(A: sp.spmatrix, kind: str, multilevel: Multilevel | None, dim: int,
         ml = sa_hierarchy(A, multilevel.rigid_body_modes, dim, free_dofs, smoother, sweeps,
                           max_coarse)
     elif kind == "gmg":
-        ml = geometric_hierarchy(A, list(multilevel.prolongations), smoother, sweeps,
-                                 smoothing)
+        kept, depths = merge_levels(multilevel.prolongations, min_growth)
+        ml = geometric_hierarchy(A, kept, smoother, sweeps, smoothing, depths)
     else:
         raise ValueError(f"unknown A-hat kind {kind!r}; allowed: gmg, sa")
     return ScaledVCycle(kind, ml, 1.0, 1.0, (np.nan, np.nan), time.perf_counter() - t0, 0.0)
@@ -451,19 +573,20 @@ def component_vcycle(qp: ContactQP, ahat) -> ScaledVCycle:
     o = ahat.options
     return vcycle(qp.A, vcycle_kind(qp, ahat.kind), qp.multilevel, qp.dim, qp.free_dofs,
                   smoother=o["smoother"], sweeps=o["sweeps"], max_coarse=o.get("max_coarse", 0),
-                  smoothing=o.get("smoothing", "local"))
+                  smoothing=o.get("smoothing", "local"), min_growth=o.get("min_growth", 1.0))
 
 
 def scaled_vcycle(A: sp.spmatrix, kind: str, multilevel: Multilevel | None, dim: int,
                   free_dofs: np.ndarray | None, *, smoother: str, sweeps: int,
                   lanczos_steps: int, max_coarse: int = 0, seed: int = 0,
                   degree: int = 1, gamma_target: float = 2.0, smoothing: str = "local",
-                  near_kernel: np.ndarray | None = None) -> ScaledVCycle:
+                  min_growth: float = 1.0, near_kernel: np.ndarray | None = None
+                  ) -> ScaledVCycle:
     """Build ``A-hat`` (:func:`vcycle`) and scale it by Lanczos so that (8.18) holds.
 
     Parameters
     ----------
-    kind, multilevel, smoother, sweeps, max_coarse, smoothing
+    kind, multilevel, smoother, sweeps, max_coarse, smoothing, min_growth
         As :func:`vcycle`.
     lanczos_steps : int
         Steps of preconditioned Lanczos for ``lambda(A-hat^{-1} A)``.
@@ -489,7 +612,7 @@ def scaled_vcycle(A: sp.spmatrix, kind: str, multilevel: Multilevel | None, dim:
         ``gamma_high = HIGH_SAFETY * ritz_max`` of the final operator.
     """
     vc = vcycle(A, kind, multilevel, dim, free_dofs, smoother=smoother, sweeps=sweeps,
-                max_coarse=max_coarse, smoothing=smoothing)
+                max_coarse=max_coarse, smoothing=smoothing, min_growth=min_growth)
     apply_A = lambda x: A @ x                                     # noqa: E731
     if near_kernel is not None and near_kernel.shape[1]:
         R = np.asarray(near_kernel, dtype=float)
@@ -542,11 +665,19 @@ _SMOOTHING = Parameter("smoothing", "local", "gmg: smooth on each level only the
                        "added and their neighbours (local: O(N) work per V-cycle on adaptive "
                        "hierarchies; the same cycle on uniform ones) or every unknown (full)",
                        choices=SMOOTHING)
+_MIN_GROWTH = Parameter("min_growth", 3.0, "gmg: keep a refinement level only if the next "
+                        "finer kept level has at least this factor more unknowns (products "
+                        "of the prolongations in between, and an exact solve where a kept level "
+                        "refined a region more than once; sizes sum to <= 1.5 N at 3, so a "
+                        "V-cycle is O(N) on graded sequences of many small steps; uniform "
+                        "refinement, x4 per level in 2D, keeps every level); 1 = every level",
+                        low=1.0)
 
 #: ``A-hat``: the kind of V-cycle and its settings, per kind.
 AHAT = ComponentParameter(
-    "ahat", "auto", {"auto": (_SMOOTHER, _SWEEPS, _SMOOTHING, _MAX_COARSE, _LANCZOS),
-                     "gmg": (_SMOOTHER, _SWEEPS, _SMOOTHING, _LANCZOS),
+    "ahat", "auto", {"auto": (_SMOOTHER, _SWEEPS, _SMOOTHING, _MIN_GROWTH, _MAX_COARSE,
+                              _LANCZOS),
+                     "gmg": (_SMOOTHER, _SWEEPS, _SMOOTHING, _MIN_GROWTH, _LANCZOS),
                      "sa": (_SMOOTHER, _SWEEPS, _MAX_COARSE, _LANCZOS)},
     "A-hat (8.18): one symmetric V-cycle of geometric MG on the refinement hierarchy "
     "(gmg) or pyamg SA with rigid-body modes (sa), scaled by Lanczos (Remark 8.14) where a "

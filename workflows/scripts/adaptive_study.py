@@ -98,9 +98,15 @@ DEFAULTS = study_defaults("adaptive")
 
 # --------------------------------------------------------------------------- solvers
 def _alg84_options():
-    """Alg. 8.4 as the table runs it (``alg84``), stopped by the caller's callback."""
+    """Alg. 8.4 as Tables 9.2/9.4 ran it (``alg84`` with one V-cycle as A-hat, the thesis's
+    (8.18)), stopped by the caller's callback.
+
+    The automatic Chebyshev degree would take 2 on the merged graded hierarchy
+    (kappa(V A) ~3.1 > ``gamma_target`` 2.5 at 115k nodes): n_o(1e-3) 7 -> 6 for twice
+    the V-cycles per step and a second Lanczos pass, 20 against 10 us per node. The
+    degree is for locking materials (the incompressibility study), not for nu = 0.3."""
     return ap.SOLVER.options(**ap.VARIANTS["alg84"].options, stop="estimate", eps=1e-14,
-                             record_kkt=False, diagnostics=False)
+                             record_kkt=False, diagnostics=False, **{"ahat.degree": 1})
 
 
 def exact_solve(qp: ContactQP, u0=None, p0=None, tol: float = 1e-8,
@@ -169,10 +175,13 @@ def table_solve(qp: ContactQP, u0, p0, tol: float, time_limit: float):
     eta = np.asarray(h["eta_rel"])
     sizes = [P.shape[1] for P in qp.multilevel.prolongations] + [qp.n]
     row = {"solver": "alg84", "n_outer_total": cold.iterations, "t_setup": s["t_setup"],
-           "kappa_S": s["kappa_S"], "mg_levels": len(sizes),
-           # unknowns smoothed per V-cycle over N: 4/3 on a uniform 2D hierarchy; with
-           # full smoothing ~ sum_k N_k / N on an adaptive one, O(1) with local smoothing
-           "mg_work_ratio": s["smoothing_work"],
+           # the V-cycle's levels (the refinement levels merged, solvers.multigrid.
+           # merge_levels) and unknowns smoothed per cycle over N (4/3 on a uniform 2D
+           # hierarchy); beside them the refinement levels' sizes, what smoothing every
+           # level in full would cost
+           "kappa_S": s["kappa_S"], "mg_levels": s["amg_levels"],
+           "mg_refinement_levels": len(sizes),
+           "mg_work_ratio": s["smoothing_work"], "mg_deep_ratio": s["deep_work"],
            "mg_size_ratio": float(np.sum(sizes)) / qp.n,
            "t_vcycle": s["t_vcycle"], "n_vcycles": s["n_vcycles"], "ap_status": cold.status}
     for e in TABLE_EPS:
