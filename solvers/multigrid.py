@@ -151,6 +151,15 @@ def sa_hierarchy(A: sp.spmatrix, near_null: np.ndarray | None, dim: int,
             improve_candidates=None, coarse_solver="splu")
 
 
+def _injected_rows(P: sp.csr_matrix) -> np.ndarray:
+    """Rows of a prolongation that inject a coarse unknown (one entry, 1): the fine
+    level's old unknowns; the others are new."""
+    single = np.flatnonzero(np.diff(P.indptr) == 1)
+    injected = np.zeros(P.shape[0], dtype=bool)
+    injected[single] = P.data[P.indptr[single]] == 1.0
+    return injected
+
+
 def changed_dofs(A: sp.csr_matrix, P: sp.spmatrix) -> np.ndarray:
     """The unknowns of a fine level whose basis function is new or has changed.
 
@@ -166,10 +175,7 @@ def changed_dofs(A: sp.csr_matrix, P: sp.spmatrix) -> np.ndarray:
     (k,) int array, sorted
     """
     P = sp.csr_matrix(P)
-    single = np.flatnonzero(np.diff(P.indptr) == 1)
-    injected = np.zeros(P.shape[0], dtype=bool)
-    injected[single] = P.data[P.indptr[single]] == 1.0
-    new = np.flatnonzero(~injected)
+    new = np.flatnonzero(~_injected_rows(P))
     mark = np.zeros(A.shape[0], dtype=bool)
     mark[new] = True
     if new.size:
@@ -215,11 +221,10 @@ def refinement_depth(prolongations: list) -> np.ndarray:
     Ps = [sp.csr_matrix(P) for P in prolongations]
     depth = np.zeros(Ps[0].shape[1]) if Ps else np.zeros(0)
     for P in Ps:
-        counts = np.diff(P.indptr)
-        injected = (counts == 1) & (P.data[np.minimum(P.indptr[:-1], len(P.data) - 1)] == 1.0)
         deepest = np.zeros(P.shape[0])
-        np.maximum.at(deepest, np.repeat(np.arange(P.shape[0]), counts), depth[P.indices])
-        depth = np.where(injected, P @ depth, deepest + 1.0)
+        np.maximum.at(deepest, np.repeat(np.arange(P.shape[0]), np.diff(P.indptr)),
+                      depth[P.indices])
+        depth = np.where(_injected_rows(P), P @ depth, deepest + 1.0)
     return depth
 
 
