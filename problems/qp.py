@@ -141,6 +141,34 @@ class SurfaceHierarchy:
         return len(self.masses)
 
 
+@dataclass(frozen=True)
+class Extrusion:
+    """The layers of an extruded mesh: each body is one section copied at a sequence of
+    positions along an axis (the roll stack's rolls), so each unknown lies on one layer
+    and is the copy of one unknown of its body's section.
+
+    What a semicoarsening multigrid needs when the levels are separate meshes
+    (:func:`solvers.multigrid.layered_hierarchy`).
+
+    Attributes
+    ----------
+    layer_of_dof : (n,) int array
+        Layer of each unknown, numbered over all bodies.
+    section_dof : (n,) int array
+        The section unknown (body, section node, component) each unknown copies,
+        numbered over all bodies.
+    layer_coordinate : (n_layers,) array
+        Position of each layer along the axis.
+    body_layers : tuple of int arrays
+        Each body's layers, in order along the axis.
+    """
+
+    layer_of_dof: np.ndarray
+    section_dof: np.ndarray
+    layer_coordinate: np.ndarray
+    body_layers: tuple
+
+
 @dataclass
 class Multilevel:
     """What a multilevel solver needs from the refinement hierarchy.
@@ -157,12 +185,16 @@ class Multilevel:
         Body of each unknown.
     surface : SurfaceHierarchy or None
         Nested constrained-surface meshes, supplied by the scene.
+    extrusion : Extrusion or None
+        The layers of an extruded mesh, supplied by the scene (semicoarsening
+        multigrid where there is no refinement hierarchy).
     """
 
     prolongations: list = field(default_factory=list)
     rigid_body_modes: np.ndarray | None = None
     body_of_dof: np.ndarray | None = None
     surface: SurfaceHierarchy | None = None
+    extrusion: Extrusion | None = None
 
 
 @dataclass(frozen=True)

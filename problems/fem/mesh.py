@@ -25,6 +25,8 @@ import numpy as np
 import scipy.sparse as sp
 from skfem import MeshTet, MeshTri
 
+from problems.qp import Extrusion
+
 
 @dataclass
 class Hierarchy:
@@ -329,3 +331,55 @@ def tet_quality(points: np.ndarray, cells: np.ndarray) -> dict:
     angles = np.concatenate(angles)
     return {"min_volume": float(signed_volumes(points, cells).min()),
             "min_dihedral": float(angles.min()), "max_dihedral": float(angles.max())}
+
+
+def extrusion_layers(points: np.ndarray, body_of_node: np.ndarray, free_dofs: np.ndarray,
+                     dim: int, axis: int = 0) -> Extrusion:
+    """The layers of a mesh whose bodies are each one section extruded along ``axis``,
+    numbered layer by layer (every layer's nodes contiguous and in the section's order, as
+    :func:`problems.roll_stack.extrude` numbers them).
+
+    Parameters
+    ----------
+    points : (N, dim) array
+    body_of_node : (N,) int array
+        Bodies numbered ``0, 1, ...``, each body's nodes contiguous or not.
+    free_dofs : (n,) int array
+        The unknowns (node-major DOF numbers ``dim * node + component``).
+    dim, axis : int
+
+    Returns
+    -------
+    Extrusion
+
+    Raises
+    ------
+    ValueError
+        If a body is not numbered layer by layer along ``axis``.
+    """
+    n_nodes = len(points)
+    layer_of_node = np.empty(n_nodes, dtype=int)
+    section_of_node = np.empty(n_nodes, dtype=int)
+    coordinates, body_layers, n_layers, n_section = [], [], 0, 0
+    for b in np.unique(body_of_node):
+        nodes = np.flatnonzero(body_of_node == b)
+        at = points[nodes, axis]
+        tol = 1e-9 * max(np.ptp(at), 1e-300)
+        size = int(np.count_nonzero(np.abs(at - at[0]) <= tol))     # the first layer's nodes
+        k = len(nodes) // size
+        if k * size != len(nodes):
+            raise ValueError(f"body {b} is not numbered layer by layer along axis {axis}")
+        grid = at.reshape(k, size)
+        if np.any(np.abs(grid - grid[:, :1]) > tol) or np.any(np.diff(grid[:, 0]) <= tol):
+            raise ValueError(f"body {b} is not numbered layer by layer along axis {axis}")
+        layer_of_node[nodes] = n_layers + np.repeat(np.arange(k), size)
+        section_of_node[nodes] = n_section + np.tile(np.arange(size), k)
+        coordinates.append(grid[:, 0])
+        body_layers.append(n_layers + np.arange(k))
+        n_layers, n_section = n_layers + k, n_section + size
+    free_dofs = np.asarray(free_dofs)
+    node = free_dofs // dim
+    return Extrusion(layer_of_dof=layer_of_node[node],
+                     section_dof=section_of_node[node] * dim + free_dofs % dim,
+                     layer_coordinate=np.concatenate(coordinates),
+                     body_layers=tuple(body_layers))
