@@ -25,7 +25,7 @@ from report import roll_stack as report
 from solvers.cholesky import FloatingCholesky
 from solvers.interface import solve
 from workflows.scripts import roll_stack_study as study
-from workflows.studies import ConfigError, all_targets, check_config
+from workflows.studies import ConfigError, all_targets, check_config, roll_args
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -98,7 +98,8 @@ def run(tmp_path_factory):
     out = tmp_path_factory.mktemp("roll")
     study.main(["--problem", "roll_stack", "--level", "0", "--forces", "15e6", "30e6",
                 "--crowns", "150e-6", "0", "--solver-levels", "0", "--solvers", "pdas",
-                "pdas_kkt", "augmented_projection", "--outdir", str(out)])
+                "pdas_kkt", "augmented_projection", "--alg84-levels", "1",
+                "--alg84-time-limit", "600", "--outdir", str(out)])
     return out
 
 
@@ -125,15 +126,20 @@ def test_study_script_end_to_end(run):
     assert (strip.strip_line_load[~inside] == 0).all()
     fe = prof[(prof.source == "fe") & (prof.force == 15e6) & (prof.crown == 150e-6)]
     assert fe.x.is_unique and fe.q.notna().sum() > 3
-    solvers = pd.read_csv(run / "roll_stack_solvers.csv").set_index("solver")
-    assert set(solvers.index) == {"pdas", "pdas_kkt", "augmented_projection"}
+    solvers = pd.read_csv(run / "roll_stack_solvers.csv").set_index(["solver", "level"])
+    assert set(solvers.index) == {("pdas", 0), ("pdas_kkt", 0), ("augmented_projection", 0),
+                                  ("augmented_projection", 1)}
     assert set(solvers.loc[["pdas", "pdas_kkt"], "status"]) == {"converged"}
-    # Alg. 8.4 on the floating roll (FETI's coarse space), with its own columns
-    alg84 = solvers.loc["augmented_projection"]
-    assert alg84.status == "converged" and alg84.kkt_max <= 1e-6, alg84.message
-    assert 0 < alg84.iterations < 100 and alg84.kappa_S > 1 and alg84.ahat_degree >= 1
-    assert alg84.gamma_bar < 5 and alg84.n_vcycles > 0
-    assert np.isnan(solvers.loc["pdas", "kappa_S"])
+    # Alg. 8.4 on the floating roll (FETI's coarse space), with its own columns, at the
+    # comparison's level and alone at level 1; its V-cycle coarsens along the rolls
+    # (tests/test_layered_multigrid.py): n_o 18 at levels 0-2 (29-34 with SA)
+    for level in (0, 1):
+        alg84 = solvers.loc[("augmented_projection", level)]
+        assert alg84.status == "converged" and alg84.kkt_max <= 1e-6, alg84.message
+        assert 0 < alg84.iterations <= 25 and alg84.kappa_S > 1 and alg84.ahat_degree >= 1
+        assert alg84.gamma_bar < 2.5 and alg84.n_vcycles > 0
+        assert alg84.ahat_kind == "layers" and alg84.kappa_vcycle < 5
+    assert np.isnan(solvers.loc[("pdas", 0), "kappa_S"])
     for force in ("15", "30"):
         assert (run / f"roll_stack_F{force}MN.vtu").stat().st_size > 1000
 
@@ -178,6 +184,8 @@ def test_configs_run_the_roll_stack(scale):
     c = config(scale)
     check_config(c)
     assert "results/roll_stack/roll_stack_sag.png" in all_targets(c)
+    if scale == "full":     # Alg. 8.4 at levels 1-3, with a limit of its own
+        assert "--alg84-levels 1 2 3 --alg84-time-limit 1800" in roll_args(c, "roll_stack")
 
 
 @pytest.mark.parametrize("change, needle", [
@@ -198,7 +206,8 @@ def test_bad_roll_stack_config_names_the_key(change, needle):
 
 def test_script_rejects_bad_arguments(tmp_path, capsys):
     for args, needle in ((["--forces", "1"], "--forces"), (["--solvers", "nope"], "--solvers"),
-                         (["--level", "9"], "level"), (["--time-limit", "0"], "--time-limit")):
+                         (["--level", "9"], "level"), (["--time-limit", "0"], "--time-limit"),
+                         (["--alg84-time-limit", "-1"], "--alg84-time-limit")):
         base = ["--problem", "roll_stack", "--level", "0", "--outdir", str(tmp_path)]
         with pytest.raises(SystemExit) as err:
             study.main(base + args)
@@ -227,4 +236,8 @@ def test_schema_accepts_the_configs_and_refuses_unknown_roll_stack_keys(scale):
     validate(copy.deepcopy(c), schema)
     c["roll_stack"]["crown"] = [0.0]                        # a typo: 'crowns'
     with pytest.raises(WorkflowError, match="crown"):
+        validate(c, schema)
+    c = config(scale)
+    c["roll_stack"]["alg84_time_limit"] = 0
+    with pytest.raises(WorkflowError, match="alg84_time_limit"):
         validate(c, schema)

@@ -475,6 +475,8 @@ def roll_args(config: dict, scene: str) -> str:
                  "--solvers " + " ".join(rs["solvers"])]
     if rs.get("alg84_levels"):
         args.append("--alg84-levels " + " ".join(map(str, rs["alg84_levels"])))
+    if rs.get("alg84_time_limit"):
+        args.append(f"--alg84-time-limit {rs['alg84_time_limit']}")
     return " ".join(args)
 
 
