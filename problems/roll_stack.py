@@ -83,7 +83,9 @@ supplied. The P1 scene supplies its layers instead (``multilevel.extrusion``,
 solvers coarsen along ``x`` and smooth whole sections (:func:`solvers.multigrid.layered_hierarchy`):
 the tetrahedra are up to 25:1 long in ``x``, where pointwise smoothing with algebraic
 coarsening (smoothed aggregation, still the P2 scene's) leaves ``kappa(V A)`` at 150 and
-more. The surface multigrid of ``solvers.schur`` is algebraic.
+more. The constrained surface has one level: the band is 25:1 anisotropic too, and a
+tensor coarsening of it measured ``kappa(S-hat^-1 S_in)`` about 27, so the augmented
+projection's ``schur=auto`` takes ``S_in``.
 
 Left out: friction and the rolls' horizontal offset; the strip's plastic response
 (its pressure is a given uniform traction); the work roll's bearing/bending forces;
