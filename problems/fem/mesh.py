@@ -367,10 +367,9 @@ def extrusion_layers(points: np.ndarray, body_of_node: np.ndarray, free_dofs: np
         tol = 1e-9 * max(np.ptp(at), 1e-300)
         size = int(np.count_nonzero(np.abs(at - at[0]) <= tol))     # the first layer's nodes
         k = len(nodes) // size
-        if k * size != len(nodes):
-            raise ValueError(f"body {b} is not numbered layer by layer along axis {axis}")
-        grid = at.reshape(k, size)
-        if np.any(np.abs(grid - grid[:, :1]) > tol) or np.any(np.diff(grid[:, 0]) <= tol):
+        grid = at[:k * size].reshape(k, size)
+        if (k * size != len(nodes) or np.any(np.abs(grid - grid[:, :1]) > tol)
+                or np.any(np.diff(grid[:, 0]) <= tol)):
             raise ValueError(f"body {b} is not numbered layer by layer along axis {axis}")
         layer_of_node[nodes] = n_layers + np.repeat(np.arange(k), size)
         section_of_node[nodes] = n_section + np.tile(np.arange(size), k)
