@@ -1,8 +1,8 @@
-"""Checked claims declared as data (issue 26).
+"""Checked claims declared as data.
 
 Every study's report module declares its claims once, at its top, as a ``CLAIMS`` dict
-of :class:`Claim`: where the claim comes from (the thesis's item, or the issue that set
-the bar), the measured quantity (a text template), the comparison and the bar. Its
+of :class:`Claim`: where the claim comes from (the thesis's item, a published result, or
+"suite bar" with the reason the bar is what it is), the measured quantity (a text template), the comparison and the bar. Its
 ``claims()`` function only measures and calls :meth:`Claim.row`; the summary page
 (``report/summary.py``) collects the rows, and ``tests/test_claims.py`` checks that
 every row comes from a declared claim.
@@ -33,8 +33,9 @@ class Claim:
     Attributes
     ----------
     thesis : str
-        Where it comes from: the thesis's item ("Sect. 6.2", "Lemma 8.13") or the issue
-        that set the bar ("issue 24").
+        Where it comes from: the thesis's item ("Sect. 6.2", "Lemma 8.13"), a published
+        result, or "suite bar" with the one-line reason the bar is what it is
+        ("suite bar (TNNMG: close to one linear solve)").
     quantity : str
         The measured quantity, a template formatted with the row's fields
         (``"H1 rate -- {where}"``).

@@ -41,7 +41,7 @@ from report.claims import Claim
 from report.figures import save_figure
 from workflows.io import read_checked, read_csv, write_csv
 
-#: Issue 10's bars: equilibrium, springs, Hertz at the barrel centre, resolution needed.
+#: The suite's bars: equilibrium, springs, Hertz at the barrel centre, resolution needed.
 EQUILIBRIUM, SPRINGS, HERTZ, MIN_CELLS = 5e-3, 1e-4, 0.05, 8.0
 
 UM, MM = 1e6, 1e3

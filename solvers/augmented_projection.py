@@ -45,7 +45,7 @@ steps of ``tau = 1/alpha_bar``); the additive update keeps the thesis's
 ``tau = 1/alpha_bar``.
 
 Beyond the thesis, three things keep the method's outer step count bounded where the
-thesis's ingredients lose their spectral equivalence (issue 24):
+thesis's ingredients lose their spectral equivalence:
 
 * Towards incompressibility a V-cycle's ``kappa(V A)`` grows like ``(1 - 2 nu)^-0.75``
   (70 at nu = 0.499, 450 at 0.4999, independent of h): ``A-hat^{-1}`` is then a Chebyshev

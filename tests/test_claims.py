@@ -1,4 +1,4 @@
-"""Claims declared as data (report/claims.py, issue 26)."""
+"""Claims declared as data (report/claims.py)."""
 from __future__ import annotations
 
 import importlib

@@ -51,7 +51,7 @@ def test_claims_pass_and_fail_on_synthetic_studies():
     assert abs(good["measured"].iloc[2] - 1.0) < 1e-12       # slope of t ~ N
     assert abs(good["measured"].iloc[3] - 4.0) < 1e-12       # 2 t / (t / 2)
     assert abs(good["measured"].iloc[4] - 1.8) < 1e-12       # the best variant
-    # issue 24: the ratios to a linear solve are reported figures, never judged
+    # no published bar: the ratios to a linear solve are reported figures, never judged
     assert good["pass"].iloc[3:5].isna().all() and list(good["bar"].iloc[3:5]) == ["-", "-"]
     alone = claims(_study(lambda n: 1e-5 * n, [8, 8, 8, 8], [34, 68, 136, 272]))
     assert alone["pass"].iloc[3:5].isna().all()

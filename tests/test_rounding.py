@@ -1,4 +1,4 @@
-"""Rounding must not decide a solve (issue 20).
+"""Rounding must not decide a solve.
 
 Every registered solver on the random two-body family over 60 seeds and on copies of
 each problem whose data (A, f, B, g) are perturbed by a relative 1e-14 -- the size of

@@ -1,4 +1,4 @@
-"""Issue 26: each study's settings declared once. Defaults live in the config schema
+"""Each study's settings declared once. Defaults live in the config schema
 (:mod:`workflows.settings`); the Snakefile's validation fills them in; no rule, no helper
 in :mod:`workflows.studies` and no script's option declares one of them again."""
 from __future__ import annotations

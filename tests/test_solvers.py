@@ -508,7 +508,7 @@ def test_a_solver_that_gave_up_at_a_coarser_level_is_skipped_there():
 
 
 def test_a_solver_predicted_beyond_the_time_limit_is_skipped():
-    """Issue 26: the time fitted as c n^e over the two finest converged coarser levels
+    """The time fitted as c n^e over the two finest converged coarser levels
     predicts the next level's; beyond the limit the run is skipped with the prediction."""
     import pandas as pd
 

@@ -1,4 +1,4 @@
-"""Per-job resources of a scale predicted from measured scaling (issue 26).
+"""Per-job resources of a scale predicted from measured scaling.
 
 Snakemake writes one benchmark file per heavy job (``results/benchmarks/<rule>/<job>.tsv``:
 wall seconds, peak RSS). Given those of runs at two or more scales (say ``quick`` and
