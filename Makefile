@@ -13,7 +13,7 @@ REPORT := results/report.html
 # Debian's Chromium, for the test that opens the HTML report in a real browser
 CHROMIUM ?= /usr/bin/chromium
 
-.PHONY: setup browser run full test bench clean
+.PHONY: setup browser run full test bench docs clean
 
 $(BIN)/contactbench: pyproject.toml constraints.txt
 	@command -v $(PYTHON) >/dev/null 2>&1 || { echo "error: $(PYTHON) not found; set PYTHON=/path/to/python3.11"; exit 2; }
@@ -58,6 +58,12 @@ test: setup browser
 bench: setup
 	$(BIN)/python -m pytest -q tests --benchmark-enable --benchmark-only --benchmark-autosave \
 		$$(ls .benchmarks/*/*.json >/dev/null 2>&1 && echo --benchmark-compare)
+
+# the documentation site, warnings as errors (the scene, solver, CLI and API pages are
+# generated from the code at every build: docs/_ext/registry_pages.py)
+docs: setup
+	$(BIN)/python -m sphinx -b html -W --keep-going docs docs/_build/html
+	@echo "docs: docs/_build/html/index.html"
 
 clean:
 	rm -rf results/*/ .snakemake
