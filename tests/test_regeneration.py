@@ -147,7 +147,7 @@ def job_events(log: str) -> list[tuple[str, int, str]]:
 
 
 def test_timing_jobs_run_alone(tiny_run):
-    """The profile's named resource (``machine_share``, studies.RUNS_ALONE) at work on two
+    """The profile's named resource (``machine_share``, workflows.studies.RUNS_ALONE) at work on two
     cores: no job starts while a timing job runs, and a timing job starts only when
     nothing else runs."""
     from workflows.studies import RUNS_ALONE

@@ -25,7 +25,8 @@ from report import roll_stack as report
 from solvers.cholesky import FloatingCholesky
 from solvers.interface import solve
 from workflows.scripts import roll_stack_study as study
-from workflows.studies import ConfigError, all_targets, check_config, roll_args
+from workflows.studies import ConfigError, all_targets, check_config
+from workflows.studies.roll_stack import roll_args
 
 ROOT = Path(__file__).resolve().parent.parent
 

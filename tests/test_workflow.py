@@ -322,7 +322,7 @@ def test_studies_declare_their_outputs_once():
     assert "results/flat_blocks/patch_test.png" in targets          # the patch test's extra
     assert not any(t.startswith("results/flat_blocks/adaptive") for t in targets)
     smk = "".join(p.read_text() for p in (ROOT / "workflows").glob("*.smk"))
-    assert "results/" not in smk          # every path comes from workflows/studies.py
+    assert "results/" not in smk          # every path comes from workflows/studies/
 
 
 @pytest.mark.parametrize("scale", ["quick", "huge"])
