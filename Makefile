@@ -13,7 +13,7 @@ REPORT := results/report.html
 # Debian's Chromium, for the test that opens the HTML report in a real browser
 CHROMIUM ?= /usr/bin/chromium
 
-.PHONY: setup browser run full test bench docs clean
+.PHONY: setup browser run full test bench docs plan clean
 
 $(BIN)/contactbench: pyproject.toml constraints.txt
 	@command -v $(PYTHON) >/dev/null 2>&1 || { echo "error: $(PYTHON) not found; set PYTHON=/path/to/python3.11"; exit 2; }
@@ -64,6 +64,15 @@ bench: setup
 docs: setup
 	$(BIN)/python -m sphinx -b html -W --keep-going docs docs/_build/html
 	@echo "docs: docs/_build/html/index.html"
+
+# huge.yaml's resources predicted from the benchmark files of a quick and a full run
+# (workflows/planning.py): make plan QUICK_RUN=<checkout of a quick run> FULL_RUN=<...>
+QUICK_RUN ?= .
+FULL_RUN ?= .
+plan: setup
+	$(BIN)/python -m workflows.planning --target workflows/config/huge.yaml --measured \
+		workflows/config/quick.yaml=$(QUICK_RUN)/results/benchmarks \
+		workflows/config/full.yaml=$(FULL_RUN)/results/benchmarks
 
 clean:
 	rm -rf results/*/ .snakemake

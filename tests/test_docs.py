@@ -7,6 +7,8 @@ written beside the sources at build time), in a subprocess that sees the plug-in
 """
 from __future__ import annotations
 
+import re
+import shlex
 import shutil
 import subprocess
 import sys
@@ -72,3 +74,95 @@ def test_the_command_line_page_and_the_guides_are_built(site):
     assert "--problem" in cli
     assert (site / "guide" / "add-a-solver.html").is_file()
     assert "guide/add-a-solver.html" in text_of(site / "index.html")   # the globbed toctree
+
+
+# --------------------------------------------------------------------------- commands
+ROOT = DOCS.parent
+#: The pages a user reads commands from: the front page and the hand-written docs.
+PAGES = [ROOT / "README.md", *sorted(p for p in DOCS.rglob("*.md")
+                                     if not {"_build", "generated"} & set(p.parts))]
+
+
+def shell_lines(text: str) -> list[str]:
+    """The lines of the ``bash`` fenced blocks of a page, continuation lines joined and
+    comments dropped."""
+    lines, inside, block = [], False, []
+    for line in text.splitlines():
+        if line.startswith("```"):
+            if inside:
+                lines += " ".join(block).replace("\\ ", " ").split("\n")
+            inside, block = (line.strip() == "```bash") and not inside, []
+            continue
+        if inside:
+            block.append(line + ("" if line.endswith("\\") else "\n"))
+    return [l.split(" #")[0].strip() for l in lines if l.split(" #")[0].strip()]
+
+
+def shown_commands() -> list[tuple[str, list[str]]]:
+    """``(page, argv)`` of every ``contactbench`` command in a fenced block of the pages
+    (continuation lines joined, comments dropped)."""
+    found = []
+    for page in PAGES:
+        for line in shell_lines(page.read_text(encoding="utf-8")):
+            words = shlex.split(line)
+            if words[0].endswith("contactbench"):
+                found.append((page.name, words[1:]))
+    return found
+
+
+def at_the_tiny_scale(argv: list[str]) -> list[str]:
+    """The command at the tiny scale: level 0, and an export of one family."""
+    out = list(argv)
+    if "--level" in out:
+        out[out.index("--level") + 1] = "0"
+    if out[0] == "export":
+        out += ["--families", "circle_square"]
+    return out
+
+
+def test_the_pages_show_only_suite_commands():
+    """The docs show contactbench, make and snakemake (and qpbenchmark on an export)."""
+    allowed = ("contactbench", "make", "snakemake", "qpbenchmark", "pip")
+    for page in PAGES:
+        text = page.read_text(encoding="utf-8")
+        assert "python -m" not in text, page
+        for line in shell_lines(text):
+            assert shlex.split(line)[0].split("/")[-1] in allowed, (page, line)
+
+
+@pytest.mark.slow
+def test_every_contactbench_command_shown_runs_at_the_tiny_scale(tmp_path):
+    commands = shown_commands()
+    assert {argv[0] for _, argv in commands} >= {"list", "solve", "export", "study"}
+    contactbench = Path(sys.executable).parent / "contactbench"
+    tiny = {tuple(at_the_tiny_scale(argv)): page for page, argv in commands}  # each once
+    for i, (argv, page) in enumerate(tiny.items()):
+        cwd = tmp_path / str(i)
+        cwd.mkdir()
+        done = subprocess.run([str(contactbench), *argv], cwd=cwd, capture_output=True,
+                              text=True, timeout=600)
+        assert done.returncode == 0, (page, argv, done.stderr[-3000:])
+
+
+def test_the_study_commands_quoted_with_a_measurement_name_real_options(capsys):
+    """A measurement is quoted with the command that made it (``contactbench study NAME
+    --option ...``, elided): every name is a study command, every option one its script
+    takes."""
+    from workflows.cli import main
+    from workflows.studies import study_commands
+
+    quoted = []
+    for page in PAGES:
+        text = " ".join(page.read_text(encoding="utf-8").split())
+        quoted += [(page.name, m[0], m[1]) for m in
+                   re.findall(r"contactbench study ([a-z_]+)((?: [^`]*)?)`", text)]
+    assert len(quoted) >= 10
+    for page, name, rest in quoted:
+        assert name in study_commands(), (page, name)
+        with pytest.raises(SystemExit) as stop:
+            main(["study", name, "--help"])
+        assert stop.value.code == 0
+        usage = capsys.readouterr().out
+        for option in re.findall(r"(?<!\S)(--[a-z][\w-]*)", rest):
+            assert f"{option} " in usage or f"{option}\n" in usage or f"{option}," in usage, \
+                (page, name, option)
