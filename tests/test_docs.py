@@ -7,6 +7,7 @@ written beside the sources at build time), in a subprocess that sees the plug-in
 """
 from __future__ import annotations
 
+import html
 import re
 import shlex
 import shutil
@@ -37,6 +38,12 @@ def site(plugin_env, tmp_path_factory) -> Path:
 
 def text_of(page: Path) -> str:
     return page.read_text(encoding="utf-8")
+
+
+def plain_text_of(page: Path) -> str:
+    """The page's text without its tags and entities, whitespace collapsed."""
+    text = html.unescape(re.sub(r"<[^>]+>", "", text_of(page)))
+    return " ".join(text.split())
 
 
 @pytest.mark.slow
@@ -166,3 +173,19 @@ def test_the_study_commands_quoted_with_a_measurement_name_real_options(capsys):
         for option in re.findall(r"(?<!\S)(--[a-z][\w-]*)", rest):
             assert f"{option} " in usage or f"{option}\n" in usage or f"{option}," in usage, \
                 (page, name, option)
+
+
+@pytest.mark.slow
+def test_each_study_page_shows_what_its_declaration_and_rules_say(site):
+    from report.element_order import CLAIMS
+    from workflows.studies import STUDIES
+
+    for name, study in STUDIES.items():
+        page = plain_text_of(site / "studies" / f"{name}.html")
+        assert f"contactbench study {next(iter(study.scripts))}" in page, name
+        for item in study.thesis_items:
+            assert item.item in page, (name, item.item)
+    page = plain_text_of(site / "studies" / "element_order.html")
+    for claim in CLAIMS.values():                   # the report module's declared claims
+        assert claim.thesis in page
+    assert "P1 (circles) against P2 (squares)" in page         # the figure's caption

@@ -6,6 +6,10 @@ At every build, before Sphinx reads the sources, it writes
   (:func:`problems.spec.problems`);
 * ``generated/solvers/<name>.md``: one page per registered solver
   (:func:`solvers.interface.solvers`), an installed plug-in solver included;
+* ``generated/studies/<name>.inc``: what each study regenerates, included at the end of
+  its hand-written page: its thesis items, its outputs with the captions the report shows
+  beside them, the claims its report modules check, its commands (the study's module,
+  :mod:`workflows.studies`, and the report modules and captions its rule file names);
 * ``generated/cli.md``: the command line, from :func:`workflows.cli.build_parser`;
 * ``generated/api/<module>.md``: the API reference of :data:`API_MODULES` (autodoc).
 
@@ -17,6 +21,7 @@ from __future__ import annotations
 import argparse
 import inspect
 import os
+import re
 import shutil
 from pathlib import Path
 
@@ -25,6 +30,10 @@ GENERATED = "generated"
 API_MODULES = ("problems.spec", "problems.qp", "problems.kkt", "solvers.interface",
                "solvers.base", "solvers.certificate", "workflows.test_set", "workflows.export",
                "workflows.io", "report.claims")
+
+
+#: The suite's checkout (the rule files and captions the study pages read).
+SUITE = Path(__import__("workflows").__file__).resolve().parents[1]
 
 
 def cell(text) -> str:
@@ -128,6 +137,44 @@ def cli_page(parser: argparse.ArgumentParser) -> str:
     return "\n".join(lines)
 
 
+def study_facts(study, root: Path) -> str:
+    """What a study regenerates, from its declaration and its rule file."""
+    import importlib
+
+    rules = (root / "workflows" / study.rule_file).read_text(encoding="utf-8")
+    captions = dict(re.findall(r'report\(PATHS\["(\w+)"\],\s*caption="\.\./report/'
+                               r'captions/([\w.]+)"', rules))
+    modules = sorted(set(re.findall(r"-m (report\.\w+)", rules)))
+    lines = ["## What the workflow regenerates", "",
+             f"Generated from the study's module, `workflows/studies/{study.name}.py`, and its "
+             f"rules, `workflows/{study.rule_file}`.", "",
+             f"- thesis: {study.thesis}",
+             "- by hand: " + ", ".join(f"`contactbench study {c}`" for c in study.scripts)
+             + " (`--help` lists the arguments)",
+             "- heavy rules (benchmarked, with measured resources): "
+             + (", ".join(f"`{r}`" + (" (runs alone)" if r in study.runs_alone else "")
+                          for r in study.heavy_rules) or "none")]
+    if study.thesis_items:
+        lines += ["", "### The thesis's tables and figures", "",
+                  "| thesis | what | output |", "| --- | --- | --- |",
+                  *(f"| {cell(i.item)} | {cell(i.what)} | `{study.paths[i.key]}` "
+                    f"({i.problem or 'every scene'}) |" for i in study.thesis_items)]
+    lines += ["", "### Outputs and how to read them", ""]
+    for key, caption in captions.items():
+        text = (root / "report" / "captions" / caption).read_text(encoding="utf-8").strip()
+        lines += [f"**`{study.paths.get(key, key)}`**", "", "```{eval-rst}", text, "```", ""]
+    claims = [(name, c) for module in modules
+              for name, c in getattr(importlib.import_module(module), "CLAIMS", {}).items()]
+    if claims:
+        lines += ["### Checked claims", "",
+                  "Declared once in " + ", ".join(f"`{m}`" for m in modules) + " (`CLAIMS`); "
+                  "the summary page shows each with its measured value and pass or miss.", "",
+                  "| claim | source | measured quantity | bar |", "| --- | --- | --- | --- |",
+                  *(f"| `{name}` | {cell(c.thesis)} | {cell(c.quantity)} | "
+                    f"{cell(c.bar_text())} |" for name, c in claims)]
+    return "\n".join(lines) + "\n"
+
+
 def api_page(module: str) -> str:
     """One module's API page (autodoc, numpydoc)."""
     return "\n".join([f"# `{module}`", "", "```{eval-rst}", f".. automodule:: {module}",
@@ -152,6 +199,11 @@ def write_pages(srcdir: Path) -> None:
     (out / "scenes").mkdir(parents=True)
     (out / "solvers").mkdir(parents=True)
     (out / "api").mkdir(parents=True)
+    (out / "studies").mkdir(parents=True)
+    from workflows.studies import STUDIES
+    for name, study in STUDIES.items():
+        (out / "studies" / f"{name}.inc").write_text(study_facts(study, SUITE),
+                                                     encoding="utf-8")
     for module in API_MODULES:
         (out / "api" / f"{module}.md").write_text(api_page(module), encoding="utf-8")
     plugins = external_solvers()
