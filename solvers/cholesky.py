@@ -480,9 +480,11 @@ def row_basis(K: np.ndarray, g: np.ndarray | None = None, labels: np.ndarray | N
             z = np.concatenate([[1.0], -coeff])
             rows = np.concatenate([[labels[dropped[i]]], labels[kept]])
             support = np.abs(z) > rtol * np.abs(z).max()
+            order = np.argsort(rows[support])
+            rows, z = rows[support][order], z[support][order]
             raise InfeasibleError(
-                f"the problem is infeasible: constraint rows {rows[support].tolist()} with "
-                f"weights z = {np.round(z[support], 6).tolist()} >= 0 give B'z = 0 but "
+                f"the problem is infeasible: constraint rows {rows.tolist()} with "
+                f"weights z = {np.round(z, 6).tolist()} >= 0 give B'z = 0 but "
                 f"g'z = {-r[i]:.3e} < 0 (a Farkas certificate: no u has Bu <= g)")
         j = int(np.argmax(coeff))
         kept = np.sort(np.append(np.delete(kept, j), dropped[i]))
