@@ -21,7 +21,7 @@ from problems.circle_square import PROBLEM as CIRCLE_SQUARE
 from problems.kkt import energy_error
 from problems.qp import ContactQP
 from solvers.cholesky import InfeasibleError, row_basis
-from solvers.interface import solve
+from solvers.interface import STATUSES, solve, solvers
 from test_solvers import two_body_qp
 
 #: Seeds of the random two-body family whose rank the test checks.
@@ -243,3 +243,19 @@ def test_row_basis_exchanges_a_violated_row_and_certifies_infeasibility():
     K = np.vstack([r, -r]) @ np.vstack([r, -r]).T
     with pytest.raises(InfeasibleError, match=r"rows \[3, 8\] with weights z = \[1.0, 1.0\]"):
         row_basis(K, np.array([-1.0, -1.0]), labels=np.array([3, 8]))
+
+
+# --------------------------------------------------------------------- every other solver
+@pytest.mark.parametrize("solver", sorted(set(solvers()) - set(SOLVERS)))
+def test_every_solver_answers_with_a_status(solver):
+    """Dependent active rows and infeasible rows: every registered solver returns a
+    status and says why when it does not converge; none raises. (The augmented
+    projection method has no infeasibility test: on the infeasible corner its inner
+    solves run to their caps, ~1 s per outer step, so a few steps show its answer.)"""
+    problems = [two_body_qp(seed=7677), *infeasible_problems().values()]
+    max_iter = 3 if solver == "augmented_projection" else None
+    for qp in problems:
+        res = solve(qp, solver, "mid", max_iter=max_iter)
+        assert res.status in STATUSES and res.message, (qp.name, res.message)
+        if qp.name != "two-body-7677":
+            assert res.status != "converged", (qp.name, res.message)
