@@ -13,6 +13,8 @@ problems, which must end ``failed`` with a message saying so.
 """
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 import scipy.sparse as sp
@@ -203,6 +205,28 @@ def test_identical_rows_tighter_copy_decides(scene):
                                atol=1e-12 * np.abs(qp.g).max())
     assert np.all(res.p[active] == 0) and np.all(res.p[tighter] > 0)
     assert energy_error(base, res.u, reference["duplicated"]) > 1e3 * AGREEMENT
+
+
+@pytest.mark.slow
+def test_duplicated_rows_on_a_floating_body():
+    """The roll stack (the work roll held only by contact and weak springs: pdas's
+    floating route) with its active rows written twice: the duplicates change nothing,
+    so the solution is the scene's, to round-off; the verification certifies it."""
+    from problems.roll_stack import PROBLEM as ROLL_STACK
+
+    qp = ROLL_STACK.make(0)
+    ref = solve(qp, "pdas", "high")
+    active = np.flatnonzero(ref.p > 0)
+    assert ref.status == "converged" and active.size >= 2
+    # the rigid-body modes stay (the floating route needs them); the surface hierarchy
+    # describes the scene's own rows only
+    multilevel = dataclasses.replace(qp.multilevel, surface=None, extrusion=None)
+    dup = ContactQP(A=qp.A, f=qp.f, B=sp.vstack([qp.B, qp.B[active]], format="csr"),
+                    g=np.concatenate([qp.g, qp.g[active]]), multilevel=multilevel, dim=qp.dim,
+                    name="roll stack, active rows twice")
+    res = solve(dup, "pdas", "high")
+    assert res.status == "converged" and res.stats["n_dependent"] == active.size, res.message
+    assert energy_error(qp, res.u, ref.u) <= 1e-12
 
 
 # --------------------------------------------------------------------- infeasible problems
