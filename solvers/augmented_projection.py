@@ -82,7 +82,7 @@ from problems.qp import ContactQP
 from problems.spec import Component, ComponentParameter, Options, Parameter, ParameterError
 from solvers.multigrid import AHAT_SCALED, scaled_vcycle, vcycle_kind
 from solvers.schur import SchurPreconditioner, build_schur, kappa_schur_exact
-from solvers.base import Role, SolveResult, SolverSpec
+from solvers.base import Role, SolveResult, SolverSpec, preset_texts
 from solvers.certificate import certify
 
 
@@ -833,9 +833,7 @@ SOLVER = SolverSpec(
                   "studies turn them off)"),
         Parameter("seed", 0, "Lanczos start vectors", low=0, kind=int),
     ),
-    presets={"low": "stop when the verified KKT max <= 1e-3",
-             "mid": "stop when the verified KKT max <= 1e-6",
-             "high": "stop when the verified KKT max <= 1e-9"},
+    presets=preset_texts("stop when the verified KKT max <="),
     default_max_iter=2000,
     role=Role.THESIS,
     handles_C=True,

@@ -568,3 +568,12 @@ def test_a_library_failure_keeps_its_own_words():
                     g=np.array([-1.0, -1.0]), name="infeasible")
     out = run(cvxopt, bad, 1e-6, 100, None, None, None, solvers()["cvxopt"].options())
     assert out.claimed_status != "converged" and out.message.startswith("cvxopt: ")
+
+
+def test_the_preset_texts_follow_the_tolerance_table():
+    """A solver that stops at the preset's tolerance states it from TOLERANCES itself."""
+    for name in ("augmented_projection", "semismooth_newton", "tnnmg"):
+        presets = solvers()[name].presets
+        assert set(presets) == set(TOLERANCES)
+        for preset, tol in TOLERANCES.items():
+            assert presets[preset].endswith(" " + f"{tol:.0e}".replace("e-0", "e-")), presets
