@@ -55,7 +55,9 @@ def cost_table(table: pd.DataFrame) -> pd.DataFrame:
 def preset_table() -> pd.DataFrame:
     """How each solver maps the presets low/mid/high onto its own options."""
     rows = []
-    for name, spec in solvers().items():
+    registry = solvers()
+    for name in run_solvers(registry):
+        spec = registry[name]
         for preset, tol in TOLERANCES.items():
             rows.append({"solver": name, "preset": preset, "tol": tol,
                          "options": spec.presets.get(preset, "")})
