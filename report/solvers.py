@@ -15,7 +15,7 @@ import pandas as pd  # noqa: E402
 from report.figures import save_figure  # noqa: E402
 from report.rates import fitted_slope  # noqa: E402
 from solvers.interface import TOLERANCES, solvers  # noqa: E402
-from workflows.io import read_csv, write_csv  # noqa: E402
+from workflows.io import read_csv, run_solvers, write_csv  # noqa: E402
 
 MARKERS = {"converged": "o", "inaccurate": "x", "max_iter": "s", "time_limit": ">", "failed": "X",
            "skipped": "."}
