@@ -273,3 +273,26 @@ def test_the_test_set_runs_have_a_row_for_every_broken_case(broken_plugins, tmp_
     assert "objective_error" not in table                 # no answer, no objective
     assert "ZeroDivisionError" in capsys.readouterr().err
     _no_partial(tmp_path)
+
+
+def test_the_plug_in_authors_page_covers_every_rule_status_and_check():
+    """The page (docs/guide/solver-contract.md) lists what the code declares."""
+    from pathlib import Path
+
+    from solvers.base import STATUSES, TOLERANCES
+    from workflows.isolation import GRACE_FACTOR, GRACE_SECONDS
+
+    page = (Path(__file__).resolve().parent.parent / "docs/guide/solver-contract.md").read_text()
+    assert page.startswith("# ")
+    for rule, text in CONTRACT.items():
+        assert f"| `{rule}` |" in page, rule
+    for status in STATUSES:
+        assert f"`{status}`" in page, status
+    for check in ("claimed", "no_answer", "exception", "process", "hard_time_limit",
+                  "kkt_stationarity", "kkt_primal", "kkt_dual", "kkt_complementarity",
+                  "energy_bound", "no_certificate", "contract:<rule>"):
+        assert f"`{check}`" in page, check
+    assert f"{GRACE_FACTOR:g} * time_limit + {GRACE_SECONDS:g} s" in page
+    assert ", ".join(f"`{t:.0e}`".replace("e-0", "e-") for t in TOLERANCES.values()) in page
+    assert "default_max_iter" in page and "`qp.n`" in page and "`qp.m`" in page
+    assert '"inf"' in page and '"nan"' in page
