@@ -43,7 +43,9 @@ SOLVER_SET = run_solver_set() or solver_set()
 os.environ[SOLVER_SET_ENV] = json.dumps(SOLVER_SET, sort_keys=True)
 shell.prefix(f"export CONTACTBENCH_CONFIGFILE={','.join(map(str, workflow.configfiles))} "
              f"CONTACTBENCH_CONFIG_SHA256={CONFIG_SHA256} "
-             f"{SOLVER_SET_ENV}={shlex.quote(os.environ[SOLVER_SET_ENV])}; ")
+             f"{SOLVER_SET_ENV}="      # the prefix is formatted once more: braces doubled
+             + shlex.quote(os.environ[SOLVER_SET_ENV]).replace("{", "{{").replace("}", "}}")
+             + "; ")
 for removed in sweep_results("results"):
     print(f"removed a corrupted or partial result, to be rebuilt: {removed}", file=sys.stderr)
 

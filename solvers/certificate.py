@@ -345,14 +345,22 @@ def broken_contract(qp: ContactQP, result, tol: float, rule: str, what: str) -> 
         text, check = f"the solver broke the contract: {CONTRACT[rule]} ({what})", \
             f"contract:{rule}"
     own = result.message if keep and isinstance(result.message, str) else ""
-    claimed = result.claimed_status if keep and isinstance(result.claimed_status, str) else "failed"
+    claimed = (result.claimed_status if keep and isinstance(result.claimed_status, str)
+               else "failed")
     row = SolveResult.without_answer(qp.n, qp.m, result.solver if keep else "", tol, "failed",
                                      f"{own}; {text}" if own else text,
                                      failed_check=check, claimed_status=claimed)
     if keep:
         row.options, row.traceback = result.options, result.traceback
+        # what of the rest keeps the contract is kept (the later rules are unchecked yet)
+        if isinstance(result.history, dict) and isinstance(result.stats, dict):
+            row.history, row.stats = result.history, result.stats
+        its = result.iterations
+        if isinstance(its, (int, np.integer)) and not isinstance(its, bool) and its >= 0:
+            row.iterations = int(its)
         for name in ("setup_time", "solve_time"):
             t = getattr(result, name)
-            if isinstance(t, (int, float)) and np.isfinite(t) and t >= 0:
+            if (isinstance(t, (int, float)) and not isinstance(t, bool) and np.isfinite(t)
+                    and t >= 0):
                 setattr(row, name, float(t))
     return row

@@ -189,9 +189,9 @@ def solve(qp: ContactQP, solver: str = "pdas", tol: float | str = "mid",
         return result
     broken = contract_violation(result, target.n, target.m)
     if broken is not None:
-        if isinstance(result, SolveResult):
-            result.solver, result.options = spec.name, opts.flat()
-        return broken_contract(qp, result, tol, *broken)
+        row = broken_contract(qp, result, tol, *broken)
+        row.solver, row.options = spec.name, opts.flat()
+        return row
     if target is not qp:
         result.u = np.asarray(result.u, dtype=float)[:qp.n]
         result.message = (result.message + "; " if result.message else "") + "slack form"

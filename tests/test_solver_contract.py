@@ -296,3 +296,22 @@ def test_the_plug_in_authors_page_covers_every_rule_status_and_check():
     assert ", ".join(f"`{t:.0e}`".replace("e-0", "e-") for t in TOLERANCES.values()) in page
     assert "default_max_iter" in page and "`qp.n`" in page and "`qp.m`" in page
     assert '"inf"' in page and '"nan"' in page
+
+
+@pytest.mark.parametrize("change", [dict(stats=[1]), dict(iterations="many", u=np.zeros(3)),
+                                    dict(solve_time=float("inf")), dict(message=7)])
+def test_a_row_of_a_broken_answer_keeps_only_what_keeps_the_contract(qp, monkeypatch,
+                                                                       change):
+    def broken(qp, *a):
+        fields = dict(u=np.zeros(qp.n), p=np.zeros(qp.m), claimed_status="converged",
+                      iterations=4, solve_time=0.5)
+        fields.update(change)
+        return SolveResult(**fields)
+    monkeypatch.setattr(interface, "external_solvers",
+                        lambda: {"b": SolverSpec(name="b", summary="x", solve=broken)})
+    res = interface.solve(qp, "b")
+    assert res.status == "failed" and res.failed_check.startswith("contract:")
+    summary = res.summary()                       # the table row: plain, never a crash
+    assert summary["solver"] == "b" and isinstance(summary["message"], str)
+    assert summary["iterations"] == (4 if "iterations" not in change else 0)
+    assert np.isfinite(summary["solve_time"]) and isinstance(res.stats, dict)
