@@ -126,7 +126,7 @@ def main(argv=None) -> None:
     args = ap.parse_args(argv)
     table = pd.concat([read_csv(f) for f in args.inputs], ignore_index=True)
     keep = ["scene_problem", "level", "N", "n", "m", "solver", "preset", "tol", "status",
-            "claimed_status",
+            "claimed_status", "failed_check",
             "iterations", "setup_time", "solve_time", "total_time", "wall_time",
             "kkt_stationarity", "kkt_primal", "kkt_dual", "kkt_complementarity", "kkt_max",
             "energy_bound", "energy_bound_floor", "pair_gap", "energy_error", "peak_mem_mb",
