@@ -10,14 +10,14 @@ which Tao's bound-constrained solvers take: BNLS (bounded Newton with a line sea
 a Krylov solve on the free set; the default), GPCG (gradient projection and CG on the
 face, Moré and Toraldo) and BNCG (bounded nonlinear CG, no linear solve). The Krylov
 solves of BNLS and GPCG are preconditioned by GAMG, with the bodies' rigid-body modes
-(``T^{-1} R``, orthonormal) as its near-null space, or by hypre's BoomerAMG; each new
-reduced system gets a fresh multigrid setup (the worker's ``FreshAMG``). Measured on
-circle-square and cube-sphere level 1 (7-8k unknowns, ``mid``): BNLS converges in 4-5
-Newton steps with either preconditioner; GPCG with BoomerAMG in 3-5, with GAMG in 73
-(2D) and not within 60 s (3D); BNCG, unpreconditioned, needs about 2000 iterations.
-Tao's interior point method BQPIP is not offered: it takes the missing bounds as finite
-ones at PETSc's infinity, starts from a residual of 1e12 and had not converged on
-level 1 after 60 s.
+(``T^{-1} R``, orthonormal) as its near-null space, restricted to each reduced system's
+free set, or by hypre's BoomerAMG; each reduced system gets a fresh multigrid setup (the
+worker's ``FreshAMG``). Measured on circle-square and cube-sphere level 1 (7-8k
+unknowns, ``mid``): BNLS and GPCG converge in 3-5 steps with either preconditioner
+(60-125 Krylov iterations with GAMG; without the near-null space on the reduced systems,
+550); BNCG, unpreconditioned, needs about 2000 iterations. Tao's interior point method
+BQPIP is not offered: it takes the missing bounds as finite ones at PETSc's infinity,
+starts from a residual of 1e12 and had not converged on level 1 after 60 s.
 
 PETSc's Debian build (``python3-petsc4py``) is built against that Python's numpy, not
 the suite's, so the solve runs as its own job: ``mpiexec -n RANKS python3
