@@ -342,5 +342,8 @@ SOLVER = SolverSpec(
              for name, tol in TOLERANCES.items()},
     default_max_iter=2000,
     role=Role.LIBRARY,
+    # handed over as it is (not in slack form), so that ``supports`` names the
+    # stabilisation block as the reason to skip
+    handles_C=True,
     supports=supports,
 )
