@@ -321,7 +321,7 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
 
 SOLVER = SolverSpec(
     name="petsc_tao",
-    summary="PETSc/Tao's bound-constrained solvers (GPCG, BNLS, BNCG, BQPIP) on the "
+    summary="PETSc/Tao's bound-constrained solvers (BNLS, GPCG, BNCG) on the "
             "Krause-Wohlmuth box-transformed problem, in an MPI job (GAMG or BoomerAMG)",
     solve=solve,
     parameters=(
