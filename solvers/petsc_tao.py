@@ -26,7 +26,8 @@ suite). The problem goes to rank 0's standard input as a stream in PETSc's binar
 (:func:`problem_stream`; the same bytes in a file are what PETSc's ``MatLoad`` /
 ``VecLoad`` read, the worker's ``--input``), the answer ``v`` comes back on standard
 output; no file is written. ``u = T v``, and the multipliers are the transformed
-problem's residual at the pivots (``p_i = max(r[pivot_i], 0) / beta_i``,
+problem's residual at the pivots at their bounds (``p_i = max(r[pivot_i], 0) / beta_i``,
+:func:`at_bound`,
 :meth:`~solvers.contact_box.BoxTransformation.multipliers`); the suite verifies both
 like any solver's.
 
@@ -273,6 +274,15 @@ def run_job(rt: Runtime, ranks: int, args: list[str], stream: bytes,
     return JobOutcome(json.loads(line[len(TAG) + 1:]), wall=wall)
 
 
+def at_bound(v_pivot: np.ndarray, upper: np.ndarray) -> np.ndarray:
+    """The pivots at their bounds (Tao's active-set methods project onto them exactly; a
+    relative 1e-12 for the round-off of the transfer). Only these carry a multiplier: a
+    free row's residual is stationarity error, and as a multiplier it would leave the
+    complementarity residual ``|p (g - Bu)|`` at the size of the gap however small it is."""
+    scale = max(float(np.abs(upper).max(initial=0.0)), 1e-300)
+    return v_pivot >= upper - 1e-12 * scale
+
+
 def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
           u0: np.ndarray | None, p0: np.ndarray | None, opts: Options) -> SolveResult:
     """Solve ``qp`` by Tao in an MPI job (module docstring). ``p0`` is not used."""
@@ -301,7 +311,7 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
     if v.shape != (qp.n,):
         raise RuntimeError(f"the MPI job answered {v.size} unknowns for {qp.n}")
     r = bqp.f - bqp.A @ v
-    u, p = box.to_u(v), box.multipliers(r, np.ones(qp.m, dtype=bool))
+    u, p = box.to_u(v), box.multipliers(r, at_bound(v[box.pivot], box.upper))
     status = STATUS_OF_REASON.get(rec["reason"], "failed")
     if rec["time_limit_hit"]:
         status = "time_limit"

@@ -154,3 +154,13 @@ def test_a_killed_job_becomes_a_row(tmp_path, monkeypatch):
     res = solve(qp, solver="petsc_tao", tol="mid", time_limit=120)
     assert res.status == "failed" and "gave no answer" in res.message
     _no_mpi_job_left()
+
+
+@needs_petsc
+def test_no_contact_gives_zero_multipliers():
+    """A gap that stays open: no pivot reaches its bound, so p = 0 exactly (a free row's
+    tiny residual taken as a multiplier would fail the complementarity check)."""
+    qp = problems()["circle_square"].make(1, gap=0.1, indent=0.02)
+    res = solve(qp, solver="petsc_tao", tol="mid", time_limit=300)
+    assert res.status == "converged", res.message
+    assert not np.any(res.p)
