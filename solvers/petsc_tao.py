@@ -351,7 +351,9 @@ SOLVER = SolverSpec(
     presets={name: f"gatol = tol_factor * {tol:g} * max|f~| (tol_factor = 0.1)"
              for name, tol in TOLERANCES.items()},
     default_max_iter=2000,
-    role=Role.LIBRARY,
+    # not among the QP libraries of solvers/qp_libraries.py (one adapter, their
+    # contract): a solver in a process of its own
+    role=Role.OTHER,
     # handed over as it is (not in slack form), so that ``supports`` names the
     # stabilisation block as the reason to skip
     handles_C=True,
