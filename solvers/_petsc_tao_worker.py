@@ -113,8 +113,8 @@ class FreshAMG:
     elasticity solve grow tenfold): the reduced system keeps each rank's free rows, and
     the unknowns left out are the bounded ones nearest their bounds, as many on each rank
     as its rows shrank; the restriction is taken only where the reduced system's diagonal
-    is the full one's on the rows kept (else no near-null space, which costs iterations,
-    never the answer)."""
+    is the full one's on the rows kept, up to one shift (else no near-null space, which
+    costs iterations, never the answer)."""
 
     def __init__(self, PETSc, kind, A, modes, solution, upper):
         self.PETSc, self.kind, self.A, self.modes = PETSc, kind, A, modes
@@ -134,14 +134,17 @@ class FreshAMG:
         full = self.A.getDiagonal().getArray(readonly=True)
         reduced = P.getDiagonal().getArray(readonly=True)
         drop = hi - lo - reduced.size
+        # BNLS adds a multiple of the identity where its Newton step fails: the kept
+        # diagonal is the full one shifted, by what the first (unbounded) row says
+        shift = float(reduced[0] - full[0]) if reduced.size and not bounded[0] else 0.0
         keep = None
         if 0 <= drop <= np.count_nonzero(bounded):
             slack = upper - self.solution.getArray(readonly=True)
             keep = np.ones(hi - lo, dtype=bool)
             nearest = np.flatnonzero(bounded)
             keep[nearest[np.argsort(slack[nearest], kind="stable")[:drop]]] = False
-            if not np.array_equal(full[keep], reduced):
-                keep = _aligned(full, reduced, bounded)
+            if not _same(full[keep] + shift, reduced):
+                keep = _aligned(full + shift, reduced, bounded)
         ok = keep is not None
         if not P.getComm().tompi4py().allreduce(ok, op=_mpi_min()):
             return None
@@ -179,17 +182,44 @@ class FreshAMG:
 
 
 def _aligned(full, reduced, bounded):
-    """The rows kept, by walking both diagonals: a bounded row whose diagonal is not the
-    next kept one was left out. None where that does not account for every row."""
-    keep = np.zeros(full.size, dtype=bool)
-    j = 0
-    for i in range(full.size):
-        if j < reduced.size and full[i] == reduced[j]:
-            keep[i] = True
-            j += 1
-        elif not bounded[i]:
+    """The rows kept: ``reduced`` is ``full`` with some bounded rows left out (every
+    unbounded row kept, in order). Over the bounded rows in turn, the feasible counts of
+    rows left out so far, each checked on the row and on the unbounded rows up to the
+    next bounded one; then back from the total. None where no choice accounts for it."""
+    rows = np.flatnonzero(bounded)
+    drop = full.size - reduced.size
+
+    def segment(start, end, d):          # unbounded rows start..end-1 at d rows left out
+        return end <= start or (end - d <= reduced.size
+                                and _same(full[start:end], reduced[start - d:end - d]))
+
+    states = {0: None} if segment(0, rows[0] if rows.size else full.size, 0) else {}
+    history = []
+    for t, b in enumerate(rows):
+        end = rows[t + 1] if t + 1 < rows.size else full.size
+        new = {}
+        for d in states:
+            if b - d < reduced.size and _same(full[b], reduced[b - d]) and segment(b + 1, end, d):
+                new.setdefault(d, (d, True))
+            if d < drop and segment(b + 1, end, d + 1):
+                new.setdefault(d + 1, (d, False))
+        if not new:
             return None
-    return keep if j == reduced.size else None
+        history.append(new)
+        states = new
+    if drop not in states:
+        return None
+    keep = np.ones(full.size, dtype=bool)
+    d = drop
+    for t in range(rows.size - 1, -1, -1):
+        d, kept = history[t][d]
+        keep[rows[t]] = kept
+    return keep
+
+
+def _same(a, b) -> bool:
+    """Equal up to the round-off of a shift."""
+    return bool(np.all(np.abs(np.asarray(a) - b) <= 1e-12 * np.maximum(np.abs(b), 1e-300)))
 
 
 def _mpi_min():

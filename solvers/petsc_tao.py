@@ -14,7 +14,7 @@ solves of BNLS and GPCG are preconditioned by GAMG, with the bodies' rigid-body 
 free set, or by hypre's BoomerAMG; each reduced system gets a fresh multigrid setup (the
 worker's ``FreshAMG``). Measured on circle-square and cube-sphere level 1 (7-8k
 unknowns, ``mid``): BNLS and GPCG converge in 3-5 steps with either preconditioner
-(60-125 Krylov iterations with GAMG; without the near-null space on the reduced systems,
+(48-105 Krylov iterations with GAMG; without the near-null space on the reduced systems,
 550); BNCG, unpreconditioned, needs about 2000 iterations. Tao's interior point method
 BQPIP is not offered: it takes the missing bounds as finite ones at PETSc's infinity,
 starts from a residual of 1e12 and had not converged on level 1 after 60 s.
@@ -323,7 +323,8 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
         message += f"; no linear solve, so no preconditioner ({opts.pc} unused)"
     stats.update({"ksp_iterations": rec["ksp_iterations"], "petsc_setup_time": rec["setup_time"],
                   "petsc_solve_time": rec["solve_time"], "petsc_version": rec["petsc"],
-                  "n_modes": bqp.modes.shape[1]})
+                  "n_modes": bqp.modes.shape[1], "pc_setups": rec["pc_setups"],
+                  "pc_setups_with_modes": rec["pc_setups_with_modes"]})
     return SolveResult(u=u, p=p, claimed_status=status, message=message,
                        iterations=int(rec["iterations"]), setup_time=setup_time,
                        solve_time=job.wall, stats=stats)

@@ -110,6 +110,8 @@ def test_verified_and_agrees_with_the_exact_reference(name, level):
     assert res.kkt.max <= 1e-6 and res.gap.certified
     assert energy_error(qp, res.u, ref.u) <= 1e-6
     assert res.stats["ksp_iterations"] > 0 and res.iterations >= 1
+    # every GAMG setup had the rigid-body modes, on the reduced systems too
+    assert res.stats["pc_setups_with_modes"] == res.stats["pc_setups"] >= res.iterations
 
 
 @needs_petsc
