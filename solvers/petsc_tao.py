@@ -66,6 +66,9 @@ from solvers.contact_box import box_transformation, check_structure
 
 #: PETSc's binary class ids (petscmat.h, petscvec.h)
 MAT_FILE_CLASSID, VEC_FILE_CLASSID = 1211216, 1211214
+#: Sizes and indices are 32-bit integers in the format of a PETSc built with them (Debian's;
+#: a build with 64-bit indices reads 64-bit ones)
+INT32_MAX = 2**31 - 1
 
 #: The worker script, shipped beside this module (run by the interpreter with petsc4py).
 WORKER = Path(__file__).with_name("_petsc_tao_worker.py")
@@ -95,6 +98,9 @@ def petsc_mat_bytes(A: sp.spmatrix) -> bytes:
     A = sp.csr_matrix(A)
     A.sort_indices()
     rows, cols = A.shape
+    if max(rows, cols, A.nnz) > INT32_MAX:
+        raise ValueError(f"a matrix of {rows} rows and {A.nnz} nonzeros does not fit PETSc's "
+                         "binary format with 32-bit indices (Debian's PETSc build)")
     head = np.array([MAT_FILE_CLASSID, rows, cols, A.nnz], dtype=">i4")
     return b"".join([head.tobytes(), np.diff(A.indptr).astype(">i4").tobytes(),
                      A.indices.astype(">i4").tobytes(), A.data.astype(">f8").tobytes()])
