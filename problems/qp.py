@@ -218,13 +218,15 @@ class HertzSetup:
 
 @dataclass
 class Stabilisation:
-    """The reverse rows of the stabilised two-sided nodal constraints (Sect. 7.5).
+    """The reverse rows of two-sided nodal constraints: stabilised (Sect. 7.5) or two-pass.
 
     A stabilised ContactQP (:func:`problems.fem.stabilised.stabilise`) has the
     nodal constraints of the constrained surface first (``qp.contact`` describes
     them, ``C`` is zero there) and then one row per node of the opposing surface
     that finds the constrained surface along ``-n`` (the penetrations (7.9) of
     Fig. 7.1), penalised by ``C_ii = h_i^(2 alpha) / (k m_i)`` ((7.10)/(7.11)).
+    A two-pass ContactQP (:func:`problems.fem.stabilised.two_pass`) has the same
+    rows hard: ``C`` is ``None``, ``alpha`` and ``modulus`` are ``None``.
 
     Attributes
     ----------
@@ -238,18 +240,23 @@ class Stabilisation:
         Barycentric weights of the constrained facet each reverse row hits, on the
         constrained rows: the reverse multipliers act on the constrained surface as
         ``transfer' p_r`` (:func:`surface_multipliers`).
-    alpha : float
-        Exponent of ``h`` in (7.10).
-    modulus : float
-        ``k`` (force per area times length^(2 alpha - 1)).
+    alpha : float or None
+        Exponent of ``h`` in (7.10); ``None`` for hard (two-pass) rows.
+    modulus : float or None
+        ``k`` (force per area times length^(2 alpha - 1)); ``None`` for hard rows.
     """
 
     nodes: np.ndarray
     mass: np.ndarray
     size: np.ndarray
     transfer: sp.spmatrix
-    alpha: float
-    modulus: float
+    alpha: float | None
+    modulus: float | None
+
+    @property
+    def hard(self) -> bool:
+        """Two-pass rows (no penalty), not the penalised rows of Sect. 7.5."""
+        return self.alpha is None
 
     @property
     def n_rows(self) -> int:
@@ -420,7 +427,10 @@ class ContactQP:
             if not 0 < r < m:
                 raise QPValidationError(f"stabilisation has {r} reverse rows; allowed: 1..{m - 1} "
                                         f"(B has {m} rows)")
-            if self.C is None or np.any(self.C.diagonal()[m - r:] <= 0):
+            if st.hard != (self.C is None):
+                raise QPValidationError("reverse rows are hard (two-pass, alpha None) exactly "
+                                        "when C is None")
+            if self.C is not None and np.any(self.C.diagonal()[m - r:] <= 0):
                 raise QPValidationError("stabilisation needs C > 0 on its reverse rows")
             for name in ("mass", "size"):
                 if np.shape(getattr(st, name)) != (r,) or np.any(getattr(st, name) <= 0):
