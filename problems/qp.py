@@ -427,10 +427,9 @@ class ContactQP:
             if not 0 < r < m:
                 raise QPValidationError(f"stabilisation has {r} reverse rows; allowed: 1..{m - 1} "
                                         f"(B has {m} rows)")
-            if st.hard != (self.C is None):
-                raise QPValidationError("reverse rows are hard (two-pass, alpha None) exactly "
-                                        "when C is None")
-            if self.C is not None and np.any(self.C.diagonal()[m - r:] <= 0):
+            if st.hard and self.C is not None:
+                raise QPValidationError("hard reverse rows (two-pass, alpha None) take no C")
+            if not st.hard and (self.C is None or np.any(self.C.diagonal()[m - r:] <= 0)):
                 raise QPValidationError("stabilisation needs C > 0 on its reverse rows")
             for name in ("mass", "size"):
                 if np.shape(getattr(st, name)) != (r,) or np.any(getattr(st, name) <= 0):
