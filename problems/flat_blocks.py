@@ -49,7 +49,8 @@ Couplings (``coupling``):
   the same row, so the rows of ``B`` are linearly dependent and the multipliers are
   not unique. The pressure is that of the stabilised coupling, the total multiplier
   on the constrained nodes over their lumped mass, which is unique (the constrained
-  nodes' part of ``B' p = f - A u``).
+  nodes' part of ``B' p = f - A u``). Two-pass passes this patch test on both meshes
+  (the exact, linear displacement satisfies both passes).
 
 A discretisation that transmits the uniform pressure passes; one that does not
 shows the deviation of its nodal pressure from q (the classic node-to-segment

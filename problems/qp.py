@@ -319,9 +319,9 @@ class ContactQP:
     multilevel : Multilevel
     hertz : HertzSetup, optional
     stabilisation : Stabilisation, optional
-        Set when the last ``stabilisation.n_rows`` rows of ``B`` are the reverse rows
-        of Sect. 7.5; ``contact`` and ``multilevel.surface`` describe the first
-        ``m_contact`` rows.
+        Set when the last ``stabilisation.n_rows`` rows of ``B`` are reverse rows
+        (penalised, Sect. 7.5, or hard, two-pass); ``contact`` and
+        ``multilevel.surface`` describe the first ``m_contact`` rows.
     name : str
         Scene and level, for reports.
     units : str
@@ -374,7 +374,8 @@ class ContactQP:
 
     @property
     def m_contact(self) -> int:
-        """Rows of the constrained surface (all rows unless stabilised, Sect. 7.5)."""
+        """Rows of the constrained surface (all rows unless there are reverse rows: the
+        stabilised coupling of Sect. 7.5 or two-pass)."""
         return self.m - (self.stabilisation.n_rows if self.stabilisation is not None else 0)
 
     @property
