@@ -43,7 +43,11 @@ rows hard (:func:`problems.fem.stabilised.two_pass`): every node of the circle's
 half is kept out of the square too. On the curved surface the circle's nodes seldom
 lie above a square node, so the two passes' rows stay independent (level 0: B of 39
 rows and rank 39); the pressure is the force on the square's nodes over their lumped
-mass (:func:`problems.qp.surface_multipliers`).
+mass (:func:`problems.qp.surface_multipliers`). ``mortar`` and ``mortar_dual``
+(:mod:`problems.fem.mortar`): the weighted gaps of the mortar method over the square's
+straight top edge and the circle's chords projected onto it along n = (0, 1), with
+standard or dual (Wohlmuth) multipliers; the dual rows are node-wise. The pressure is
+the multiplier over the lumped mass.
 """
 from __future__ import annotations
 
@@ -52,7 +56,7 @@ import numpy as np
 from problems.fem.contact import RENAMED_SEARCHES, SEARCHES
 from problems.fem.mesh import (Hierarchy, nested_prolongation, netgen_disk, project_to_circle,
                                structured_rectangle, uniform_hierarchy)
-from problems.fem.stabilised import COUPLING_PARAMETERS, check_coupling, couple
+from problems.fem.stabilised import COUPLING_PARAMETERS, check_coupling, coupling_parameter, couple
 from problems.fem.surface import tensor_coarsening
 from problems.fem.two_body import ELEMENT_DEGREE, Body, TwoBodyScene, assemble_two_body
 from problems.qp import ContactQP, HertzSetup
@@ -158,7 +162,8 @@ PROBLEM = ProblemSpec(
         Parameter("order", "square_first", "bodies' order in memory (a solution must not depend on it)",
                   choices=("square_first", "circle_first")),
         ELEMENT_DEGREE,
-        *COUPLING_PARAMETERS,
+        coupling_parameter(with_mortar=True),
+        *COUPLING_PARAMETERS[1:],     # alpha, penalty
     ),
     build=build,
     thesis_tables={"augmented_projection": "table_9_1", "adaptive": "table_9_2"},

@@ -33,8 +33,11 @@ Couplings (``coupling``):
 * ``mortar``: the weighted gap of the mortar method (Sect. 6.1, Remark 6.8; not in the
   thesis's contact chapter): row i is ``(1/m_i) int_Gamma phi_i n.(u_c - u_o) ds`` with
   the constrained side's P1 hats ``phi_i`` (their sum is 1 on the interface, so a
-  uniform pressure is transmitted exactly), integrated exactly on the merged 1D mesh.
-  The pressure is again ``p_i / m_i``.
+  uniform pressure is transmitted exactly), integrated exactly on the merged 1D mesh
+  (:mod:`problems.fem.mortar`). The pressure is again ``p_i / m_i``.
+* ``mortar_dual``: the same weighted gaps with Wohlmuth's dual multipliers ``psi_i``
+  (biorthogonal to the hats, so each row moves its own constrained node only); they
+  too sum to 1 and pass the patch test.
 * ``stabilised``: the nodal constraints plus the stabilised reverse rows of Sect. 7.5
   ((7.10)/(7.11), :func:`problems.fem.stabilised.stabilise` with ``alpha`` and
   ``penalty``): the opposing side's nodes are penalised for penetrating. The pressure
@@ -59,17 +62,13 @@ patch-test failure on non-matching meshes).
 from __future__ import annotations
 
 import numpy as np
-import scipy.sparse as sp
 
 from problems.fem.mesh import Hierarchy, nested_prolongation, structured_square
-from problems.fem.stabilised import COUPLING_PARAMETERS, COUPLINGS as TWO_BODY_COUPLINGS
-from problems.fem.stabilised import check_coupling, couple
+from problems.fem.stabilised import COUPLING_PARAMETERS, check_coupling, couple, coupling_parameter
 from problems.fem.surface import tensor_coarsening
 from problems.fem.two_body import ELEMENT_DEGREE, Body, TwoBodyScene, assemble_two_body
 from problems.qp import ContactQP
 from problems.spec import Options, Parameter, ParameterError, ProblemSpec
-
-COUPLINGS = ("nodal", "mortar", *TWO_BODY_COUPLINGS[1:])
 
 
 def parse_ratio(text: str) -> tuple[int, int]:
@@ -124,52 +123,6 @@ def scene(level: int, p: Options) -> TwoBodyScene:
         surface_coarsening=lambda x: tensor_coarsening(x[:, :1]), units="dimensionless")
 
 
-def _mortar_rows(x_c: np.ndarray, x_o: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``M_c[i, j] = int phi_i^c phi_j^c`` and ``M_o[i, k] = int phi_i^c phi_k^o`` on a
-    line, both meshes given by their sorted node coordinates (exact Gauss quadrature
-    on the merged mesh)."""
-    def hats(x, at):
-        k = np.clip(np.searchsorted(x, at, side="right") - 1, 0, len(x) - 2)
-        t = (at - x[k]) / (x[k + 1] - x[k])
-        H = np.zeros((len(at), len(x)))
-        H[np.arange(len(at)), k] = 1 - t
-        H[np.arange(len(at)), k + 1] = t
-        return H
-    breaks = np.union1d(x_c, x_o)
-    g, w = np.polynomial.legendre.leggauss(3)
-    a, b = breaks[:-1, None], breaks[1:, None]
-    xq = (0.5 * (a + b) + 0.5 * (b - a) * g).ravel()
-    wq = (0.5 * (b - a) * w).ravel()
-    Hc, Ho = hats(x_c, xq), hats(x_o, xq)
-    return Hc.T @ (wq[:, None] * Hc), Hc.T @ (wq[:, None] * Ho)
-
-
-def mortar(qp: ContactQP, sc: TwoBodyScene, gap: float) -> ContactQP:
-    """``qp`` with its nodal rows replaced by the mortar weighted gaps (module docstring)."""
-    pts, body = qp.mesh.points, qp.mesh.body_of_node
-    c_nodes = qp.contact.nodes                              # sorted by x
-    other = 1 - sc.constrained_body
-    y_other = 1.0 + (gap if other == 1 else 0.0)
-    o_nodes = np.flatnonzero((body == other) & np.isclose(pts[:, 1], y_other))
-    o_nodes = o_nodes[np.argsort(pts[o_nodes, 0])]
-    M_c, M_o = _mortar_rows(pts[c_nodes, 0], pts[o_nodes, 0])
-    mass = qp.contact.mass
-    n = sc.direction
-    rows = np.arange(len(c_nodes))
-    full = sp.lil_matrix((len(c_nodes), 2 * len(pts)))
-    for comp in range(2):
-        if n[comp] == 0.0:
-            continue
-        full[:, 2 * c_nodes + comp] = (M_c / mass[:, None]) * n[comp]
-        full[:, 2 * o_nodes + comp] = -(M_o / mass[:, None]) * n[comp]
-    full = full.tocsr()
-    B = full[:, qp.free_dofs].tocsr()
-    g = np.full(len(rows), gap) - full @ qp.u_fixed      # (1/m_i) int phi_i gap = gap
-    return ContactQP(A=qp.A, f=qp.f, B=B, g=g, free_dofs=qp.free_dofs, u_fixed=qp.u_fixed,
-                     dim=qp.dim, mesh=qp.mesh, contact=qp.contact, multilevel=qp.multilevel,
-                     hertz=None, name=qp.name + " (mortar)", units=qp.units, level=qp.level)
-
-
 def build(level: int, p: Options) -> ContactQP:
     """The patch-test ContactQP at level ``level`` with the chosen coupling."""
     if p.gap >= p.indent:
@@ -180,7 +133,7 @@ def build(level: int, p: Options) -> ContactQP:
     qp = assemble_two_body(sc, level, degree=p.degree,
                            name=f"flat_blocks level {level} ({p.coupling}, "
                                 f"{p.constrained} side constrained)" + (" P2" if p.degree == 2 else ""))
-    return mortar(qp, sc, p.gap) if p.coupling == "mortar" else couple(qp, p)
+    return couple(qp, p)
 
 
 PROBLEM = ProblemSpec(
@@ -194,9 +147,7 @@ PROBLEM = ProblemSpec(
         Parameter("ratio", "2:3", "cells per unit length of the lower : upper block"),
         Parameter("constrained", "coarse", "which block carries the constraints: the coarse "
                   "one (fewer cells; the lower at 2:3) or the fine one", choices=("coarse", "fine")),
-        Parameter("coupling", "nodal", "nodal constraints (Alg. 7.1), mortar weighted gaps, "
-                  "the stabilised two-sided nodal constraints (Sect. 7.5) or two-pass "
-                  "node-to-segment constraints (both blocks' nodes, hard)", choices=COUPLINGS),
+        coupling_parameter(with_mortar=True),
         *COUPLING_PARAMETERS[1:],     # alpha, penalty
         Parameter("E", 1.0, "Young's modulus of both blocks", low=0.0, low_open=True),
         Parameter("nu", 0.3, "Poisson ratio of both blocks", low=-1.0, high=0.5, low_open=True,

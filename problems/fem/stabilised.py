@@ -44,6 +44,7 @@ import scipy.sparse as sp
 
 from problems.fem.contact import contact_constraints
 from problems.fem.elasticity import lumped_surface_mass
+from problems.fem.mortar import MORTAR_COUPLINGS, mortar
 from problems.fem.surface import facet_sizes
 from problems.qp import ContactQP, SharedWork, Stabilisation
 from problems.spec import Options, Parameter, ParameterError
@@ -187,13 +188,26 @@ def two_pass(qp: ContactQP) -> ContactQP:
 
 #: A scene's choice between the nodal constraints and their stabilised form, with the
 #: stabilisation's settings: one declaration for every scene that offers it.
-#: The couplings every scene offers (a scene may add its own, e.g. flat_blocks' mortar).
+#: The couplings every scene offers; the 2D scenes whose constrained surface is straight
+#: add the mortar couplings (:data:`MORTAR_COUPLINGS`, :func:`coupling_parameter`).
 COUPLINGS = ("nodal", "stabilised", "two_pass")
 
+COUPLING_HELP = ("nodal constraints (Alg. 7.1), the stabilised two-sided nodal constraints "
+                 "(Sect. 7.5, (7.10)/(7.11)) or two-pass node-to-segment constraints (both "
+                 "surfaces' nodes, hard; not in the thesis)")
+MORTAR_HELP = (", or the mortar weighted gaps (Sect. 6.1, Remark 6.8) with standard or dual "
+               "(Wohlmuth) multipliers")
+
+
+def coupling_parameter(with_mortar: bool) -> Parameter:
+    """The ``coupling`` choice of a scene: :data:`COUPLINGS`, and :data:`MORTAR_COUPLINGS`
+    ``with_mortar``."""
+    return Parameter("coupling", "nodal", COUPLING_HELP + (MORTAR_HELP if with_mortar else ""),
+                     choices=COUPLINGS + (MORTAR_COUPLINGS if with_mortar else ()))
+
+
 COUPLING_PARAMETERS = (
-    Parameter("coupling", "nodal", "nodal constraints (Alg. 7.1), the stabilised two-sided "
-              "nodal constraints (Sect. 7.5, (7.10)/(7.11)) or two-pass node-to-segment "
-              "constraints (both surfaces' nodes, hard; not in the thesis)", choices=COUPLINGS),
+    coupling_parameter(with_mortar=False),
     Parameter("alpha", 1.0, "stabilised coupling: exponent alpha of h^(-2 alpha) in (7.10)",
               low=0.0, high=2.0),
     Parameter("penalty", 1.0, "stabilised coupling: penalty factor (k = penalty E* "
@@ -211,8 +225,14 @@ def check_coupling(p: Options) -> None:
 
 
 def couple(qp: ContactQP, p: Options) -> ContactQP:
-    """The scene's nodal ContactQP, or its stabilised or two-pass form when ``p.coupling``
-    asks for it."""
+    """The scene's nodal ContactQP, or its stabilised, two-pass or mortar form when
+    ``p.coupling`` asks for it."""
+    if p.coupling in MORTAR_COUPLINGS:
+        try:
+            return mortar(qp, dual=p.coupling == "mortar_dual")
+        except ValueError as err:
+            raise ParameterError(f"parameter 'coupling': {p.coupling!r} is not allowed here: "
+                                 f"{err}") from None
     if p.coupling == "stabilised":
         return stabilise(qp, p.alpha, p.penalty)
     return two_pass(qp) if p.coupling == "two_pass" else qp
