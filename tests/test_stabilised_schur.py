@@ -99,4 +99,4 @@ def test_coupling_parameter():
     with pytest.raises(ParameterError, match="parameter 'degree'"):
         circle_square.PROBLEM.make(0, coupling="stabilised", degree=2)
     with pytest.raises(ParameterError, match="parameter 'coupling'"):
-        circle_square.PROBLEM.make(0, coupling="mortar")
+        cube_sphere.PROBLEM.make(0, coupling="mortar")

@@ -278,7 +278,7 @@ def test_a_new_scene_joins_a_study_by_config_alone(tmp_path):
     (lambda c: c["adaptive"].update(variants=["eta3"]), "'adaptive.variants': 'eta3'"),
     (lambda c: c["adaptive"]["scenes"].update(circle_square=[0, 1]), "one start level"),
     (lambda c: c["adaptive"]["max_nodes"].pop("cube_sphere"), "no node budget"),
-    (lambda c: c["adaptive"]["patch_test"]["scenes"].update(circle_square=[0]),
+    (lambda c: c["adaptive"]["patch_test"]["scenes"].update(cube_sphere=[0]),
      "does not offer the couplings ['mortar']"),
     (lambda c: c["hard_cases"]["incompressibility"].update(scenes=["laplace_nonmatching"]),
      "'hard_cases.incompressibility.scenes': 'laplace_nonmatching' is not allowed"),
