@@ -23,9 +23,12 @@ unknowns of its own that no other row touches (one row per node). The scene name
 node (``qp.contact.nodes``); without contact-surface data (an exported or generated
 problem) it is the row's node that no other row touches, the one with the largest
 coefficients where there are several. Stabilised problems (Sect. 7.5, reverse rows on
-the opposing surface; they reach the solver in slack form) and mortar rows (weighted
-gaps: a non-diagonal ``D`` shares constrained nodes between rows) do not have that
-structure; :func:`check_structure` says why.
+the opposing surface; they reach the solver in slack form) and mortar rows with standard
+multipliers (weighted gaps: a non-diagonal ``D`` shares constrained nodes between rows) do
+not have that structure; :func:`check_structure` says why. Mortar rows with dual
+multipliers (:mod:`problems.fem.mortar`, ``D`` diagonal) have it: row ``i`` moves its
+constrained node by ``n`` and the opposing surface's unknowns by the mortar weights, the
+form of a nodal row.
 """
 from __future__ import annotations
 

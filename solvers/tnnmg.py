@@ -48,7 +48,10 @@ Nested iteration from the coarsest level is the caller's: the scene's coarser pr
 solved in turn, give ``u0`` (the augmented-projection study does this for every
 nested row). Floating bodies are handled as they come: the truncation fixes the active
 normal unknowns, which hold a body that only contact holds. The stabilised problem
-(Sect. 7.5) is ``skipped``: its reverse rows do not have the one-row-per-node structure.
+(Sect. 7.5) is ``skipped``: its reverse rows do not have the one-row-per-node structure;
+so are mortar rows with standard multipliers (a non-diagonal ``D``), while mortar rows
+with dual multipliers (``D`` diagonal, :mod:`problems.fem.mortar`) are one row per
+constrained node and are taken.
 """
 from __future__ import annotations
 
