@@ -21,7 +21,7 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
 from report.claims import Claim  # noqa: E402
-from report.figures import save_figure  # noqa: E402
+from report.figures import THESIS_COLOR, legend_outside, save_figure, solver_style  # noqa: E402
 from report.rates import fitted_slope as slope  # noqa: E402
 from workflows.io import read_csv, write_csv  # noqa: E402
 
@@ -241,7 +241,7 @@ def figure_time(study: pd.DataFrame, thesis: pd.DataFrame | None, path: str) -> 
             t, style = time_to_target(grp), "k:" if config.endswith("gmg") else "k-."
             label = f"{config} (linear solve, no contact; floor)"
         elif config in TNNMG_ROWS:
-            t, style = time_to_target(grp), "v-"
+            t, style = time_to_target(grp), "v-" if config == "tnnmg" else "v--"
             label = f"{config} (TNNMG, not Alg. 8.4; time to the target)"
         elif config in NOT_VARIANTS:
             t, style = grp["t_setup"] + grp["t_solve"], "d-."
@@ -250,10 +250,11 @@ def figure_time(study: pd.DataFrame, thesis: pd.DataFrame | None, path: str) -> 
             coarse = grp["t_coarse_levels"].fillna(0.0) if "t_coarse_levels" in grp else 0.0
             t, style = grp["t_setup"] + grp["t_solve"] + coarse, "o-" if config == MAIN else "s--"
             label = f"{config}"
-        ax.loglog(grp["N"], t, style, ms=4, label=f"{label}, slope {slope(grp['N'], t):.2f}")
+        ax.loglog(grp["N"], t, style, ms=4, label=f"{label}, slope {slope(grp['N'], t):.2f}",
+                  **_solver_color(config))
     if thesis is not None:
         col = next(c for c in thesis.columns if c.startswith("t_solve"))
-        ax.loglog(thesis["nodes"], thesis[col], "^-", color="tab:red", ms=5,
+        ax.loglog(thesis["nodes"], thesis[col], "^-", color=THESIS_COLOR, ms=5,
                   label=f"thesis ({col}), slope {slope(thesis['nodes'], thesis[col]):.2f}")
     n = np.array([study["N"].min(), study["N"].max()], float)
     main = study[study.config == MAIN].sort_values("N")
@@ -265,8 +266,19 @@ def figure_time(study: pd.DataFrame, thesis: pd.DataFrame | None, path: str) -> 
     ax.set_title("Solve time against N (Figs. 9.1/9.6; slopes over the finest three levels; "
                  "thesis on its 1999 machine)", fontsize=8)
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=6)
+    legend_outside(ax, fontsize=6)
     save_figure(fig, path)
+
+
+def _solver_color(config: str) -> dict:
+    """The report's colour of the solver behind a configuration: Alg. 8.4's
+    configurations are ``augmented_projection``, TNNMG's ``tnnmg``, the other solvers
+    their own; the linear floors keep their black line styles."""
+    if config.startswith("amg_pcg"):
+        return {}
+    solver = ("tnnmg" if config in TNNMG_ROWS else config if config in NOT_VARIANTS
+              else "augmented_projection")
+    return {"color": solver_style(solver)["color"]}
 
 
 def figure_kappa(study: pd.DataFrame, thesis: pd.DataFrame | None, path: str) -> None:
@@ -282,7 +294,7 @@ def figure_kappa(study: pd.DataFrame, thesis: pd.DataFrame | None, path: str) ->
         ax.loglog(n, grp["kappa_S"].iloc[0] * (n / n[0]) ** (1 / d), color="0.6", lw=1,
                   label=f"O(h^-1) = O(N^1/{d}) guide")
     if thesis is not None and "kappa_S" in thesis:
-        ax.loglog(thesis["nodes"], thesis["kappa_S"], "^-", color="tab:red", label="thesis")
+        ax.loglog(thesis["nodes"], thesis["kappa_S"], "^-", color=THESIS_COLOR, label="thesis")
     ax.set_xlabel("nodes N")
     ax.set_ylabel("condition number (Lanczos)")
     ax.set_title("kappa(S-hat) against N (Figs. 9.3/9.8, Lemma 8.13)", fontsize=9)

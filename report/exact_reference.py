@@ -19,7 +19,7 @@ import numpy as np
 import pandas as pd
 
 from report.claims import Claim
-from report.figures import save_figure
+from report.figures import legend_outside, save_figure
 from report.rates import fitted_slope
 from workflows.io import read_csv, write_csv
 
@@ -95,7 +95,7 @@ def figure(table: pd.DataFrame, path: str) -> None:
     ax.set_title(f"Exact reference: {table['backend'].iloc[0]} Cholesky + dual PDAS vs KKT-LU "
                  "PDAS (slopes: finest three levels)", fontsize=8)
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=7)
+    legend_outside(ax)
     save_figure(fig, path)
 
 

@@ -37,6 +37,8 @@ EXTRA_SOLVERS = ("pdas_kkt",)
 #: Drawn in black: the floors and references every solver is measured against.
 REFERENCE_STYLE = {"linear_floor": dict(color="k", marker="_"),
                    "reference": dict(color="k", marker="*")}
+#: The thesis's values wherever a figure overlays them (a colour no solver has).
+THESIS_COLOR = "#b15928"
 #: Line style per tolerance preset (a preset is a line style in every figure).
 PRESET_LINES = {"low": ":", "mid": "--", "high": "-"}
 #: PNG text chunks :func:`save_figure` writes for the figure audit.
