@@ -234,7 +234,7 @@ def figure_tnnmg(study: pd.DataFrame, path: str) -> None:
 def figure_time(study: pd.DataFrame, thesis: pd.DataFrame | None, path: str) -> None:
     """T_solve against N (log-log; Figs. 9.1, 9.6): our configurations, the multigrid-PCG
     floor, the thesis."""
-    fig, ax = plt.subplots(figsize=(7.5, 4.8))
+    fig, ax = plt.subplots(figsize=(11.5, 4.8))
     for config, grp in study[study.config != "reference"].groupby("config"):
         grp = grp.sort_values("N")
         if config.startswith("amg_pcg"):

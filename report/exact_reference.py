@@ -77,7 +77,7 @@ def claims(table: pd.DataFrame) -> pd.DataFrame:
 
 def figure(table: pd.DataFrame, path: str) -> None:
     """Total and factorisation time against N for both methods, with fitted exponents."""
-    fig, ax = plt.subplots(figsize=(7, 4.5))
+    fig, ax = plt.subplots(figsize=(9.5, 4.5))
     for name, style, color, label in (
             ("schur", "o-", "tab:blue", "dual route (A factorised once)"),
             ("kkt", "s--", "tab:red", "KKT LU per active-set step")):
