@@ -43,7 +43,7 @@ $(CHROMIUM):
 # (tests/blas_kernels.py): rounding must not decide a solve
 SOLVER_TESTS := tests/test_rounding.py tests/test_solvers.py tests/test_semismooth_newton.py \
 	tests/test_augmented_projection.py tests/test_cholesky.py tests/test_qp.py tests/test_two_body.py \
-	tests/test_tnnmg.py tests/test_layered_multigrid.py
+	tests/test_tnnmg.py tests/test_layered_multigrid.py tests/test_degenerate.py
 
 test: setup browser
 	CONTACTBENCH_CHROMIUM=$(CHROMIUM) $(BIN)/python -m pytest -q

@@ -362,3 +362,133 @@ def shared_floating_factor(qp, modes: np.ndarray, backend: str = "auto") -> Floa
     fl = FloatingCholesky(qp.A, modes, backend, components=sp.csr_matrix(qp.B).indices)
     qp.cache.floating_factor = fl
     return fl
+
+
+# -- linearly dependent constraint rows ------------------------------------------
+
+#: Relative pivot below which a constraint row counts as linearly dependent on the rows
+#: before it: ``pivot^2 <= DEPENDENT_RTOL * K_ii`` in the Cholesky factor of a Gram matrix
+#: ``K`` of the rows, i.e. the row's angle to the span of the others is below ~1e-6 (far
+#: above the ~1e-16 at which round-off leaves an exactly dependent row).
+DEPENDENT_RTOL = 1e-12
+
+#: Relative violation ``(B_D u - g_D)_i`` of a dropped row, beside ``|M_i| |g_J| + |g_i|``,
+#: above which the dependent rows are inconsistent at equality (the rows are satisfied
+#: to round-off when the gaps are consistent).
+CONSISTENT_RTOL = 1e-10
+
+
+class InfeasibleError(RuntimeError):
+    """Constraint rows that no ``u`` satisfies: a Farkas certificate ``z >= 0`` with
+    ``B_I' z = 0`` and ``g_I' z < 0`` (the message gives the rows and ``g_I' z``)."""
+
+
+@dataclass
+class RowBasis:
+    """A basis of linearly dependent constraint rows, chosen from their Gram matrix.
+
+    Attributes
+    ----------
+    kept : (r,) int array
+        Positions of the basis rows ``J`` (sorted; all rows when they are independent).
+    dropped : (k,) int array
+        Positions of the other rows ``D``: ``B_D = M B_J`` to round-off; their
+        multipliers are set to zero.
+    factor : tuple
+        :func:`scipy.linalg.cho_factor` of ``K[J][:, J]``.
+    """
+
+    kept: np.ndarray
+    dropped: np.ndarray
+    factor: tuple
+
+
+def row_basis(K: np.ndarray, g: np.ndarray | None = None, labels: np.ndarray | None = None,
+              rtol: float = DEPENDENT_RTOL) -> RowBasis:
+    """A basis of the rows whose Gram matrix is ``K`` (``K = B_I W`` for any SPD metric,
+    e.g. the Schur complement ``B_I A^{-1} B_I'``), consistent with the gaps ``g``.
+
+    Independent rows (the Cholesky factor of ``K`` has no relative pivot below ``rtol``)
+    give all rows and exactly :func:`scipy.linalg.cho_factor` of ``K``. Otherwise a
+    rank-revealing pivoted Cholesky (LAPACK ``dpstrf``, largest remaining diagonal first)
+    of ``K`` scaled to unit diagonal picks the basis ``J``; the step's multipliers are
+    then those supported on ``J`` (zero on the dropped rows ``D``). With ``g`` the basis
+    must also be consistent: on the face ``B_J u = g_J`` the dropped rows hold
+    ``B_D u = M g_J <= g_D`` (``M = K_DJ K_JJ^{-1}``, since ``B_D = M B_J``), i.e. ``u``
+    sits at a vertex of ``{B_I u <= g_I}`` in the row space. A violated dropped row ``i``
+    enters the basis in exchange for the row ``j`` of largest ``M_ij > 0``, which then
+    has slack ``r_i / M_ij``; without such a row, ``z = e_i - M_i >= 0`` has
+    ``B_I' z = 0`` and ``g_I' z = -r_i < 0``: the rows are infeasible.
+
+    Parameters
+    ----------
+    K : (k, k) array
+        Symmetric positive semidefinite Gram matrix of the rows.
+    g : (k,) array, optional
+        The rows' gaps; without them the basis is not checked for consistency.
+    labels : (k,) int array, optional
+        Row numbers for messages (default: positions).
+    rtol : float
+        Relative pivot of a dependent row (:data:`DEPENDENT_RTOL`).
+
+    Raises
+    ------
+    InfeasibleError
+        The rows admit no ``u`` with ``B_I u <= g_I`` (Farkas certificate in the message).
+    RuntimeError
+        No consistent basis within ``2 k`` exchanges (a cycle of exchanges).
+    """
+    import scipy.linalg as sla
+    from scipy.linalg.lapack import dpstrf
+
+    K = np.asarray(K, dtype=float)
+    k = K.shape[0]
+    if k == 0:
+        return RowBasis(np.zeros(0, dtype=int), np.zeros(0, dtype=int), None)
+    labels = np.arange(k) if labels is None else np.asarray(labels)
+    diag = np.diag(K).copy()
+    try:
+        factor = sla.cho_factor(K)
+        if np.all(np.diag(factor[0]) ** 2 > rtol * diag):
+            return RowBasis(np.arange(k), np.zeros(0, dtype=int), factor)
+    except np.linalg.LinAlgError:
+        pass
+    nonzero = np.flatnonzero(diag > rtol * max(float(diag.max(initial=0.0)), 1e-300))
+    s = 1.0 / np.sqrt(diag[nonzero])
+    scaled = 0.5 * (K[np.ix_(nonzero, nonzero)] + K[np.ix_(nonzero, nonzero)].T) * np.outer(s, s)
+    _, piv, rank, info = dpstrf(scaled, tol=rtol)
+    if info < 0:
+        raise RuntimeError(f"LAPACK dpstrf: argument {-info} is invalid")
+    kept = np.sort(nonzero[piv[:rank] - 1])
+    seen: set[bytes] = set()
+    for _ in range(2 * k + 1):
+        dropped = np.setdiff1d(np.arange(k), kept)
+        factor = sla.cho_factor(K[np.ix_(kept, kept)])
+        if g is None or dropped.size == 0:
+            return RowBasis(kept, dropped, factor)
+        M = sla.cho_solve(factor, K[np.ix_(kept, dropped)]).T
+        gJ = g[kept]
+        r = M @ gJ - g[dropped]
+        scale = np.abs(M) @ np.abs(gJ) + np.abs(g[dropped])
+        violation = r / np.maximum(scale, 1e-300)
+        i = int(np.argmax(violation))
+        if violation[i] <= CONSISTENT_RTOL:
+            return RowBasis(kept, dropped, factor)
+        seen.add(kept.tobytes())
+        coeff = M[i]
+        if not np.any(coeff > rtol * np.abs(coeff).max()):
+            z = np.concatenate([[1.0], -coeff])
+            rows = np.concatenate([[labels[dropped[i]]], labels[kept]])
+            support = np.abs(z) > rtol * np.abs(z).max()
+            order = np.argsort(rows[support])
+            rows, z = rows[support][order], z[support][order]
+            raise InfeasibleError(
+                f"the problem is infeasible: constraint rows {rows.tolist()} with "
+                f"weights z = {np.round(z, 6).tolist()} >= 0 give B'z = 0 but "
+                f"g'z = {-r[i]:.3e} < 0 (a Farkas certificate: no u has Bu <= g)")
+        j = int(np.argmax(coeff))
+        kept = np.sort(np.append(np.delete(kept, j), dropped[i]))
+        if kept.tobytes() in seen:
+            break
+    raise RuntimeError(f"{k} linearly dependent constraint rows: no basis consistent with "
+                       f"their gaps found by exchanges (the exchanges cycle)")

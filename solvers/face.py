@@ -13,7 +13,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 
 from problems.spec import ComponentParameter, Parameter
-from solvers.cholesky import factorize
+from solvers.cholesky import factorize, row_basis
 from solvers.multigrid import Apply
 
 # ---------------------------------------------------------------------------
@@ -66,13 +66,19 @@ class FaceProjector:
     and the dense Cholesky factor of the small ``K = B_p G_pp^{-1} B_p'`` (partial
     solves on the constrained DOFs). Each operation below costs one solve with
     ``G_pp`` on the patch and one with ``K``.
+
+    Linearly dependent rows: ``B_I`` holds only a basis of them (``kept``,
+    :func:`solvers.cholesky.row_basis`), the face is the same, and the others get
+    multiplier zero.
     """
 
-    B_I: sp.csr_matrix
+    B_I: sp.csr_matrix          # the basis rows of the active set
     patch: np.ndarray
     B_p: sp.csr_matrix          # B_I[:, patch]
     solve_G: Apply | None
     K_factor: tuple | None
+    kept: np.ndarray            # positions of the basis rows among the active rows
+    n_rows: int                 # number of active rows
 
     def _extend(self, v: np.ndarray, c: np.ndarray, sign: float) -> np.ndarray:
         """``v + sign * W K^{-1} c``."""
@@ -87,11 +93,18 @@ class FaceProjector:
         return self._extend(v, self.B_I @ v, -1.0)
 
     def lift(self, x: np.ndarray, g_I: np.ndarray) -> np.ndarray:
-        """``x + W K^{-1} (g_I - B_I x)``: a point of the affine face ``B_I x = g_I``."""
-        return self._extend(x, g_I - self.B_I @ x, 1.0)
+        """``x + W K^{-1} (g_I - B_I x)``: a point of the affine face ``B_I x = g_I``
+        (``g_I`` of all active rows)."""
+        return self._extend(x, np.asarray(g_I)[self.kept] - self.B_I @ x, 1.0)
 
     def multipliers(self, r: np.ndarray) -> np.ndarray:
-        """``K^{-1} W' r``: the multipliers with ``r ~ B_I' p_I`` (exact when it is)."""
+        """``K^{-1} W' r``: the multipliers with ``r ~ B_I' p_I`` (exact when it is),
+        one per active row, zero on the dependent ones."""
+        p = np.zeros(self.n_rows)
+        p[self.kept] = self._basis_multipliers(r)
+        return p
+
+    def _basis_multipliers(self, r: np.ndarray) -> np.ndarray:
         if self.K_factor is None:
             return np.zeros(0)
         Wr = self.B_p @ self.solve_G(np.asarray(r, dtype=float)[self.patch])
@@ -99,11 +112,12 @@ class FaceProjector:
 
     def project_T(self, r: np.ndarray) -> np.ndarray:
         """``Pi' r = r - B_I' (multipliers of r)``."""
-        return np.array(r, dtype=float) - self.B_I.T @ self.multipliers(r)
+        return np.array(r, dtype=float) - self.B_I.T @ self._basis_multipliers(r)
 
 
 def face_projector(A: sp.spmatrix, B_I: sp.spmatrix, kind: str = "harmonic",
-                   hops: int = 2) -> FaceProjector:
+                   hops: int = 2, g_I: np.ndarray | None = None,
+                   labels: np.ndarray | None = None) -> FaceProjector:
     """The :class:`FaceProjector` of the rows ``B_I`` (an active set).
 
     Parameters
@@ -111,15 +125,24 @@ def face_projector(A: sp.spmatrix, B_I: sp.spmatrix, kind: str = "harmonic",
     A : sparse (n, n)
         Stiffness matrix (its graph defines the patch, its block the metric).
     B_I : sparse (m_I, n)
-        Active constraint rows, linearly independent.
+        Active constraint rows; linearly dependent ones are reduced to a basis
+        (:func:`solvers.cholesky.row_basis`, from ``K``).
     kind : {"harmonic", "euclidean"}
     hops : int
         ``harmonic`` only: graph distance of the patch from the constrained DOFs.
+    g_I : (m_I,) array, optional
+        The rows' gaps: the basis of dependent rows is then consistent with them.
+    labels : (m_I,) int array, optional
+        Row numbers for messages.
 
     Raises
     ------
     ValueError
-        For an unknown ``kind``, ``hops < 0`` or linearly dependent rows.
+        For an unknown ``kind`` or ``hops < 0``.
+    solvers.cholesky.InfeasibleError
+        Dependent rows that no ``u`` satisfies (with ``g_I``).
+    RuntimeError
+        Dependent rows without a basis consistent with ``g_I``.
     """
     if kind not in FACE_KINDS:
         raise ValueError(f"unknown face projection {kind!r}; allowed: {', '.join(FACE_KINDS)}")
@@ -129,7 +152,7 @@ def face_projector(A: sp.spmatrix, B_I: sp.spmatrix, kind: str = "harmonic",
     constrained = np.unique(B_I.indices)
     patch = constrained
     if B_I.shape[0] == 0:
-        return FaceProjector(B_I, patch, B_I[:, patch], None, None)
+        return FaceProjector(B_I, patch, B_I[:, patch], None, None, np.zeros(0, dtype=int), 0)
     if kind == "harmonic":
         A = sp.csr_matrix(A)
         for _ in range(hops):
@@ -141,11 +164,7 @@ def face_projector(A: sp.spmatrix, B_I: sp.spmatrix, kind: str = "harmonic",
     else:
         solve_G, X = (lambda r: np.asarray(r, dtype=float)), B_p.T.toarray()
     K = np.asarray(B_p @ X)
-    try:
-        K_factor = sla.cho_factor(0.5 * (K + K.T))
-        dependent = np.diag(K_factor[0]).min() ** 2 <= 1e-12 * np.diag(K).max()
-    except np.linalg.LinAlgError:
-        dependent = True
-    if dependent:
-        raise ValueError("the active constraint rows B_I are linearly dependent")
-    return FaceProjector(B_I, patch, B_p, solve_G, K_factor)
+    basis = row_basis(0.5 * (K + K.T), g_I, labels)
+    if basis.dropped.size:
+        B_I, B_p = B_I[basis.kept], B_p[basis.kept]
+    return FaceProjector(B_I, patch, B_p, solve_G, basis.factor, basis.kept, K.shape[0])

@@ -24,6 +24,21 @@ only matters for an initial guess ``(u0, p0)``. Changes at round-off level
 (relative ``flip_tol``) are ignored so that a degenerate (weakly active)
 constraint cannot make the iteration flip forever.
 
+Linearly dependent active rows (LICQ fails: two constrained nodes with the same
+constraint row, corners, symmetry planes, mortar rows sharing nodes): ``u`` is still
+unique, the multipliers are not. A step whose ``S_II`` (or KKT matrix) is singular
+takes a basis ``J`` of the active rows from a rank-revealing pivoted Cholesky of the
+scaled ``S_II`` (:func:`solvers.cholesky.row_basis`), solves on ``J`` and sets
+``p = 0`` on the dependent rows ``D``, which stay in the active set. The basis is
+consistent with the gaps (``B_D u <= g_D`` on the face of ``J``; a violated dependent
+row is exchanged into ``J``), and rows that no ``u`` satisfies end the run as
+``failed`` with a Farkas certificate ("the problem is infeasible"). The multiplier
+returned is therefore the *basic* one of the final step: supported on the rows that
+the pivoted Cholesky (largest remaining diagonal first, ties to the lower row number)
+and the exchanges pick, zero on the others; the KKT residuals and the certificate
+judge it as any other. A problem with independent active rows takes exactly the path
+it took before (the plain Cholesky of ``S_II`` is tried first).
+
 Stopping: the active set repeats (then ``(u, p)`` solves the KKT system up to
 round-off). Safeguard: PDAS converges for M-matrix-like problems but may cycle
 otherwise; when an active set recurs, the method switches to a damped update
@@ -44,7 +59,7 @@ from problems.floating import floating_modes
 from problems.kkt import kkt_residuals
 from problems.qp import ContactQP
 from problems.spec import Options, Parameter
-from solvers.cholesky import factorize, shared_floating_factor
+from solvers.cholesky import InfeasibleError, factorize, row_basis, shared_floating_factor
 from solvers.active_set import (check_positive_diagonal, damped_update, initial_active_set,
                                 pdas_update, stiffness_scale)
 from solvers.base import Role, SolveResult, SolverSpec
@@ -110,6 +125,9 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
         try:
             u, p = system.solve(active)
             n_active = int(active.sum())
+        except InfeasibleError as err:
+            status, message = "failed", f"step {iterations}: {err}"
+            break
         except RuntimeError as err:
             status = "failed"
             message = (f"singular active-set system at step {iterations} with "
@@ -124,6 +142,9 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
         _record(history, active, new, res.max, time.perf_counter() - t_solve)
         if np.array_equal(new, active):
             status, message = _fixed_point_status(res.max, tol, iterations)
+            if system.n_dependent:
+                message += (f"; {system.n_dependent} linearly dependent active row(s) carry "
+                            f"p = 0 (basic multiplier)")
             break
         key = new.tobytes()
         if key in seen:
@@ -144,6 +165,7 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
     stats = {"n_active": n_active, "factor_time": system.factor_time,
              "n_factorisations": system.n_factorisations, "method": method,
              "factorization": getattr(system, "chol", None) and system.chol.backend, "c_eff": c_eff,
+             "n_dependent": system.n_dependent,
              "damped": limit is not None, "damping_limit": -1 if limit is None else limit}
     return SolveResult(u=u, p=p, claimed_status=status, message=message,
                        iterations=iterations, setup_time=setup_time,
@@ -196,6 +218,7 @@ class _ActiveSetSystem:
         self.factorization = factorization
         self.factor_time = 0.0
         self.n_factorisations = 0
+        self.n_dependent = 0     # dependent active rows (p = 0) of the last step
         self.A = sp.csc_matrix(qp.A)
         self.B = sp.csr_matrix(qp.B)
         self.C = None if qp.C is None else sp.csr_matrix(qp.C)
@@ -207,8 +230,10 @@ class _ActiveSetSystem:
 
         Raises
         ------
+        InfeasibleError
+            The active rows admit no ``u`` with ``B_I u <= g_I``.
         RuntimeError
-            If the system is singular.
+            If the system is singular otherwise.
         """
         idx = np.flatnonzero(active)
         u, p_act = (self._solve_kkt(idx) if self.method == "kkt" else self._solve_schur(idx))
@@ -226,6 +251,27 @@ class _ActiveSetSystem:
         return sp.csc_matrix(sp.bmat([[self.A, B_I.T], [B_I, -C_II]]))
 
     def _solve_kkt(self, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The reduced KKT system by a sparse LU; exactly singular (dependent active rows):
+        on a basis of the rows chosen from their Gram matrix ``B_I B_I'``."""
+        self.n_dependent = 0
+        try:
+            return self._solve_kkt_rows(idx)
+        except RuntimeError:
+            pass
+        B_I = self.B[idx]
+        basis = row_basis((B_I @ B_I.T).toarray(), self._gaps(idx), labels=idx)
+        self.n_dependent = basis.dropped.size
+        u, p_kept = self._solve_kkt_rows(idx[basis.kept])
+        p_I = np.zeros(idx.size)
+        p_I[basis.kept] = p_kept
+        return u, p_I
+
+    def _gaps(self, idx: np.ndarray) -> np.ndarray | None:
+        """The gaps a row basis must be consistent with (none with a stabilisation block,
+        whose rows ``B_I u - C_II p_I = g_I`` are not dependent like ``B_I``'s)."""
+        return self.qp.g[idx] if self.C is None else None
+
+    def _solve_kkt_rows(self, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         n = self.qp.n
         K = self._kkt_matrix(idx)
         rhs = np.concatenate([self.qp.f, self.qp.g[idx]])
@@ -285,6 +331,7 @@ class _ActiveSetSystem:
         return x
 
     def _solve_schur(self, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        self.n_dependent = 0
         if self.floating is not None:
             return self._solve_floating(idx)
         if idx.size == 0:
@@ -293,10 +340,10 @@ class _ActiveSetSystem:
         if self.C is not None:
             S_II = S_II + self.C[idx][:, idx].toarray()
         rhs = self.B[idx] @ self.w - self.qp.g[idx]
-        try:
-            p_I = sla.cho_solve(sla.cho_factor(S_II), rhs)
-        except sla.LinAlgError as err:
-            raise RuntimeError(f"Schur complement not positive definite: {err}") from None
+        basis = row_basis(S_II, self._gaps(idx), labels=idx)
+        self.n_dependent = basis.dropped.size
+        p_I = np.zeros(idx.size)
+        p_I[basis.kept] = sla.cho_solve(basis.factor, rhs[basis.kept])
         u = self._solve_A(self.qp.f - self.B[idx].T @ p_I)
         return u, p_I
 
@@ -313,7 +360,20 @@ class _ActiveSetSystem:
         Cholesky of ``S_II + C_II`` and a ``k x k`` system for the rigid amplitudes.
         Nothing here is of the size of ``1 / spring``: the springs enter only through
         ``Sigma~``, which is small beside ``G~^T S^{-1} G~`` (the contact's stiffness).
+        Dependent rows of ``S_II`` (:func:`solvers.cholesky.row_basis`, not checked
+        against the gaps: ``S_II`` couples only the held part) carry ``p = 0``.
         """
+        if idx.size:
+            S_II = self.S[np.ix_(idx, idx)]
+            if self.C is not None:
+                S_II = S_II + self.C[idx][:, idx].toarray()
+            basis = row_basis(S_II, labels=idx)
+            if basis.dropped.size:
+                u, p_kept = self._solve_floating(idx[basis.kept])
+                self.n_dependent = basis.dropped.size
+                p_I = np.zeros(idx.size)
+                p_I[basis.kept] = p_kept
+                return u, p_I
         g_I = self.qp.g[idx]
         u, p_I = self._floating_step(idx, self.qp.f, g_I, self.z_f)
         B_I = self.B[idx]

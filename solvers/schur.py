@@ -66,8 +66,9 @@ class SchurPreconditioner:
 
     @property
     def kappa(self) -> float:
-        """kappa(S-hat) of Table 9.1 (Euclidean, Lanczos)."""
-        return self.lam_max / self.lam_min
+        """kappa(S-hat) of Table 9.1 (Euclidean, Lanczos); ``inf`` for a singular ``S-hat``
+        (linearly dependent rows of ``B``: ``lam_min = 0``)."""
+        return self.lam_max / self.lam_min if self.lam_min > 0 else float("inf")
 
     def columns(self, idx: np.ndarray) -> np.ndarray:
         """``S-hat[:, idx]`` (one product per column)."""

@@ -16,6 +16,11 @@ their ``I - B_I'(B_I B_I')^{-1} B_I``), which cuts the V-cycle's smooth correcti
 at the constrained DOFs and needs about twice the steps. The solve is warm
 started from the previous iterate. The multipliers are those the projector defines,
 ``p_I = (W' B_I')^{-1} W' (f - A u)`` (least squares for ``euclidean``), ``p = 0`` off ``I``.
+Linearly dependent active rows (LICQ fails; ``u`` is still unique) are reduced to a
+basis consistent with their gaps (:func:`solvers.cholesky.row_basis`: rank-revealing
+pivoted Cholesky of ``K = B_I W``); the multiplier is then the basic one, zero on the
+dependent rows, as in :mod:`solvers.pdas`. Rows that no ``u`` satisfies end the run as
+``failed`` ("the problem is infeasible", with a Farkas certificate).
 
 Inexactness control: the inner relative tolerance starts at ``inner.rtol`` and
 is tied to the outer residual (a forcing term ``min(rtol, forcing * KKT)``), so
@@ -52,6 +57,7 @@ from solvers.face import FACE_PROJECTION, FaceProjector, face_hops, face_project
 from solvers.multigrid import AHAT, component_vcycle
 from solvers.base import VERIFIED_PRESETS, Role, SolveResult, SolverSpec
 from solvers.certificate import certify
+from solvers.cholesky import InfeasibleError
 from solvers.active_set import (check_positive_diagonal, damped_update, initial_active_set,
                                 pdas_update, stiffness_scale)
 
@@ -129,7 +135,7 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
     vc = component_vcycle(qp, opts.ahat)   # unscaled: PCG needs no spectral bounds
     B = qp.B.tocsr()
     hops = face_hops(qp.dim, opts.face.options.get("hops", 0))
-    faces = _FaceCache(qp.A, B, opts.face.kind, hops)
+    faces = _FaceCache(qp.A, B, qp.g, opts.face.kind, hops)
     setup_time = time.perf_counter() - t_start
     vcycles_setup = vc.n_applications
 
@@ -176,13 +182,14 @@ class _FaceCache:
     factorises every step (a factor update by rows would save that; not needed while
     the fallback is a safeguard)."""
 
-    def __init__(self, A, B, kind: str, hops: int):
-        self.A, self.B, self.kind, self.hops = A, B, kind, hops
+    def __init__(self, A, B, g, kind: str, hops: int):
+        self.A, self.B, self.g, self.kind, self.hops = A, B, g, kind, hops
         self.rows, self.face = None, None
 
     def __call__(self, idx: np.ndarray) -> FaceProjector:
         if self.face is None or not np.array_equal(idx, self.rows):
-            self.face, self.rows = face_projector(self.A, self.B[idx], self.kind, self.hops), idx
+            self.face = face_projector(self.A, self.B[idx], self.kind, self.hops, self.g[idx], idx)
+            self.rows = idx
         return self.face
 
 
@@ -265,17 +272,26 @@ def _newton(run: _Run, u: np.ndarray, active: np.ndarray, max_iter: int,
     """The semismooth Newton (PDAS) steps with inexact face solves.
 
     Ends ``converged`` (verified), ``inaccurate`` (the active set is fixed but the
-    inner tolerance is at its floor), ``max_iter``, ``time_limit``, or ``stalled``:
-    the active set recurs even under single damped changes, or the best KKT
-    residual has not halved for ``patience`` steps. A stalled run goes on in
+    inner tolerance is at its floor), ``max_iter``, ``time_limit``, ``failed`` (rows that
+    no ``u`` satisfies, with a Farkas certificate), or ``stalled``: the active set recurs
+    even under single damped changes, the best KKT residual has not halved for
+    ``patience`` steps, or linearly dependent active rows have no basis consistent with
+    their gaps (:func:`solvers.face.face_projector`). A stalled run goes on in
     :func:`_monotone` (option ``fallback``).
     """
     qp, opts, tol = run.qp, run.opts, run.tol
     seen: set[bytes] = set()
     limit: int | None = None
     best, since_best = np.inf, 0
+    p = np.zeros(qp.m)
     for k in range(1, max_iter + 1):
-        u, face = run.face_solve(u, active)
+        try:
+            u, face = run.face_solve(u, active)
+        except InfeasibleError as err:
+            return _Outcome(u, p, active, "failed", f"Newton step {k}: {err}", k - 1)
+        except RuntimeError as err:                  # dependent rows without a basis
+            return _Outcome(u, p, active, "stalled", f"no face for the active set of Newton "
+                            f"step {k} ({err})", k - 1)
         p = run.multipliers(u, active, face)
         kkt = kkt_residuals(qp, u, p).max
         run.record("newton", active, u, kkt)
@@ -363,7 +379,12 @@ def _monotone(run: _Run, u: np.ndarray, active: np.ndarray, budget: int,
     p = np.zeros(qp.m)
     dropped = -1
     for k in range(1, budget + 1):
-        x, face = run.face_solve(u, work)
+        try:
+            x, face = run.face_solve(u, work)
+        except RuntimeError as err:                  # dependent rows without a basis
+            return _Outcome(u, np.maximum(p, 0.0), work, "failed",
+                            f"no face for the working set of fallback step {k}: {err}",
+                            done + k - 1)
         d = x - u
         Bd, slack = B @ d, qp.g - B @ u
         blocking = np.flatnonzero(~work & (Bd > 0) & (Bd > slack))

@@ -110,11 +110,30 @@ def test_face_projector_refuses_bad_input():
         face_projector(qp.A, B[:2], "oblique")
     with pytest.raises(ValueError, match="hops must be >= 0"):
         face_projector(qp.A, B[:2], "harmonic", hops=-1)
-    with pytest.raises(ValueError, match="linearly dependent"):
-        face_projector(qp.A, sp.vstack([B[:1], B[:1]]), "euclidean")
     empty = face_projector(qp.A, B[:0])          # no active constraint: the identity
     v = np.arange(qp.n, dtype=float)
     assert np.array_equal(empty.project(v), v) and np.array_equal(empty.project_T(v), v)
+
+
+@pytest.mark.parametrize("kind", ["harmonic", "euclidean"])
+def test_face_projector_of_dependent_rows_keeps_a_basis(kind):
+    """A duplicated row and a row that is the sum of two others: the projector keeps a
+    basis of the rows (the same face), the dependent rows get multiplier zero, and the
+    multipliers still reproduce a force ``B_I' p`` exactly."""
+    qp = CIRCLE_SQUARE.make(0)
+    B = qp.B.tocsr()
+    B_I = sp.vstack([B[:3], B[1:2], B[0:1] + B[2:3]], format="csr")
+    g_I = B_I @ np.linspace(0.1, 0.2, qp.n)                      # consistent gaps
+    face = face_projector(qp.A, B_I, kind, hops=2, g_I=g_I)
+    assert face.kept.size == 3 and face.n_rows == 5
+    v = np.random.default_rng(3).normal(size=qp.n)
+    assert np.max(np.abs(B_I @ face.project(v))) <= 1e-12 * np.max(np.abs(B_I @ v))
+    x = face.lift(v, g_I)
+    assert np.max(np.abs(B_I @ x - g_I)) <= 1e-12 * np.max(np.abs(g_I))
+    p = face.multipliers(B_I.T @ np.array([1.0, 2.0, 3.0, 0.0, 0.0]))
+    assert np.count_nonzero(p) == 3
+    np.testing.assert_allclose(B_I.T @ p, B_I.T @ np.array([1.0, 2.0, 3.0, 0.0, 0.0]),
+                               rtol=0, atol=1e-12)
 
 
 # --------------------------------------------------------------------- the fallback
