@@ -278,6 +278,7 @@ def beside_thesis(frame: pd.DataFrame, keep=None) -> pd.DataFrame:
     return frame[out]
 
 
+#: How many tables of each name the page being written has (their ids: ``name-k``).
 _TABLE_IDS = Counter()
 
 
@@ -488,6 +489,7 @@ def page(items, claims: pd.DataFrame, prov: dict, varying: dict, res: pd.DataFra
     """The summary page as one self-contained HTML document: the headline first, then
     the claims, the thesis's items, the tables beside the thesis's, the provenance and
     the resources."""
+    _TABLE_IDS.clear()                  # table ids count from 1 on every page
     th = thesis_rows(items, prov.get("configfile") or scale)
     parts = [f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>contactbench summary "
              f"({html.escape(scale)})</title><style>{STYLE}</style></head><body>",
