@@ -336,9 +336,20 @@ def thesis_rows(items, config_files: str) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-def leaderboard(summary: pd.DataFrame) -> pd.DataFrame:
+def failing_scenes(by_scene: pd.DataFrame | None) -> dict[tuple[str, str], list[str]]:
+    """(preset, solver) -> the scenes (the test set's problems' scenes) where some run was
+    not verified converged."""
+    if by_scene is None or not len(by_scene):
+        return {}
+    bad = by_scene[by_scene["converged"] < by_scene["runs"]]
+    return {key: sorted(g["scene"]) for key, g in bad.groupby(["preset", "solver"])}
+
+
+def leaderboard(summary: pd.DataFrame, by_scene: pd.DataFrame | None = None) -> pd.DataFrame:
     """Per preset, the solvers ranked by their shifted geometric mean time: success and
-    correct rates in per cent, the time, and the failures counted by kind."""
+    correct rates in per cent, the time, and the failures counted by kind with the scenes
+    they happened on (``by_scene``: the summary per scene)."""
+    where = failing_scenes(by_scene)
     kinds = [k for k in ("inaccurate", "max_iter", "time_limit", "failed", "skipped")
              if k in summary]
     rows = []
@@ -347,6 +358,8 @@ def leaderboard(summary: pd.DataFrame) -> pd.DataFrame:
                                     key=lambda c: c.map(order) if c.name == "preset" else c
                                     ).iterrows():
         fails = ", ".join(f"{int(r[k])} {k}" for k in kinds if r[k] > 0)
+        if fails and (r["preset"], r["solver"]) in where:
+            fails += f" (on {', '.join(where[r['preset'], r['solver']])})"
         rows.append({"preset": r["preset"], "solver": r["solver"], "runs": int(r["runs"]),
                      "success %": round(100 * r["success_rate"], 1),
                      "correct %": round(100 * r["correct_rate"], 1),
@@ -450,13 +463,15 @@ def headline(items, claims: pd.DataFrame, th: pd.DataFrame, scale: str) -> list[
              f"<a class='na' href='#claims-unjudged'>{counts.get('n/a', 0)} not judged at "
              "this scale (each with its reason)</a></span></li>"]
     solver = [p for k, _, p in items if k == "solver_summary"]
+    by_scene = [p for k, _, p in items if k == "solver_summary_by_scene"]
     if solver:
         summary = read_csv(solver[0])
         parts += [f"<li>{w}</li>" for w in leaderboard_words(summary)]
         parts.append("</ul><h3 id='leaderboard'>Solver leaderboard over the contact QP test "
                      "set</h3><p class='small'>" + html.escape(NOTES["solver_summary"]) +
                      "</p>")
-        parts.append(table_html(leaderboard(summary), left=("preset", "solver",
+        parts.append(table_html(leaderboard(summary, read_csv(by_scene[0]) if by_scene
+                                            else None), left=("preset", "solver",
                                                              "not converged"),
                                 name="leaderboard", max_rows=200))
     else:

@@ -107,6 +107,8 @@ def _solver_summary():
 
 
 def test_leaderboard_names_the_fastest_verified_and_the_wrong_claims():
+    import pandas as pd
+
     from report.summary import leaderboard, leaderboard_words
     words = leaderboard_words(_solver_summary())
     assert "fastest verified solver <b>pdas</b>" in words[0]
@@ -117,6 +119,12 @@ def test_leaderboard_names_the_fastest_verified_and_the_wrong_claims():
     board = leaderboard(_solver_summary())
     assert list(board["solver"]) == ["pdas", "osqp", "pdas", "osqp"]
     assert list(board["not converged"]) == ["0", "1 inaccurate", "2 inaccurate", "0"]
+    by_scene = pd.DataFrame({"preset": ["low", "low", "mid"], "solver": ["osqp", "osqp", "pdas"],
+                             "scene": ["cube_sphere", "circle_square", "roll_stack"],
+                             "runs": [2, 2, 2], "converged": [1, 2, 0]})
+    board = leaderboard(_solver_summary(), by_scene)
+    assert list(board["not converged"]) == ["0", "1 inaccurate (on cube_sphere)",
+                                            "2 inaccurate (on roll_stack)", "0"]
 
 
 def test_tables_put_the_thesis_beside_ours_and_explain_empty_cells():
