@@ -13,7 +13,13 @@ REPORT := results/report.html
 # Debian's Chromium, for the test that opens the HTML report in a real browser
 CHROMIUM ?= /usr/bin/chromium
 
-.PHONY: setup browser run full test bench clean
+# PETSc and MPI for the distributed solver (solvers/petsc_tao.py): Debian's packages for
+# the system Python (python3-petsc4py is built against its numpy, so the solve runs as
+# its own MPI job); without apt-get, or where it cannot install, the petsc_tao runs and
+# tests are skipped with the reason (docs/guide/distributed.md)
+PETSC_PACKAGES := python3-petsc4py python3-mpi4py mpi-default-bin
+
+.PHONY: setup browser petsc run full test bench clean
 
 $(BIN)/contactbench: pyproject.toml constraints.txt
 	@command -v $(PYTHON) >/dev/null 2>&1 || { echo "error: $(PYTHON) not found; set PYTHON=/path/to/python3.11"; exit 2; }
@@ -25,7 +31,7 @@ $(BIN)/contactbench: pyproject.toml constraints.txt
 setup: $(BIN)/contactbench
 
 # the regeneration, then Snakemake's HTML report of it (the summary page first)
-run: setup
+run: setup petsc
 	$(BIN)/snakemake --profile $(PROFILE) --cores $(CORES) --configfile workflows/config/$(SCALE).yaml
 	$(BIN)/snakemake --profile $(PROFILE) --cores $(CORES) --configfile workflows/config/$(SCALE).yaml --report $(REPORT)
 	@echo "report: $(REPORT)"
@@ -39,13 +45,24 @@ $(CHROMIUM):
 	@command -v apt-get >/dev/null 2>&1 || { echo "error: $(CHROMIUM) not found and no apt-get; install Chromium and set CHROMIUM=/path/to/chromium"; exit 2; }
 	apt-get install -y --no-install-recommends chromium || { apt-get update && apt-get install -y --no-install-recommends chromium; }
 
+petsc:
+	@if ! command -v apt-get >/dev/null 2>&1; then \
+		echo "note: no apt-get: PETSc and MPI not installed, the petsc_tao runs are skipped (docs/guide/distributed.md)"; \
+	elif dpkg -s $(PETSC_PACKAGES) >/dev/null 2>&1; then :; \
+	else \
+		apt-get install -y --no-install-recommends $(PETSC_PACKAGES) \
+		|| { apt-get update && apt-get install -y --no-install-recommends $(PETSC_PACKAGES); } \
+		|| echo "note: $(PETSC_PACKAGES) could not be installed, the petsc_tao runs are skipped"; \
+	fi
+
 # the solver tests, run once more under every other OpenBLAS kernel the CPU can run
 # (tests/blas_kernels.py): rounding must not decide a solve
 SOLVER_TESTS := tests/test_rounding.py tests/test_solvers.py tests/test_semismooth_newton.py \
 	tests/test_augmented_projection.py tests/test_cholesky.py tests/test_qp.py tests/test_two_body.py \
-	tests/test_tnnmg.py tests/test_layered_multigrid.py tests/test_degenerate.py
+	tests/test_tnnmg.py tests/test_layered_multigrid.py tests/test_petsc_tao.py tests/test_degenerate.py \
+	tests/test_solver_contract.py
 
-test: setup browser
+test: setup browser petsc
 	CONTACTBENCH_CHROMIUM=$(CHROMIUM) $(BIN)/python -m pytest -q
 	@kernels="$$($(BIN)/python tests/blas_kernels.py)" || exit 1; \
 	for k in $$kernels; do \

@@ -6,11 +6,13 @@
 import hashlib
 import json
 import os
+import shlex
 import sys
 
 from snakemake.utils import validate
 
-from workflows.io import sweep_results
+from solvers.interface import solver_set
+from workflows.io import SOLVER_SET_ENV, run_solver_set, sweep_results
 from workflows.progress import clear as clear_progress, start_reporter
 from workflows.settings import SCHEMA
 
@@ -34,8 +36,16 @@ check_config(config)   # scenes exist, problems and parameters valid, variant na
 # provenance of every result names the config; corrupted results and partial files of a
 # killed run are removed here, so that they are rebuilt (workflows/io.py)
 CONFIG_SHA256 = hashlib.sha256(json.dumps(config, sort_keys=True).encode()).hexdigest()
+# the solver set is fixed here, when the run starts: a plug-in installed or removed while it
+# runs changes no study; every result's provenance records the set (plug-ins with package
+# and version). A job that parses this file again inherits the set of its run.
+SOLVER_SET = run_solver_set() or solver_set()
+os.environ[SOLVER_SET_ENV] = json.dumps(SOLVER_SET, sort_keys=True)
 shell.prefix(f"export CONTACTBENCH_CONFIGFILE={','.join(map(str, workflow.configfiles))} "
-             f"CONTACTBENCH_CONFIG_SHA256={CONFIG_SHA256}; ")
+             f"CONTACTBENCH_CONFIG_SHA256={CONFIG_SHA256} "
+             f"{SOLVER_SET_ENV}="      # the prefix is formatted once more: braces doubled
+             + shlex.quote(os.environ[SOLVER_SET_ENV]).replace("{", "{{").replace("}", "}}")
+             + "; ")
 for removed in sweep_results("results"):
     print(f"removed a corrupted or partial result, to be rebuilt: {removed}", file=sys.stderr)
 

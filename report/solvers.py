@@ -16,7 +16,7 @@ from report.figures import (PRESET_LINES, nothing_to_draw, save_figure,  # noqa:
                             solver_legend, solver_style)
 from report.rates import fitted_slope  # noqa: E402
 from solvers.interface import TOLERANCES, solvers  # noqa: E402
-from workflows.io import read_csv, write_csv  # noqa: E402
+from workflows.io import read_csv, run_solvers, write_csv  # noqa: E402
 
 
 
@@ -48,7 +48,9 @@ def cost_table(table: pd.DataFrame) -> pd.DataFrame:
 def preset_table() -> pd.DataFrame:
     """How each solver maps the presets low/mid/high onto its own options."""
     rows = []
-    for name, spec in solvers().items():
+    registry = solvers()
+    for name in run_solvers(registry):
+        spec = registry[name]
         for preset, tol in TOLERANCES.items():
             rows.append({"solver": name, "preset": preset, "tol": tol,
                          "options": spec.presets.get(preset, "")})
@@ -140,7 +142,7 @@ def main(argv=None) -> None:
     args = ap.parse_args(argv)
     table = pd.concat([read_csv(f) for f in args.inputs], ignore_index=True)
     keep = ["scene_problem", "level", "N", "n", "m", "solver", "preset", "tol", "status",
-            "claimed_status",
+            "claimed_status", "failed_check",
             "iterations", "setup_time", "solve_time", "total_time", "wall_time",
             "kkt_stationarity", "kkt_primal", "kkt_dual", "kkt_complementarity", "kkt_max",
             "energy_bound", "energy_bound_floor", "pair_gap", "energy_error", "peak_mem_mb",

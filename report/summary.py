@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import argparse
 import html
-import json
 from collections import Counter
 from pathlib import Path
 from typing import Callable
@@ -31,7 +30,7 @@ import pandas as pd
 from report import adaptive, contact, hard_cases, laplace
 from report.claims import NOT_REACHED
 from solvers.interface import TOLERANCES
-from workflows.io import META, provenance, read_csv, write_csv, write_text
+from workflows.io import META, provenance, read_csv, read_json, write_csv, write_text
 from workflows.studies import HEAVY_RULES, PATHS, STUDIES, THESIS_ITEMS
 
 #: PATHS key -> claims of that output (a frame with claim, measured, bar, pass).
@@ -190,6 +189,16 @@ def collect_claims(items) -> pd.DataFrame:
               "source"]]
 
 
+def solver_set_text(fixed: dict | None) -> str:
+    """A run's solver set (provenance ``solver_set``) in one line: the names, a plug-in
+    with its package and version."""
+    if not fixed:
+        return "not recorded"
+    return ", ".join(name if info.get("origin") != "plug-in" else
+                     f"{name} (plug-in {info.get('package')} {info.get('version')})"
+                     for name, info in sorted(fixed.items()))
+
+
 def read_provenance(paths: list[str]) -> tuple[dict, dict[str, Counter]]:
     """The provenance of the newest result and, per field that varies between
     results, how many results carry each value."""
@@ -198,15 +207,17 @@ def read_provenance(paths: list[str]) -> tuple[dict, dict[str, Counter]]:
         meta = Path(str(path) + META)
         if meta.exists():
             try:
-                metas.append(json.loads(meta.read_text()).get("provenance", {}))
+                metas.append(read_json(meta).get("provenance", {}))
             except (OSError, ValueError):
                 continue
     if not metas:
         return provenance(), {}
     newest = max(metas, key=lambda m: m.get("created") or "")
     varying = {}
-    for field in ("commit", "cpu_model", "node", "configfile", "config_sha256", "python"):
-        count = Counter(str(m.get(field)) for m in metas)
+    for field in ("commit", "cpu_model", "node", "configfile", "config_sha256", "python",
+                  "solver_set"):
+        count = Counter(solver_set_text(m.get(field)) if field == "solver_set"
+                        else str(m.get(field)) for m in metas)
         if len(count) > 1:
             varying[field] = count
     return newest, varying
@@ -546,6 +557,7 @@ def page(items, claims: pd.DataFrame, prov: dict, varying: dict, res: pd.DataFra
                   f"{prov.get('node')}"),
                  ("threads", f"env {prov.get('threads')}; loaded pools {prov.get('blas')}"),
                  ("python", prov.get("python")),
+                 ("solvers", solver_set_text(prov.get("solver_set"))),
                  ("packages", ", ".join(f"{k} {v}" for k, v in pk.items() if v))]
     parts.append("<h2>Provenance</h2><table>" + "".join(
         f"<tr><th class='l'>{k}</th><td class='l'>{html.escape(str(v))}</td></tr>"

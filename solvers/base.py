@@ -30,6 +30,24 @@ VERIFIED_PRESETS = {name: "stop when verified: KKT and certified energy bound <=
 #: cannot take the problem (:meth:`SolverSpec.check`); the message says why.
 STATUSES = ("converged", "inaccurate", "max_iter", "time_limit", "failed", "skipped")
 
+#: The rules of a solver's answer, checked by :func:`contract_violation` before anything
+#: uses it: ``{rule: what the solver must deliver}``. A broken rule makes the row
+#: ``failed`` with ``failed_check = "contract:<rule>"``. A solver that stops without an
+#: answer (any claim but ``converged``) may return NaN in ``u`` or ``p``: that row is
+#: ``failed`` with ``failed_check = "no_answer"``.
+CONTRACT = {
+    "type": "solve(...) returns a solvers.base.SolveResult",
+    "status": "claimed_status is one of " + ", ".join(STATUSES),
+    "u_shape": "u is a 1-D float array of length qp.n",
+    "u_finite": "every entry of u is finite when the solver claims converged",
+    "p_shape": "p is a 1-D float array of length qp.m",
+    "p_finite": "every entry of p is finite when the solver claims converged",
+    "message": "message is a str",
+    "iterations": "iterations is an int >= 0",
+    "times": "setup_time and solve_time are finite numbers >= 0",
+    "records": "history and stats are dicts",
+}
+
 
 class Role(StrEnum):
     """What a solver is in the comparison (a string, so ``role == "exact"`` works)."""
@@ -74,6 +92,19 @@ class SolveResult:
         ``kkt_max``, ``time``).
     stats : dict
         Solver-specific statistics (e.g. ``n_inner_mean``, ``kappa_S``).
+    failed_check : str
+        Filled in by the suite: why the verified status is not ``converged`` (empty if it
+        is, or ``skipped``). ``contract:<rule>`` (the answer broke a rule of
+        :data:`CONTRACT`), ``exception`` (the solver raised), ``process`` (its process
+        died), ``hard_time_limit`` (killed past the hard wall-clock limit), ``claimed``
+        (the solver itself claimed ``max_iter``, ``time_limit``, ``inaccurate`` or
+        ``failed``), ``no_answer`` (it stopped short with non-finite ``u`` or ``p``),
+        or, for a claimed convergence the verification did not confirm, the
+        checks above ``tol`` joined by commas: ``kkt_stationarity``, ``kkt_primal``,
+        ``kkt_dual``, ``kkt_complementarity``, ``energy_bound`` (or ``no_certificate``).
+    traceback : str
+        The traceback of an exception the solver raised (empty otherwise): kept with the
+        row, never in its table columns.
     """
 
     u: np.ndarray
@@ -91,14 +122,21 @@ class SolveResult:
     kkt: KKTResiduals | None = None
     gap: Any = None   # solvers.certificate.DualityGap
     options: dict = field(default_factory=dict)
+    failed_check: str = ""
+    traceback: str = ""
 
     @classmethod
     def without_answer(cls, n: int, m: int, solver: str, tol: float, status: str,
-                       message: str, elapsed: float = 0.0) -> "SolveResult":
-        """A run that produced no answer (``skipped``, or killed / crashed in isolation):
-        zeros for ``u`` and ``p``, the status already final (nothing to verify)."""
-        res = cls(u=np.zeros(n), p=np.zeros(m), claimed_status=status, message=message,
-                  solve_time=elapsed, solver=solver, tol=tol)
+                       message: str, elapsed: float = 0.0, failed_check: str = "",
+                       claimed_status: str | None = None,
+                       traceback: str = "") -> "SolveResult":
+        """A run that produced no answer (``skipped``, a broken contract, an exception, or
+        killed / crashed in isolation): zeros for ``u`` and ``p``, no ``kkt``, the status
+        already final (nothing to verify)."""
+        res = cls(u=np.zeros(n), p=np.zeros(m),
+                  claimed_status=status if claimed_status is None else claimed_status,
+                  message=message, solve_time=elapsed, solver=solver, tol=tol,
+                  failed_check=failed_check, traceback=traceback)
         res.status = status
         return res
 
@@ -109,7 +147,8 @@ class SolveResult:
     def summary(self) -> dict:
         """Flat record for tables (no arrays)."""
         out = {"solver": self.solver, "tol": self.tol, "status": self.status,
-               "claimed_status": self.claimed_status, "message": self.message,
+               "claimed_status": self.claimed_status, "failed_check": self.failed_check,
+               "message": self.message,
                "iterations": self.iterations, "setup_time": self.setup_time,
                "solve_time": self.solve_time, "total_time": self.total_time}
         if self.kkt is not None:
@@ -180,6 +219,55 @@ class SolverSpec:
             return True, ""
         ok, reason = self.supports(qp)
         return bool(ok), str(reason)
+
+
+def contract_violation(result: Any, n: int, m: int) -> tuple[str, str] | None:
+    """The first rule of :data:`CONTRACT` that a solver's answer breaks, as
+    ``(rule, what is wrong)``, or None if it keeps them all.
+
+    Parameters
+    ----------
+    result : object
+        What the solver's ``solve`` returned.
+    n, m : int
+        The size of the problem the solver received (``qp.n``, ``qp.m``).
+
+    A ``skipped`` answer carries nothing to use: only its type, status and message are
+    checked.
+    """
+    if not isinstance(result, SolveResult):
+        return "type", f"it returned a {type(result).__name__}"
+    status = result.claimed_status
+    if not isinstance(status, str) or status not in STATUSES:
+        return "status", f"claimed_status is {status!r}"
+    if not isinstance(result.message, str):
+        return "message", f"message is a {type(result.message).__name__}"
+    if status == "skipped":
+        return None
+    for name, size in (("u", n), ("p", m)):
+        value = getattr(result, name)
+        try:
+            arr = np.asarray(value, dtype=float)
+        except (TypeError, ValueError):
+            return f"{name}_shape", f"{name} is a {type(value).__name__}, not numbers"
+        if arr.shape != (size,):
+            return f"{name}_shape", f"{name} has shape {arr.shape}, not ({size},)"
+        bad = np.flatnonzero(~np.isfinite(arr))
+        if bad.size:
+            return f"{name}_finite", (f"{name} has {bad.size} non-finite entries (first at "
+                                      f"index {bad[0]}: {arr[bad[0]]})")
+    its = result.iterations
+    if isinstance(its, (bool, np.bool_)) or not isinstance(its, (int, np.integer)) or its < 0:
+        return "iterations", f"iterations is {its!r}"
+    for name in ("setup_time", "solve_time"):
+        t = getattr(result, name)
+        if (isinstance(t, (bool, np.bool_)) or not isinstance(t, (int, float, np.number))
+                or not np.isfinite(t) or t < 0):
+            return "times", f"{name} is {t!r}"
+    for name in ("history", "stats"):
+        if not isinstance(getattr(result, name), dict):
+            return "records", f"{name} is a {type(getattr(result, name)).__name__}"
+    return None
 
 
 def parse_tolerance(tol: Any) -> float:

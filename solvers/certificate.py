@@ -20,7 +20,7 @@ import scipy.sparse as sp
 from problems.floating import floating_modes
 from problems.kkt import KKTResiduals, kkt_residuals
 from problems.qp import ContactQP
-from solvers.base import STATUSES, SolveResult
+from solvers.base import CONTRACT, SolveResult, contract_violation
 
 
 @dataclass
@@ -283,26 +283,26 @@ def certify(qp: ContactQP, u: np.ndarray, p: np.ndarray, tol: float | None = Non
 
 
 def verify(qp: ContactQP, result: SolveResult, tol: float) -> SolveResult:
-    """Fill in ``kkt``, ``gap`` and the verified ``status``.
+    """Fill in ``kkt``, ``gap``, the verified ``status`` and ``failed_check``.
 
-    qpbenchmark's rule, strengthened: ``converged`` only if the solver claims it,
-    every scaled KKT residual is <= ``tol`` and the certified bound on the relative
-    energy error (from the duality gap, :func:`duality_gap`) is <=
-    ``tol`` (or at the bound's floating-point floor, ~1e-8: below it the KKT
-    residuals decide). A scaled residual alone can pass a wrong answer when A is
-    ill-conditioned; the certified bound cannot.
+    An answer that breaks the solver contract (:func:`solvers.base.contract_violation`:
+    its type, status vocabulary, the shapes and finiteness of ``u`` and ``p``, ...)
+    becomes a ``failed`` row without residuals, ``failed_check = "contract:<rule>"``.
+    Otherwise qpbenchmark's rule, strengthened: ``converged`` only if the solver claims
+    it, every scaled KKT residual is <= ``tol`` and the certified bound on the relative
+    energy error (from the duality gap, :func:`duality_gap`) is <= ``tol`` (or at the
+    bound's floating-point floor, ~1e-8: below it the KKT residuals decide); a claimed
+    convergence that fails becomes ``inaccurate`` with the failing checks in
+    ``failed_check``. Any other claim is kept as it is (``failed_check = "claimed"``):
+    the suite never upgrades a solver's own ``inaccurate``, ``max_iter``, ... A scaled
+    residual alone can pass a wrong answer when A is ill-conditioned; the certified bound
+    cannot.
     """
-    if result.claimed_status not in STATUSES:
-        raise ValueError(f"solver returned unknown status {result.claimed_status!r}")
+    broken = contract_violation(result, qp.n, qp.m)
+    if broken is not None:
+        return broken_contract(qp, result, tol, *broken)
     if result.claimed_status == "skipped":          # nothing was computed: nothing to check
-        result.status = "skipped"
-        return result
-    u_ok = np.shape(result.u) == (qp.n,) and np.all(np.isfinite(result.u))
-    p_ok = np.shape(result.p) == (qp.m,) and np.all(np.isfinite(result.p))
-    if not (u_ok and p_ok):
-        result.kkt = KKTResiduals(*([float("inf")] * 4))
-        result.status = "failed"
-        result.message = (result.message + "; " if result.message else "") + "non-finite or mis-shaped result"
+        result.status, result.failed_check = "skipped", ""
         return result
     result.kkt = kkt_residuals(qp, result.u, result.p)
     from solvers.cholesky import FactorizationError
@@ -314,8 +314,53 @@ def verify(qp: ContactQP, result: SolveResult, tol: float) -> SolveResult:
         result.message = (result.message + "; " if result.message else "") + (
             f"no certificate: {err}")
     if result.claimed_status == "converged":
-        accurate = result.kkt.max <= tol and result.gap.meets(tol)
-        result.status = "converged" if accurate else "inaccurate"
+        failing = failed_checks(result.kkt, result.gap, tol)
+        result.status = "inaccurate" if failing else "converged"
+        result.failed_check = ",".join(failing)
     else:
-        result.status = result.claimed_status
+        result.status, result.failed_check = result.claimed_status, "claimed"
     return result
+
+
+def failed_checks(kkt: KKTResiduals, gap: DualityGap, tol: float) -> list[str]:
+    """The verification's checks that ``(kkt, gap)`` fail at ``tol``, in order: the four
+    scaled KKT residuals (``kkt_<name>`` above ``tol``), then ``energy_bound`` (the
+    certified relative bound above ``tol`` and its floor) or ``no_certificate`` (no
+    feasible point, or A not positive definite)."""
+    out = [f"kkt_{name}" for name, value in kkt.as_dict(prefix="").items() if not value <= tol]
+    if not gap.certified:
+        out.append("no_certificate")
+    elif not gap.meets(tol):
+        out.append("energy_bound")
+    return out
+
+
+def broken_contract(qp: ContactQP, result, tol: float, rule: str, what: str) -> SolveResult:
+    """The ``failed`` row of an answer that broke the contract's ``rule``
+    (:data:`solvers.base.CONTRACT`): no answer to use, the message naming the rule."""
+    keep = isinstance(result, SolveResult)
+    if keep and rule in ("u_finite", "p_finite") and result.claimed_status != "converged":
+        text, check = f"no answer: {what}", "no_answer"
+    else:
+        text, check = f"the solver broke the contract: {CONTRACT[rule]} ({what})", \
+            f"contract:{rule}"
+    own = result.message if keep and isinstance(result.message, str) else ""
+    claimed = (result.claimed_status if keep and isinstance(result.claimed_status, str)
+               else "failed")
+    row = SolveResult.without_answer(qp.n, qp.m, result.solver if keep else "", tol, "failed",
+                                     f"{own}; {text}" if own else text,
+                                     failed_check=check, claimed_status=claimed)
+    if keep:
+        row.options, row.traceback = result.options, result.traceback
+        # what of the rest keeps the contract is kept (the later rules are unchecked yet)
+        if isinstance(result.history, dict) and isinstance(result.stats, dict):
+            row.history, row.stats = result.history, result.stats
+        its = result.iterations
+        if isinstance(its, (int, np.integer)) and not isinstance(its, bool) and its >= 0:
+            row.iterations = int(its)
+        for name in ("setup_time", "solve_time"):
+            t = getattr(result, name)
+            if (isinstance(t, (int, float)) and not isinstance(t, bool) and np.isfinite(t)
+                    and t >= 0):
+                setattr(row, name, float(t))
+    return row

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import functools
 import time
+import traceback
 import warnings
 from typing import Any
 
@@ -21,12 +22,13 @@ import numpy as np
 from problems.qp import ContactQP
 from problems.slack import slack_form
 from problems.spec import Parameter, ParameterError, discover, lookup
-from solvers.base import STATUSES, TOLERANCES, Role, SolveResult, SolverSpec, parse_tolerance
-from solvers.certificate import certify, linear_solver, verify
+from solvers.base import (CONTRACT, STATUSES, TOLERANCES, Role, SolveResult, SolverSpec,
+                          contract_violation, parse_tolerance)
+from solvers.certificate import broken_contract, certify, linear_solver, verify
 
-__all__ = ["ENTRY_POINT_GROUP", "STATUSES", "TOLERANCES", "Role", "SolveResult", "SolverSpec",
-           "certify", "external_solvers", "linear_solver", "parse_tolerance", "solve", "solvers",
-           "verify"]
+__all__ = ["CONTRACT", "ENTRY_POINT_GROUP", "STATUSES", "TOLERANCES", "Role", "SolveResult",
+           "SolverSpec", "certify", "check_limits", "external_solvers", "linear_solver",
+           "parse_tolerance", "solve", "solver_set", "solvers", "verify"]
 
 
 #: The entry-point group through which another installed package registers a solver: its
@@ -57,6 +59,7 @@ def external_solvers() -> dict[str, SolverSpec]:
     from importlib.metadata import entry_points
 
     found = {}
+    _PLUGIN_PACKAGES.clear()
     for ep in entry_points(group=ENTRY_POINT_GROUP):
         try:
             obj = ep.load()
@@ -77,14 +80,56 @@ def external_solvers() -> dict[str, SolverSpec]:
                           stacklevel=2)
             continue
         found[spec.name] = spec
+        dist = getattr(ep, "dist", None)
+        _PLUGIN_PACKAGES[spec.name] = (getattr(dist, "name", None) or spec.solve.__module__,
+                                       getattr(dist, "version", None))
     return found
+
+
+#: ``{solver name: (package, version)}`` of the plug-ins :func:`external_solvers` loaded.
+_PLUGIN_PACKAGES: dict[str, tuple[str, str | None]] = {}
+
+
+def solver_set() -> dict[str, dict]:
+    """The registered solvers and where each comes from, for a run's provenance:
+    ``{name: {"role", "origin", "package", "version"}}`` with ``origin`` ``built-in``
+    or ``plug-in`` (then the installed package and its version)."""
+    out = {}
+    for name, spec in solvers().items():
+        if name in _PLUGIN_PACKAGES and external_solvers().get(name) is spec:
+            package, version = _PLUGIN_PACKAGES[name]
+            out[name] = {"role": str(spec.role), "origin": "plug-in", "package": package,
+                         "version": version}
+        else:
+            out[name] = {"role": str(spec.role), "origin": "built-in",
+                         "package": "contactbench", "version": None}
+    return out
+
+
+def check_limits(spec: SolverSpec, tol: float | str, max_iter: int | None,
+                 time_limit: float | None) -> tuple[float, int, float | None]:
+    """The validated ``(tol, max_iter, time_limit)`` of a run of ``spec`` (``max_iter``
+    defaults to the solver's ``default_max_iter``; ``time_limit`` None means none).
+
+    Raises
+    ------
+    ParameterError
+        Naming the parameter and the allowed range.
+    """
+    tol = parse_tolerance(tol)
+    if max_iter is None:
+        max_iter = spec.default_max_iter
+    max_iter = Parameter("max_iter", 1, low=1, kind=int).validate(max_iter)
+    if time_limit is not None:
+        time_limit = Parameter("time_limit", 1.0, low=0.0, low_open=True).validate(time_limit)
+    return tol, max_iter, time_limit
 
 
 def solve(qp: ContactQP, solver: str = "pdas", tol: float | str = "mid",
           max_iter: int | None = None, time_limit: float | None = None,
           u0: np.ndarray | None = None, p0: np.ndarray | None = None,
           **options: Any) -> SolveResult:
-    """Run a registered solver and verify its answer.
+    """Run a registered solver, check its answer against the contract and verify it.
 
     Parameters
     ----------
@@ -105,15 +150,14 @@ def solve(qp: ContactQP, solver: str = "pdas", tol: float | str = "mid",
     Returns
     -------
     SolveResult
-        With ``kkt`` and the verified ``status`` filled in.
+        With ``kkt``, the verified ``status`` and ``failed_check`` filled in. Whatever
+        the solver does becomes a row: an exception it raises is a ``failed`` row
+        (``failed_check = "exception"``, the traceback in ``traceback``); an answer
+        that breaks :data:`solvers.base.CONTRACT` is a ``failed`` row naming the rule
+        (:func:`solvers.certificate.verify`).
     """
     spec = lookup(solvers(), solver, "solver")
-    tol = parse_tolerance(tol)
-    if max_iter is None:
-        max_iter = spec.default_max_iter
-    max_iter = Parameter("max_iter", 1, low=1, kind=int).validate(max_iter)
-    if time_limit is not None:
-        time_limit = Parameter("time_limit", 1.0, low=0.0, low_open=True).validate(time_limit)
+    tol, max_iter, time_limit = check_limits(spec, tol, max_iter, time_limit)
     for name, guess, size in (("u0", u0, qp.n), ("p0", p0, qp.m)):
         if guess is not None and np.shape(guess) != (size,):
             raise ParameterError(f"parameter '{name}': shape {np.shape(guess)} is not allowed; "
@@ -134,15 +178,23 @@ def solve(qp: ContactQP, solver: str = "pdas", tol: float | str = "mid",
         return result
     try:
         result = spec.solve(target, tol, max_iter, time_limit, u0, p0, opts)
-        if target is not qp:
-            result.u = np.asarray(result.u)[:qp.n]
-            result.message = (result.message + "; " if result.message else "") + "slack form"
-    except (MemoryError, np.linalg.LinAlgError, RuntimeError, ValueError) as err:
-        if isinstance(err, ParameterError):
-            raise
-        elapsed = time.perf_counter() - t0
-        result = SolveResult(u=np.zeros(qp.n), p=np.zeros(qp.m), claimed_status="failed",
-                             message=f"{type(err).__name__}: {err}", solve_time=elapsed)
+    except ParameterError:
+        raise
+    except Exception as err:       # noqa: BLE001 -- whatever a solver raises is its row
+        result = SolveResult.without_answer(
+            qp.n, qp.m, spec.name, tol, "failed", f"{type(err).__name__}: {err}",
+            time.perf_counter() - t0, failed_check="exception",
+            traceback=traceback.format_exc())
+        result.options = opts.flat()
+        return result
+    broken = contract_violation(result, target.n, target.m)
+    if broken is not None:
+        row = broken_contract(qp, result, tol, *broken)
+        row.solver, row.options = spec.name, opts.flat()
+        return row
+    if target is not qp:
+        result.u = np.asarray(result.u, dtype=float)[:qp.n]
+        result.message = (result.message + "; " if result.message else "") + "slack form"
     result.solver = spec.name
     result.tol = tol
     result.options = opts.flat()

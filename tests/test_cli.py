@@ -169,6 +169,12 @@ BAD_INPUTS = [
     (["--problem", "circle_square", "--set", "=3"], "'--set': '=3' is not allowed"),
     (["--problem", "circle_square", "--set", "E1=2", "--set", "E1=3"], "'E1' is given twice"),
     (["--problem", "circle_square", "--set", "beta=1"], "has no parameter 'beta'"),
+    # an unknown key names whose parameters were searched, and lists both
+    (["--problem", "circle_square", "--solver", "osqp", "--set", "foo=1"],
+     "problem 'circle_square' has no parameter 'foo', nor has solver 'osqp'; known parameters "
+     "of problem 'circle_square': radius, gap,"),
+    (["--problem", "circle_square", "--solver", "osqp", "--set", "foo=1"],
+     "of solver 'osqp': tol_factor, scale, polish, adaptive_rho, rho"),
     (["--problem", "circle_square", "--set", "nu1=0.5"], "'nu1': 0.5 is out of range"),
     (["--problem", "circle_square", "--set", "E1=nan"], "'E1': nan is not finite"),
     (["--problem", "circle_square", "--set", "load=inf"], "'load': inf is not finite"),
@@ -225,3 +231,39 @@ def test_output_paths_are_checked_before_any_work(tmp_path, capsys, monkeypatch)
     assert "is not writable" in capsys.readouterr().err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["dir.json", "old.json",
                                                           "old.json.meta.json", "ro"]
+
+
+def test_an_option_for_a_solver_without_options_says_it_has_none():
+    from solvers.base import SolverSpec
+    from workflows.cli import split_sets
+
+    bare = SolverSpec(name="bare", summary="x", solve=lambda *a: None)
+    scene = problems()["circle_square"]
+    assert split_sets({"E1": "2"}, scene, bare) == ({"E1": "2"}, {})
+    assert split_sets({"rho": "2"}, scene, solvers()["osqp"]) == ({}, {"rho": "2"})
+    with pytest.raises(ParameterError, match=r"nor has solver 'bare'; .* of solver 'bare': "
+                                             r"none \(it takes no --set options\)"):
+        split_sets({"rtol": "0.1"}, scene, bare)
+
+
+def test_debug_is_accepted_anywhere_on_the_line(tmp_path, capsys):
+    assert main(["list", "--debug"]) == 0
+    assert main(["--debug", "list"]) == 0
+    capsys.readouterr()
+    # with --debug an error shows its traceback (raised here), wherever the flag stands
+    for argv in (["--debug", "solve", "--problem", "nope", "--out", str(tmp_path / "x.json")],
+                 ["solve", "--problem", "nope", "--debug", "--out", str(tmp_path / "x.json")]):
+        with pytest.raises(ParameterError, match="unknown problem 'nope'"):
+            main(argv)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_reader_that_stops_early_ends_the_listing_quietly(tmp_path):
+    """``contactbench list | head``: the reader has gone before the listing is written."""
+    reader, writer = os.pipe()
+    os.close(reader)                                   # the reader left at once
+    proc = subprocess.run([str(Path(sys.executable).parent / "contactbench"), "list"],
+                          stdout=writer, stderr=subprocess.PIPE, text=True, timeout=300,
+                          cwd=tmp_path)
+    os.close(writer)
+    assert (proc.returncode, proc.stderr) == (141, "")

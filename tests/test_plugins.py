@@ -70,6 +70,29 @@ def test_the_plugin_solves_through_the_cli_and_is_verified(plugin_env, tmp_path)
     assert data["kkt_max"] <= 1e-6 and data["energy_bound"] <= 1e-6
 
 
+@pytest.mark.parametrize("scene", ["circle_square", "cube_sphere"])
+def test_the_template_verifies_at_mid_without_changes(plugin_env, tmp_path, scene):
+    """The template as it is (default options, default max_iter) at the preset mid on
+    level 1: its own stop is tight enough for the suite's verification."""
+    out = run([str(BIN / "contactbench"), "solve", "--problem", scene, "--level", "1",
+               "--solver", "dual_bb", "--out", str(tmp_path / "r.json")], plugin_env, tmp_path)
+    assert out.returncode == 0, out.stderr[-3000:]
+    data = json.loads((tmp_path / "r.json").read_text())
+    assert (data["status"], data["failed_check"]) == ("converged", ""), data["message"]
+    assert data["kkt_max"] <= 1e-6 and data["energy_bound"] <= 1e-6
+    assert data["solver_options"] == {"rtol": 0.5}
+
+
+def test_the_plugin_is_recorded_with_its_package_in_the_solver_set(plugin_env, tmp_path):
+    out = run([sys.executable, "-c", "import json; from solvers.interface import solver_set; "
+               "print(json.dumps(solver_set()))"], plugin_env, ROOT)
+    assert out.returncode == 0, out.stderr[-3000:]
+    fixed = json.loads(out.stdout)
+    assert fixed["dual_bb"] == {"role": "other", "origin": "plug-in",
+                                "package": "contactbench-example-solver", "version": "0.1.0"}
+    assert fixed["osqp"]["origin"] == "built-in"
+
+
 def test_the_plugin_runs_in_the_solver_comparison(plugin_env, tmp_path):
     """The script the study's rule runs, with the config line ``solvers: [dual_bb, osqp]``
     turned into its ``--solvers`` (workflows/solver_comparison.smk)."""
@@ -100,6 +123,11 @@ def test_the_plugin_joins_a_study_by_a_config_line(plugin_env, tmp_path):
     table = pd.read_csv(tmp_path / "results/circle_square/solvers.csv")
     assert set(table.solver) == {"pdas", "linear_floor", "dual_bb", "osqp"}
     assert (table.loc[table.solver == "dual_bb", "status"] == "converged").all()
+    # the run's solver set, fixed when it started, is in every result's provenance
+    meta = json.loads((tmp_path / "results/circle_square/solvers.csv.meta.json").read_text())
+    fixed = meta["provenance"]["solver_set"]
+    assert fixed["dual_bb"]["package"] == "contactbench-example-solver"
+    assert fixed["dual_bb"]["version"] == "0.1.0" and "osqp" in fixed
 
 
 def test_the_config_line_is_checked_against_the_registry():

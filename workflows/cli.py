@@ -12,9 +12,15 @@ Examples
     contactbench export --class small --out contact-qp-small
 
 Every failure ends with exit code 2 and one line naming the parameter and what
-is allowed (``--debug`` shows the traceback); nothing is written then. The
-output paths are checked before any work starts; an existing file is kept
-unless ``--force`` is given. Result files are written atomically.
+is allowed (``--debug``, anywhere on the line, shows the traceback); nothing is
+written then. A solver's own failure is not one: whatever it does (raises, returns a
+broken answer; with ``--time-limit``, which runs it in a child process killed at
+``1.25 x`` the limit ``+ 30 s``, also a crash of that process or a hang) is a ``failed``
+or ``time_limit`` row in ``--out`` with ``failed_check`` saying why, exit code 0; a
+traceback it raised is kept in the row (``--debug`` also prints it). A reader that
+stops early (``contactbench list | head``) ends the command quietly (exit code 141,
+as for SIGPIPE). The output paths are checked before any work starts; an existing
+file is kept unless ``--force`` is given. Result files are written atomically.
 """
 from __future__ import annotations
 
@@ -106,29 +112,58 @@ def _solve_linear(spec, level: int, params: dict, args: argparse.Namespace) -> d
             "time": time.perf_counter() - t0, "params": problem.params, **sol.record()}
 
 
+def split_sets(params: dict, scene, solver) -> tuple[dict, dict]:
+    """``--set`` values split by owner: ``(scene's, solver's)``. A key (a dotted one by
+    its head) belongs to the solver if it declares it, else to the scene.
+
+    Raises
+    ------
+    ParameterError
+        For a key that neither declares, naming both and listing their parameters
+        (or saying that the solver has none).
+    """
+    def names(parameters):
+        return [p.name for p in parameters]
+
+    mine = {k: v for k, v in params.items() if k.partition(".")[0] in names(solver.parameters)}
+    scene_keys = {k: v for k, v in params.items() if k not in mine}
+    unknown = [k for k in scene_keys if k.partition(".")[0] not in names(scene.parameters)]
+    if unknown:
+        theirs = ", ".join(names(solver.parameters)) or "none (it takes no --set options)"
+        raise ParameterError(
+            f"problem {scene.name!r} has no parameter {', '.join(map(repr, unknown))}, nor has "
+            f"solver {solver.name!r}; known parameters of problem {scene.name!r}: "
+            f"{', '.join(names(scene.parameters)) or 'none'}; of solver {solver.name!r}: {theirs}")
+    return scene_keys, mine
+
+
 def _solve_contact(spec, level: int, params: dict, args: argparse.Namespace) -> dict[str, Any]:
     from problems.fem.fields import contact_fields, contact_state
-    from solvers.interface import solve, solvers
+    from solvers.interface import check_limits, solve, solvers
+    from workflows.isolation import solve_isolated
 
     solver = lookup(solvers(), args.solver or "pdas", "solver")
-    # --set names are split by owner: the solver's options (dotted ones by their head)
-    solver_names = {p.name for p in solver.parameters}
-    mine = {k: v for k, v in params.items() if k.partition(".")[0] in solver_names}
-    scene = {k: v for k, v in params.items() if k not in mine}
+    scene, mine = split_sets(params, spec, solver)
     scene_opts = spec.options(**scene)
     solver_opts = solver.options(**mine)
+    tol, max_iter, time_limit = check_limits(solver, args.tol or "mid", args.max_iter,
+                                             args.time_limit)
     t0 = time.perf_counter()
     qp = spec.build(level, scene_opts)
     t_build = time.perf_counter() - t0
-    result = solve(qp, solver=solver.name, tol=args.tol or "mid", max_iter=args.max_iter,
-                   time_limit=args.time_limit, **solver_opts)
+    if time_limit is None:
+        result = solve(qp, solver.name, tol, max_iter, **solver_opts)
+    else:   # in a child process: one that crashes or hangs past the hard limit is a row
+        result = solve_isolated(qp, solver.name, tol, time_limit, max_iter=max_iter,
+                                **solver_opts)
+    answer = result.kkt is not None
     record = {"params": dict(scene_opts), "n": qp.n, "m": qp.m, "n_nodes": qp.n_nodes,
               "units": qp.units, "build_time": t_build, **result.summary(),
               "solver_options": result.options,
-              "kkt": result.kkt.as_dict(prefix="") if result.kkt is not None else None,
-              "contact": contact_state(qp, result.u, result.p)
-              if result.status != "skipped" else None}
-    if args.vtu and result.status != "skipped":
+              "kkt": result.kkt.as_dict(prefix="") if answer else None,
+              "contact": contact_state(qp, result.u, result.p) if answer else None,
+              "traceback": result.traceback or None}
+    if args.vtu and answer:
         write_vtu(args.vtu, contact_fields(qp, result.u, result.p))
     return record
 
@@ -143,8 +178,15 @@ def cmd_solve(args: argparse.Namespace) -> int:
     record = {"problem": spec.name, "level": level, "kind": spec.kind,
               **run(spec, level, params, args), "provenance": provenance()}
     write_json(args.out, record)
-    why = f" ({record['message']})" if record["status"] == "skipped" else ""
-    print(f"{spec.name} level {level}: {record['solver']} {record['status']}{why} -> {args.out}")
+    status = record["status"]
+    why = f" ({record['message']})" if status in ("skipped", "failed") else ""
+    print(f"{spec.name} level {level}: {record['solver']} {status}{why} -> {args.out}")
+    if record.get("traceback"):
+        if args.debug:
+            print(record["traceback"], end="", file=sys.stderr)
+        else:
+            print(f"contactbench: the solver raised; its traceback is in {args.out} "
+                  "('traceback'; --debug prints it)", file=sys.stderr)
     return 0
 
 
@@ -174,7 +216,8 @@ def cmd_export(args: argparse.Namespace) -> int:
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="contactbench", description=__doc__.split("\n")[0])
-    parser.add_argument("--debug", action="store_true", help="show tracebacks")
+    parser.add_argument("--debug", action="store_true",
+                        help="show tracebacks (accepted anywhere on the command line)")
     sub = parser.add_subparsers(dest="command", required=True)
     sub.add_parser("list", help="list problems, solvers and studies").set_defaults(func=cmd_list)
     s = sub.add_parser("solve", help="solve one problem at one level and write JSON")
@@ -210,9 +253,21 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
+    argv = list(sys.argv[1:] if argv is None else argv)
+    # --debug anywhere on the command line (before a "--" that ends the options)
+    end = argv.index("--") if "--" in argv else len(argv)
+    debug = "--debug" in argv[:end]
+    argv = [a for i, a in enumerate(argv) if not (i < end and a == "--debug")]
     args = parser.parse_args(argv)
+    args.debug = debug
     try:
-        return args.func(args)
+        code = args.func(args)
+        sys.stdout.flush()                 # a closed pipe is met here, not at exit
+        return code
+    except BrokenPipeError:           # the reader left (`contactbench list | head`): quietly
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())    # no second error when Python flushes
+        return 141
     except KeyboardInterrupt:
         print("contactbench: interrupted; nothing written", file=sys.stderr)
         return 130

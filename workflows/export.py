@@ -19,7 +19,6 @@ interrupted export leaves nothing behind, an existing one is replaced only when 
 """
 from __future__ import annotations
 
-import json
 import os
 import shutil
 import tempfile
@@ -32,7 +31,7 @@ import scipy.sparse.linalg as spla
 
 from problems.floating import floating_modes
 from problems.slack import slack_form
-from workflows.io import _sha256 as file_digest, provenance
+from workflows.io import _sha256 as file_digest, json_text, provenance
 from workflows.test_set import SetProblem, TestSet
 
 CONVENTION = "min 1/2 x'Px + q'x  s.t.  Gx <= h"
@@ -152,7 +151,7 @@ def write_problem(folder: Path, item: SetProblem, set_id: str,
         "files": {},
     }
     meta["files"] = {f.name: file_digest(f)[0] for f in sorted(folder.iterdir())}
-    (folder / "meta.json").write_text(json.dumps(meta, indent=1) + "\n", encoding="utf-8")
+    (folder / "meta.json").write_text(json_text(meta), encoding="utf-8")
     return {"name": item.name, "family": item.family, "problem": item.problem,
             "level": item.level, "size_class": item.size_class, "n": meta["n"], "m": meta["m"],
             "objective": J, "folder": item.name,
@@ -205,7 +204,7 @@ def export_set(ts: TestSet, size_class: str, out: str | os.PathLike, force: bool
                                 f"--settings mid_accuracy --results-path "
                                 f"{out}/results/osqp.csv --author <name>",
                  "provenance": provenance()}
-        (tmp / "index.json").write_text(json.dumps(index, indent=1) + "\n", encoding="utf-8")
+        (tmp / "index.json").write_text(json_text(index), encoding="utf-8")
         shutil.copyfile(QPBENCHMARK_MODULE, tmp / "contact_qp.py")
         if out.exists():                 # --force: the old set goes only once the new is whole
             old = out.with_name(f".{out.name}.old-{os.getpid()}")

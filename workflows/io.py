@@ -138,13 +138,21 @@ def write_text(path: str | os.PathLike, text: str, meta: bool = True) -> None:
         tmp.write_text(text)
 
 
-def _jsonable(obj: Any) -> Any:
+#: How a non-finite number is written in the suite's JSON files (JSON has no inf or nan):
+#: as one of these strings, which :func:`read_json` turns back into floats. ``null``
+#: means "not computed" (e.g. the residuals of a run without an answer), never a number.
+NON_FINITE = {"inf": float("inf"), "-inf": float("-inf"), "nan": float("nan")}
+
+
+def jsonable(obj: Any) -> Any:
+    """``obj`` with numpy arrays and scalars made plain, and every non-finite float
+    written as ``"inf"``, ``"-inf"`` or ``"nan"`` (:data:`NON_FINITE`)."""
     if isinstance(obj, dict):
-        return {str(k): _jsonable(v) for k, v in obj.items()}
+        return {str(k): jsonable(v) for k, v in obj.items()}
     if isinstance(obj, (list, tuple)):
-        return [_jsonable(v) for v in obj]
+        return [jsonable(v) for v in obj]
     if isinstance(obj, np.ndarray):
-        return _jsonable(obj.tolist())
+        return jsonable(obj.tolist())
     if isinstance(obj, (np.bool_,)):
         return bool(obj)
     if isinstance(obj, np.integer):
@@ -155,9 +163,32 @@ def _jsonable(obj: Any) -> Any:
     return obj
 
 
+def json_text(data: Any) -> str:
+    """``data`` as the suite's JSON (:func:`jsonable`; a non-finite number that slipped
+    through would raise instead of writing the non-standard ``Infinity``)."""
+    return json.dumps(jsonable(data), indent=1, allow_nan=False) + "\n"
+
+
+def _finite_back(obj: Any) -> Any:
+    if isinstance(obj, dict):
+        return {k: _finite_back(v) for k, v in obj.items()}
+    if isinstance(obj, list):
+        return [_finite_back(v) for v in obj]
+    if isinstance(obj, str) and obj in NON_FINITE:
+        return NON_FINITE[obj]
+    return obj
+
+
+def read_json(path: str | os.PathLike) -> Any:
+    """A JSON file of the suite with ``"inf"``, ``"-inf"`` and ``"nan"`` read back as
+    floats (:data:`NON_FINITE`); checked against its sidecar where it has one
+    (:func:`read_checked`)."""
+    return _finite_back(json.loads(read_checked(path).read_text(encoding="utf-8")))
+
+
 def write_json(path: str | os.PathLike, data: Any) -> None:
-    """Atomically write ``data`` as JSON (numpy arrays and scalars converted)."""
-    write_text(path, json.dumps(_jsonable(data), indent=1) + "\n")
+    """Atomically write ``data`` as JSON (:func:`json_text`)."""
+    write_text(path, json_text(data))
 
 
 def write_csv(path: str | os.PathLike, frame) -> None:
@@ -226,11 +257,46 @@ def blas_threads() -> dict:
             for i in threadpool_info()}
 
 
+#: The environment variable through which a regeneration hands its solver set, fixed when
+#: it starts (the Snakefile: :func:`solvers.interface.solver_set` as JSON), to every job.
+SOLVER_SET_ENV = "CONTACTBENCH_SOLVER_SET"
+
+
+def run_solver_set() -> dict | None:
+    """The solver set of the regeneration this process runs in (``{name: {"role",
+    "origin", "package", "version"}}``, fixed when it started), or None outside one."""
+    text = os.environ.get(SOLVER_SET_ENV)
+    return json.loads(text) if text else None
+
+
+def run_solvers(registry: dict) -> list[str]:
+    """The solvers a study runs by default: the run's fixed set (:func:`run_solver_set`),
+    or outside a regeneration every solver of ``registry``.
+
+    Raises
+    ------
+    ParameterError
+        If a solver of the run's set is no longer registered (uninstalled mid-run).
+    """
+    fixed = run_solver_set()
+    if fixed is None:
+        return list(registry)
+    gone = sorted(set(fixed) - set(registry))
+    if gone:
+        from problems.spec import ParameterError
+
+        raise ParameterError(f"solver(s) {', '.join(gone)} of this run's solver set (fixed "
+                             "when the run started) are no longer registered; allowed: "
+                             "reinstall them, or start the run again")
+    return [name for name in registry if name in fixed]
+
+
 def provenance(seed: int | None = None) -> dict:
     """Where a result came from: commit (``+dirty`` if the tree was modified), package
     versions, CPU model, cores and BLAS/OpenMP threads, the workflow's config file and
-    hash (from the Snakefile's environment), time and seed."""
-    return {**_static_provenance(), "seed": seed,
+    hash and the run's solver set with each plug-in's package and version (from the
+    Snakefile's environment), time and seed."""
+    return {**_static_provenance(), "solver_set": run_solver_set(), "seed": seed,
             "created": datetime.now(timezone.utc).isoformat(timespec="seconds")}
 
 

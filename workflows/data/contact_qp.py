@@ -25,6 +25,23 @@ from qpbenchmark.problem import Problem
 from qpbenchmark.test_set import TestSet
 
 
+#: The export's JSON writes a non-finite number as one of these strings (JSON has none).
+NON_FINITE = {"inf": float("inf"), "-inf": float("-inf"), "nan": float("nan")}
+
+
+def read_json(path: Path):
+    """A JSON file of the export, its ``"inf"``, ``"-inf"``, ``"nan"`` read as floats."""
+    def number(v):
+        if isinstance(v, list):
+            return [number(x) for x in v]
+        return NON_FINITE.get(v, v) if isinstance(v, str) else v
+
+    def back(obj: dict) -> dict:
+        return {k: number(v) for k, v in obj.items()}
+    with open(path, encoding="utf-8") as fh:
+        return json.load(fh, object_hook=back)
+
+
 def folder() -> Path:
     """The exported set this module reads (its own folder unless ``CONTACT_QP_DIR``)."""
     return Path(os.environ.get("CONTACT_QP_DIR", Path(__file__).resolve().parent))
@@ -56,8 +73,7 @@ class ContactQp(TestSet):
         return True
 
     def __init__(self):
-        with open(folder() / "index.json", encoding="utf-8") as fh:
-            self.index = json.load(fh)
+        self.index = read_json(folder() / "index.json")
         super().__init__()
 
     def define_tolerances(self, runtime: float | None = None) -> None:

@@ -33,8 +33,9 @@ import pandas as pd
 from problems.kkt import energy_error
 from solvers.interface import TOLERANCES, SolveResult, solvers
 from solvers.reference import reference_solve
-from workflows.io import read_csv, write_csv
-from workflows.isolation import solve_isolated
+from problems.spec import ParameterError
+from workflows.io import read_csv, run_solvers, write_csv
+from workflows.isolation import log_traceback, solve_isolated
 from workflows.measure import amg_pcg_floor, linear_solution
 from workflows.progress import study_progress
 from workflows.scene_args import add_scene_arguments, check_levels, scene_from_args
@@ -46,7 +47,8 @@ def main(argv=None) -> None:
     add_scene_arguments(parser)
     parser.add_argument("--level", type=int, required=True)
     parser.add_argument("--solvers", nargs="+", default=None,
-                        help="default: every registered solver but the exact reference")
+                        help="default: every registered solver but the exact reference (in "
+                             "a regeneration: of the solver set fixed when it started)")
     parser.add_argument("--presets", nargs="+", default=list(TOLERANCES), choices=list(TOLERANCES))
     parser.add_argument("--time-limit", type=float, default=600.0)
     parser.add_argument("--coarser", nargs="*", default=[],
@@ -68,8 +70,12 @@ def main(argv=None) -> None:
         raise SystemExit(f"the reference failed on {qp.name}: {ref.status} {ref.message}")
     # the reference run is its own row; every solver runs at every preset (the exact PDAS
     # too where it is not the reference)
-    names = args.solvers or [n for n, s in registry.items()
-                             if not (s.role == "exact" and n == ref.solver)]
+    try:
+        fixed = run_solvers(registry)       # a regeneration's set, fixed when it started
+    except ParameterError as err:
+        parser.error(str(err))
+    names = args.solvers or [n for n in fixed
+                             if not (registry[n].role == "exact" and n == ref.solver)]
     base = {"scene_problem": spec.name, "level": level, "n": qp.n, "m": qp.m, "N": qp.n_nodes}
     rows = [{**base, "preset": "reference", **ref.summary(), "energy_error": 0.0,
              "wall_time": t_ref}]
@@ -95,6 +101,7 @@ def main(argv=None) -> None:
             res = skipped_result(qp, solver, preset, given_up[solver, preset])
         else:
             res = solve_isolated(qp, solver, preset, time_limit=args.time_limit)
+            log_traceback(res, f"{qp.name} ({preset})")
         rows.append({**base, "preset": preset, **res.summary(),
                      "energy_error": energy_error(qp, res.u, ref.u)
                      if res.kkt is not None else np.nan,

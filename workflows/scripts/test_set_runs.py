@@ -21,7 +21,6 @@ Example::
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 
 import numpy as np
@@ -31,8 +30,9 @@ import scipy.sparse.linalg as spla
 from problems.kkt import energy_error
 from solvers.interface import TOLERANCES, solvers
 from workflows.export import load_problem, objective, qp_arrays
-from workflows.io import write_csv
-from workflows.isolation import solve_batch_isolated
+from problems.spec import ParameterError
+from workflows.io import read_json, run_solvers, write_csv
+from workflows.isolation import log_traceback, solve_batch_isolated
 from workflows.measure import multiplier_errors
 from workflows.progress import study_progress
 from workflows.test_set import TestSetError, check_class, load
@@ -58,7 +58,7 @@ def check_identical(qp, folder: Path) -> None:
 def run_problem(item, folder: Path, names: list[str], presets: list[str],
                 time_limit: float) -> list[dict]:
     """The rows of every solver at every preset on one exported problem."""
-    meta = json.loads((folder / "meta.json").read_text(encoding="utf-8"))
+    meta = read_json(folder / "meta.json")
     qp = item.build()
     check_identical(qp, folder)
     with np.load(folder / "solution.npz") as z:
@@ -73,6 +73,7 @@ def run_problem(item, folder: Path, names: list[str], presets: list[str],
     for solver in names:
         results = solve_batch_isolated(qp, solver, presets, time_limit=time_limit)
         for preset, res in zip(presets, results):
+            log_traceback(res, f"{item.name} ({preset})")
             row = {**base, "preset": preset, **res.summary()}
             if res.kkt is not None:
                 J = objective(qp, res.u, res.p)
@@ -91,7 +92,8 @@ def main(argv=None) -> None:
     parser.add_argument("--family", required=True, help="a family of the set")
     parser.add_argument("--export", required=True, help="the exported class folder")
     parser.add_argument("--solvers", nargs="+", default=None,
-                        help="default: every registered solver")
+                        help="default: every registered solver (in a regeneration: of the "
+                             "solver set fixed when it started)")
     parser.add_argument("--presets", nargs="+", default=list(TOLERANCES),
                         choices=list(TOLERANCES))
     parser.add_argument("--time-limit", type=float, required=True,
@@ -114,7 +116,10 @@ def main(argv=None) -> None:
     unknown = sorted(set(args.solvers or ()) - set(registry))
     if unknown:
         parser.error(f"argument --solvers: unknown {unknown}; allowed: {', '.join(registry)}")
-    names = args.solvers or list(registry)
+    try:
+        names = args.solvers or run_solvers(registry)   # a regeneration's fixed set
+    except ParameterError as err:
+        parser.error(str(err))
     rows = []
     for item in study_progress(items, rule="test_set_runs", out=args.out,
                                desc=f"{args.family} ({args.size_class})"):
