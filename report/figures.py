@@ -26,7 +26,7 @@ from matplotlib.ticker import (FixedLocator, FuncFormatter, LogLocator,  # noqa:
 from workflows.io import atomic_path  # noqa: E402
 from workflows.studies import PATHS  # noqa: E402
 
-#: The report's solver colours: the registered solvers (sorted) take these in turn, then
+#: The report's solver colours: the built-in solvers (sorted) take these in turn, then
 #: the report's other rows (:data:`EXTRA_SOLVERS`); colour and marker together tell
 #: every solver apart.
 PALETTE = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2",
@@ -48,9 +48,12 @@ AUDIT_KEYS = ("Title", "contactbench:scene", "contactbench:data_artists",
 
 @lru_cache(maxsize=1)
 def solver_order() -> tuple[str, ...]:
-    """The solvers in palette order: the registered ones sorted, then the extra rows."""
-    from solvers.interface import solvers
-    return (*sorted(solvers()), *EXTRA_SOLVERS)
+    """The solvers in palette order: the built-in ones sorted, then the extra rows. A
+    plug-in takes its colour from its name (:func:`solver_style`), so that installing
+    one changes no other solver's colour."""
+    from solvers.interface import external_solvers, solvers
+    plugins = set(external_solvers())
+    return (*sorted(n for n in solvers() if n not in plugins), *EXTRA_SOLVERS)
 
 
 def solver_style(name: str) -> dict:

@@ -102,8 +102,8 @@ def test_hertz_claims_ask_for_a_falling_deviation_only_above_the_model_floor():
 
 def test_one_solver_style_everywhere_and_every_registered_solver_told_apart():
     from report.figures import solver_order, solver_style
-    from solvers.interface import solvers
-    names = sorted(solvers())
+    from solvers.interface import external_solvers, solvers
+    names = sorted(set(solvers()) - set(external_solvers()))
     styles = [(solver_style(n)["color"], solver_style(n)["marker"]) for n in names]
     assert len(set(styles)) == len(names)                     # colour and marker tell apart
     assert len({c for c, _ in styles}) == len(names)          # and so do colours alone
