@@ -31,7 +31,9 @@ from workflows.studies import PATHS  # noqa: E402
 #: every solver apart.
 PALETTE = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2",
            "#7f7f7f", "#bcbd22", "#17becf", "#393b79", "#8c6d31", "#637939", "#843c39")
-MARKERS = ("o", "s", "^", "D", "v", "P", "X", "<", ">", "p", "h", "*", "d", "8")
+#: One marker fewer than colours: the pair (colour, marker) repeats only after
+#: 14 x 13 solvers.
+MARKERS = ("o", "s", "^", "D", "v", "P", "X", "<", ">", "p", "h", "*", "d")
 #: Rows of the report that are not registered solvers but are drawn like one.
 EXTRA_SOLVERS = ("pdas_kkt",)
 #: Drawn in black: the floors and references every solver is measured against.
