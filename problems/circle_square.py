@@ -35,6 +35,15 @@ level 1) and a netgen mesh of the disk (maxh 0.05, 810 nodes) refined L times
 uniformly with its new boundary nodes projected onto the circle, so the circle's
 boundary nodes lie on the circle at every level. Total nodes: 1099, 4237, 16636,
 65926, 262,8xx, ~1.05M for L = 0..5 (thesis: 4226, 16642, 66050, 263170).
+
+Couplings (``coupling``, :data:`problems.fem.stabilised.COUPLINGS`): the nodal
+constraints of Alg. 7.1 on the square's top edge (the thesis's one pass, the default);
+``stabilised``, the penalised reverse rows of Sect. 7.5; ``two_pass``, the same reverse
+rows hard (:func:`problems.fem.stabilised.two_pass`): every node of the circle's lower
+half is kept out of the square too. On the curved surface the circle's nodes seldom
+lie above a square node, so the two passes' rows stay independent (level 0: B of 39
+rows and rank 39); the pressure is the force on the square's nodes over their lumped
+mass (:func:`problems.qp.surface_multipliers`).
 """
 from __future__ import annotations
 

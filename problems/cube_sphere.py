@@ -39,6 +39,14 @@ S-hat.
 Left out: the scene has two symmetry planes (x = 1/2, y = 1/2), and a quarter
 model would cost a quarter; it is kept whole so that N and N^C are those of
 Table 9.3 and every solver sees the thesis's problem.
+
+Couplings (``coupling``, :data:`problems.fem.stabilised.COUPLINGS`): the nodal
+constraints of Alg. 7.1 on the cube's top face (the thesis's one pass, the default);
+``stabilised``, the penalised reverse rows of Sect. 7.5; ``two_pass``, the same reverse
+rows hard (:func:`problems.fem.stabilised.two_pass`): the ball's lower nodes are kept
+out of the cube too. Coinciding nodes are rare on the sphere; where the ball's lowest
+node lies above a cube node (level 0: one row), the two passes repeat a row and the
+rows of B are linearly dependent (level 0: 51 rows, rank 50).
 """
 from __future__ import annotations
 

@@ -40,6 +40,17 @@ Couplings (``coupling``):
   ``penalty``): the opposing side's nodes are penalised for penetrating. The pressure
   is the total multiplier on the constrained nodes over their lumped mass
   (:func:`problems.qp.surface_multipliers`).
+* ``two_pass``: two-pass node-to-segment contact (:func:`problems.fem.stabilised.two_pass`):
+  the nodal constraints plus, as hard rows, every node of the opposing block against
+  the constrained facets. Contact codes use it to keep each surface out of the other;
+  the thesis does not (Alg. 7.1 constrains one surface, Sect. 7.5 penalises the
+  reverse rows instead), and it over-constrains: where nodes of the two blocks
+  coincide (every second coarse node at 2:3, every node at 1:1) the two passes give
+  the same row, so the rows of ``B`` are linearly dependent and the multipliers are
+  not unique. The pressure is that of the stabilised coupling, the total multiplier
+  on the constrained nodes over their lumped mass, which is unique (the constrained
+  nodes' part of ``B' p = f - A u``). Two-pass passes this patch test on both meshes
+  (the exact, linear displacement satisfies both passes).
 
 A discretisation that transmits the uniform pressure passes; one that does not
 shows the deviation of its nodal pressure from q (the classic node-to-segment
@@ -51,13 +62,14 @@ import numpy as np
 import scipy.sparse as sp
 
 from problems.fem.mesh import Hierarchy, nested_prolongation, structured_square
-from problems.fem.stabilised import COUPLING_PARAMETERS, check_coupling, stabilise
+from problems.fem.stabilised import COUPLING_PARAMETERS, COUPLINGS as TWO_BODY_COUPLINGS
+from problems.fem.stabilised import check_coupling, couple
 from problems.fem.surface import tensor_coarsening
 from problems.fem.two_body import ELEMENT_DEGREE, Body, TwoBodyScene, assemble_two_body
 from problems.qp import ContactQP
 from problems.spec import Options, Parameter, ParameterError, ProblemSpec
 
-COUPLINGS = ("nodal", "mortar", "stabilised")
+COUPLINGS = ("nodal", "mortar", *TWO_BODY_COUPLINGS[1:])
 
 
 def parse_ratio(text: str) -> tuple[int, int]:
@@ -168,9 +180,7 @@ def build(level: int, p: Options) -> ContactQP:
     qp = assemble_two_body(sc, level, degree=p.degree,
                            name=f"flat_blocks level {level} ({p.coupling}, "
                                 f"{p.constrained} side constrained)" + (" P2" if p.degree == 2 else ""))
-    if p.coupling == "stabilised":
-        return stabilise(qp, p.alpha, p.penalty)
-    return mortar(qp, sc, p.gap) if p.coupling == "mortar" else qp
+    return mortar(qp, sc, p.gap) if p.coupling == "mortar" else couple(qp, p)
 
 
 PROBLEM = ProblemSpec(
@@ -184,8 +194,9 @@ PROBLEM = ProblemSpec(
         Parameter("ratio", "2:3", "cells per unit length of the lower : upper block"),
         Parameter("constrained", "coarse", "which block carries the constraints: the coarse "
                   "one (fewer cells; the lower at 2:3) or the fine one", choices=("coarse", "fine")),
-        Parameter("coupling", "nodal", "nodal constraints (Alg. 7.1), mortar weighted gaps "
-                  "or the stabilised two-sided nodal constraints (Sect. 7.5)", choices=COUPLINGS),
+        Parameter("coupling", "nodal", "nodal constraints (Alg. 7.1), mortar weighted gaps, "
+                  "the stabilised two-sided nodal constraints (Sect. 7.5) or two-pass "
+                  "node-to-segment constraints (both blocks' nodes, hard)", choices=COUPLINGS),
         *COUPLING_PARAMETERS[1:],     # alpha, penalty
         Parameter("E", 1.0, "Young's modulus of both blocks", low=0.0, low_open=True),
         Parameter("nu", 0.3, "Poisson ratio of both blocks", low=-1.0, high=0.5, low_open=True,

@@ -218,13 +218,15 @@ class HertzSetup:
 
 @dataclass
 class Stabilisation:
-    """The reverse rows of the stabilised two-sided nodal constraints (Sect. 7.5).
+    """The reverse rows of two-sided nodal constraints: stabilised (Sect. 7.5) or two-pass.
 
     A stabilised ContactQP (:func:`problems.fem.stabilised.stabilise`) has the
     nodal constraints of the constrained surface first (``qp.contact`` describes
     them, ``C`` is zero there) and then one row per node of the opposing surface
     that finds the constrained surface along ``-n`` (the penetrations (7.9) of
     Fig. 7.1), penalised by ``C_ii = h_i^(2 alpha) / (k m_i)`` ((7.10)/(7.11)).
+    A two-pass ContactQP (:func:`problems.fem.stabilised.two_pass`) has the same
+    rows hard: ``C`` is ``None``, ``alpha`` and ``modulus`` are ``None``.
 
     Attributes
     ----------
@@ -238,18 +240,23 @@ class Stabilisation:
         Barycentric weights of the constrained facet each reverse row hits, on the
         constrained rows: the reverse multipliers act on the constrained surface as
         ``transfer' p_r`` (:func:`surface_multipliers`).
-    alpha : float
-        Exponent of ``h`` in (7.10).
-    modulus : float
-        ``k`` (force per area times length^(2 alpha - 1)).
+    alpha : float or None
+        Exponent of ``h`` in (7.10); ``None`` for hard (two-pass) rows.
+    modulus : float or None
+        ``k`` (force per area times length^(2 alpha - 1)); ``None`` for hard rows.
     """
 
     nodes: np.ndarray
     mass: np.ndarray
     size: np.ndarray
     transfer: sp.spmatrix
-    alpha: float
-    modulus: float
+    alpha: float | None
+    modulus: float | None
+
+    @property
+    def hard(self) -> bool:
+        """Two-pass rows (no penalty), not the penalised rows of Sect. 7.5."""
+        return self.alpha is None
 
     @property
     def n_rows(self) -> int:
@@ -312,9 +319,9 @@ class ContactQP:
     multilevel : Multilevel
     hertz : HertzSetup, optional
     stabilisation : Stabilisation, optional
-        Set when the last ``stabilisation.n_rows`` rows of ``B`` are the reverse rows
-        of Sect. 7.5; ``contact`` and ``multilevel.surface`` describe the first
-        ``m_contact`` rows.
+        Set when the last ``stabilisation.n_rows`` rows of ``B`` are reverse rows
+        (penalised, Sect. 7.5, or hard, two-pass); ``contact`` and
+        ``multilevel.surface`` describe the first ``m_contact`` rows.
     name : str
         Scene and level, for reports.
     units : str
@@ -367,7 +374,8 @@ class ContactQP:
 
     @property
     def m_contact(self) -> int:
-        """Rows of the constrained surface (all rows unless stabilised, Sect. 7.5)."""
+        """Rows of the constrained surface (all rows unless there are reverse rows: the
+        stabilised coupling of Sect. 7.5 or two-pass)."""
         return self.m - (self.stabilisation.n_rows if self.stabilisation is not None else 0)
 
     @property
@@ -420,7 +428,9 @@ class ContactQP:
             if not 0 < r < m:
                 raise QPValidationError(f"stabilisation has {r} reverse rows; allowed: 1..{m - 1} "
                                         f"(B has {m} rows)")
-            if self.C is None or np.any(self.C.diagonal()[m - r:] <= 0):
+            if st.hard and self.C is not None:
+                raise QPValidationError("hard reverse rows (two-pass, alpha None) take no C")
+            if not st.hard and (self.C is None or np.any(self.C.diagonal()[m - r:] <= 0)):
                 raise QPValidationError("stabilisation needs C > 0 on its reverse rows")
             for name in ("mass", "size"):
                 if np.shape(getattr(st, name)) != (r,) or np.any(getattr(st, name) <= 0):

@@ -549,6 +549,9 @@ CLAIMS = {
     "patch_nodal": Claim("Ch. 6 (nodal constraints on non-matching meshes)", "patch test, "
                          "nodal coupling: cannot transmit it on non-matching meshes (Ch. 6)",
                          ">=", 1e-3),
+    "patch_two_pass": Claim("Alg. 7.1 applied to both surfaces (two-pass; not in the thesis)",
+                            "patch test, two-pass coupling: transmits the uniform pressure "
+                            "(its coinciding nodes' rows are linearly dependent)", "<", 1e-8),
     "patch_stabilised": Claim("Sect. 7.5", "patch test, stabilised coupling (Sect. 7.5): the "
                               "pressure deviation shrinks under refinement (smallest fitted "
                               "rate in h over both constrained sides; the penalty grows like "
@@ -575,7 +578,7 @@ def claims(accuracy: pd.DataFrame | None = None, pileup: pd.DataFrame | None = N
                 rows.append(CLAIMS[key].row(f"{worse} {v[worse]:.3f}, {better} {v[better]:.3f}",
                                             passed=v[better] < v[worse], at=common["at"].iloc[0]))
     if patch is not None and len(patch):
-        for coupling in ("mortar", "nodal"):
+        for coupling in ("mortar", "nodal", "two_pass"):
             g = patch[patch.coupling == coupling]
             if len(g):
                 rows.append(CLAIMS[f"patch_{coupling}"].row(

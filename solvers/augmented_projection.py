@@ -778,7 +778,13 @@ def supports(qp: ContactQP) -> tuple[bool, str]:
     """Floating bodies are treated by their coarse space (:class:`FloatingCoarseSpace`),
     which needs every floating mode to meet the contact: ``G = R'B'`` of full row rank.
     A mode no constraint touches is held by the springs alone, and Alg. 8.4 would
-    iterate on a system ~1e9 times worse conditioned: refused at once."""
+    iterate on a system ~1e9 times worse conditioned: refused at once. Two-pass rows
+    (hard reverse rows) are refused too: where nodes of the two surfaces coincide they
+    repeat constrained rows, so ``S = B A^-1 B'`` and its ``S-hat`` are singular, which
+    the projected Richardson iteration on the transformed system needs definite."""
+    if qp.stabilisation is not None and qp.stabilisation.hard:
+        return False, ("two-pass constraints (hard reverse rows): S-hat over both surfaces' "
+                       "rows is singular where their nodes coincide (dependent rows)")
     R = floating_modes(qp)
     k = R.shape[1]
     if k:

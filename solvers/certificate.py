@@ -89,9 +89,9 @@ def certifiable(tol, floor):
 
 
 def _pivots(qp: ContactQP, B: sp.csr_matrix) -> tuple[np.ndarray, np.ndarray]:
-    """One unknown per row of ``B`` (the constrained surface's rows of ``qp``) to move it
-    with: the constrained node's component along the row's direction if free (a
-    contact code would move the constrained surface), else the row's largest entry.
+    """One unknown per row of ``B`` (the hard rows of ``qp``, constrained surface's first)
+    to move it with: the constrained node's component along the row's direction if free
+    (a contact code would move the constrained surface), else the row's largest entry.
     Returns ``(pivot, coefficient)``."""
     pivot = np.asarray(abs(B).argmax(axis=1)).ravel()
     if qp.contact is not None and qp.free_dofs is not None and qp.u_fixed is not None:
@@ -99,22 +99,23 @@ def _pivots(qp: ContactQP, B: sp.csr_matrix) -> tuple[np.ndarray, np.ndarray]:
         pos[qp.free_dofs] = np.arange(qp.n)
         comp = np.abs(qp.contact.direction).argmax(axis=1)
         own = pos[qp.contact.nodes * qp.dim + comp]
-        pivot = np.where(own >= 0, own, pivot)
+        mc = qp.m_contact                  # the reverse rows keep their largest entry
+        pivot[:mc] = np.where(own >= 0, own, pivot[:mc])
     return pivot, np.asarray(B[np.arange(B.shape[0]), pivot]).ravel()
 
 
 def feasible_point(qp: ContactQP, u: np.ndarray, tight: np.ndarray | None = None,
                    sweeps: int = 3) -> tuple[np.ndarray, bool]:
     """``u_f = u + delta`` with ``B u_f <= g``, and ``B u_f = g`` on the rows ``tight``,
-    on the constrained surface's rows (the first ``qp.m_contact``; a stabilised
-    problem's reverse rows are penalised, not hard).
+    on the hard rows: all rows without ``C``, else the constrained surface's (the first
+    ``qp.m_contact``; a stabilised problem's reverse rows are penalised, not hard).
 
     Each violated (or, in ``tight``, slack) row is moved on its pivot unknown
     (:func:`_pivots`); rows sharing unknowns interact, so up to ``sweeps``
     passes. Returns ``(u_f, feasible)``.
     """
     u_f = np.array(u, dtype=float)
-    mc = qp.m_contact
+    mc = qp.m if qp.C is None else qp.m_contact
     if mc == 0:
         return u_f, True
     B, g = qp.B.tocsr()[:mc], qp.g[:mc]

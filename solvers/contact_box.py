@@ -174,9 +174,9 @@ def check_structure(qp: ContactQP) -> tuple[bool, str]:
 def _rows_and_slaves(qp: ContactQP):
     """The node blocks and, per row, its constrained node's block; checks the structure."""
     if qp.C is not None or qp.stabilisation is not None:
-        raise TransformationError("stabilised constraints (Sect. 7.5): the reverse rows "
-                                  "constrain the opposing surface too, so the rows are not "
-                                  "one per constrained node")
+        raise TransformationError("two-sided constraints (stabilised, Sect. 7.5, or two-pass): "
+                                  "the reverse rows constrain the opposing surface too, so "
+                                  "the rows are not one per constrained node")
     if qp.m == 0:
         node_ptr, node_dofs, _ = _node_blocks(qp)
         return node_ptr, node_dofs, np.zeros(0, dtype=np.int64)

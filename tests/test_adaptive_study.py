@@ -290,12 +290,14 @@ def test_patch_scripts(tmp_path):
     patch_test.main(["--problem", "flat_blocks", "--levels", "0", "1", "--out", str(runs),
                      "--pressure", str(pressure)])
     r = pd.read_csv(runs)
-    assert len(r) == 12 and (r.status == "converged").all()
+    assert len(r) == 4 * 2 * 2 and (r.status == "converged").all()   # couplings x sides x levels
     rep.main(["patch", "--runs", str(runs), "--pressure", str(pressure), "--table",
               str(tmp_path / "t.csv"), "--figure", str(tmp_path / "f.png")])
     t = pd.read_csv(tmp_path / "t.csv").set_index(["coupling", "constrained"])
     assert not t.loc[("nodal", "coarse"), "transmits_uniform_pressure"]
     assert t.loc[("mortar", "fine"), "transmits_uniform_pressure"]
+    assert t.loc[("two_pass", "coarse"), "transmits_uniform_pressure"]
+    assert t.loc[("two_pass", "fine"), "transmits_uniform_pressure"]
     for side in ("coarse", "fine"):           # stabilised: between nodal and exact
         assert 1e-3 < t.loc[("stabilised", side), "dev_max_finest"] \
             < t.loc[("nodal", side), "dev_max_finest"]

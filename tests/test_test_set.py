@@ -48,6 +48,19 @@ def test_version_2_keeps_every_problem_of_version_1_and_adds_p2_families():
     assert small == {"circle_square_p2_L0", "cube_sphere_p2_L0", "hard_incompressible_p2_L0"}
 
 
+def test_version_3_keeps_every_problem_of_version_2_and_adds_two_pass_families():
+    old = {p.name: p for p in load("contact-qp-2").problems()}
+    new = {p.name: p for p in load("contact-qp-3").problems()}
+    assert all(new[name] == p for name, p in old.items())
+    added = [p for name, p in new.items() if name not in old]
+    assert added and all(p.params["coupling"] == "two_pass" for p in added)
+    assert list(new)[-len(added):] == [p.name for p in added]        # at the end
+    small = {p.name for p in added if p.size_class == "small"}
+    assert small == {f"{f}_L{level}" for level in (2, 3)
+                     for f in ("degenerate_two_pass_matching", "degenerate_two_pass")} | \
+        {"circle_square_two_pass_L0", "circle_square_two_pass_L1"}
+
+
 def test_a_familys_own_levels_are_checked_by_name():
     ts = load()
     families = {"c": {"problem": "circle_square", "levels": {"small": [0, 99]}}}
@@ -106,6 +119,17 @@ def test_export_round_trip_reproduces_the_reference(small):
             assert z_ref.min() >= 0
         assert meta["n"] < SMALL_LIMIT
         assert meta["condition"]["kappa_1"] > 1
+    # the index tells the degenerate problems apart: rows tight at the reference that
+    # depend on the others (the two-pass rows of coinciding nodes: all of a matching
+    # pair, every second coarse node at 2:3), none elsewhere
+    dependent = {e["name"]: e["dependent_tight_rows"] for e in index["problems"]}
+    coarse_nodes = {2: 17, 3: 33}                       # 2:3, level L: 2^(L+2) + 1
+    for level, nodes in coarse_nodes.items():
+        assert dependent[f"degenerate_two_pass_matching_L{level}"] == 2 ** (level + 1) + 1
+        assert dependent[f"degenerate_two_pass_L{level}"] == (nodes + 1) // 2
+    assert {name for name, k in dependent.items() if k} == {
+        f"{f}_L{level}" for level in (2, 3)
+        for f in ("degenerate_two_pass_matching", "degenerate_two_pass")}
     roll = json.loads((small / "roll_stack_L0" / "meta.json").read_text())
     assert roll["floating_modes"] > 0 and roll["units"] == "m, N, Pa"     # the scene's own
     stab = json.loads((small / "flat_blocks_stabilised_L2" / "meta.json").read_text())

@@ -136,7 +136,7 @@ def write_problem(folder: Path, item: SetProblem, set_id: str,
         "nnz_P": int(P.nnz), "nnz_G": int(G.nnz),
         "objective": J,
         "solution": {"file": "solution.npz", "x": "x", "z": "z",
-                     "active_rows": int(np.sum(ref.p > 0))},
+                     "active_rows": int(np.sum(ref.p > 0)), **tight_rows(G, arrays["h"], x)},
         "reference": {"solver": ref.solver, "status": ref.status, "tol": reference_tol,
                       "kkt": ref.kkt.as_dict(prefix="") if ref.kkt is not None else None,
                       "relative_energy_bound": ref.gap.relative_energy_bound
@@ -154,8 +154,25 @@ def write_problem(folder: Path, item: SetProblem, set_id: str,
     (folder / "meta.json").write_text(json_text(meta), encoding="utf-8")
     return {"name": item.name, "family": item.family, "problem": item.problem,
             "level": item.level, "size_class": item.size_class, "n": meta["n"], "m": meta["m"],
+            "dependent_tight_rows": meta["solution"]["dependent_tight_rows"],
             "objective": J, "folder": item.name,
             "meta_sha256": file_digest(folder / "meta.json")[0]}
+
+
+def tight_rows(G: sp.spmatrix, h: np.ndarray, x: np.ndarray, rtol: float = 1e-8) -> dict:
+    """How many rows of ``Gx <= h`` hold with equality at ``x`` (slack below ``rtol``
+    times ``max(|h|, |Gx|)``), and how many of them are linearly dependent on the others
+    (:func:`solvers.cholesky.row_basis` of their Gram matrix ``G_T G_T'``): where that is
+    positive, LICQ fails at the solution and the multipliers ``z`` are not unique."""
+    from solvers.cholesky import row_basis
+
+    Gx = G @ x
+    scale = max(float(np.max(np.abs(h), initial=0.0)), float(np.max(np.abs(Gx), initial=0.0)),
+                1e-300)
+    tight = np.flatnonzero(h - Gx <= rtol * scale)
+    G_t = sp.csr_matrix(G)[tight]
+    dropped = row_basis((G_t @ G_t.T).toarray()).dropped.size if tight.size else 0
+    return {"tight_rows": int(tight.size), "dependent_tight_rows": int(dropped)}
 
 
 def problems_options(item: SetProblem) -> dict:

@@ -37,7 +37,7 @@ Pure functions: no files, no printing.
 """
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 import scipy.sparse as sp
@@ -84,9 +84,56 @@ def stabilise(qp: ContactQP, alpha: float = 1.0, penalty: float = 1.0) -> Contac
     if not (np.isfinite(penalty) and penalty > 0):
         raise ValueError(f"parameter 'penalty': {penalty!r} is not allowed; "
                          "allowed: a number in (0, inf)")
+    rows = reverse_rows(qp)
+    k = penalty * effective_modulus(qp) * rows.extent ** (2 * alpha - 1)
+    c_r = rows.size ** (2 * alpha) / (k * rows.mass)
+    return replace(
+        qp, B=sp.vstack([qp.B, rows.B]).tocsr(), g=np.concatenate([qp.g, rows.g]),
+        C=sp.diags(np.concatenate([np.zeros(qp.m), c_r]), format="csr"),
+        stabilisation=Stabilisation(nodes=rows.nodes, mass=rows.mass, size=rows.size,
+                                    transfer=rows.transfer, alpha=float(alpha),
+                                    modulus=float(k)),
+        name=f"{qp.name} (stabilised, alpha = {alpha:g})", cache=SharedWork())
+
+
+@dataclass(frozen=True)
+class ReverseRows:
+    """The nodal constraints of the opposing surface's nodes against the constrained
+    facets (Alg. 7.1 case b along ``-n``), on the free unknowns of a nodal ContactQP.
+
+    Attributes
+    ----------
+    nodes : (r,) int array
+        Opposing-surface node behind each row.
+    B : (r, n) sparse
+        The rows on ``qp.free_dofs``.
+    g : (r,) array
+        Their gaps, with the prescribed displacements moved over.
+    transfer : (r, m_c) sparse
+        Barycentric weights of the constrained facet each row hits, on the constrained
+        rows (:attr:`problems.qp.Stabilisation.transfer`).
+    mass, size : (r,) arrays
+        Lumped mass and local mesh size of the opposing surface at ``nodes``.
+    extent : float
+        The largest side of the constrained surface's bounding box.
+    """
+
+    nodes: np.ndarray
+    B: sp.csr_matrix
+    g: np.ndarray
+    transfer: sp.csr_matrix
+    mass: np.ndarray
+    size: np.ndarray
+    extent: float
+
+
+def reverse_rows(qp: ContactQP) -> ReverseRows:
+    """The reverse rows of a nodal ContactQP (:class:`ReverseRows`): one per node of the
+    opposing surface that finds a constrained facet along ``-n`` (``n`` the mean
+    constraint direction)."""
     if qp.mesh is None or qp.contact is None or qp.stabilisation is not None or qp.C is not None:
-        raise ValueError("parameter 'qp': a nodal ContactQP with mesh and contact, not yet "
-                         "stabilised, is required")
+        raise ValueError("parameter 'qp': a nodal ContactQP with mesh and contact, without "
+                         "reverse rows yet, is required")
     pts, c = qp.mesh.points, qp.contact
     n = c.direction.mean(axis=0)
     n = n / np.linalg.norm(n)
@@ -95,33 +142,58 @@ def stabilise(qp: ContactQP, alpha: float = 1.0, penalty: float = 1.0) -> Contac
                              n_nodes=qp.n_nodes)
     if cc.m == 0:
         raise ValueError("no node of the opposing surface faces the constrained surface "
-                         "along -n: nothing to stabilise")
+                         "along -n: no reverse rows")
     row_of = -np.ones(qp.n_nodes, dtype=np.int64)
     row_of[c.nodes] = np.arange(len(c.nodes))
     cols = row_of[cc.facet_nodes]
     keep = cols >= 0                  # a facet node without a row (dropped by Alg. 7.1)
     transfer = sp.csr_matrix((cc.weights[keep], (np.nonzero(keep)[0], cols[keep])),
                              shape=(cc.m, len(c.nodes)))
-    mass = lumped_surface_mass(pts, c.opposing_facets, qp.n_nodes)[cc.rows]
-    size = facet_sizes(pts, c.opposing_facets, cc.rows)
-    extent = float(np.ptp(pts[np.unique(c.facets)], axis=0).max())
-    k = penalty * effective_modulus(qp) * extent ** (2 * alpha - 1)
-    c_r = size ** (2 * alpha) / (k * mass)
-    B_r = cc.B[:, qp.free_dofs]
-    g_r = cc.g - cc.B @ qp.u_fixed
+    return ReverseRows(
+        nodes=cc.rows, B=cc.B[:, qp.free_dofs].tocsr(), g=cc.g - cc.B @ qp.u_fixed,
+        transfer=transfer, mass=lumped_surface_mass(pts, c.opposing_facets, qp.n_nodes)[cc.rows],
+        size=facet_sizes(pts, c.opposing_facets, cc.rows),
+        extent=float(np.ptp(pts[np.unique(c.facets)], axis=0).max()))
+
+
+def two_pass(qp: ContactQP) -> ContactQP:
+    """Two-pass node-to-segment contact: the nodal rows of ``qp`` and, as hard rows,
+    the reverse rows of every opposing node (:func:`reverse_rows`).
+
+    Each surface's nodes are kept out of the other body: the classic symmetric
+    treatment of contact codes, not the thesis's, whose Alg. 7.1 constrains one
+    surface only (one pass) and Sect. 7.5 penalises the reverse rows instead
+    (:func:`stabilise`; two-pass is its limit ``penalty -> inf``, ``C_r = 0``).
+    Where a node of one surface coincides with a node of the other (matching meshes,
+    every second coarse node at the ratio 2:3), both passes give the same row: the
+    rows of ``B`` are linearly dependent there and the multipliers are not unique.
+    The force on the constrained surface, ``p_c + T' p_r``
+    (:func:`problems.qp.surface_multipliers`), is unique all the same: it is the
+    constrained nodes' normal part of ``B' p = f - A u``.
+
+    Returns
+    -------
+    ContactQP
+        ``B = [B_c; B_r]``, ``g = [g_c; g_r]``, ``C = None`` and ``stabilisation``
+        describing the reverse rows with ``alpha`` and ``modulus`` unset.
+    """
+    rows = reverse_rows(qp)
     return replace(
-        qp, B=sp.vstack([qp.B, B_r]).tocsr(), g=np.concatenate([qp.g, g_r]),
-        C=sp.diags(np.concatenate([np.zeros(qp.m), c_r]), format="csr"),
-        stabilisation=Stabilisation(nodes=cc.rows, mass=mass, size=size, transfer=transfer,
-                                    alpha=float(alpha), modulus=float(k)),
-        name=f"{qp.name} (stabilised, alpha = {alpha:g})", cache=SharedWork())
+        qp, B=sp.vstack([qp.B, rows.B]).tocsr(), g=np.concatenate([qp.g, rows.g]),
+        stabilisation=Stabilisation(nodes=rows.nodes, mass=rows.mass, size=rows.size,
+                                    transfer=rows.transfer, alpha=None, modulus=None),
+        name=f"{qp.name} (two-pass)", cache=SharedWork())
 
 
 #: A scene's choice between the nodal constraints and their stabilised form, with the
 #: stabilisation's settings: one declaration for every scene that offers it.
+#: The couplings every scene offers (a scene may add its own, e.g. flat_blocks' mortar).
+COUPLINGS = ("nodal", "stabilised", "two_pass")
+
 COUPLING_PARAMETERS = (
-    Parameter("coupling", "nodal", "nodal constraints (Alg. 7.1) or the stabilised two-sided "
-              "nodal constraints (Sect. 7.5, (7.10)/(7.11))", choices=("nodal", "stabilised")),
+    Parameter("coupling", "nodal", "nodal constraints (Alg. 7.1), the stabilised two-sided "
+              "nodal constraints (Sect. 7.5, (7.10)/(7.11)) or two-pass node-to-segment "
+              "constraints (both surfaces' nodes, hard; not in the thesis)", choices=COUPLINGS),
     Parameter("alpha", 1.0, "stabilised coupling: exponent alpha of h^(-2 alpha) in (7.10)",
               low=0.0, high=2.0),
     Parameter("penalty", 1.0, "stabilised coupling: penalty factor (k = penalty E* "
@@ -139,5 +211,8 @@ def check_coupling(p: Options) -> None:
 
 
 def couple(qp: ContactQP, p: Options) -> ContactQP:
-    """The scene's nodal ContactQP, or its stabilised form when ``p.coupling`` asks for it."""
-    return stabilise(qp, p.alpha, p.penalty) if p.coupling == "stabilised" else qp
+    """The scene's nodal ContactQP, or its stabilised or two-pass form when ``p.coupling``
+    asks for it."""
+    if p.coupling == "stabilised":
+        return stabilise(qp, p.alpha, p.penalty)
+    return two_pass(qp) if p.coupling == "two_pass" else qp

@@ -14,7 +14,7 @@ run: position and pressure / q, for the figure).
 Example::
 
     python -m workflows.scripts.patch_test --problem flat_blocks --levels 0 1 2 3 \\
-        --couplings nodal mortar stabilised --out results/flat_blocks/patch_test.csv \\
+        --couplings nodal mortar stabilised two_pass --out results/flat_blocks/patch_test.csv \\
         --pressure results/flat_blocks/patch_test_pressure.csv
 """
 from __future__ import annotations
@@ -36,7 +36,7 @@ def main(argv=None) -> None:
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     add_scene_arguments(parser)
     parser.add_argument("--levels", type=int, nargs="+", required=True)
-    parser.add_argument("--couplings", nargs="+", default=["nodal", "mortar", "stabilised"])
+    parser.add_argument("--couplings", nargs="+", default=["nodal", "mortar", "stabilised", "two_pass"])
     parser.add_argument("--sides", nargs="+", default=["coarse", "fine"])
     parser.add_argument("--out", required=True)
     parser.add_argument("--pressure", required=True)
