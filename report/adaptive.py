@@ -464,6 +464,7 @@ def figure_error(steps: pd.DataFrame, accuracy: pd.DataFrame, path: str) -> None
     else:
         ax.text(0.5, 0.5, "energy error not measured\n(3D: meshes of different runs\n"
                 "are not nested)", ha="center", va="center", transform=ax.transAxes)
+        ax.axis("off")                    # no empty axes: the reason stands in their place
     force_col, force_title = "err_force", "contact force: |P_h - P_ref| / P_ref"
     if "err_force" not in runs or not runs["err_force"].notna().any():
         runs = runs.assign(force_dev=runs["force"] / runs.loc[runs["N"].idxmax(), "force"] - 1)
@@ -490,6 +491,10 @@ def figure_error(steps: pd.DataFrame, accuracy: pd.DataFrame, path: str) -> None
         ax.set_title(title, fontsize=8)
         if drew:
             ax.legend(fontsize=6)
+        else:
+            ax.text(0.5, 0.5, "not measured in this run", ha="center", va="center",
+                    transform=ax.transAxes)
+            ax.axis("off")
     for ax in axes.ravel():
         ax.set_xlabel("nodes N")
         ax.grid(True, which="both", alpha=0.3)

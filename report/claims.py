@@ -24,6 +24,11 @@ COMPARE = {
 #: by the measuring code (two measured values against each other, "all runs converged"),
 #: the bar a sentence.
 UNJUDGED, GIVEN = "-", "given"
+#: The reason shown for an unjudged row when its claim or its measuring code gives none.
+NO_BAR = "a measured figure reported for reference: the thesis sets no bar for it"
+NOT_REACHED = "this scale does not reach the size or resolution the bar is about"
+#: The columns of a claims table.
+COLUMNS = ["claim", "thesis", "measured", "bar", "pass", "reason"]
 
 
 @dataclass(frozen=True)
@@ -43,12 +48,16 @@ class Claim:
         One of :data:`COMPARE`, :data:`UNJUDGED` or :data:`GIVEN`.
     bar : float, (lo, hi), str or None
         The bar: a number, an interval for ``"in"``, a sentence for ``"given"``.
+    unjudged : str
+        Why a claim without a bar (``compare`` ``"-"``) is reported but not judged;
+        the summary shows it in place of a verdict.
     """
 
     thesis: str
     quantity: str
     compare: str = UNJUDGED
     bar: Any = None
+    unjudged: str = ""
 
     def __post_init__(self):
         allowed = (*COMPARE, UNJUDGED, GIVEN)
@@ -72,11 +81,13 @@ class Claim:
         return f"{self.compare} {self.bar:g}"
 
     def row(self, measured, judged: bool = True, passed: bool | None = None,
-            **fields) -> dict:
-        """The claims-table row: claim, thesis, measured, bar, pass.
+            reason: str = "", **fields) -> dict:
+        """The claims-table row: claim, thesis, measured, bar, pass, reason.
 
-        ``judged=False``: this scale does not reach what the bar is about (pass empty).
-        ``passed``: the verdict of a ``"given"`` claim (its measuring code decides).
+        ``judged=False``: this scale does not reach what the bar is about (pass empty);
+        ``reason`` says what it lacks (:data:`NOT_REACHED` if not given). ``passed``: the
+        verdict of a ``"given"`` claim (its measuring code decides). ``reason`` is empty
+        for a judged row.
         """
         if self.compare == GIVEN:
             if judged and passed is None:
@@ -87,5 +98,11 @@ class Claim:
         else:
             x = float(measured)
             verdict = bool(math.isfinite(x) and COMPARE[self.compare](x, self.bar))
+        if verdict is not None:
+            why = ""
+        elif self.compare == UNJUDGED:
+            why = self.unjudged or NO_BAR
+        else:
+            why = reason.format(**fields) if reason else NOT_REACHED
         return {"claim": self.quantity.format(**fields), "thesis": self.thesis,
-                "measured": measured, "bar": self.bar_text(), "pass": verdict}
+                "measured": measured, "bar": self.bar_text(), "pass": verdict, "reason": why}

@@ -19,7 +19,7 @@ import numpy as np
 import pandas as pd
 
 from report.claims import Claim
-from report.figures import save_figure
+from report.figures import legend_outside, save_figure
 from report.rates import fitted_slope
 from workflows.io import read_csv, write_csv
 
@@ -68,6 +68,8 @@ def claims(table: pd.DataFrame) -> pd.DataFrame:
         finest = both.iloc[-1]
         rows.append(CLAIMS["speedup"].row(float(finest["speedup"]),
                                           judged=bool(finest["N"] >= SPEEDUP_NODES),
+                                          reason=f"the bar is for N >= {SPEEDUP_NODES:,}; "
+                                          "the finest level here has N = {N:,}",
                                           N=int(finest.N)))
     ok = table[table["status_schur"] == "converged"]
     rows.append(CLAIMS["verified"].row(f"{len(ok)}/{len(table)}", passed=len(ok) == len(table)))
@@ -76,7 +78,7 @@ def claims(table: pd.DataFrame) -> pd.DataFrame:
 
 def figure(table: pd.DataFrame, path: str) -> None:
     """Total and factorisation time against N for both methods, with fitted exponents."""
-    fig, ax = plt.subplots(figsize=(7, 4.5))
+    fig, ax = plt.subplots(figsize=(9.5, 4.5))
     for name, style, color, label in (
             ("schur", "o-", "tab:blue", "dual route (A factorised once)"),
             ("kkt", "s--", "tab:red", "KKT LU per active-set step")):
@@ -94,7 +96,7 @@ def figure(table: pd.DataFrame, path: str) -> None:
     ax.set_title(f"Exact reference: {table['backend'].iloc[0]} Cholesky + dual PDAS vs KKT-LU "
                  "PDAS (slopes: finest three levels)", fontsize=8)
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=7)
+    legend_outside(ax)
     save_figure(fig, path)
 
 

@@ -22,7 +22,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from report.claims import Claim  # noqa: E402
+from report.claims import COLUMNS, Claim  # noqa: E402
 from report.figures import save_figure  # noqa: E402
 from workflows.io import read_csv, write_csv  # noqa: E402
 
@@ -52,8 +52,9 @@ def claims(t: pd.DataFrame) -> pd.DataFrame:
         judged = lo.status == hi.status == "converged" and len(g) > 1
         growth = hi.n_outer / lo.n_outer if judged else np.nan
         rows.append(CLAIMS["growth"].row(growth, judged=bool(judged), scene=scene, hi=hi.nu,
-                                         lo=lo.nu))
-    return pd.DataFrame(rows, columns=["claim", "thesis", "measured", "bar", "pass"])
+                                         lo=lo.nu, reason="needs converged runs at the "
+                                         "smallest and the largest nu"))
+    return pd.DataFrame(rows, columns=COLUMNS)
 
 
 def figure(t: pd.DataFrame, path: str) -> None:
