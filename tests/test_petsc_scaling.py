@@ -10,6 +10,7 @@ import pandas as pd
 import pytest
 
 import yaml
+from PIL import Image
 
 from report import petsc_scaling as report_scaling
 from solvers import petsc_tao
@@ -106,7 +107,7 @@ def test_the_report_judges_agreement_and_reports_the_efficiency(tmp_path):
     assert agree["measured"] == pytest.approx(0.01) and agree["pass"] is True
     eff = c.filter(like="parallel efficiency", axis=0).iloc[0]
     assert eff["measured"] == pytest.approx(2.0 / (2 * 1.5)) and eff["pass"] is None
-    assert "not a bar" in eff["thesis"]
+    assert eff["reason"] == report_scaling.REPORTED
     ratio = c.filter(like="TNNMG's time over", axis=0).iloc[0]
     assert ratio["measured"] == pytest.approx(2.0)            # 3.0 s against 1.5 s at r = 2
     assert c.filter(like="verified converged", axis=0).iloc[0]["pass"] is True
@@ -122,8 +123,11 @@ def test_without_petsc_the_report_says_skipped_and_judges_nothing_of_it(tmp_path
     c = report_scaling.claims(t, "cs")
     assert c.iloc[0]["measured"] == f"skipped: {reason}"
     assert c["pass"].isna().all()                     # nothing judged
+    assert (c["reason"].str.len() > 10).all()        # and each row says why
     report_scaling.figure(t, "cs", str(tmp_path / "f.png"))
-    assert (tmp_path / "f.png").stat().st_size > 0
+    with Image.open(tmp_path / "f.png") as im:                 # the image says why
+        im.load()
+        assert im.text["contactbench:nothing_to_draw"] == f"petsc_tao skipped: {reason}"
 
 
 @pytest.mark.parametrize("scale", ["tiny", "quick", "full", "huge"])
