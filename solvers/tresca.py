@@ -27,9 +27,11 @@ from __future__ import annotations
 from dataclasses import dataclass, field, replace
 
 import numpy as np
+import scipy.sparse as sp
 
 from problems.kkt import FrictionResiduals, friction_residuals
-from problems.qp import ContactQP
+from problems.qp import ContactQP, LoadStep
+from problems.spec import ParameterError
 from solvers.cholesky import factorize
 
 #: Largest constrained surface (rows) :func:`tresca_exact` takes: ``S`` is dense, ``2m`` square.
@@ -110,8 +112,19 @@ def box_qp_active_set(S: np.ndarray, c: np.ndarray, lo: np.ndarray, hi: np.ndarr
     return y, at, max_iter, False
 
 
-def tresca_exact(qp: ContactQP) -> TrescaSolution:
-    """The exact solution of the Tresca step ``qp`` (module docstring; 2D, nodal rows).
+@dataclass
+class DualOperators:
+    """What every step of one ContactQP's load path shares: ``A`` factorised,
+    ``G = [B; T]``, ``W = A^-1 G'`` and ``S = G W`` (module docstring)."""
+
+    factor: object
+    G: sp.csr_matrix
+    W: np.ndarray
+    S: np.ndarray
+
+
+def dual_operators(qp: ContactQP) -> DualOperators:
+    """:class:`DualOperators` of the frictional ``qp`` (2D, nodal rows).
 
     Raises
     ------
@@ -124,19 +137,28 @@ def tresca_exact(qp: ContactQP) -> TrescaSolution:
     if qp.m > TRESCA_EXACT_MAX_M:
         raise ValueError(f"tresca_exact: {qp.m} rows is not allowed; allowed: at most "
                          f"{TRESCA_EXACT_MAX_M} (S is dense)")
-    import scipy.sparse as sp
-
     G = sp.vstack([qp.B, fr.T]).tocsr()
     factor = factorize(qp.A)
     W = factor.solve(G.T.toarray())                       # A^-1 G'
     S = G @ W
-    S = 0.5 * (S + S.T)
-    Ainv_f = factor.solve(qp.f)
+    return DualOperators(factor, G, W, 0.5 * (S + S.T))
+
+
+def tresca_exact(qp: ContactQP, ops: DualOperators | None = None) -> TrescaSolution:
+    """The exact solution of the Tresca step ``qp`` (module docstring; 2D, nodal rows).
+
+    ``ops``: :func:`dual_operators` of a ContactQP with the same ``A``, ``B`` and ``T``
+    (the other steps of its load path), computed here if not given.
+    """
+    fr = qp.friction
+    ops = dual_operators(qp) if ops is None else ops
+    G, W = ops.G, ops.W
+    Ainv_f = ops.factor.solve(qp.f)
     h = np.concatenate([qp.g, fr.previous - fr.offset])
     m = qp.m
     lo = np.concatenate([np.zeros(m), -fr.slip_bound])
     hi = np.concatenate([np.full(m, np.inf), fr.slip_bound])
-    y, at, iterations, ok = box_qp_active_set(S, G @ Ainv_f - h, lo, hi)
+    y, at, iterations, ok = box_qp_active_set(ops.S, G @ Ainv_f - h, lo, hi)
     u = Ainv_f - W @ y
     p, lam = np.maximum(y[:m], 0.0), y[m:]
     stick = (fr.slip_bound > 0) & (at[m:] == 0)
@@ -178,7 +200,7 @@ def with_step(qp: ContactQP, step: int, slip_bound: np.ndarray, previous: np.nda
 
 
 def coulomb_step(qp: ContactQP, step: int, previous: np.ndarray, s0: np.ndarray,
-                 tol: float = 1e-12, max_iter: int = 50, solve=tresca_exact) -> PathStep:
+                 solve, tol: float = 1e-12, max_iter: int = 50) -> PathStep:
     """Coulomb friction in one step: the fixed point ``s = mu p`` over Tresca problems,
     from the slip bound ``s0``; stops when ``||s_k+1 - s_k||_inf <= tol ||s_k+1||_inf``."""
     mu, s = qp.friction.mu, np.asarray(s0, float)
@@ -197,10 +219,11 @@ def coulomb_step(qp: ContactQP, step: int, previous: np.ndarray, s0: np.ndarray,
     return PathStep(step_qp, sol, tresca_solves=k, contraction=contraction, history=changes)
 
 
-def friction_path(qp: ContactQP, solve=tresca_exact, tol: float = 1e-12,
+def friction_path(qp: ContactQP, solve=None, tol: float = 1e-12,
                   max_iter: int = 50) -> list[PathStep]:
     """Run the load path of the frictional ``qp`` (``qp.friction.path``): each step's slip
     measured from the previous step's state (the first: from the unloaded state).
+    ``solve(step_qp) -> TrescaSolution`` solves one Tresca step (default: :func:`tresca_exact`).
 
     Tresca: ``s = mu p`` of the frictionless normal step, the same in every step.
     Coulomb: each step the fixed point ``s = mu p`` (:func:`coulomb_step`), started from the
@@ -209,13 +232,16 @@ def friction_path(qp: ContactQP, solve=tresca_exact, tol: float = 1e-12,
     fr = qp.friction
     if fr is None or not fr.path:
         raise ValueError("friction_path needs a ContactQP with friction and a load path")
+    if solve is None:                               # the exact reference, A factorised once
+        ops = dual_operators(qp)
+        solve = lambda step_qp: tresca_exact(step_qp, ops)
     zero = np.zeros(qp.m)
     frictionless = solve(with_step(qp, 0, zero, zero))
     s = fr.mu * frictionless.p
     previous, steps = zero, []
     for k in range(len(fr.path)):
         if fr.law == "coulomb":
-            done = coulomb_step(qp, k, previous, s, tol, max_iter, solve)
+            done = coulomb_step(qp, k, previous, s, solve, tol, max_iter)
             s = done.qp.friction.slip_bound
         else:
             step_qp = with_step(qp, k, s, previous)
@@ -223,3 +249,66 @@ def friction_path(qp: ContactQP, solve=tresca_exact, tol: float = 1e-12,
         steps.append(done)
         previous = done.qp.friction.T @ done.solution.u + done.qp.friction.offset
     return steps
+
+
+def scaled_tangential_step(qp: ContactQP, factor: float) -> ContactQP:
+    """``qp`` with the tangential step of its two-step load path scaled by ``factor``
+    (the step's data are affine in the prescribed shift: exact)."""
+    fr = qp.friction
+    if fr is None or len(fr.path) != 2:
+        raise ValueError("scaled_tangential_step needs a two-step frictional load path")
+    normal, tangential = fr.path
+    step = LoadStep(*(a + factor * (b - a) for a, b in
+                      ((normal.f, tangential.f), (normal.g, tangential.g),
+                       (normal.offset, tangential.offset))))
+    return replace(qp, friction=replace(fr, path=(normal, step)))
+
+
+def tangential_ratio(steps: list[PathStep]) -> float:
+    """``Q / (mu P)`` of the last step: the total tangential over ``mu`` times the total
+    normal contact force."""
+    sol, mu = steps[-1].solution, steps[-1].qp.friction.mu
+    return abs(float(np.sum(sol.lam))) / (mu * float(np.sum(sol.p)))
+
+
+def path_for_ratio(qp: ContactQP, ratio: float, rtol: float = 1e-6,
+                   max_iter: int = 60) -> list[PathStep]:
+    """The load path of ``qp`` with its tangential step scaled so that ``Q / (mu P)`` of the
+    last step is ``ratio`` (within ``rtol``), by bracketing and the Illinois variant of
+    regula falsi on the monotone ``Q / (mu P)`` of the scale.
+
+    Raises
+    ------
+    ParameterError
+        ``ratio`` outside ``[0, 1)``: at ``Q >= mu P`` the whole contact slips (gross
+        sliding) and there is no static equilibrium to find.
+    """
+    if not 0.0 <= ratio < 1.0:
+        raise ParameterError(f"parameter 'ratio': Q/(mu P) = {ratio!r} is not allowed; allowed: "
+                             "[0, 1) (at Q >= mu P the whole contact slips: gross sliding, no "
+                             "static equilibrium)")
+    ops = dual_operators(qp)
+    run = lambda t: friction_path(scaled_tangential_step(qp, t),
+                                  lambda step_qp: tresca_exact(step_qp, ops))
+    lo, f_lo = 0.0, tangential_ratio(run(0.0)) - ratio
+    hi, steps = 1.0, run(1.0)
+    f_hi = tangential_ratio(steps) - ratio
+    while f_hi < 0 and hi < 2.0 ** 30:
+        lo, f_lo, hi = hi, f_hi, 2.0 * hi
+        steps = run(hi)
+        f_hi = tangential_ratio(steps) - ratio
+    side = 0
+    for _ in range(max_iter):
+        if abs(f_hi) <= rtol * ratio:
+            return steps
+        t = hi - f_hi * (hi - lo) / (f_hi - f_lo)
+        steps = run(t)
+        f_t = tangential_ratio(steps) - ratio
+        if (f_t > 0) == (f_hi > 0):
+            hi, f_hi = t, f_t
+            f_lo, side = (f_lo / 2, side) if side == 1 else (f_lo, 1)
+        else:
+            lo, f_lo, hi, f_hi = hi, f_hi, t, f_t
+            side = 0
+    raise RuntimeError(f"path_for_ratio: Q/(mu P) = {ratio} not reached within {max_iter} "
+                       "solves")
