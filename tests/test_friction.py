@@ -8,12 +8,12 @@ import itertools
 import numpy as np
 import pytest
 
-from problems.kkt import energy_error
+from problems.kkt import energy_error, tresca_energy
+from problems.qp import ContactQP
 from problems.spec import ParameterError, problems
 from reference.cattaneo_mindlin import stick_zone_ratio, stick_zone_size
 from solvers.interface import solve, solvers
-from solvers.tresca import (box_qp_active_set, friction_path, path_for_ratio, tangential_ratio,
-                            with_step)
+from solvers.tresca import box_qp_active_set, friction_path, path_for_ratio, tangential_ratio
 
 SCENE = problems()["circle_square"]
 
@@ -115,6 +115,20 @@ def test_exact_reference_is_verified_by_the_friction_kkt(law):
             assert st.tresca_solves >= 2
             assert np.allclose(st.qp.friction.slip_bound, 0.5 * st.solution.p, rtol=1e-10,
                                atol=1e-12 * st.solution.p.max())
+
+
+def test_exact_reference_has_the_least_tresca_energy_among_feasible_answers():
+    """The exact tangential step against two feasible competitors (Bu <= g holds for
+    both): the frictionless answer of the same step, and its midpoint with the exact one."""
+    qp = _frictional(1, shift=0.02)
+    last = friction_path(qp)[-1]
+    step_qp, u = last.qp, last.solution.u
+    frictionless = solve(ContactQP(A=step_qp.A, f=step_qp.f, B=step_qp.B, g=step_qp.g), "pdas",
+                         tol=1e-12).u
+    best = tresca_energy(step_qp, u)
+    for other in (frictionless, 0.5 * (u + frictionless)):
+        assert np.all(step_qp.B @ other <= step_qp.g + 1e-12)
+        assert best < tresca_energy(step_qp, other)
 
 
 def test_mu_zero_reproduces_the_frictionless_solution():
