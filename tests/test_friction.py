@@ -111,8 +111,11 @@ def test_exact_reference_is_verified_by_the_friction_kkt(law):
     slipping = (steps[-1].qp.friction.slip_bound > 0) & ~last.stick
     assert last.stick.any() and slipping.any()          # partial slip at this shift
     if law == "coulomb":
+        # partial slip moves the pressure (the shifted arc tilts the circle), so the fixed
+        # point iterates; measured: 9 Tresca solves, contraction ratio 0.03-0.05
+        assert steps[-1].tresca_solves > 2 and steps[-1].contraction <= 0.2
         for st in steps:             # the fixed point ends on s = mu p
-            assert st.tresca_solves >= 2
+            assert st.tresca_solves <= 15
             assert np.allclose(st.qp.friction.slip_bound, 0.5 * st.solution.p, rtol=1e-10,
                                atol=1e-12 * st.solution.p.max())
 
