@@ -583,6 +583,11 @@ def _validate_friction(fr: Friction, n: int, mc: int) -> None:
         setattr(fr, name, v)
     if np.any(fr.slip_bound < 0) or not fr.mu >= 0:
         raise QPValidationError("friction.slip_bound and friction.mu must be >= 0")
+    for k, step in enumerate(fr.path):
+        for name, size in (("f", n), ("offset", mc)):
+            if np.shape(getattr(step, name)) != (size,):
+                raise QPValidationError(f"friction.path[{k}].{name} must have shape ({size},), "
+                                        f"got {np.shape(getattr(step, name))}")
 
 
 def surface_multipliers(qp: ContactQP, p: np.ndarray) -> np.ndarray:

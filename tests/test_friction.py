@@ -4,12 +4,13 @@ reference, Coulomb's fixed point, and Cattaneo-Mindlin partial slip on circle_sq
 from __future__ import annotations
 
 import itertools
+from dataclasses import replace
 
 import numpy as np
 import pytest
 
 from problems.kkt import energy_error, tresca_energy
-from problems.qp import ContactQP
+from problems.qp import ContactQP, QPValidationError
 from problems.spec import ParameterError, problems
 from reference.cattaneo_mindlin import stick_zone_ratio, stick_zone_size
 from solvers.interface import solve, solvers
@@ -55,6 +56,17 @@ def test_tangential_rows_measure_the_relative_tangential_displacement():
     # a translation of both bodies: no relative displacement at all
     both = np.where(qp.free_dofs % 2 == 0, 0.25, 0.0)
     assert np.allclose(fr.T @ both, 0.0, rtol=0, atol=1e-14)
+
+
+def test_friction_data_of_the_wrong_shape_is_refused_by_name():
+    qp = _frictional(0)
+    fr = qp.friction
+    with pytest.raises(QPValidationError, match="friction.slip_bound"):
+        replace(qp, friction=replace(fr, slip_bound=np.zeros(qp.m + 1)))
+    with pytest.raises(QPValidationError, match="friction.slip_bound"):
+        replace(qp, friction=replace(fr, slip_bound=-np.ones(qp.m)))
+    with pytest.raises(QPValidationError, match=r"friction.path\[1\].offset"):
+        replace(qp, friction=replace(fr, path=(fr.path[0], replace(fr.path[1], offset=np.zeros(1)))))
 
 
 @pytest.mark.parametrize("params, name", [
