@@ -56,6 +56,9 @@ class TrescaSolution:
         ``converged`` (the active-set method ended on its optimality test) or ``max_iter``.
     iterations : int
     kkt : FrictionResiduals
+    active : (2m,) int array
+        The dual active set of ``(p, lam)``: ``-1`` at the lower bound, ``+1`` at the upper,
+        ``0`` free (a warm start for a neighbouring problem).
     """
 
     u: np.ndarray
@@ -65,12 +68,18 @@ class TrescaSolution:
     status: str
     iterations: int
     kkt: FrictionResiduals
+    active: np.ndarray | None = None
 
 
 def box_qp_active_set(S: np.ndarray, c: np.ndarray, lo: np.ndarray, hi: np.ndarray,
-                      max_iter: int | None = None) -> tuple[np.ndarray, np.ndarray, int, bool]:
+                      max_iter: int | None = None,
+                      start: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, int, bool]:
     """``min 1/2 y'Sy - c'y`` s.t. ``lo <= y <= hi`` (``S`` symmetric positive definite), by
     the primal active-set method (Nocedal-Wright, Alg. 16.3): exact on its final active set.
+
+    ``start``: a guess of the active set (``at_bound`` of a neighbouring problem); the
+    method starts from the minimiser on that face, projected onto the box (feasible), with
+    the bounds it meets as its active set.
 
     Returns
     -------
@@ -84,7 +93,15 @@ def box_qp_active_set(S: np.ndarray, c: np.ndarray, lo: np.ndarray, hi: np.ndarr
     k = len(c)
     max_iter = 10 * k + 50 if max_iter is None else max_iter
     y = np.clip(np.zeros(k), lo, hi)
-    at = np.where(lo == hi, -1, 0)
+    if start is not None and np.shape(start) == (k,):
+        guess = np.where(start < 0, lo, np.where(start > 0, hi, 0.0))
+        guess = np.where(np.isfinite(guess), guess, 0.0)
+        face = (start == 0) | ~np.isfinite(np.where(start < 0, lo, hi))
+        if face.any():
+            guess[face] = np.linalg.solve(S[np.ix_(face, face)],
+                                          c[face] - S[np.ix_(face, ~face)] @ guess[~face])
+        y = np.clip(guess, lo, hi)
+    at = np.where(lo == hi, -1, np.where(y <= lo, -1, np.where(y >= hi, 1, 0)))
     for it in range(1, max_iter + 1):
         free = at == 0
         target = y.copy()
@@ -144,11 +161,13 @@ def dual_operators(qp: ContactQP) -> DualOperators:
     return DualOperators(factor, G, W, 0.5 * (S + S.T))
 
 
-def tresca_exact(qp: ContactQP, ops: DualOperators | None = None) -> TrescaSolution:
+def tresca_exact(qp: ContactQP, ops: DualOperators | None = None,
+                 start: np.ndarray | None = None) -> TrescaSolution:
     """The exact solution of the Tresca step ``qp`` (module docstring; 2D, nodal rows).
 
     ``ops``: :func:`dual_operators` of a ContactQP with the same ``A``, ``B`` and ``T``
-    (the other steps of its load path), computed here if not given.
+    (the other steps of its load path), computed here if not given. ``start``: the dual
+    active set of a neighbouring problem (:attr:`TrescaSolution.active`), a warm start.
     """
     fr = qp.friction
     ops = dual_operators(qp) if ops is None else ops
@@ -158,13 +177,13 @@ def tresca_exact(qp: ContactQP, ops: DualOperators | None = None) -> TrescaSolut
     m = qp.m
     lo = np.concatenate([np.zeros(m), -fr.slip_bound])
     hi = np.concatenate([np.full(m, np.inf), fr.slip_bound])
-    y, at, iterations, ok = box_qp_active_set(ops.S, G @ Ainv_f - h, lo, hi)
+    y, at, iterations, ok = box_qp_active_set(ops.S, G @ Ainv_f - h, lo, hi, start=start)
     u = Ainv_f - W @ y
     p, lam = np.maximum(y[:m], 0.0), y[m:]
     stick = (fr.slip_bound > 0) & (at[m:] == 0)
     return TrescaSolution(u=u, p=p, lam=lam, stick=stick,
                           status="converged" if ok else "max_iter", iterations=iterations,
-                          kkt=friction_residuals(qp, u, p, lam))
+                          kkt=friction_residuals(qp, u, p, lam), active=at)
 
 
 @dataclass
@@ -219,11 +238,12 @@ def coulomb_step(qp: ContactQP, step: int, previous: np.ndarray, s0: np.ndarray,
     return PathStep(step_qp, sol, tresca_solves=k, contraction=contraction, history=changes)
 
 
-def friction_path(qp: ContactQP, solve=None, tol: float = 1e-12,
-                  max_iter: int = 50) -> list[PathStep]:
+def friction_path(qp: ContactQP, solve=None, tol: float = 1e-12, max_iter: int = 50,
+                  done: tuple = ()) -> list[PathStep]:
     """Run the load path of the frictional ``qp`` (``qp.friction.path``): each step's slip
     measured from the previous step's state (the first: from the unloaded state).
     ``solve(step_qp) -> TrescaSolution`` solves one Tresca step (default: :func:`tresca_exact`).
+    ``done``: the first steps, already solved on the same path (kept as they are).
 
     Tresca: ``s = mu p`` of the frictionless normal step, the same in every step.
     Coulomb: each step the fixed point ``s = mu p`` (:func:`coulomb_step`), started from the
@@ -236,10 +256,13 @@ def friction_path(qp: ContactQP, solve=None, tol: float = 1e-12,
         ops = dual_operators(qp)
         solve = lambda step_qp: tresca_exact(step_qp, ops)
     zero = np.zeros(qp.m)
-    frictionless = solve(with_step(qp, 0, zero, zero))
-    s = fr.mu * frictionless.p
-    previous, steps = zero, []
-    for k in range(len(fr.path)):
+    steps = list(done)
+    if steps:
+        last = steps[-1].qp.friction
+        s, previous = last.slip_bound, last.T @ steps[-1].solution.u + last.offset
+    else:
+        s, previous = fr.mu * solve(with_step(qp, 0, zero, zero)).p, zero
+    for k in range(len(steps), len(fr.path)):
         if fr.law == "coulomb":
             done = coulomb_step(qp, k, previous, s, solve, tol, max_iter)
             s = done.qp.friction.slip_bound
@@ -288,8 +311,17 @@ def path_for_ratio(qp: ContactQP, ratio: float, rtol: float = 1e-6,
                              "[0, 1) (at Q >= mu P the whole contact slips: gross sliding, no "
                              "static equilibrium)")
     ops = dual_operators(qp)
-    run = lambda t: friction_path(scaled_tangential_step(qp, t),
-                                  lambda step_qp: tresca_exact(step_qp, ops))
+    exact = lambda step_qp: tresca_exact(step_qp, ops)
+    normal = friction_path(replace(qp, friction=replace(qp.friction, path=qp.friction.path[:1])),
+                           exact)                  # the normal step: the same for every scale
+    warm = {"active": normal[-1].solution.active}
+
+    def tangential(step_qp):                     # warm-started from the last scale's answer
+        sol = tresca_exact(step_qp, ops, start=warm["active"])
+        warm["active"] = sol.active
+        return sol
+
+    run = lambda t: friction_path(scaled_tangential_step(qp, t), tangential, done=normal)
     lo, f_lo = 0.0, tangential_ratio(run(0.0)) - ratio
     hi, steps = 1.0, run(1.0)
     f_hi = tangential_ratio(steps) - ratio

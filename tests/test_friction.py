@@ -108,6 +108,9 @@ def test_box_active_set_matches_enumeration_of_all_active_sets():
         if np.all(z >= lo - 1e-12) and np.all(z <= hi + 1e-12):
             best = min(best, 0.5 * z @ S @ z - c @ z)
     assert 0.5 * y @ S @ y - c @ y == pytest.approx(best, rel=1e-12, abs=1e-14)
+    for start in itertools.product((-1, 0, 1), repeat=k):      # any warm start, same answer
+        y_warm, _, _, ok = box_qp_active_set(S, c, lo, hi, start=np.array(start))
+        assert ok and np.allclose(y_warm, y, rtol=0, atol=1e-12)
 
 
 @pytest.mark.parametrize("law", ["tresca", "coulomb"])
