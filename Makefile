@@ -19,7 +19,7 @@ CHROMIUM ?= /usr/bin/chromium
 # tests are skipped with the reason (docs/guide/distributed.md)
 PETSC_PACKAGES := python3-petsc4py python3-mpi4py mpi-default-bin
 
-.PHONY: setup browser petsc run full test bench clean
+.PHONY: setup browser petsc run full test bench docs plan clean
 
 $(BIN)/contactbench: pyproject.toml constraints.txt
 	@command -v $(PYTHON) >/dev/null 2>&1 || { echo "error: $(PYTHON) not found; set PYTHON=/path/to/python3.11"; exit 2; }
@@ -75,6 +75,21 @@ test: setup browser petsc
 bench: setup
 	$(BIN)/python -m pytest -q tests --benchmark-enable --benchmark-only --benchmark-autosave \
 		$$(ls .benchmarks/*/*.json >/dev/null 2>&1 && echo --benchmark-compare)
+
+# the documentation site, warnings as errors (the scene, solver, CLI and API pages are
+# generated from the code at every build: docs/_ext/registry_pages.py)
+docs: setup
+	$(BIN)/python -m sphinx -b html -W --keep-going docs docs/_build/html
+	@echo "docs: docs/_build/html/index.html"
+
+# huge.yaml's resources predicted from the benchmark files of a quick and a full run
+# (workflows/planning.py): make plan QUICK_RUN=<checkout of a quick run> FULL_RUN=<...>
+QUICK_RUN ?= .
+FULL_RUN ?= .
+plan: setup
+	$(BIN)/python -m workflows.planning --target workflows/config/huge.yaml --measured \
+		workflows/config/quick.yaml=$(QUICK_RUN)/results/benchmarks \
+		workflows/config/full.yaml=$(FULL_RUN)/results/benchmarks
 
 clean:
 	rm -rf results/*/ .snakemake

@@ -1,8 +1,9 @@
 # Regenerates every table and figure of the suite.
 #   snakemake --cores 2                                           (quick scale, minutes)
 #   snakemake --cores 2 --configfile workflows/config/full.yaml   (the thesis's sizes, ~1.5 h)
-# Studies, their outputs and every path template are declared once in workflows/studies.py;
-# each study's rules live in workflows/<study>.smk and run on the scenes its config lists.
+# A study is one module of workflows/studies/ (its paths, outputs, thesis items, config
+# checks), discovered; its rules live in the rule file it names (workflows/<study>.smk),
+# included below, and run on the scenes its config lists.
 import hashlib
 import json
 import os
@@ -16,12 +17,10 @@ from workflows.io import SOLVER_SET_ENV, run_solver_set, sweep_results
 from workflows.progress import clear as clear_progress, start_reporter
 from workflows.settings import SCHEMA
 
-from workflows.studies import (PATHS, adaptive_args, adaptive_variant_file, all_targets,
-                               bench_path, check_config, coarser_levels, element_order_args,
-                               exact_args, log_path,
-                               roll_args, roll_fields, rule_resources, scenes_of,
-                               scenes_with_families, set_args, summary_items,
-                               test_set_hard_cases, test_set_of, test_set_runs, thesis_table)
+from workflows.studies import (PATHS, STUDIES, all_targets, bench_path, check_config,
+                               coarser_levels, log_path, rule_resources, scenes_of,
+                               scenes_with_families, set_args, summary_items, test_set_of,
+                               thesis_table)
 
 # the quick scale unless --configfile names another (merging quick.yaml under full.yaml or
 # tiny.yaml would leave quick's scenes in them)
@@ -62,17 +61,11 @@ PY = sys.executable  # the interpreter snakemake runs under (the venv's, via `ma
 ENV = "envs/contactbench.yaml"
 
 
-include: "workflows/laplace.smk"
-include: "workflows/contact_solution.smk"
-include: "workflows/solver_comparison.smk"
-include: "workflows/augmented_projection.smk"
-include: "workflows/exact_reference.smk"
-include: "workflows/test_set.smk"
-include: "workflows/hard_cases.smk"
+# every study's rule file (its own helpers it imports from its study module), then the
+# summary page over them
+for _study in STUDIES.values():
+    include: os.path.join("workflows", _study.rule_file)
 include: "workflows/summary.smk"
-include: "workflows/adaptive.smk"
-include: "workflows/roll_stack.smk"
-include: "workflows/element_order.smk"
 
 rule all:
     input:

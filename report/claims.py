@@ -1,8 +1,8 @@
-"""Checked claims declared as data (issue 26).
+"""Checked claims declared as data.
 
 Every study's report module declares its claims once, at its top, as a ``CLAIMS`` dict
-of :class:`Claim`: where the claim comes from (the thesis's item, or the issue that set
-the bar), the measured quantity (a text template), the comparison and the bar. Its
+of :class:`Claim`: where the claim comes from (the thesis's item, a published result, or
+"suite bar" with the reason the bar is what it is), the measured quantity (a text template), the comparison and the bar. Its
 ``claims()`` function only measures and calls :meth:`Claim.row`; the summary page
 (``report/summary.py``) collects the rows, and ``tests/test_claims.py`` checks that
 every row comes from a declared claim.
@@ -24,6 +24,11 @@ COMPARE = {
 #: by the measuring code (two measured values against each other, "all runs converged"),
 #: the bar a sentence.
 UNJUDGED, GIVEN = "-", "given"
+#: The reason shown for an unjudged row when its claim or its measuring code gives none.
+NO_BAR = "a measured figure reported for reference: the thesis sets no bar for it"
+NOT_REACHED = "this scale does not reach the size or resolution the bar is about"
+#: The columns of a claims table.
+COLUMNS = ["claim", "thesis", "measured", "bar", "pass", "reason"]
 
 
 @dataclass(frozen=True)
@@ -33,8 +38,9 @@ class Claim:
     Attributes
     ----------
     thesis : str
-        Where it comes from: the thesis's item ("Sect. 6.2", "Lemma 8.13") or the issue
-        that set the bar ("issue 24").
+        Where it comes from: the thesis's item ("Sect. 6.2", "Lemma 8.13"), a published
+        result, or "suite bar" with the one-line reason the bar is what it is
+        ("suite bar (TNNMG: close to one linear solve)").
     quantity : str
         The measured quantity, a template formatted with the row's fields
         (``"H1 rate -- {where}"``).
@@ -42,12 +48,16 @@ class Claim:
         One of :data:`COMPARE`, :data:`UNJUDGED` or :data:`GIVEN`.
     bar : float, (lo, hi), str or None
         The bar: a number, an interval for ``"in"``, a sentence for ``"given"``.
+    unjudged : str
+        Why a claim without a bar (``compare`` ``"-"``) is reported but not judged;
+        the summary shows it in place of a verdict.
     """
 
     thesis: str
     quantity: str
     compare: str = UNJUDGED
     bar: Any = None
+    unjudged: str = ""
 
     def __post_init__(self):
         allowed = (*COMPARE, UNJUDGED, GIVEN)
@@ -71,11 +81,13 @@ class Claim:
         return f"{self.compare} {self.bar:g}"
 
     def row(self, measured, judged: bool = True, passed: bool | None = None,
-            **fields) -> dict:
-        """The claims-table row: claim, thesis, measured, bar, pass.
+            reason: str = "", **fields) -> dict:
+        """The claims-table row: claim, thesis, measured, bar, pass, reason.
 
-        ``judged=False``: this scale does not reach what the bar is about (pass empty).
-        ``passed``: the verdict of a ``"given"`` claim (its measuring code decides).
+        ``judged=False``: this scale does not reach what the bar is about (pass empty);
+        ``reason`` says what it lacks (:data:`NOT_REACHED` if not given). ``passed``: the
+        verdict of a ``"given"`` claim (its measuring code decides). ``reason`` is empty
+        for a judged row.
         """
         if self.compare == GIVEN:
             if judged and passed is None:
@@ -86,5 +98,11 @@ class Claim:
         else:
             x = float(measured)
             verdict = bool(math.isfinite(x) and COMPARE[self.compare](x, self.bar))
+        if verdict is not None:
+            why = ""
+        elif self.compare == UNJUDGED:
+            why = self.unjudged or NO_BAR
+        else:
+            why = reason.format(**fields) if reason else NOT_REACHED
         return {"claim": self.quantity.format(**fields), "thesis": self.thesis,
-                "measured": measured, "bar": self.bar_text(), "pass": verdict}
+                "measured": measured, "bar": self.bar_text(), "pass": verdict, "reason": why}

@@ -94,8 +94,13 @@ def _contact_window(points, pressure, dims=(0, 1)):
     return c, size
 
 
-def fields_figure(vtu: str, path: str, magnify: float = 5.0) -> None:
-    """Left: mesh and deformed configuration; right: von Mises stress near the contact."""
+def fields_figure(vtu: str, path: str, magnify: float = 1.0) -> None:
+    """Left: the deformed mesh shaded by the displacement's size; right: von Mises stress
+    near the contact.
+
+    The deformed mesh is drawn at true scale by default: magnified displacements of two
+    bodies in contact overlap where the true ones only touch, and would look like
+    interpenetration; the title gives the largest displacement instead."""
     pts, cells, u, vm, pressure = _read(vtu)
     fig, axes = plt.subplots(1, 2, figsize=(11, 5.2))
     if cells.shape[1] == 3:
@@ -106,11 +111,16 @@ def fields_figure(vtu: str, path: str, magnify: float = 5.0) -> None:
         xy, uv, tri, vm_tri, where = _vertical_cut(pts, cells, u, vm, pressure)
         labels = ("x", "z")
     ax = axes[0]
-    ax.triplot(Triangulation(xy[:, 0], xy[:, 1], tri), color="0.8", lw=0.2)
     d = xy + magnify * uv
-    ax.triplot(Triangulation(d[:, 0], d[:, 1], tri), color="tab:blue", lw=0.25)
+    deformed = Triangulation(d[:, 0], d[:, 1], tri)
+    size = np.linalg.norm(uv, axis=1)
+    shade = ax.tripcolor(deformed, size, cmap="Blues", shading="gouraud")
+    ax.triplot(deformed, color="0.35", lw=0.15)
     ax.set_aspect("equal")
-    ax.set_title(f"{where}:\nreference mesh (grey), deformed (blue, x{magnify:g})", fontsize=9)
+    fig.colorbar(shade, ax=ax, fraction=0.046, pad=0.02, label="displacement |u|")
+    scale = "true scale" if magnify == 1 else f"displacements x{magnify:g}: bodies may overlap"
+    ax.set_title(f"{where}:\ndeformed mesh ({scale}), shaded by |u| "
+                 f"(max {float(size.max()) if size.size else 0.0:.3g})", fontsize=9)
     ax.set_xlabel(labels[0])
     ax.set_ylabel(labels[1])
     ax = axes[1]

@@ -2,7 +2,7 @@
 
 Reads the runs of ``workflows/scripts/exact_reference.py`` for one scene and writes
 the side-by-side table (per level: times, speedup, factorisation, memory, agreement),
-the claims of issue 13 (agreement to 1e-10 in the multipliers; at least 10x faster at
+the claims (agreement to 1e-10 in the multipliers; at least 10x faster at
 262k nodes) and a figure of time against N with fitted exponents.
 
 Example::
@@ -19,11 +19,11 @@ import numpy as np
 import pandas as pd
 
 from report.claims import Claim
-from report.figures import save_figure
+from report.figures import legend_outside, save_figure
 from report.rates import fitted_slope
 from workflows.io import read_csv, write_csv
 
-#: Issue 13's bars: the multipliers agree to this (relative, max norm) ...
+#: The suite's bars: the multipliers agree to this (relative, max norm) ...
 AGREEMENT = 1e-10
 #: ... and the dual route is this much faster at (or beyond) this many nodes.
 SPEEDUP, SPEEDUP_NODES = 10.0, 250_000
@@ -49,9 +49,10 @@ CLAIMS = {
     "agreement": Claim("Sect. 7.1 ((7.3) and the KKT system: one solution)",
                        "dual route = KKT-LU PDAS: max relative multiplier difference over "
                        "levels {levels}", "<=", AGREEMENT),
-    "speedup": Claim("issue 13", "dual route faster than the KKT-LU PDAS at N = {N} "
-                     f"(issue 13: >= {SPEEDUP:g}x at 262k nodes)", ">=", SPEEDUP),
-    "verified": Claim("issue 13", "dual route verified (KKT <= 1e-10, certified) at every level",
+    "speedup": Claim("suite bar (the dual route must repay its own code path)",
+                     "dual route faster than the KKT-LU PDAS at N = {N} "
+                     f"(bar: >= {SPEEDUP:g}x at 262k nodes)", ">=", SPEEDUP),
+    "verified": Claim("suite bar (a reference must itself pass the verification)", "dual route verified (KKT <= 1e-10, certified) at every level",
                       "given", "all"),
 }
 
@@ -67,6 +68,8 @@ def claims(table: pd.DataFrame) -> pd.DataFrame:
         finest = both.iloc[-1]
         rows.append(CLAIMS["speedup"].row(float(finest["speedup"]),
                                           judged=bool(finest["N"] >= SPEEDUP_NODES),
+                                          reason=f"the bar is for N >= {SPEEDUP_NODES:,}; "
+                                          "the finest level here has N = {N:,}",
                                           N=int(finest.N)))
     ok = table[table["status_schur"] == "converged"]
     rows.append(CLAIMS["verified"].row(f"{len(ok)}/{len(table)}", passed=len(ok) == len(table)))
@@ -75,7 +78,7 @@ def claims(table: pd.DataFrame) -> pd.DataFrame:
 
 def figure(table: pd.DataFrame, path: str) -> None:
     """Total and factorisation time against N for both methods, with fitted exponents."""
-    fig, ax = plt.subplots(figsize=(7, 4.5))
+    fig, ax = plt.subplots(figsize=(9.5, 4.5))
     for name, style, color, label in (
             ("schur", "o-", "tab:blue", "dual route (A factorised once)"),
             ("kkt", "s--", "tab:red", "KKT LU per active-set step")):
@@ -93,7 +96,7 @@ def figure(table: pd.DataFrame, path: str) -> None:
     ax.set_title(f"Exact reference: {table['backend'].iloc[0]} Cholesky + dual PDAS vs KKT-LU "
                  "PDAS (slopes: finest three levels)", fontsize=8)
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=7)
+    legend_outside(ax)
     save_figure(fig, path)
 
 

@@ -1,17 +1,199 @@
-"""Shared figure helpers: every figure is saved the same way, atomically."""
+"""Shared figure helpers: one solver palette and marker set, the scene in every title,
+and every figure saved the same way, atomically, with what it shows recorded.
+
+A solver has the same colour and marker in every figure of the report
+(:func:`solver_style`); every figure of a scene names that scene in its title
+(:func:`save_figure` adds it where the figure's own titles do not); a figure with
+nothing to draw says why instead of showing empty axes (:func:`nothing_to_draw`).
+:func:`save_figure` writes into the PNG's text chunks the titles, the number of drawn
+data artists and the number of empty panels (:data:`AUDIT_KEYS`), so that the figure
+audit (``tests/test_regeneration.py``) can check each figure without re-plotting it.
+"""
 from __future__ import annotations
+
+import re
+import zlib
+from functools import lru_cache
 
 import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+from matplotlib.ticker import (FixedLocator, FuncFormatter, LogLocator,  # noqa: E402
+                               NullFormatter)
 
 from workflows.io import atomic_path  # noqa: E402
+from workflows.studies import PATHS  # noqa: E402
+
+#: The report's solver colours: the built-in solvers (sorted) take these in turn, then
+#: the report's other rows (:data:`EXTRA_SOLVERS`); colour and marker together tell
+#: every solver apart.
+PALETTE = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2",
+           "#7f7f7f", "#bcbd22", "#17becf", "#393b79", "#8c6d31", "#637939", "#843c39")
+#: One marker fewer than colours: the pair (colour, marker) repeats only after
+#: 14 x 13 solvers.
+MARKERS = ("o", "s", "^", "D", "v", "P", "X", "<", ">", "p", "h", "*", "d")
+#: Rows of the report that are not registered solvers but are drawn like one.
+EXTRA_SOLVERS = ("pdas_kkt",)
+#: Drawn in black: the floors and references every solver is measured against.
+REFERENCE_STYLE = {"linear_floor": dict(color="k", marker="_"),
+                   "reference": dict(color="k", marker="*")}
+#: The thesis's values wherever a figure overlays them (a colour no solver has).
+THESIS_COLOR = "#b15928"
+#: Line style per tolerance preset (a preset is a line style in every figure).
+PRESET_LINES = {"low": ":", "mid": "--", "high": "-"}
+#: PNG text chunks :func:`save_figure` writes for the figure audit.
+AUDIT_KEYS = ("Title", "contactbench:scene", "contactbench:data_artists",
+              "contactbench:empty_panels", "contactbench:nothing_to_draw")
 
 
-def save_figure(fig, path: str, dpi: int = 130) -> None:
-    """Tight layout, write PNG atomically to ``path``, close the figure."""
+@lru_cache(maxsize=1)
+def solver_order() -> tuple[str, ...]:
+    """The solvers in palette order: the built-in ones sorted, then the extra rows. A
+    plug-in takes its colour from its name (:func:`solver_style`), so that installing
+    one changes no other solver's colour."""
+    from solvers.interface import external_solvers, solvers
+    plugins = set(external_solvers())
+    return (*sorted(n for n in solvers() if n not in plugins), *EXTRA_SOLVERS)
+
+
+def solver_style(name: str) -> dict:
+    """Colour and marker of ``name``, the same in every figure (``color``, ``marker``).
+
+    An unregistered name gets a colour and marker from a hash of its name (stable
+    between runs and machines)."""
+    if name in REFERENCE_STYLE:
+        return dict(REFERENCE_STYLE[name])
+    order = solver_order()
+    i = order.index(name) if name in order else len(order) + zlib.crc32(name.encode()) % 97
+    return {"color": PALETTE[i % len(PALETTE)], "marker": MARKERS[i % len(MARKERS)]}
+
+
+def scene_of(path: str) -> str | None:
+    """The scene a figure belongs to, read from its path against the workflow's path
+    templates (``results/{scene}/...``); None for a figure across scenes."""
+    for template in PATHS.values():
+        if "{scene}" not in template or not template.endswith(".png"):
+            continue
+        pattern = re.escape(template).replace(re.escape("{scene}"), r"(?P<scene>[^/]+)")
+        pattern = re.sub(r"\\\{\w+\\\}", r"[^/]+", pattern)
+        m = re.fullmatch(r"(?:.*/)?" + pattern, str(path))
+        if m:
+            return m.group("scene")
+    return None
+
+
+def scene_names(scene: str) -> tuple[str, ...]:
+    """How a title may spell a scene: ``cube_sphere``, ``cube-sphere``, ``cube sphere``."""
+    return (scene, scene.replace("_", "-"), scene.replace("_", " "))
+
+
+def titles(fig) -> str:
+    """The figure's suptitle and every axes' title, joined by `` | ``."""
+    parts = [fig._suptitle.get_text()] if fig._suptitle is not None else []
+    for ax in fig.axes:
+        parts += [t.get_text() for t in (ax.title, ax._left_title, ax._right_title)]
+    return " | ".join(p for p in parts if p)
+
+
+def _drawn(ax) -> int:
+    """The data artists of one axes: lines and collections with points, images, bars."""
+    lines = sum(1 for line in ax.lines if len(line.get_xdata()) > 0)
+    coll = sum(1 for c in ax.collections
+               if len(getattr(c, "get_offsets", lambda: [])()) or len(c.get_paths()))
+    return lines + coll + len(ax.images) + len(ax.patches)
+
+
+def _is_colorbar(ax) -> bool:
+    return ax.get_label() == "<colorbar>" or hasattr(ax, "_colorbar")
+
+
+def name_scene(fig, scene: str | None) -> None:
+    """Put ``scene`` into the figure's suptitle unless a title already names it."""
+    if scene is None:
+        return
+    text = titles(fig).lower()
+    if any(name.lower() in text for name in scene_names(scene)):
+        return
+    old = fig._suptitle.get_text() if fig._suptitle is not None else ""
+    size = fig._suptitle.get_fontsize() if fig._suptitle is not None else 10
+    fig.suptitle(f"{scene}: {old}" if old else f"scene {scene}", fontsize=size)
+
+
+def save_figure(fig, path: str, dpi: int = 130, scene: str | None = None) -> None:
+    """Name the scene (``scene``, else read from ``path``), label every log axis sparsely
+    (:func:`sparse_log_ticks`), tight layout, write the PNG atomically to ``path`` with
+    its audit text (:data:`AUDIT_KEYS`), close the figure."""
+    scene = scene or scene_of(path)
+    name_scene(fig, scene)
+    panels = [ax for ax in fig.axes if ax.axison and not _is_colorbar(ax)]
+    for ax in panels:
+        for axis in ("x", "y"):
+            if (ax.get_xscale() if axis == "x" else ax.get_yscale()) == "log":
+                sparse_log_ticks(ax, axis)
+    drawn = [_drawn(ax) for ax in panels]
+    meta = {"Title": titles(fig), "contactbench:scene": scene or "",
+            "contactbench:data_artists": str(sum(drawn)),
+            "contactbench:empty_panels": str(sum(1 for d in drawn if d == 0)),
+            "contactbench:nothing_to_draw": getattr(fig, "nothing_to_draw", "")}
     fig.tight_layout()
     with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=dpi, format="png")
+        fig.savefig(tmp, dpi=dpi, format="png", metadata=meta, bbox_inches="tight")
     plt.close(fig)
+
+
+def nothing_to_draw(path: str, title: str, reason: str, scene: str | None = None) -> None:
+    """Write, in place of a figure without data, a small image saying why (``reason``)."""
+    fig = plt.figure(figsize=(6.0, 1.6))
+    fig.suptitle(title, fontsize=10)
+    fig.text(0.5, 0.4, f"Nothing to draw: {reason}", ha="center", va="center", fontsize=9,
+             wrap=True, color="0.3")
+    fig.nothing_to_draw = reason
+    save_figure(fig, path, scene=scene)
+
+
+def sparse_log_ticks(ax, axis: str = "x") -> None:
+    """Label a log axis at decades; over less than ~1.5 decades at a few 1-2-5 (or
+    1-1.5-2-3-5-7) values in plain numbers. Minor ticks stay unlabelled, so no crowded
+    ``4x10^3 6x10^3`` labels."""
+    target = ax.xaxis if axis == "x" else ax.yaxis
+    lo, hi = sorted(ax.get_xlim() if axis == "x" else ax.get_ylim())
+    target.set_minor_formatter(NullFormatter())
+    if not (lo > 0 and hi / lo < 30):
+        target.set_major_locator(LogLocator(base=10, numticks=8))
+        return
+    ticks = []
+    for mantissas in ((1.0, 2.0, 5.0), (1.0, 1.5, 2.0, 3.0, 5.0, 7.0)):
+        decades = range(int(np.floor(np.log10(lo))), int(np.ceil(np.log10(hi))) + 1)
+        ticks = [m * 10.0 ** k for k in decades for m in mantissas if lo <= m * 10.0 ** k <= hi]
+        if len(ticks) >= 2:
+            break
+    if len(ticks) < 2:
+        ticks = [float(f"{v:.2g}") for v in (lo * (hi / lo) ** 0.15, lo * (hi / lo) ** 0.85)]
+    target.set_major_locator(FixedLocator(ticks))
+    target.set_major_formatter(FuncFormatter(lambda v, _pos: f"{v:g}"))
+
+
+def legend_outside(ax, **kwargs) -> None:
+    """The axes' legend right of the plot, clear of the data (nothing if no labels)."""
+    handles, labels = ax.get_legend_handles_labels()
+    if handles:
+        ax.legend(handles, labels, loc="upper left", bbox_to_anchor=(1.01, 1.0),
+                  borderaxespad=0.0, **{"fontsize": 7, **kwargs})
+
+
+def solver_legend(ax, solvers, lines=(), status: bool = True) -> None:
+    """One legend right of the axes, each encoding explained once: a solver by colour and
+    marker, then ``lines`` (label, line keywords: a preset's or level's line style, a
+    guide), then filled = verified converged, hollow = not (``status``)."""
+    from matplotlib.lines import Line2D
+    handles = [Line2D([], [], ls="none", **solver_style(s), label=s) for s in solvers]
+    handles += [Line2D([], [], **{"color": "0.3", **kw}, label=label) for label, kw in lines]
+    if status:
+        handles += [Line2D([], [], color="0.3", marker="o", ls="none",
+                           label="verified converged"),
+                    Line2D([], [], color="0.3", marker="o", mfc="none", ls="none",
+                           label="not verified")]
+    ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0,
+              fontsize=7)

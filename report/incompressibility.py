@@ -1,9 +1,9 @@
-"""Alg. 8.4 towards incompressibility (study hard_cases, issue 24): the claims and the figure
+"""Alg. 8.4 towards incompressibility (study hard_cases): the claims and the figure
 from ``workflows/scripts/incompressibility.py``'s table.
 
 Claims, per scene: every run of the solver's defaults (``robust``) converged and was
-verified; ``n_o`` at the largest ``nu`` is at most twice ``n_o`` at the smallest (issue 24's
-bar). The figure shows ``n_o`` and the V-cycles of a solve against ``1 - 2 nu`` for both
+verified; ``n_o`` at the largest ``nu`` is at most twice ``n_o`` at the smallest (the suite's
+bar: Theorem 8.8's bounded n_o, allowing a factor two over the whole range). The figure shows ``n_o`` and the V-cycles of a solve against ``1 - 2 nu`` for both
 configurations, the plain V-cycle's ``kappa(V A)`` beside it.
 
 Example::
@@ -22,19 +22,20 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from report.claims import Claim  # noqa: E402
+from report.claims import COLUMNS, Claim  # noqa: E402
 from report.figures import save_figure  # noqa: E402
 from workflows.io import read_csv, write_csv  # noqa: E402
 
-#: n_o at the largest nu over n_o at the smallest, at most (issue 24).
+#: n_o at the largest nu over n_o at the smallest, at most (Theorem 8.8's bounded n_o, with
+#: a factor two of room over the whole range of nu).
 GROWTH_BAR = 2.0
 
 
 #: Alg. 8.4 towards incompressibility (report/claims.py).
 CLAIMS = {
-    "converged": Claim("issue 24", "{scene}: Alg. 8.4 verified converged at every nu ({nus})",
+    "converged": Claim("suite bar (every run of the defaults must count)", "{scene}: Alg. 8.4 verified converged at every nu ({nus})",
                        "given", "all"),
-    "growth": Claim("issue 24 (Theorem 8.8: n_o bounded by the spectral equivalence of A-hat)",
+    "growth": Claim("Theorem 8.8 (n_o bounded by the spectral equivalence of A-hat)",
                     "{scene}: n_o at nu = {hi:g} over n_o at nu = {lo:g}", "<=", GROWTH_BAR),
 }
 
@@ -51,8 +52,9 @@ def claims(t: pd.DataFrame) -> pd.DataFrame:
         judged = lo.status == hi.status == "converged" and len(g) > 1
         growth = hi.n_outer / lo.n_outer if judged else np.nan
         rows.append(CLAIMS["growth"].row(growth, judged=bool(judged), scene=scene, hi=hi.nu,
-                                         lo=lo.nu))
-    return pd.DataFrame(rows, columns=["claim", "thesis", "measured", "bar", "pass"])
+                                         lo=lo.nu, reason="needs converged runs at the "
+                                         "smallest and the largest nu"))
+    return pd.DataFrame(rows, columns=COLUMNS)
 
 
 def figure(t: pd.DataFrame, path: str) -> None:

@@ -41,7 +41,7 @@ from report.claims import Claim
 from report.figures import save_figure
 from workflows.io import read_checked, read_csv, write_csv
 
-#: Issue 10's bars: equilibrium, springs, Hertz at the barrel centre, resolution needed.
+#: The suite's bars: equilibrium, springs, Hertz at the barrel centre, resolution needed.
 EQUILIBRIUM, SPRINGS, HERTZ, MIN_CELLS = 5e-3, 1e-4, 0.05, 8.0
 
 UM, MM = 1e6, 1e3
@@ -98,7 +98,10 @@ def claims(t: pd.DataFrame) -> pd.DataFrame:
     for _, r in crowned.iterrows():
         resolved = bool(r.cells_across_2b >= MIN_CELLS)
         for name, dev in (("half-width b", r.dev_b0), ("peak pressure p0 (nodal)", r.dev_p0_nodal)):
-            rows.append(CLAIMS["hertz"].row(float(abs(dev)), judged=resolved, force=r.force_MN,
+            rows.append(CLAIMS["hertz"].row(float(abs(dev)), judged=resolved,
+                                            reason="{cells:.1f} cells across the contact width "
+                                            f"2b: too coarse to resolve Hertz (judged from "
+                                            f"{MIN_CELLS:g})", force=r.force_MN,
                                             level=int(r.level), name=name,
                                             cells=r.cells_across_2b))
     return pd.DataFrame(rows)

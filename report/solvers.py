@@ -12,22 +12,15 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from report.figures import save_figure  # noqa: E402
+from report.figures import (PRESET_LINES, nothing_to_draw, save_figure,  # noqa: E402
+                            solver_legend, solver_style)
 from report.rates import fitted_slope  # noqa: E402
 from solvers.interface import TOLERANCES, solvers  # noqa: E402
 from workflows.io import read_csv, run_solvers, write_csv  # noqa: E402
 
-MARKERS = {"converged": "o", "inaccurate": "x", "max_iter": "s", "time_limit": ">", "failed": "X",
-           "skipped": "."}
-LINES = {"low": ":", "mid": "--", "high": "-"}
 
 
 FLOOR = "linear_floor"
-
-
-def solver_colors(names) -> dict:
-    """One distinct colour per solver (tab20: up to 20 before a colour repeats)."""
-    return {name: plt.cm.tab20.colors[i % 20] for i, name in enumerate(sorted(names))}
 
 
 def cost_table(table: pd.DataFrame) -> pd.DataFrame:
@@ -65,53 +58,76 @@ def preset_table() -> pd.DataFrame:
 
 
 
+def _scene(table: pd.DataFrame) -> str:
+    """The scene the table's runs come from (its ``scene_problem`` column)."""
+    names = sorted(table["scene_problem"].dropna().unique()) if "scene_problem" in table else []
+    return ", ".join(names) or "unknown scene"
+
+
 def times_figure(table: pd.DataFrame, path: str) -> None:
-    """Wall time against problem size per solver and preset; markers show the verified status."""
-    fig, ax = plt.subplots(figsize=(7.5, 4.8))
+    """Wall time against problem size per solver and preset: colour and marker the solver
+    (:func:`report.figures.solver_style`), line style the preset, filled markers the
+    verified-converged runs; the slope-1 guide only where there are two sizes or more."""
     runs = table[table.preset != "reference"]
-    colors = solver_colors(runs.solver.unique())
+    scene = _scene(table)
+    sizes = np.array(sorted(runs["n"].unique()), dtype=float)
+    if runs.empty:
+        nothing_to_draw(path, f"{scene}: time per solver", "no solver ran on this scene")
+        return
+    fig, ax = plt.subplots(figsize=(8.5, 4.8))
     for (solver, preset), grp in runs.groupby(["solver", "preset"]):
         grp = grp.sort_values("n")
-        style = dict(color="k", lw=2, alpha=0.5) if solver == FLOOR else dict(color=colors[solver],
-                                                                             lw=1)
-        ax.loglog(grp["n"], grp["total_time"], LINES.get(preset, "-"), **style,
-                  label=f"{solver} ({preset})")
-        for _, r in grp.iterrows():
-            ax.loglog(r["n"], r["total_time"], MARKERS.get(r["status"], "?"), color=colors[solver],
-                      mfc="none" if r["status"] != "converged" else colors[solver], ms=6)
-    n = np.array(sorted(runs["n"].unique()), dtype=float)
-    t0 = runs[runs.n == n[0]]["total_time"].median()
-    ax.loglog(n, t0 * n / n[0], ":", color="0.6", lw=1, label="slope 1 (O(N))")
+        style = solver_style(solver)
+        lw = 2 if solver == FLOOR else 1
+        ax.loglog(grp["n"], grp["total_time"], PRESET_LINES.get(preset, "-"), color=style["color"],
+                  lw=lw, alpha=0.8)
+        ok = grp["status"] == "converged"
+        ax.loglog(grp["n"][ok], grp["total_time"][ok], style["marker"], color=style["color"],
+                  ms=6, ls="none")
+        ax.loglog(grp["n"][~ok], grp["total_time"][~ok], style["marker"], color=style["color"],
+                  mfc="none", ms=6, ls="none")
+    if len(sizes) > 1:
+        t0 = runs[runs.n == sizes[0]]["total_time"].median()
+        ax.loglog(sizes, t0 * sizes / sizes[0], ":", color="0.6", lw=1)
     ax.set_xlabel("unknowns N (free DOFs)")
     ax.set_ylabel("wall time, setup + solve [s]")
-    ax.set_title("Circle-square: time per solver and preset "
-                 "(filled o = verified converged; x inaccurate, s max_iter, > time limit, X failed)",
-                 fontsize=8)
+    one = " (one size at this scale: points, no lines)" if len(sizes) == 1 else ""
+    ax.set_title(f"{scene}: time per solver and preset{one}", fontsize=9)
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=6, ncol=2)
+    lines = [(f"preset {p}", dict(ls=PRESET_LINES[p])) for p in PRESET_LINES
+             if p in set(runs.preset)]
+    if len(sizes) > 1:
+        lines.append(("slope 1 (O(N))", dict(ls=":", color="0.6")))
+    solver_legend(ax, sorted(runs.solver.unique()), lines)
     save_figure(fig, path)
 
 
 def work_precision_figure(table: pd.DataFrame, path: str) -> None:
     """Energy-norm error against time, one curve per solver and level (points = presets)."""
-    fig, ax = plt.subplots(figsize=(7.5, 4.8))
     runs = table[(table.preset != "reference") & (table.solver != FLOOR)
                  & np.isfinite(table.energy_error)]
-    colors = solver_colors(runs.solver.unique())
+    scene = _scene(table)
+    if runs.empty:
+        nothing_to_draw(path, f"{scene}: work-precision",
+                        "no run has an energy error against the exact reference")
+        return
+    fig, ax = plt.subplots(figsize=(8.5, 4.8))
     levels = sorted(runs.level.unique())
     styles = dict(zip(levels, ["-", "--", ":", "-.", (0, (1, 3))]))
     for (solver, level), grp in runs.groupby(["solver", "level"]):
         order = grp["preset"].map({k: i for i, k in enumerate(TOLERANCES)}).argsort()
         grp = grp.iloc[order]
         err = np.maximum(grp["energy_error"], 1e-16)
-        ax.loglog(grp["total_time"], err, linestyle=styles[level], color=colors[solver], lw=1,
-                  marker="o", ms=3, label=f"{solver}, level {level}")
+        style = solver_style(solver)
+        ax.loglog(grp["total_time"], err, linestyle=styles[level], color=style["color"], lw=1,
+                  marker=style["marker"], ms=4)
     ax.set_xlabel("wall time, setup + solve [s]")
     ax.set_ylabel(r"energy-norm error $\|u-u_{ref}\|_A/\|u_{ref}\|_A$ (floored at 1e-16)")
-    ax.set_title("Work-precision: presets low/mid/high along each curve; reference = exact PDAS",
-                 fontsize=8)
+    ax.set_title(f"{scene}: work-precision, presets low/mid/high along each curve; "
+                 "reference = exact PDAS", fontsize=9)
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=6, ncol=2)
+    solver_legend(ax, sorted(runs.solver.unique()),
+                  [(f"level {lv}", dict(ls=styles[lv])) for lv in levels], status=False)
     save_figure(fig, path)
 
 

@@ -28,6 +28,8 @@ import numpy as np
 import pandas as pd
 
 from report import adaptive, contact, hard_cases, laplace
+from report.claims import NOT_REACHED
+from solvers.interface import TOLERANCES
 from workflows.io import META, provenance, read_csv, read_json, write_csv, write_text
 from workflows.studies import HEAVY_RULES, PATHS, STUDIES, THESIS_ITEMS
 
@@ -46,24 +48,96 @@ CLAIMS: dict[str, Callable[[pd.DataFrame], pd.DataFrame]] = {
     "eo_claims": lambda t: t,
 }
 
-#: Tables shown inline (ours beside the thesis's where it has values).
-INLINE = ("ap_table", "adaptive_table", "hertz", "laplace_rates", "exact_table",
-          "solver_summary", "roll_table")
+#: Tables shown inline (ours beside the thesis's where it has values), each with the
+#: columns a reader compares (None: all); every column with a thesis value is shown
+#: too, and the rest are named under the table (the full file is in the report).
+INLINE = {
+    "ap_table": ("level", "N", "NC", "kappa_S", "energy_error", "stop_8_25", "status"),
+    "adaptive_table": ("source", "step", "N", "NC", "n_outer_1e-03", "n_inner_mean_1e-03",
+                       "t_solve_1e-03", "t_proj_1e-03", "kappa_S", "kkt_max"),
+    "hertz": ("level", "nodes", "status", "force", "a_hertz", "a_moment", "dev_a_moment",
+              "p0_hertz", "p0_moment", "dev_p0_moment", "a_over_h"),
+    "laplace_rates": None,
+    "exact_table": ("level", "N", "backend", "status_schur", "total_time_schur", "status_kkt",
+                    "total_time_kkt", "speedup", "p_difference"),
+    "roll_table": ("force_MN", "crown_um", "level", "N", "status", "q0_MN_per_m",
+                   "q0_beam_MN_per_m", "b0_mm", "b0_hertz_mm", "p0_nodal_GPa",
+                   "p0_hertz_GPa", "cells_across_2b", "sag_work_axis_um",
+                   "sag_work_axis_beam_um", "strip_crown_um", "strip_crown_beam_um"),
+}
 
 STYLE = """
-body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;margin:1.2em 2em;
-     color:#222;max-width:1400px}
+body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;margin:1.2em 1.5em;
+     color:#222;max-width:1300px}
 h1{font-size:1.5em;margin-bottom:.2em} h2{font-size:1.2em;border-bottom:1px solid #ccc;
    margin-top:1.6em} h3{font-size:1em;margin-bottom:.3em}
 table{border-collapse:collapse;font-size:.8em;margin:.4em 0 1em}
-th,td{border:1px solid #ddd;padding:2px 6px;text-align:right;vertical-align:top}
-th{background:#f3f3f3} td.l,th.l{text-align:left}
+th,td{border:1px solid #ddd;padding:2px 6px;text-align:right;vertical-align:top;
+      white-space:nowrap}
+th{background:#f3f3f3;cursor:pointer;white-space:normal;min-width:3em}
+td.l,th.l{text-align:left}
+td.l{white-space:normal;overflow-wrap:break-word;min-width:5em;max-width:34em}
 .pass{background:#e3f5e1;color:#1a6b1a;font-weight:600}
 .miss{background:#fde2e1;color:#a11;font-weight:600}
 .na{background:#f4f4f4;color:#666} .small{font-size:.8em;color:#555}
-.wide{overflow-x:auto}
-.counts span{margin-right:1.2em;font-weight:600}
+.wide{overflow-x:auto;max-width:100%}
+.counts a{margin-right:1.2em;font-weight:600;text-decoration:none;padding:1px 4px}
+.lead{font-size:1em;line-height:1.45} .lead li{margin:.2em 0}
+input.filter{font-size:.8em;margin:.2em 0;width:18em}
+img.thumb{max-width:160px;max-height:110px;border:1px solid #ccc}
 """
+
+#: Sortable and filterable tables, self-contained (no network): a click on a header sorts
+#: by that column (numbers as numbers), the box above a table keeps the rows containing
+#: its text.
+SCRIPT = """
+function cbSort(th){const t=th.closest('table'),i=[...th.parentNode.children].indexOf(th);
+ const rows=[...t.querySelectorAll('tr')].slice(1),dir=th.dataset.dir==='a'?-1:1;
+ th.dataset.dir=dir===1?'a':'d';
+ const key=r=>{const c=r.children[i];const v=c?c.dataset.v??c.innerText:'';
+  const x=parseFloat(v);return isNaN(x)?v:x};
+ rows.sort((a,b)=>{const x=key(a),y=key(b);
+  if(typeof x===typeof y)return (x>y?1:x<y?-1:0)*dir;return (typeof x==='number'?-1:1)*dir});
+ rows.forEach(r=>t.appendChild(r))}
+function cbFilter(box){const t=document.getElementById(box.dataset.table),q=box.value.toLowerCase();
+ [...t.querySelectorAll('tr')].slice(1).forEach(r=>{
+  r.style.display=r.innerText.toLowerCase().includes(q)?'':'none'})}
+document.addEventListener('click',e=>{if(e.target.tagName==='TH'&&e.target.closest('table.sortable'))cbSort(e.target)});
+document.addEventListener('input',e=>{if(e.target.classList.contains('filter'))cbFilter(e.target)});
+"""
+
+#: Why a cell is empty, by the kind of column (shown as the cell's tooltip and under
+#: each table).
+EMPTY_THESIS = "the thesis prints no value for this row"
+EMPTY_OURS = ("not measured in this run: a level or quantity this scale does not reach, or "
+              "a run without a solution (its status and message say why)")
+#: Columns whose empty cells have a reason of their own.
+EMPTY_BY_COLUMN = {
+    "rate_h1": "no rate: the errors are at round-off (the method reproduces this solution "
+               "exactly)",
+    "rate_l2": "no rate: the errors are at round-off (the method reproduces this solution "
+               "exactly)",
+}
+
+
+def empty_reason(column: str, row) -> str:
+    """Why the cell of ``column`` in ``row`` is empty."""
+    if str(column).startswith("thesis_") or str(row.get("source", "")) == "thesis":
+        return EMPTY_THESIS
+    return EMPTY_BY_COLUMN.get(str(column), EMPTY_OURS)
+
+#: What a table's columns mean where a name alone would mislead.
+NOTES = {
+    "ap_table": "status: the suite's verification of the run at the study's tolerance (all "
+                "four scaled KKT residuals and the certified energy bound); the thesis stops "
+                "Alg. 8.4 by (8.25) instead, and stop_8_25 says whether our run met that "
+                "criterion. thesis_* columns: the thesis's values at the same level, beside "
+                "ours.",
+    "solver_summary": "success_rate: share of runs verified converged; correct_rate: share "
+                      "whose claim is true against the exact reference; sgm_time: shifted "
+                      "geometric mean (shift 10 s) of the time, an unverified run counting as "
+                      "the time limit; sgm_time_relative: over the preset's best.",
+}
 
 
 def parse_items(items: list[str]) -> list[tuple[str, str | None, str]]:
@@ -98,7 +172,7 @@ def collect_claims(items) -> pd.DataFrame:
             frames.append(c.assign(study=study_of(key), scene=scene or "-", source=path))
     if not frames:
         return pd.DataFrame(columns=["study", "scene", "claim", "thesis", "measured", "bar",
-                                     "result", "source"])
+                                     "result", "reason", "source"])
     c = pd.concat(frames, ignore_index=True)
     c["result"] = [("n/a" if p is None or (isinstance(p, float) and np.isnan(p)) else
                     "pass" if str(p).lower() in ("true", "1", "1.0") else "miss")
@@ -106,7 +180,13 @@ def collect_claims(items) -> pd.DataFrame:
     if "thesis" not in c:
         c["thesis"] = "-"
     c["thesis"] = c["thesis"].fillna("-")
-    return c[["study", "scene", "claim", "thesis", "measured", "bar", "result", "source"]]
+    if "reason" not in c:
+        c["reason"] = ""
+    c["reason"] = c["reason"].fillna("").astype(str)
+    unjudged = (c["result"] == "n/a") & (c["reason"].str.strip() == "")
+    c.loc[unjudged, "reason"] = NOT_REACHED
+    return c[["study", "scene", "claim", "thesis", "measured", "bar", "result", "reason",
+              "source"]]
 
 
 def solver_set_text(fixed: dict | None) -> str:
@@ -168,6 +248,8 @@ def resources(bench_dir: str | None) -> pd.DataFrame:
 
 
 def _fmt(x) -> str:
+    """A cell's text: numbers to 4 significant digits without a hyphen to wrap at
+    (``1e-09`` is written ``1e−09``), text escaped; empty for a missing value."""
     if isinstance(x, (bool, np.bool_)):
         return str(bool(x))
     if isinstance(x, (int, np.integer)):
@@ -175,31 +257,77 @@ def _fmt(x) -> str:
     if isinstance(x, (float, np.floating)):
         if np.isnan(x):
             return ""
-        return f"{x:.4g}"
+        return f"{x:.4g}".replace("-", "\u2212")
+    text = str(x).strip()
+    if text.lower() in ("", "nan", "none"):
+        return ""
     try:                      # numbers read back as text (mixed columns)
-        return f"{float(x):.4g}" if str(x).strip().lower() not in ("nan", "inf", "-inf") \
-            and not str(x).strip().isdigit() else html.escape(str(x))
+        if text.lower() not in ("inf", "-inf") and not text.isdigit():
+            return f"{float(text):.4g}".replace("-", "\u2212")
     except ValueError:
-        return html.escape(str(x))
+        pass
+    return html.escape(text)
+
+
+#: Our column -> the thesis's, where the names differ.
+THESIS_MATE = {"N": "thesis_nodes"}
+
+
+def beside_thesis(frame: pd.DataFrame, keep=None) -> pd.DataFrame:
+    """The columns ``keep`` (all if None) and every column the thesis has a value for,
+    reordered so that each ``thesis_X`` stands right after our ``X``."""
+    out = []
+    for c in frame.columns:
+        if str(c).startswith("thesis_"):
+            continue
+        mate = THESIS_MATE.get(c, f"thesis_{c}")
+        if keep is None or c in keep or mate in frame.columns:
+            out.append(c)
+            if mate in frame.columns:
+                out.append(mate)
+    out += [c for c in frame.columns if str(c).startswith("thesis_") and c not in out]
+    return frame[out]
+
+
+#: How many tables of each name the page being written has (their ids: ``name-k``).
+_TABLE_IDS = Counter()
 
 
 def table_html(frame: pd.DataFrame, left: tuple[str, ...] = (), classes: dict | None = None,
-               max_rows: int = 60) -> str:
-    """A compact HTML table (numbers to 4 digits; ``classes``: column -> value -> class)."""
-    head = "".join(f'<th class="{"l" if c in left else ""}">{html.escape(str(c))}</th>'
-                   for c in frame.columns)
-    body = []
+               max_rows: int = 60, name: str = "t", filter_box: bool = True) -> str:
+    """A compact sortable HTML table (numbers to 4 digits; ``classes``: column -> value ->
+    class). An empty cell reads "--" with its reason as tooltip (:data:`EMPTY_THESIS`,
+    :data:`EMPTY_OURS`); the reasons are listed under the table."""
+    _TABLE_IDS[name] += 1
+    tid = f"{name}-{_TABLE_IDS[name]}"
+    head = "".join(f'<th class="{"l" if c in left else ""}">'
+                   f'{html.escape(str(c)).replace("_", "_<wbr>")}</th>' for c in frame.columns)
+    body, empty = [], set()
     for _, row in frame.head(max_rows).iterrows():
         cells = []
         for c in frame.columns:
             cls = ["l"] if c in left else []
             if classes and c in classes:
                 cls.append(classes[c].get(str(row[c]), ""))
-            cells.append(f'<td class="{" ".join(cls)}">{_fmt(row[c])}</td>')
+            text = _fmt(row[c])
+            if text == "":
+                why = empty_reason(c, row)
+                empty.add(why)
+                cells.append(f'<td class="na" title="{html.escape(why)}">--</td>')
+                continue
+            value = row[c]
+            data = (f' data-v="{float(value)!r}"' if isinstance(value, (int, float, np.integer,
+                                                                        np.floating))
+                    and not isinstance(value, (bool, np.bool_)) else "")
+            cells.append(f'<td class="{" ".join(cls)}"{data}>{text}</td>')
         body.append("<tr>" + "".join(cells) + "</tr>")
     more = (f'<p class="small">{len(frame) - max_rows} more rows in the file.</p>'
             if len(frame) > max_rows else "")
-    return (f"<div class='wide'><table><tr>{head}</tr>{''.join(body)}</table></div>{more}")
+    notes = "".join(f'<p class="small">--: {html.escape(w)}.</p>' for w in sorted(empty))
+    box = (f'<input class="filter" data-table="{tid}" placeholder="filter rows">'
+           if filter_box and len(frame) > 8 else "")
+    return (f"{box}<div class='wide'><table class='sortable' id='{tid}'><tr>{head}</tr>"
+            f"{''.join(body)}</table></div>{notes}{more}")
 
 
 def thesis_rows(items, config_files: str) -> pd.DataFrame:
@@ -219,16 +347,207 @@ def thesis_rows(items, config_files: str) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
+def failing_scenes(by_scene: pd.DataFrame | None) -> dict[tuple[str, str], list[str]]:
+    """(preset, solver) -> the scenes (the test set's problems' scenes) where some run was
+    not verified converged."""
+    if by_scene is None or not len(by_scene):
+        return {}
+    bad = by_scene[by_scene["converged"] < by_scene["runs"]]
+    return {key: sorted(g["scene"]) for key, g in bad.groupby(["preset", "solver"])}
+
+
+def leaderboard(summary: pd.DataFrame, by_scene: pd.DataFrame | None = None) -> pd.DataFrame:
+    """Per preset, the solvers ranked by their shifted geometric mean time: success and
+    correct rates in per cent, the time, and the failures counted by kind with the scenes
+    they happened on (``by_scene``: the summary per scene)."""
+    where = failing_scenes(by_scene)
+    kinds = [k for k in ("inaccurate", "max_iter", "time_limit", "failed", "skipped")
+             if k in summary]
+    rows = []
+    order = {p: i for i, p in enumerate(TOLERANCES)}
+    for _, r in summary.sort_values(["preset", "sgm_time"],
+                                    key=lambda c: c.map(order) if c.name == "preset" else c
+                                    ).iterrows():
+        fails = ", ".join(f"{int(r[k])} {k}" for k in kinds if r[k] > 0)
+        if fails and (r["preset"], r["solver"]) in where:
+            fails += f" (on {', '.join(where[r['preset'], r['solver']])})"
+        rows.append({"preset": r["preset"], "solver": r["solver"], "runs": int(r["runs"]),
+                     "success %": round(100 * r["success_rate"], 1),
+                     "correct %": round(100 * r["correct_rate"], 1),
+                     "sgm time [s]": r["sgm_time"], "x best": r["sgm_time_relative"],
+                     "not converged": fails or "0"})
+    return pd.DataFrame(rows)
+
+
+def leaderboard_words(summary: pd.DataFrame) -> list[str]:
+    """Per preset, in words: the fastest solver whose every claim was correct, the most
+    reliable one, and the solvers that claimed a wrong answer."""
+    out = []
+    for preset in [p for p in TOLERANCES if p in set(summary["preset"])]:
+        g = summary[summary.preset == preset]
+        honest = g[(g.correct_rate >= 1.0) & (g.success_rate > 0)]
+        text = f"<b>preset {html.escape(preset)}</b> (tol {TOLERANCES[preset]:g}, " \
+               f"{int(g['problems'].max())} problems): "
+        if len(honest):
+            fast = honest.sort_values("sgm_time").iloc[0]
+            text += (f"fastest verified solver <b>{html.escape(fast.solver)}</b> (shifted "
+                     f"geometric mean {fast.sgm_time:.3g} s, {100 * fast.success_rate:.0f} % "
+                     f"verified converged, every claim correct); ")
+        else:
+            text += "no solver verified converged with every claim correct; "
+        best = g.sort_values(["success_rate", "sgm_time"], ascending=[False, True]).iloc[0]
+        text += (f"most reliable <b>{html.escape(best.solver)}</b> "
+                 f"({100 * best.success_rate:.0f} % verified converged)")
+        wrong = g[g.correct_rate < 1.0]
+        if len(wrong):
+            text += ("; claimed a wrong answer: " + ", ".join(
+                f"{html.escape(r.solver)} ({100 * (1 - r.correct_rate):.0f} % of runs)"
+                for r in wrong.itertuples()))
+        out.append(text + ".")
+    return out
+
+
+def thumbnail(path: str, width: int = 160) -> str:
+    """A small inline PNG of the figure at ``path`` (a data URI; empty if unreadable)."""
+    try:
+        import base64
+        import io
+
+        from PIL import Image
+        with Image.open(path) as im:
+            im = im.convert("RGB")
+            im.thumbnail((width * 3 // 2, width))
+            buf = io.BytesIO()
+            im.save(buf, format="PNG", optimize=True)
+        return "data:image/png;base64," + base64.b64encode(buf.getvalue()).decode()
+    except (OSError, ValueError, ImportError):
+        return ""
+
+
+def inline_anchor(key: str | None, scene: str | None) -> str:
+    """The id of an inline table's heading."""
+    return f"table-{key}-{scene or 'all'}"
+
+
+def thesis_html(th: pd.DataFrame) -> str:
+    """The thesis's tables and figures: status, our file and, for a figure, its
+    thumbnail."""
+    cls = {"regenerated": "pass", "not regenerated": "miss", "not in this configuration": "na"}
+    rows = []
+    for r, item in zip(th.itertuples(), THESIS_ITEMS):
+        anchor = inline_anchor(item.key, item.problem)
+        if r.status == "regenerated" and item.key in INLINE:
+            output = f"<a href='#{anchor}'>{html.escape(str(r.output))}</a> (below)"
+        else:
+            output = html.escape(str(r.output))
+        pngs = [f for f in str(r.output).split(", ") if f.endswith(".png") and Path(f).exists()]
+        thumb = thumbnail(pngs[0]) if pngs and r.status == "regenerated" else ""
+        img = (f"<img class='thumb' alt='{html.escape(pngs[0])}' src='{thumb}'>" if thumb
+               else "")
+        rows.append(f"<tr><td class='l'><b>{html.escape(r.thesis)}</b></td>"
+                    f"<td class='l'>{html.escape(r.what)}</td>"
+                    f"<td class='l {cls.get(r.status, '')}'>{html.escape(r.status)}</td>"
+                    f"<td class='l'>{output}</td><td>{img}</td></tr>")
+    return ("<input class='filter' data-table='thesis-items' placeholder='filter, e.g. Fig. 9.5'>"
+            "<div class='wide'><table class='sortable' id='thesis-items'><tr><th class='l'>"
+            "thesis</th><th class='l'>what</th><th class='l'>status</th><th class='l'>our "
+            "output</th><th>figure</th></tr>" + "".join(rows) + "</table></div>")
+
+
+def headline(items, claims: pd.DataFrame, th: pd.DataFrame, scale: str) -> list[str]:
+    """The front page: scale and coverage, the claims' counts linking to the misses and
+    the unjudged, the solver leaderboard in words and as a table."""
+    counts = Counter(claims["result"])
+    scenes = sorted({s for _, s, _ in items if s})
+    status = Counter(th["status"])
+    parts = ["<h2 id='headline'>Headline</h2><ul class='lead'>",
+             f"<li><b>Scale {html.escape(scale or '?')}</b>: {len(items)} outputs over "
+             f"{len(scenes)} scenes and families ({html.escape(', '.join(scenes))}); of the "
+             f"thesis's {len(th)} tables and figures, {status.get('regenerated', 0)} "
+             f"regenerated here, {status.get('not in this configuration', 0)} left to a larger "
+             f"scale (<code>quick</code>, <code>full</code>), "
+             f"{status.get('not regenerated', 0)} not regenerated by the suite "
+             "(<a href='#thesis'>list</a>).</li>",
+             f"<li><b>Claims checked</b>: <span class='counts'>"
+             f"<a class='pass' href='#claims-pass'>{counts.get('pass', 0)} pass</a>"
+             f"<a class='miss' href='#claims-miss'>{counts.get('miss', 0)} miss</a>"
+             f"<a class='na' href='#claims-unjudged'>{counts.get('n/a', 0)} not judged at "
+             "this scale (each with its reason)</a></span></li>"]
+    solver = [p for k, _, p in items if k == "solver_summary"]
+    by_scene = [p for k, _, p in items if k == "solver_summary_by_scene"]
+    if solver:
+        summary = read_csv(solver[0])
+        parts += [f"<li>{w}</li>" for w in leaderboard_words(summary)]
+        parts.append("</ul><h3 id='leaderboard'>Solver leaderboard over the contact QP test "
+                     "set</h3><p class='small'>" + html.escape(NOTES["solver_summary"]) +
+                     "</p>")
+        parts.append(table_html(leaderboard(summary, read_csv(by_scene[0]) if by_scene
+                                            else None), left=("preset", "solver",
+                                                             "not converged"),
+                                name="leaderboard", max_rows=200))
+    else:
+        parts.append("<li>No solver leaderboard: the test set is not in this "
+                     "configuration.</li></ul>")
+    return parts
+
+
+def claims_html(claims: pd.DataFrame) -> list[str]:
+    """The claims in three tables: misses, not judged (with the reason), passes."""
+    parts = []
+    for result, anchor, title in (("miss", "claims-miss", "Missed"),
+                                  ("n/a", "claims-unjudged", "Not judged at this scale"),
+                                  ("pass", "claims-pass", "Passed")):
+        c = claims[claims["result"] == result].drop(columns=["source"])
+        if result != "n/a":
+            c = c.drop(columns=["reason"])
+        parts.append(f"<h3 id='{anchor}'>{title} ({len(c)})</h3>")
+        if len(c):
+            parts.append(table_html(c, left=("study", "scene", "claim", "thesis", "bar",
+                                             "measured", "reason"),
+                                    classes={"result": {"pass": "pass", "miss": "miss",
+                                                        "n/a": "na"}},
+                                    name=anchor, max_rows=500))
+    return parts
+
+
 def page(items, claims: pd.DataFrame, prov: dict, varying: dict, res: pd.DataFrame,
          scale: str) -> str:
-    """The summary page as one self-contained HTML document."""
-    counts = Counter(claims["result"])
+    """The summary page as one self-contained HTML document: the headline first, then
+    the claims, the thesis's items, the tables beside the thesis's, the provenance and
+    the resources."""
+    _TABLE_IDS.clear()                  # table ids count from 1 on every page
+    th = thesis_rows(items, prov.get("configfile") or scale)
     parts = [f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>contactbench summary "
              f"({html.escape(scale)})</title><style>{STYLE}</style></head><body>",
              "<h1>contactbench: summary of the regeneration</h1>",
              "<p>Hackl (Linz 1999), <i>frictionless two-body contact</i>: each thesis table and "
              "figure regenerated, each checked claim measured against its bar. Figures and "
-             "full tables are in the report's other sections.</p>"]
+             "full tables are in the report's other sections; click a column's header to "
+             "sort, type in a box to filter.</p>"]
+    parts += headline(items, claims, th, scale)
+    parts.append("<h2 id='claims'>Checked claims</h2>")
+    parts += claims_html(claims)
+    parts.append("<h2 id='thesis'>The thesis's tables and figures</h2>")
+    parts.append(thesis_html(th))
+    parts.append("<h2>Tables: ours beside the thesis's</h2>")
+    for key, keep in INLINE.items():
+        for k, scene, path in items:
+            if k != key:
+                continue
+            full = read_csv(path)
+            frame = beside_thesis(full, keep)
+            parts.append(f"<h3 id='{inline_anchor(key, scene)}'>{html.escape(key)} -- "
+                         f"{html.escape(scene or 'all scenes')} "
+                         f"<span class='small'>({html.escape(path)})</span></h3>")
+            if key in NOTES:
+                parts.append(f"<p class='small'>{html.escape(NOTES[key])}</p>")
+            parts.append(table_html(frame, left=tuple(c for c in frame.columns
+                                                      if frame[c].dtype == object),
+                                    name=key))
+            rest = [c for c in full.columns if c not in frame.columns]
+            if rest:
+                parts.append(f"<p class='small'>Also in the file: "
+                             f"{html.escape(', '.join(map(str, rest)))}.</p>")
     # provenance
     pk = prov.get("packages", {}) or {}
     prov_rows = [("commit", prov.get("commit")), ("configuration", f"{scale}: "
@@ -249,43 +568,17 @@ def page(items, claims: pd.DataFrame, prov: dict, varying: dict, res: pd.DataFra
     for field, count in varying.items():
         parts.append(f"<p class='miss'>Results disagree on {field}: "
                      + html.escape(", ".join(f"{v} ({n})" for v, n in count.items())) + "</p>")
-    # claims
-    parts.append("<h2>Checked claims</h2><p class='counts'>"
-                 f"<span class='pass'>{counts.get('pass', 0)} pass</span>"
-                 f"<span class='miss'>{counts.get('miss', 0)} miss</span>"
-                 f"<span class='na'>{counts.get('n/a', 0)} not judged at this scale</span></p>")
-    parts.append(table_html(claims.drop(columns=["source"]),
-                            left=("study", "scene", "claim", "thesis", "bar", "measured"),
-                            classes={"result": {"pass": "pass", "miss": "miss", "n/a": "na"}},
-                            max_rows=500))
-    # thesis items
-    th = thesis_rows(items, prov.get("configfile") or scale)
-    parts.append("<h2>The thesis's tables and figures</h2>")
-    parts.append(table_html(th, left=tuple(th.columns), classes={"status": {
-        "regenerated": "pass", "not regenerated": "miss", "not in this configuration": "na"}},
-        max_rows=100))
-    # inline tables
-    parts.append("<h2>Tables: ours beside the thesis's</h2>")
-    for key in INLINE:
-        for k, scene, path in items:
-            if k != key:
-                continue
-            frame = read_csv(path)
-            parts.append(f"<h3>{html.escape(key)} -- {html.escape(scene or 'all scenes')} "
-                         f"<span class='small'>({html.escape(path)})</span></h3>")
-            parts.append(table_html(frame, left=tuple(c for c in frame.columns
-                                                      if frame[c].dtype == object)))
     # resources
     parts.append("<h2>Run time and peak memory per rule</h2>")
     if len(res):
         per_study = res.groupby("study").agg(jobs=("jobs", "sum"),
                                              wall_s_total=("wall_s_total", "sum"),
                                              max_rss_mb=("max_rss_mb", "max")).reset_index()
-        parts.append(table_html(per_study, left=("study",)))
-        parts.append(table_html(res, left=("study", "rule")))
+        parts.append(table_html(per_study, left=("study",), name="resources"))
+        parts.append(table_html(res, left=("study", "rule"), name="rules"))
     else:
         parts.append("<p class='na'>No benchmark files found.</p>")
-    parts.append("</body></html>")
+    parts.append(f"<script>{SCRIPT}</script></body></html>")
     return "\n".join(parts)
 
 

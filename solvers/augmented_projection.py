@@ -45,7 +45,7 @@ steps of ``tau = 1/alpha_bar``); the additive update keeps the thesis's
 ``tau = 1/alpha_bar``.
 
 Beyond the thesis, three things keep the method's outer step count bounded where the
-thesis's ingredients lose their spectral equivalence (issue 24):
+thesis's ingredients lose their spectral equivalence:
 
 * Towards incompressibility a V-cycle's ``kappa(V A)`` grows like ``(1 - 2 nu)^-0.75``
   (70 at nu = 0.499, 450 at 0.4999, independent of h): ``A-hat^{-1}`` is then a Chebyshev
@@ -82,7 +82,7 @@ from problems.qp import ContactQP
 from problems.spec import Component, ComponentParameter, Options, Parameter, ParameterError
 from solvers.multigrid import AHAT_SCALED, scaled_vcycle, vcycle_kind
 from solvers.schur import SchurPreconditioner, build_schur, kappa_schur_exact
-from solvers.base import Role, SolveResult, SolverSpec
+from solvers.base import Role, SolveResult, SolverSpec, preset_texts
 from solvers.certificate import certify
 
 
@@ -839,9 +839,7 @@ SOLVER = SolverSpec(
                   "studies turn them off)"),
         Parameter("seed", 0, "Lanczos start vectors", low=0, kind=int),
     ),
-    presets={"low": "stop when the verified KKT max <= 1e-3",
-             "mid": "stop when the verified KKT max <= 1e-6",
-             "high": "stop when the verified KKT max <= 1e-9"},
+    presets=preset_texts("stop when the verified KKT max <="),
     default_max_iter=2000,
     role=Role.THESIS,
     handles_C=True,

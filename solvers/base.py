@@ -22,9 +22,15 @@ from problems.spec import Options, Parameter, ParameterError, resolve_parameters
 #: Tolerance presets; each solver maps them to its own options (``SolverSpec.presets``).
 TOLERANCES = {"low": 1e-3, "mid": 1e-6, "high": 1e-9}
 
+
+def preset_texts(stop: str) -> dict[str, str]:
+    """``{preset: "<stop> <tolerance>"}`` for every preset of :data:`TOLERANCES`: the
+    report's text of a solver whose stopping rule is the preset's tolerance itself."""
+    return {name: f"{stop} {tol:.0e}".replace("e-0", "e-") for name, tol in TOLERANCES.items()}
+
+
 #: The presets of a solver that stops on the suite's verification (semismooth Newton, TNNMG).
-VERIFIED_PRESETS = {name: "stop when verified: KKT and certified energy bound <= "
-                          + f"{tol:.0e}".replace("e-0", "e-") for name, tol in TOLERANCES.items()}
+VERIFIED_PRESETS = preset_texts("stop when verified: KKT and certified energy bound <=")
 
 #: Status values of a :class:`SolveResult`. ``skipped``: the solver declared at once that it
 #: cannot take the problem (:meth:`SolverSpec.check`); the message says why.

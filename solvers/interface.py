@@ -33,7 +33,7 @@ __all__ = ["CONTRACT", "ENTRY_POINT_GROUP", "STATUSES", "TOLERANCES", "Role", "S
 
 #: The entry-point group through which another installed package registers a solver: its
 #: value names a :class:`SolverSpec` (``"package.module:SOLVER"``) or a module defining
-#: ``SOLVER`` (README, "Bring your own solver").
+#: ``SOLVER`` (docs/guide/add-a-solver.md).
 ENTRY_POINT_GROUP = "contactbench.solvers"
 
 

@@ -77,8 +77,8 @@ def projected_pcg(A, face: FaceProjector, f, gI, M, x0, rtol: float, max_steps: 
     update*, their Sect. 6), so that ``r'z = r' M r`` is evaluated as a norm: the
     unprojected residual carries the constraint force ``B_I' p`` and ``r'z``
     computed from it is a difference of large numbers that rounding can make
-    tiny, negative or wrong (the cause of issue 20: CG then walked off the face
-    and ran into ``max_steps`` on 90 unknowns). It stops when
+    tiny, negative or wrong (CG then walks off the face and runs into ``max_steps``,
+    seen on 90 unknowns under one OpenBLAS kernel). It stops when
     ``||r||_M <= max(rtol ||r_0||_M, ROUNDOFF_FLOOR ||x||_A)``: relative to the
     lifted start, but never below the round-off level of the problem, which a
     warm start that is already optimal on the face sits at. The iterate is

@@ -2,7 +2,7 @@
 
 ``make test`` runs the solver tests once more under each of them
 (``OPENBLAS_CORETYPE``), so that a result that depends on how one BLAS kernel rounds
-shows up on any machine (issue 20). A kernel is listed only if the CPU has the
+shows up on any machine. A kernel is listed only if the CPU has the
 instructions it needs (SkylakeX: AVX-512; Haswell: AVX2 and FMA; Sandybridge: AVX):
 forcing one the CPU lacks would crash with an illegal instruction. The machine's own
 kernel is read from OpenBLAS itself (threadpoolctl), so a CPU that OpenBLAS maps to

@@ -267,7 +267,7 @@ def test_chebyshev_polynomial_maps_the_spectrum_as_theory_says():
 
 @pytest.mark.parametrize("scene", ["circle_square", "cube_sphere"])
 def test_outer_steps_stay_bounded_towards_incompressibility(scene):
-    """Issue 24: the V-cycle's kappa(VA) grows like (1 - 2 nu)^-0.75 (h-independent); the
+    """The V-cycle's kappa(VA) grows like (1 - 2 nu)^-0.75 (h-independent); the
     automatic Chebyshev degree keeps gamma_bar near its target, and S-hat = S_in where
     the multilevel one loses its equivalence, so n_o at nu = 0.4999 is at most twice
     n_o at nu = 0.3 (level 1)."""

@@ -86,7 +86,7 @@ def test_bad_backend_names_the_choices(scene_qp, monkeypatch):
 @pytest.mark.parametrize("problem,level", [(circle_square, 1), (circle_square, 2),
                                            (cube_sphere, 0)])
 def test_dual_route_agrees_with_kkt_lu_to_1e10(problem, level, backend):
-    # issue 13: the fast reference agrees with the KKT-LU PDAS to 1e-10 in the multipliers
+    # the suite's bar: the fast reference agrees with the KKT-LU PDAS to 1e-10 in the multipliers
     qp = problem.PROBLEM.make(level)
     fast = solve(qp, "pdas", tol=1e-10, method="schur", factorization=backend)
     slow = solve(qp, "pdas", tol=1e-10, method="kkt")

@@ -1,4 +1,4 @@
-"""Claims declared as data (report/claims.py, issue 26)."""
+"""Claims declared as data (report/claims.py)."""
 from __future__ import annotations
 
 import importlib
@@ -9,7 +9,7 @@ import pkgutil
 import pytest
 
 import report
-from report.claims import Claim
+from report.claims import NO_BAR, NOT_REACHED, UNJUDGED, Claim
 
 
 @pytest.mark.parametrize("compare, bar, measured, verdict", [
@@ -29,12 +29,29 @@ def test_bars_read_as_before_and_unjudged_rows_have_no_verdict():
     assert Claim("x", "q", ">=", 0.45).bar_text() == ">= 0.45"
     assert Claim("x", "q", "|<=|", 0.05).bar_text() == "|.| <= 0.05"
     assert Claim("x", "q").row(2.0) == {"claim": "q", "thesis": "x", "measured": 2.0, "bar": "-",
-                                        "pass": None}
+                                        "pass": None, "reason": NO_BAR}
     assert Claim("x", "q", "<=", 1.0).row(5.0, judged=False)["pass"] is None
     given = Claim("x", "q", "given", "all")
     assert given.row("3 of 3", passed=True)["pass"] is True and given.bar_text() == "all"
     with pytest.raises(ValueError, match="needs 'passed'"):
         given.row("3 of 3")
+
+
+def test_every_unjudged_row_gives_its_reason_and_a_judged_row_none():
+    assert Claim("x", "q", unjudged="no published bar").row(2.0)["reason"] == "no published bar"
+    coarse = Claim("x", "q at {n}", "<=", 1.0).row(0.5, judged=False, n=3,
+                                                   reason="{n} cells: too coarse")
+    assert coarse["pass"] is None and coarse["reason"] == "3 cells: too coarse"
+    assert Claim("x", "q", "<=", 1.0).row(5.0, judged=False)["reason"] == NOT_REACHED
+    assert Claim("x", "q", "<=", 1.0).row(0.5, reason="unused")["reason"] == ""
+    assert Claim("x", "q", "given", "all").row("1 of 1", passed=False)["reason"] == ""
+
+
+def test_every_declared_claim_without_a_bar_says_why():
+    for module in _report_modules():
+        for key, claim in module.CLAIMS.items():
+            if claim.compare == UNJUDGED:
+                assert len(claim.unjudged) > 10, f"{module.__name__}: {key}"
 
 
 def test_a_claim_names_a_wrong_declaration():

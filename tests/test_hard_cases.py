@@ -62,7 +62,7 @@ def test_hard_case_report_from_the_test_set_runs(tmp_path):
 
 
 def test_incompressibility_table_script_and_report(tmp_path):
-    """Issue 24's table of the hard-case study: Alg. 8.4 with its defaults against the
+    """The incompressibility table of the hard-case study: Alg. 8.4 with its defaults against the
     thesis's V-cycle pair over nu, and its claims (robust n_o bounded, all verified)."""
     from report.incompressibility import claims, main as report_main
     from workflows.scripts.incompressibility import main as script

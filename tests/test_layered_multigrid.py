@@ -1,4 +1,4 @@
-"""Semicoarsening multigrid on the roll stack's extruded meshes (issue 24, deliverable 1).
+"""Semicoarsening multigrid on the roll stack's extruded meshes.
 
 The roll stack's levels are separate meshes (no refinement hierarchy), each roll one
 section extruded along ``x`` with cells up to 25:1 long along the axis. Its V-cycle

@@ -1,4 +1,4 @@
-"""Local multigrid smoothing on adaptive hierarchies (issue 24, deliverable 4).
+"""Local multigrid smoothing on adaptive hierarchies.
 
 The V-cycle of a geometric hierarchy smooths on each level only the unknowns that level
 added and their neighbours (:func:`solvers.multigrid.changed_dofs`). On a uniform

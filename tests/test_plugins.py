@@ -3,15 +3,14 @@ entry-point group ``contactbench.solvers`` without a file of the suite changed.
 
 The example package (``tests/example_solver``: projected Barzilai-Borwein on the dual) is
 installed with pip into a temporary folder that only the subprocesses here see
-(``PYTHONPATH``), then run as a user would: ``contactbench list``, ``contactbench solve``
-and the solver comparison of one scene level (what the study's rule runs). A broken or
+(``PYTHONPATH``; the fixture ``plugin_env`` of ``conftest.py``), then run as a user would:
+``contactbench list``, ``contactbench solve`` and the solver comparison of one scene level (what the study's rule runs). A broken or
 clashing plug-in is left out with a warning, never a traceback.
 """
 from __future__ import annotations
 
 import json
 import os
-import shutil
 import subprocess
 import sys
 import warnings
@@ -24,23 +23,7 @@ from solvers import interface
 from solvers.interface import ENTRY_POINT_GROUP, SolverSpec, solvers
 
 ROOT = Path(__file__).resolve().parent.parent
-EXAMPLE = Path(__file__).resolve().parent / "example_solver"
 BIN = Path(sys.executable).parent
-
-
-@pytest.fixture(scope="module")
-def plugin_env(tmp_path_factory) -> dict:
-    """The environment of a user who has installed the example package."""
-    target = tmp_path_factory.mktemp("site")
-    source = tmp_path_factory.mktemp("src") / "example_solver"    # pip builds in the tree
-    shutil.copytree(EXAMPLE, source, ignore=shutil.ignore_patterns("build", "*.egg-info"))
-    out = subprocess.run([sys.executable, "-m", "pip", "install", "--quiet", "--no-deps",
-                          "--no-build-isolation", "--target", str(target), str(source)],
-                         capture_output=True, text=True, timeout=600, cwd=source)
-    assert out.returncode == 0, out.stdout[-2000:] + out.stderr[-3000:]
-    assert list(target.glob("contactbench_example_solver-*.dist-info"))
-    path = os.pathsep.join(filter(None, [str(target), os.environ.get("PYTHONPATH")]))
-    return {**os.environ, "PYTHONPATH": path}
 
 
 def run(args: list[str], env: dict, cwd: Path) -> subprocess.CompletedProcess:

@@ -1,4 +1,4 @@
-"""The progress line per running study (workflows/progress.py, issue 26)."""
+"""The progress line per running study (workflows/progress.py)."""
 from __future__ import annotations
 
 import io

@@ -147,7 +147,7 @@ def job_events(log: str) -> list[tuple[str, int, str]]:
 
 
 def test_timing_jobs_run_alone(tiny_run):
-    """The profile's named resource (``machine_share``, studies.RUNS_ALONE) at work on two
+    """The profile's named resource (``machine_share``, workflows.studies.RUNS_ALONE) at work on two
     cores: no job starts while a timing job runs, and a timing job starts only when
     nothing else runs."""
     from workflows.studies import RUNS_ALONE
@@ -263,6 +263,86 @@ def test_summary_page_renders_in_the_report(tiny_run):
     results = [m.strip() for m in menu if m.strip()]
     assert results.index("0 summary") < results.index("circle_square")
     assert "Provenance" in body and re.search(r"\d+ pass", body) and "Table 9.1" in body
+
+
+#: What the figure audit refuses in a study's log: matplotlib's warnings (an empty legend,
+#: a layout that could not fit, a font without a glyph).
+PLOT_WARNING = re.compile(r"UserWarning|No artists with labels|MatplotlibDeprecationWarning|"
+                          r"tight_layout not applied|Glyph \d+")
+
+
+def figure_audit(path: Path) -> dict[str, str]:
+    """The figure's audit text (report/figures.py: AUDIT_KEYS), after checking that the
+    PNG decodes in full."""
+    from PIL import Image
+    with Image.open(path) as im:
+        im.verify()
+    with Image.open(path) as im:
+        im.load()
+        return dict(im.text)
+
+
+def test_every_figure_is_drawn_and_titled_with_its_own_scene(tiny_run):
+    """The figure audit: every figure the report registers exists and decodes, has drawn
+    data in every panel (or says why it has nothing to draw), names its own scene and no
+    other in its title, and its study logged no matplotlib warning."""
+    from report.figures import AUDIT_KEYS, scene_names
+    figures = sorted(t for t in targets() if t.endswith(".png"))
+    assert len(figures) >= 15
+    audits = {f: figure_audit(tiny_run / f) for f in figures}
+    scenes = {a["contactbench:scene"] for a in audits.values()} - {""}
+    assert {"circle_square", "cube_sphere", "roll_stack"} <= scenes
+    for f, audit in audits.items():
+        assert set(AUDIT_KEYS) <= set(audit), f
+        if audit["contactbench:nothing_to_draw"]:
+            assert int(audit["contactbench:data_artists"]) == 0, f
+            continue
+        assert int(audit["contactbench:data_artists"]) > 0, f
+        assert audit["contactbench:empty_panels"] == "0", f
+        title, own = audit["Title"].lower(), audit["contactbench:scene"]
+        if own:
+            assert any(n.lower() in title for n in scene_names(own)), (f, title)
+            for other in scenes - {own}:
+                if other not in own:
+                    assert not any(n.lower() in title for n in scene_names(other)), (f, title)
+    warned = [f"{log}: {line.strip()}" for log in (tiny_run / "results" / "logs").rglob("*")
+              if log.is_file() for line in log.read_text(errors="replace").splitlines()
+              if PLOT_WARNING.search(line)]
+    assert not warned, warned[:5]
+
+
+def test_headline_page_fits_1400_px_without_horizontal_scroll(tiny_run):
+    """The summary page opens with its headline (claims' counts linking to the misses and
+    the unjudged, the solver leaderboard) and, at 1400 px, neither the page nor the
+    leaderboard scrolls sideways."""
+    if chromium() is None:
+        pytest.skip("no Chromium on this machine (`make test` installs Debian's chromium)")
+    from playwright.sync_api import sync_playwright
+
+    summary = tiny_run / PATHS["summary_html"]
+    with sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=chromium(), args=BROWSER_ARGS)
+        page = browser.new_page(viewport={"width": 1400, "height": 900})
+        page.goto(summary.as_uri())
+        widths = page.evaluate("""() => {
+            const box = document.getElementById('leaderboard-1').parentElement;
+            return [document.documentElement.scrollWidth, window.innerWidth,
+                    box.scrollWidth, box.clientWidth]}""")
+        first = page.locator("h2").first.inner_text()
+        links = page.locator(".counts a").evaluate_all("as => as.map(a => a.hash)")
+        targets_found = page.evaluate("hs => hs.map(h => !!document.querySelector(h))", links)
+        page.locator("#leaderboard-1 th", has_text="sgm time").click()       # sortable
+        browser.close()
+    assert first == "Headline"
+    assert widths[0] <= widths[1] and widths[2] <= widths[3], widths
+    assert links == ["#claims-pass", "#claims-miss", "#claims-unjudged"] and all(targets_found)
+
+
+def test_every_unjudged_claim_gives_its_reason(tiny_run):
+    claims = pd.read_csv(tiny_run / PATHS["summary_claims"], keep_default_na=False)
+    unjudged = claims[claims["result"] == "n/a"]
+    assert len(unjudged) and (unjudged["reason"].str.len() > 10).all()
+    assert (claims.loc[claims["result"] != "n/a", "reason"] == "").all()
 
 
 def test_interrupted_run_resumes_without_redoing_finished_jobs(resumed_run):

@@ -51,7 +51,7 @@ def test_claims_pass_and_fail_on_synthetic_studies():
     assert abs(good["measured"].iloc[2] - 1.0) < 1e-12       # slope of t ~ N
     assert abs(good["measured"].iloc[3] - 4.0) < 1e-12       # 2 t / (t / 2)
     assert abs(good["measured"].iloc[4] - 1.8) < 1e-12       # the best variant
-    # issue 24: the ratios to a linear solve are reported figures, never judged
+    # no published bar: the ratios to a linear solve are reported figures, never judged
     assert good["pass"].iloc[3:5].isna().all() and list(good["bar"].iloc[3:5]) == ["-", "-"]
     alone = claims(_study(lambda n: 1e-5 * n, [8, 8, 8, 8], [34, 68, 136, 272]))
     assert alone["pass"].iloc[3:5].isna().all()
@@ -98,3 +98,66 @@ def test_hertz_claims_ask_for_a_falling_deviation_only_above_the_model_floor():
     assert passes([0.02, 0.03]) == [True, False, True, False]         # rises above it
     assert passes([0.04, 0.06]) == [False, False, False, False]       # beyond the bar
     assert HERTZ_MODEL_FLOOR < 0.05
+
+
+def test_one_solver_style_everywhere_and_every_registered_solver_told_apart():
+    from report.figures import solver_order, solver_style
+    from solvers.interface import external_solvers, solvers
+    names = sorted(set(solvers()) - set(external_solvers()))
+    styles = [(solver_style(n)["color"], solver_style(n)["marker"]) for n in names]
+    assert len(set(styles)) == len(names)                     # colour and marker tell apart
+    assert len({c for c, _ in styles}) == len(names)          # and so do colours alone
+    assert solver_style("osqp") == solver_style("osqp")
+    assert list(solver_order()[:len(names)]) == names
+    assert solver_style("not_a_solver") == solver_style("not_a_solver")   # hashed, stable
+
+
+def test_a_figure_names_its_scene_from_its_path():
+    from report.figures import scene_of
+    assert scene_of("results/cube_sphere/solver_times.png") == "cube_sphere"
+    assert scene_of("/tmp/x/results/roll_stack/roll_stack_sag.png") == "roll_stack"
+    assert scene_of("results/hard_cases/hard_cases.png") is None
+    assert scene_of("results/solver_summary/performance_profiles.png") is None
+
+
+def _audit(path):
+    from PIL import Image
+    with Image.open(path) as im:
+        im.verify()
+    with Image.open(path) as im:
+        return dict(im.text)
+
+
+def test_saved_figures_record_their_titles_data_and_empty_panels(tmp_path):
+    import matplotlib.pyplot as plt
+
+    from report.figures import nothing_to_draw, save_figure
+    fig, (a, b) = plt.subplots(1, 2)
+    a.loglog([1e3, 4e3, 6e3], [1, 2, 3], "o-")
+    b.set_title("nothing here")
+    path = tmp_path / "results" / "cube_sphere" / "solver_times.png"
+    path.parent.mkdir(parents=True)
+    save_figure(fig, str(path))
+    meta = _audit(path)
+    assert meta["contactbench:scene"] == "cube_sphere" and "cube_sphere" in meta["Title"]
+    assert meta["contactbench:data_artists"] == "1" and meta["contactbench:empty_panels"] == "1"
+    empty = tmp_path / "empty.png"
+    nothing_to_draw(str(empty), "Work-precision, family x", "no run has an energy error")
+    meta = _audit(empty)
+    assert meta["contactbench:nothing_to_draw"] == "no run has an energy error"
+    assert meta["contactbench:data_artists"] == "0"
+
+
+def test_log_axes_get_no_crowded_minor_labels():
+    import matplotlib.pyplot as plt
+
+    from report.figures import sparse_log_ticks
+    fig, ax = plt.subplots()
+    ax.loglog([3.5e3, 6.5e3], [1, 2])
+    sparse_log_ticks(ax, "x")
+    fig.canvas.draw()
+    minor = [t.get_text() for t in ax.get_xticklabels(minor=True) if t.get_text()]
+    assert minor == []
+    major = [t.get_text() for t in ax.get_xticklabels() if t.get_text()]
+    assert 1 <= len(major) <= 4
+    plt.close(fig)

@@ -1,4 +1,4 @@
-"""The roll-stack study (thesis Sect. 9.3, issue 10) end to end at level 0, its report,
+"""The roll-stack study (thesis Sect. 9.3) end to end at level 0, its report,
 its configuration, and the exact treatment of the floating work roll.
 
 The work roll is held only by the contact and weak springs (~1e-9 of the elastic
@@ -25,7 +25,8 @@ from report import roll_stack as report
 from solvers.cholesky import FloatingCholesky
 from solvers.interface import solve
 from workflows.scripts import roll_stack_study as study
-from workflows.studies import ConfigError, all_targets, check_config, roll_args
+from workflows.studies import ConfigError, all_targets, check_config
+from workflows.studies.roll_stack import roll_args
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -106,7 +107,7 @@ def run(tmp_path_factory):
 def test_study_script_end_to_end(run):
     runs = pd.read_csv(run / "roll_stack_runs.csv")
     assert len(runs) == 4 and set(runs.status) == {"converged"}
-    assert runs.equilibrium_error.abs().max() < 5e-3           # issue 10: 0.5 %
+    assert runs.equilibrium_error.abs().max() < 5e-3           # the suite's bar: 0.5 %
     assert runs.spring_fraction.max() < 1e-4
     assert (runs.kkt_max < 1e-10).all()
     # the crown reduces the strip crown by about 2 x 75 um x (L/2 / 1 m)^2 x 2 ... (beam: ~51 um)

@@ -1,4 +1,4 @@
-"""Rounding must not decide a solve (issue 20).
+"""Rounding must not decide a solve.
 
 Every registered solver on the random two-body family over 60 seeds and on copies of
 each problem whose data (A, f, B, g) are perturbed by a relative 1e-14 -- the size of
@@ -15,8 +15,8 @@ What is asserted, per solver:
   (the certificate is checked against an independent solve, for every solver);
 - a problem and its perturbed copy give the same solution to the tolerance, for every
   run that verifies on both.
-The library solvers' own stopping tests are looser than the KKT conditions (README,
-"What it shows"): their claims may be refuted by the verification, which is what it
+The library solvers' own stopping tests are looser than the KKT conditions (the solver
+comparison's page of the docs): their claims may be refuted by the verification, which is what it
 is for; they are held to the second and third points only.
 """
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Issue 26: each study's settings declared once. Defaults live in the config schema
+"""Each study's settings declared once. Defaults live in the config schema
 (:mod:`workflows.settings`); the Snakefile's validation fills them in; no rule, no helper
 in :mod:`workflows.studies` and no script's option declares one of them again."""
 from __future__ import annotations
@@ -12,10 +12,10 @@ import yaml
 from snakemake.utils import validate
 
 from workflows.settings import SCHEMA, study_defaults
-from workflows.studies import adaptive_args
+from workflows.studies.adaptive import adaptive_args
 
 ROOT = Path(__file__).resolve().parent.parent
-WORKFLOW_FILES = [ROOT / "Snakefile", ROOT / "workflows" / "studies.py",
+WORKFLOW_FILES = [ROOT / "Snakefile", *sorted((ROOT / "workflows" / "studies").glob("*.py")),
                   *sorted((ROOT / "workflows").glob("*.smk"))]
 SCRIPTS = sorted((ROOT / "workflows" / "scripts").glob("*.py"))
 #: ``.get("key", <something that is not an empty container or None>)``: a default
@@ -34,7 +34,7 @@ def _settings() -> dict:
 
 def test_the_schema_declares_defaults():
     """The adaptive study's optional settings have their defaults in the schema (the
-    issue's example: theta in the YAML, the schema, studies.py and argparse)."""
+    example: theta once in the YAML, the schema, the study module and argparse)."""
     d = study_defaults("adaptive")
     assert d["theta"] == 0.5 and d["min_marked"] == 0.0 and d["tol"] == 1e-8
     assert d["stabilisation"] == {"alpha": 1.0, "penalty": 1.0} and d["time_limit"] == 120.0

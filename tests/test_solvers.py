@@ -508,7 +508,7 @@ def test_a_solver_that_gave_up_at_a_coarser_level_is_skipped_there():
 
 
 def test_a_solver_predicted_beyond_the_time_limit_is_skipped():
-    """Issue 26: the time fitted as c n^e over the two finest converged coarser levels
+    """The time fitted as c n^e over the two finest converged coarser levels
     predicts the next level's; beyond the limit the run is skipped with the prediction."""
     import pandas as pd
 
@@ -568,3 +568,12 @@ def test_a_library_failure_keeps_its_own_words():
                     g=np.array([-1.0, -1.0]), name="infeasible")
     out = run(cvxopt, bad, 1e-6, 100, None, None, None, solvers()["cvxopt"].options())
     assert out.claimed_status != "converged" and out.message.startswith("cvxopt: ")
+
+
+def test_the_preset_texts_follow_the_tolerance_table():
+    """A solver that stops at the preset's tolerance states it from TOLERANCES itself."""
+    for name in ("augmented_projection", "semismooth_newton", "tnnmg"):
+        presets = solvers()[name].presets
+        assert set(presets) == set(TOLERANCES)
+        for preset, tol in TOLERANCES.items():
+            assert presets[preset].endswith(" " + f"{tol:.0e}".replace("e-0", "e-")), presets

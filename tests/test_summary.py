@@ -94,3 +94,47 @@ def test_main_rejects_a_bad_item(tmp_path, capsys):
     assert err.value.code == 2 and "--items" in capsys.readouterr().err
     assert not (tmp_path / "s.html").exists()
     assert "summary_html" in PATHS
+
+
+def _solver_summary():
+    import pandas as pd
+    rows = [("low", "pdas", 1.0, 1.0, 0.2, 0), ("low", "osqp", 0.75, 0.75, 3.0, 1),
+            ("mid", "osqp", 1.0, 1.0, 0.3, 0), ("mid", "pdas", 0.5, 1.0, 0.1, 2)]
+    return pd.DataFrame([{"preset": p, "solver": s, "success_rate": sr, "correct_rate": cr,
+                          "sgm_time": t, "sgm_time_relative": 1.0, "runs": 4, "problems": 4,
+                          "inaccurate": f, "max_iter": 0, "time_limit": 0, "failed": 0,
+                          "skipped": 0} for p, s, sr, cr, t, f in rows])
+
+
+def test_leaderboard_names_the_fastest_verified_and_the_wrong_claims():
+    import pandas as pd
+
+    from report.summary import leaderboard, leaderboard_words
+    words = leaderboard_words(_solver_summary())
+    assert "fastest verified solver <b>pdas</b>" in words[0]
+    assert "claimed a wrong answer: osqp (25 % of runs)" in words[0]
+    # mid: pdas is faster but verified on half the problems only; osqp is most reliable
+    assert "fastest verified solver <b>pdas</b>" in words[1]
+    assert "most reliable <b>osqp</b> (100 % verified converged)" in words[1]
+    board = leaderboard(_solver_summary())
+    assert list(board["solver"]) == ["pdas", "osqp", "pdas", "osqp"]
+    assert list(board["not converged"]) == ["0", "1 inaccurate", "2 inaccurate", "0"]
+    by_scene = pd.DataFrame({"preset": ["low", "low", "mid"], "solver": ["osqp", "osqp", "pdas"],
+                             "scene": ["cube_sphere", "circle_square", "roll_stack"],
+                             "runs": [2, 2, 2], "converged": [1, 2, 0]})
+    board = leaderboard(_solver_summary(), by_scene)
+    assert list(board["not converged"]) == ["0", "1 inaccurate (on cube_sphere)",
+                                            "2 inaccurate (on roll_stack)", "0"]
+
+
+def test_tables_put_the_thesis_beside_ours_and_explain_empty_cells():
+    import pandas as pd
+
+    from report.summary import EMPTY_THESIS, _fmt, beside_thesis, table_html
+    frame = pd.DataFrame({"level": [0, 1], "N": [10, 40], "n_outer": [7, 8], "t": [1.0, 2.0],
+                          "thesis_nodes": [None, 42], "thesis_n_outer": [None, 19]})
+    assert list(beside_thesis(frame, keep=("level",)).columns) == [
+        "level", "N", "thesis_nodes", "n_outer", "thesis_n_outer"]
+    assert "-" not in _fmt(1e-9) and _fmt(float("nan")) == ""
+    html = table_html(beside_thesis(frame), name="x")
+    assert html.count(f'title="{EMPTY_THESIS}"') == 2 and EMPTY_THESIS in html

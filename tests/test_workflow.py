@@ -74,7 +74,7 @@ def test_contact_solution_in_3d(tmp_path):
 
 
 def test_solver_comparison_skips_by_the_coarser_levels(tmp_path):
-    """Issue 26: ``--coarser`` results make a run that timed out there, or whose fitted
+    """``--coarser`` results make a run that timed out there, or whose fitted
     time predicts more than the limit here, a ``skipped`` row with the reason."""
     from workflows.io import write_csv
     n = {0: 2000, 1: 8000}
@@ -159,7 +159,7 @@ def test_augmented_projection_study_and_its_report(tmp_path):
     claims = pd.read_csv(outs[1])
     assert {"claim", "measured", "bar", "pass"} <= set(claims.columns) and len(claims) >= 2
     ratios = claims[claims.claim.str.startswith("time to the energy-error target")]
-    # issue 24: Alg. 8.4's and its best variant's ratios to a linear solve are reported, not judged
+    # no published bar: Alg. 8.4's and its best variant's ratios to a linear solve are reported, not judged
     assert len(ratios) == 2 and set(ratios.bar) == {"-"} and ratios["pass"].isna().all()
     assert (ratios.measured.astype(float) > 0).all()
     ours = claims[claims.claim.str.startswith("tnnmg")]
@@ -322,7 +322,7 @@ def test_studies_declare_their_outputs_once():
     assert "results/flat_blocks/patch_test.png" in targets          # the patch test's extra
     assert not any(t.startswith("results/flat_blocks/adaptive") for t in targets)
     smk = "".join(p.read_text() for p in (ROOT / "workflows").glob("*.smk"))
-    assert "results/" not in smk          # every path comes from workflows/studies.py
+    assert "results/" not in smk          # every path comes from workflows/studies/
 
 
 @pytest.mark.parametrize("scale", ["quick", "huge"])
@@ -330,7 +330,7 @@ def test_slurm_profile_dry_run_plans_every_job_with_its_resources(scale):
     """Under workflows/profiles/slurm (the executor plugin is in the test extra) a dry run
     plans every job; each heavy rule's jobs carry the mem_mb and runtime its config
     declares, every other job the profile's defaults. ``huge`` is the scale meant for
-    a cluster (issue 26's acceptance command)."""
+    a cluster (the cluster's planning command)."""
     from workflows.studies import HEAVY_RULES
 
     config = yaml.safe_load((ROOT / f"workflows/config/{scale}.yaml").read_text())

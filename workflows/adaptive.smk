@@ -1,8 +1,9 @@
 # Study adaptive (thesis Sects. 7.3-7.5): adaptive runs per variant from each scene's start
 # level, Tables 9.2/9.4 beside the thesis, Figs. 7.3/7.4, 9.2/9.4/9.7, accuracy per node
 # against a common finer reference (2D), the pile-up quantified; and the contact patch test.
-# The study times Alg. 8.4 (Tables 9.2/9.4), so it runs alone (studies.RUNS_ALONE).
-# Paths: workflows/studies.py.
+# The study times Alg. 8.4 (Tables 9.2/9.4), so it runs alone (the study's runs_alone).
+# Paths: workflows/studies/.
+from workflows.studies.adaptive import adaptive_args, adaptive_variant_file
 AD = config.get("adaptive", {})
 AD_VARIANTS = AD.get("variants", [])
 AD_FILES = [adaptive_variant_file(v) for v in AD_VARIANTS]

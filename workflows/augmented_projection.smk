@@ -1,5 +1,5 @@
 # Study augmented_projection: the thesis's solver (Alg. 8.4) level by level in one process,
-# alone on the machine (studies.RUNS_ALONE: nothing runs beside it), with
+# alone on the machine (the study's runs_alone: nothing runs beside it), with
 # the multigrid-PCG linear solve as the floor; the thesis's table beside ours.
 AP = config.get("augmented_projection", {})
 

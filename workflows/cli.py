@@ -10,6 +10,8 @@ Examples
     contactbench solve --problem laplace_nonmatching --level 3 \\
         --set case=linear --set variant=nodal --out run.json
     contactbench export --class small --out contact-qp-small
+    contactbench study augmented_projection --problem circle_square --levels 1 2 \\
+        --configs alg84 --out ap.csv
 
 Every failure ends with exit code 2 and one line naming the parameter and what
 is allowed (``--debug``, anywhere on the line, shows the traceback); nothing is
@@ -248,7 +250,31 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--force", action="store_true", help="replace an existing folder")
     e.add_argument("--quiet", action="store_true", help="no progress bar")
     e.set_defaults(func=cmd_export)
+    from workflows.studies import study_commands
+    st = sub.add_parser("study", help="run one study's heavy step by hand (the script its "
+                        "Snakemake rule runs); 'contactbench study NAME --help' lists its "
+                        "arguments")
+    st.add_argument("name", choices=list(study_commands()), metavar="NAME",
+                    help=f"one of {', '.join(study_commands())}")
+    st.add_argument("args", nargs=argparse.REMAINDER, help="the study's own arguments")
+    st.set_defaults(func=cmd_study)
     return parser
+
+
+def cmd_study(args: argparse.Namespace) -> int:
+    """Run one study's script by hand, as its rule does: ``contactbench study NAME ARGS``
+    hands ``ARGS`` to the script's own parser (so the same checks and exit codes)."""
+    import importlib
+
+    from workflows.studies import study_commands
+
+    script = importlib.import_module(study_commands()[args.name])
+    shown, sys.argv[0] = sys.argv[0], f"contactbench study {args.name}"   # the usage line
+    try:
+        script.main(args.args)
+    finally:
+        sys.argv[0] = shown
+    return 0
 
 
 def main(argv: list[str] | None = None) -> int:

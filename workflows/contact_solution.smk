@@ -1,5 +1,5 @@
 # Study contact_solution: each scene solved exactly per level, checked against Hertz,
-# fields and figures (thesis Sects. 9.1, 9.2). Paths: workflows/studies.py.
+# fields and figures (thesis Sects. 9.1, 9.2). Paths: workflows/studies/.
 
 rule contact_level:
     output:

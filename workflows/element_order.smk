@@ -1,6 +1,7 @@
 # Study element_order (Remark 7.11): P1 against P2 on a contact scene, the energy error
 # against a common P2 reference per unknown and per second, Alg. 8.4 on P2; one process
 # per scene, alone on the machine (its solve times are the figure's abscissa).
+from workflows.studies.element_order import element_order_args
 rule element_order_study:
     output: PATHS["eo_study"]
     log: log_path("element_order_study")

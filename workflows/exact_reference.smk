@@ -1,6 +1,7 @@
 # Study exact_reference: the suite's exact reference two ways on each configured scene, one
-# process, one solve after the other (studies.RUNS_ALONE: snakemake runs nothing
-# beside it). Paths: workflows/studies.py.
+# process, one solve after the other (the study's runs_alone: snakemake runs nothing
+# beside it). Paths: workflows/studies/.
+from workflows.studies.exact_reference import exact_args
 
 rule exact_reference:
     output: PATHS["exact_runs"]

@@ -1,5 +1,5 @@
 # Study laplace_nonmatching (thesis Ch. 6): errors per case and constrained side, merged
-# tables with fitted rates, convergence figures and the mesh picture. Paths: workflows/studies.py.
+# tables with fitted rates, convergence figures and the mesh picture. Paths: workflows/studies/.
 LAP = config.get("laplace_nonmatching", {})
 
 rule laplace_errors:

@@ -1,4 +1,4 @@
-"""Per-job resources of a scale predicted from measured scaling (issue 26).
+"""Per-job resources of a scale predicted from measured scaling.
 
 Snakemake writes one benchmark file per heavy job (``results/benchmarks/<rule>/<job>.tsv``:
 wall seconds, peak RSS). Given those of runs at two or more scales (say ``quick`` and
@@ -194,7 +194,7 @@ def resources_yaml(table: pd.DataFrame) -> str:
     lines = ["resources:   # per heavy rule, its largest job at this scale: memory (MB), wall "
              "time (minutes),",
              "  # predicted from measured scaling by workflows/planning.py "
-             "(README)"]
+             "(docs/performance.md)"]
     for r in table.itertuples():
         lines.append(f"  {r.rule}: {{mem_mb: {r.mem_mb}, runtime: {r.runtime}}}   # "
                      f"e_t {r.exponent_time:.2f}, e_mem {r.exponent_memory:.2f} "

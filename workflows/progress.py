@@ -1,4 +1,4 @@
-"""One progress line per running study at the console (issue 26, deliverable 5).
+"""One progress line per running study at the console.
 
 A study script's progress bar (tqdm) goes to its job's log; at the full scale a job runs
 for many minutes with nothing at the console but Snakemake's job count. So a study's bar is

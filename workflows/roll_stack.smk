@@ -1,7 +1,8 @@
 # Study roll_stack: the roll stack of thesis Sect. 9.3 (Figs. 9.10-9.16) at one level, both
 # strip forces, crowned and cylindrical work rolls, and the solvers on the scene at coarser
-# levels; one process (studies.RUNS_ALONE: snakemake runs nothing beside it, so the
-# recorded times are comparable). Paths: workflows/studies.py.
+# levels; one process (the study's runs_alone: snakemake runs nothing beside it, so the
+# recorded times are comparable). Paths: workflows/studies/.
+from workflows.studies.roll_stack import roll_args, roll_fields
 
 rule roll_stack_study:
     output:

@@ -1,5 +1,5 @@
 # Study solver_comparison: every registered solver at every preset on identical QPs of
-# each configured scene and level, against the exact reference. Paths: workflows/studies.py.
+# each configured scene and level, against the exact reference. Paths: workflows/studies/.
 SC = config.get("solver_comparison", {})
 
 rule solver_comparison:

@@ -1,6 +1,7 @@
 # Study test_set: the contact QP test set (workflows/config/test_sets/<set>.yaml) exported per
 # size class, every registered solver on every problem at every preset, and the summary
-# over it. Paths: workflows/studies.py.
+# over it. Paths: workflows/studies/.
+from workflows.studies.test_set import test_set_runs
 TS = config.get("test_set", {})
 TS_ID = test_set_of(config).id if TS else ""
 TS_FAMILIES = list(scenes_of(config, "test_set"))

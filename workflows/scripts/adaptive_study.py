@@ -142,7 +142,7 @@ def release_steps(run, compared_max_nodes: int | None) -> None:
     accuracy comparison (``compared_max_nodes``; None: no comparison) except the last
     (its fields are written), and the shared work (factorisations, linear solvers)
     cached on every problem. A full-scale 3D run holds ~15 steps of up to 100k
-    nodes; three variants kept whole would not fit the 16 GB budget (issue 26)."""
+    nodes; three variants kept whole would not fit the 16 GB budget of a full run."""
     last = len(run.qps) - 1
     for i, (rec, qp) in enumerate(zip(run.records, run.qps)):
         if qp is None:

@@ -1,4 +1,4 @@
-"""P1 against P2 on a contact problem (issue 25, thesis Remark 7.11): accuracy against
+"""P1 against P2 on a contact problem (thesis Remark 7.11): accuracy against
 unknowns and against solve time, and Alg. 8.4 on P2 (Table 9.1's columns).
 
 For one scene (a registered problem with the ``degree`` parameter and parameter

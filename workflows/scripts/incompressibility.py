@@ -1,4 +1,4 @@
-"""Alg. 8.4 towards incompressibility: n_o against Poisson's ratio (issue 24, a table of the
+"""Alg. 8.4 towards incompressibility: n_o against Poisson's ratio (a table of the
 hard-case study).
 
 For each scene (``--scenes``, each at ``--level``) and each ``nu`` in ``--nus`` (both

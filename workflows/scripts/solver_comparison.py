@@ -140,8 +140,8 @@ def predicted_beyond_the_limit(tables: list[pd.DataFrame], level: int, n: int,
                                time_limit: float) -> dict:
     """``{(solver, preset): reason}`` for the solvers whose time, fitted as ``c n^e`` over
     the two finest coarser levels where they converged, predicts more than
-    ``time_limit`` at this level's ``n`` unknowns (issue 26: time limits used as
-    information). The reason gives the prediction, the exponent and the levels."""
+    ``time_limit`` at this level's ``n`` unknowns (a time limit used as
+    information: the level is not run to its limit). The reason gives the prediction, the exponent and the levels."""
     out = {}
     if not tables:
         return out

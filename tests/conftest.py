@@ -1,0 +1,28 @@
+"""Fixtures shared by several test files."""
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+#: The template of a solver in a package of its own (entry-point group contactbench.solvers).
+EXAMPLE_SOLVER = Path(__file__).resolve().parent / "example_solver"
+
+
+@pytest.fixture(scope="session")
+def plugin_env(tmp_path_factory) -> dict:
+    """The environment of a user who has installed the example package."""
+    target = tmp_path_factory.mktemp("site")
+    source = tmp_path_factory.mktemp("src") / "example_solver"    # pip builds in the tree
+    shutil.copytree(EXAMPLE_SOLVER, source, ignore=shutil.ignore_patterns("build", "*.egg-info"))
+    out = subprocess.run([sys.executable, "-m", "pip", "install", "--quiet", "--no-deps",
+                          "--no-build-isolation", "--target", str(target), str(source)],
+                         capture_output=True, text=True, timeout=600, cwd=source)
+    assert out.returncode == 0, out.stdout[-2000:] + out.stderr[-3000:]
+    assert list(target.glob("contactbench_example_solver-*.dist-info"))
+    path = os.pathsep.join(filter(None, [str(target), os.environ.get("PYTHONPATH")]))
+    return {**os.environ, "PYTHONPATH": path}

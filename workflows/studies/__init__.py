@@ -1,0 +1,168 @@
+"""The studies the Snakefile regenerates: one module each, discovered.
+
+A study is one module of this package defining ``STUDY = Study(...)``
+(:class:`workflows.studies._base.Study`): what it shows, the thesis items it regenerates,
+every path template its rules write, its final outputs, its heavy rules, the config checks
+the schema cannot make, and the scripts that run it by hand. The package finds the modules
+like the solvers and scenes (:func:`problems.spec.discover`) and builds the views the
+Snakefile, the report and the command line read: :data:`STUDIES`, :data:`PATHS`,
+:data:`HEAVY_RULES`, :data:`RUNS_ALONE`, :data:`THESIS_ITEMS`. A study runs on the
+scenes its config entry lists::
+
+    scenes:                                    # a scene = a registered problem + overrides
+      circle_square: {problem: circle_square}
+      circle_square_stiff: {problem: circle_square, params: {E2: 10.0}}
+    solver_comparison:
+      scenes: {circle_square: [1, 2, 3], circle_square_stiff: [1, 2]}
+
+so a new scene joins a study by a config line; results land under ``results/<scene>/``.
+"""
+from __future__ import annotations
+
+import re
+
+from problems.spec import discover
+from workflows.studies._base import (COMMON_PATHS, REFERENCE, RESULTS, ConfigError, Study,
+                                     ThesisItem, bench_path, coarser_levels, log_path,
+                                     scene_problem, scenes_of, scenes_with_families, set_args,
+                                     test_set_of, thesis_table)
+
+__all__ = ["ALONE_CPUS", "COMMON_PATHS", "HEAVY_RULES", "MACHINE_SHARE", "PATHS", "REFERENCE",
+           "RESULTS", "RUNS_ALONE", "STUDIES", "THESIS_ITEMS", "ConfigError", "Study",
+           "ThesisItem", "all_targets", "bench_path", "check_config", "coarser_levels",
+           "log_path", "rule_resources", "scene_problem", "scenes_of", "scenes_with_families",
+           "set_args", "study_commands", "study_of", "summary_items", "test_set_of", "thesis_item_files",
+           "thesis_table"]
+
+
+def _thesis_order(item: ThesisItem) -> tuple[int, int]:
+    """Where an item stands in the thesis: (chapter, number) of its first "c.n"."""
+    found = re.search(r"(\d+)\.(\d+)", item.item)
+    return (int(found[1]), int(found[2])) if found else (99, 0)
+
+
+def _collect(studies: dict[str, Study]) -> dict[str, str]:
+    """Every path template, by key: the common ones and each study's (keys unique)."""
+    paths = dict(COMMON_PATHS)
+    for study in studies.values():
+        clash = sorted(set(study.paths) & set(paths))
+        if clash:
+            raise RuntimeError(f"study {study.name!r} declares the path keys {clash} again")
+        paths.update(study.paths)
+    return paths
+
+
+#: Every study, ``{name: Study}``, in the order of the report.
+STUDIES = dict(sorted(discover("workflows.studies", "STUDY").items(),
+                      key=lambda item: item[1].order))
+#: Path templates of every file the workflow writes ({scene}, {level}, {case} wildcards).
+PATHS = _collect(STUDIES)
+#: The rules whose jobs carry a ``benchmark:`` file and measured ``resources:`` (the
+#: heavy ones), and the study each belongs to.
+HEAVY_RULES = {rule: s.name for s in STUDIES.values() for rule in s.heavy_rules}
+#: The heavy rules that time solvers, so that nothing may run beside them on the machine.
+RUNS_ALONE = frozenset(rule for s in STUDIES.values() for rule in s.runs_alone)
+#: Every table and figure of the thesis's numerical chapters, and what regenerates it
+#: (the summary page lists them with their status), in the thesis's order.
+THESIS_ITEMS = tuple(sorted((item for s in STUDIES.values() for item in s.thesis_items),
+                            key=_thesis_order))
+
+#: "Run alone" as a named resource: the local profile provides ``machine_share=100``
+#: and gives every job 1 by default; a rule of :data:`RUNS_ALONE` takes all 100, so
+#: Snakemake starts nothing beside it, however many cores it is given. On a cluster
+#: (no global share) such a job asks for :data:`ALONE_CPUS` CPUs of its own instead.
+MACHINE_SHARE = ("machine_share", 100)
+ALONE_CPUS = 2
+
+
+def study_commands() -> dict[str, str]:
+    """``{command: script module}`` of ``contactbench study COMMAND``: every study's
+    scripts (:attr:`Study.scripts`), in the order of the report."""
+    found = {}
+    for study in STUDIES.values():
+        for command, module in study.scripts.items():
+            if command in found:
+                raise RuntimeError(f"study {study.name!r} declares the command {command!r} "
+                                   "again")
+            found[command] = module
+    return found
+
+
+def study_of(key: str) -> Study:
+    """The study whose outputs include the path key ``key``."""
+    return next(s for s in STUDIES.values() if s.owns(key))
+
+
+def thesis_item_files(config: dict, item: ThesisItem) -> list[str]:
+    """The files regenerating ``item`` under ``config`` (empty: not at this config)."""
+    if item.key is None:
+        return []
+    return study_of(item.key).item_files(config, item)
+
+
+def check_config(config: dict) -> None:
+    """What the JSON schema cannot check: every scene a study names is defined, its
+    problem is registered, its parameters and levels are valid; then each study's own
+    checks (:attr:`Study.check`) and the declared resources of the heavy rules.
+
+    Raises
+    ------
+    ConfigError
+        Naming the config key and what is allowed.
+    """
+    from problems.spec import contact_scene_error, problems
+
+    config = {**config, "scenes": scenes_with_families(config)}
+    registry = problems()
+    for scene, entry in config.get("scenes", {}).items():
+        wrong = contact_scene_error(entry["problem"], entry.get("params"))
+        if wrong is not None:
+            raise ConfigError(f"config 'scenes.{scene}.{wrong[0]}': {wrong[1]}")
+    for name in STUDIES:
+        for scene, levels in scenes_of(config, name).items():
+            if scene not in config.get("scenes", {}):
+                raise ConfigError(f"config '{name}.scenes.{scene}': no such scene; defined: "
+                                  f"{', '.join(config.get('scenes', {}))}")
+            lo, hi = registry[config["scenes"][scene]["problem"]].levels
+            bad = [lv for lv in levels if not lo <= lv <= hi]
+            if bad:
+                raise ConfigError(f"config '{name}.scenes.{scene}': levels {bad} are not "
+                                  f"allowed; allowed: {lo}..{hi}")
+    for study in STUDIES.values():
+        if study.check is not None:
+            study.check(config, registry)
+    unknown = sorted(set(config.get("resources", {})) - set(HEAVY_RULES))
+    if unknown:
+        raise ConfigError(f"config 'resources.{unknown[0]}': not a heavy rule; allowed: "
+                          f"{', '.join(sorted(HEAVY_RULES))}")
+    for rule, study in HEAVY_RULES.items():
+        if study in config and not {"mem_mb", "runtime"} <= set(
+                config.get("resources", {}).get(rule, {})):
+            raise ConfigError(f"config 'resources.{rule}': the study {study!r} runs, so declare "
+                              "its measured mem_mb and runtime (minutes)")
+
+
+def rule_resources(config: dict, rule: str) -> dict:
+    """``resources:`` of a heavy rule: ``mem_mb`` and ``runtime`` (minutes) from the
+    config's ``resources`` section, measured per scale from the rules' benchmark files
+    (``check_config`` requires them for every configured study; empty otherwise), and
+    for a rule of :data:`RUNS_ALONE` the whole :data:`MACHINE_SHARE` and
+    ``cpus_per_task`` (the Slurm executor's CPUs per job)."""
+    if rule not in HEAVY_RULES:
+        raise KeyError(f"rule {rule!r} is not a heavy rule; allowed: {sorted(HEAVY_RULES)}")
+    declared = dict(config.get("resources", {}).get(rule, {}))
+    if rule in RUNS_ALONE:
+        name, whole = MACHINE_SHARE
+        declared.update({name: whole, "cpus_per_task": ALONE_CPUS})
+    return declared
+
+
+def summary_items(config: dict) -> str:
+    """Every study output as ``key@scene=path`` arguments of ``report/summary.py``."""
+    return " ".join(f"{key}@{scene or '-'}={path}" for study in STUDIES.values()
+                    for key, scene, path in study.items(config))
+
+
+def all_targets(config: dict) -> list[str]:
+    """Every study's outputs under ``config`` (the Snakefile's default target)."""
+    return [t for study in STUDIES.values() for t in study.targets(config)]

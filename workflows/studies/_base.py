@@ -1,0 +1,234 @@
+"""What every study module declares, and the scene helpers the studies share.
+
+A study is one module of :mod:`workflows.studies` defining ``STUDY = Study(...)``: its
+path templates, final outputs, heavy rules, the thesis items it regenerates and the
+config checks the JSON schema cannot make; the package discovers it like the solvers
+and scenes (:func:`problems.spec.discover`).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+RESULTS = "results"
+#: The thesis's tables (absolute: the workflow may run in another working directory).
+REFERENCE = Path(__file__).resolve().parents[2] / "reference"
+
+#: Path templates no single study owns: the summary page and every rule's log and benchmark.
+COMMON_PATHS = {
+    # the summary page at the top of the report (report/summary.py)
+    "summary_html": "results/summary/summary.html",
+    "summary_claims": "results/summary/claims.csv",
+    # logs and benchmarks of every rule
+    "log": "results/logs/{rule}/{name}.log",
+    "benchmark": "results/benchmarks/{rule}/{name}.tsv",
+}
+
+
+class ConfigError(ValueError):
+    """The workflow configuration is inconsistent (the message says where)."""
+
+
+@dataclass(frozen=True)
+class ThesisItem:
+    """A table or figure of the thesis and the output that regenerates it.
+
+    ``key`` is a path key of the study that declares the item (None: not regenerated,
+    ``note`` says why); ``problem`` picks the scene (the scene named like the problem).
+    """
+
+    item: str
+    what: str
+    key: str | None
+    problem: str | None = None
+    note: str = ""
+
+
+@dataclass(frozen=True)
+class Study:
+    """One study: what it shows, the thesis it regenerates, its files and its rules.
+
+    Attributes
+    ----------
+    name : str
+        The study's name: its config section, its page in the docs, ``contactbench study``.
+    summary, thesis : str
+        What it shows; the thesis items it regenerates.
+    order : int
+        Its place in the report and in ``contactbench list``.
+    paths : dict
+        ``{key: path template}`` of every file its rules write ({scene}, {level}, {case}
+        wildcards); the keys are unique across studies.
+    outputs : tuple of str
+        Keys of ``paths``: the final outputs. A template with ``{scene}`` is expanded over
+        the scenes the study's config entry lists, one with ``{case}`` over its cases; any
+        other is one file (e.g. a table across scenes).
+    extra : tuple
+        ``(config key, outputs)``: further per-scene outputs for the scenes listed under
+        ``config[name][key]["scenes"]`` (e.g. the adaptive study's patch test).
+    heavy_rules : tuple of str
+        Its rules that carry a benchmark file and measured ``resources:``.
+    runs_alone : tuple of str
+        Those of them that time solvers, so that nothing may run beside them.
+    thesis_items : tuple of ThesisItem
+        The thesis's tables and figures it regenerates (the summary page lists them).
+    check : callable, optional
+        ``check(config, registry)``: what the JSON schema cannot check about its section
+        (``config`` with the test set's families among its scenes, ``registry`` the
+        problems); raises :class:`ConfigError` naming the config key.
+    scripts : dict
+        ``{command: module}``: the scripts whose ``main(argv)`` run the study's heavy
+        steps by hand (``contactbench study COMMAND ...``; the rules call the same
+        scripts). The first command is the study's name.
+    rule_file : str
+        Its Snakemake rules, ``workflows/<rule_file>``.
+    """
+
+    name: str
+    summary: str
+    thesis: str
+    order: int
+    paths: dict
+    outputs: tuple[str, ...]
+    extra: tuple = ()
+    heavy_rules: tuple[str, ...] = ()
+    runs_alone: tuple[str, ...] = ()
+    thesis_items: tuple[ThesisItem, ...] = ()
+    check: Callable[[dict, dict], None] | None = None
+    scripts: dict = field(default_factory=dict)
+    rule_file: str = ""
+
+    def items(self, config: dict) -> list[tuple[str, str | None, str]]:
+        """``(path key, scene or None, path)`` of every file this study produces."""
+        if self.name not in config:
+            return []
+        out = []
+        for key in self.outputs:
+            template = self.paths[key]
+            if "{scene}" in template:
+                out += [(key, s, template.format(scene=s)) for s in scenes_of(config, self.name)]
+            elif "{case}" in template:
+                out += [(key, None, template.format(case=c)) for c in cases_of(config, self.name)]
+            else:
+                out.append((key, None, template))
+        for extra, outputs in self.extra:
+            scenes = config[self.name].get(extra, {}).get("scenes", {})
+            out += [(k, s, self.paths[k].format(scene=s)) for s in scenes for k in outputs]
+        return out
+
+    def targets(self, config: dict) -> list[str]:
+        """The files this study produces under ``config``."""
+        return [path for _, _, path in self.items(config)]
+
+    def owns(self, key: str) -> bool:
+        """Whether ``key`` is one of this study's outputs (extra outputs included)."""
+        return key in self.outputs or any(key in outs for _, outs in self.extra)
+
+    def item_files(self, config: dict, item: ThesisItem) -> list[str]:
+        """The files regenerating ``item`` under ``config`` (empty: not at this config)."""
+        if item.key is None or self.name not in config:
+            return []
+        template = self.paths[item.key]
+        if "{case}" in template:
+            return [template.format(case=c) for c in cases_of(config, self.name)]
+        if "{scene}" not in template:
+            return [template]
+        return [template.format(scene=item.problem)] if item.problem in scenes_of(
+            config, self.name) else []
+
+
+def cases_of(config: dict, study: str) -> list[str]:
+    """The cases a study with a ``{case}`` output runs (the Laplace study's right-hand
+    sides)."""
+    return config[study].get("cases", ["sin10x", "linear"])
+
+
+def coarser_levels(config: dict, study: str, scene: str, level) -> list[int]:
+    """The configured levels of ``scene`` in ``study`` below ``level`` (a study whose jobs
+    run coarse to fine, each reading the coarser results)."""
+    return [l for l in scenes_of(config, study).get(scene, []) if l < int(level)]
+
+
+def scenes_of(config: dict, study: str) -> dict[str, list[int]]:
+    """``{scene: levels}`` a per-scene study runs (empty if the study is not configured);
+    for the test set its families (levels by size class:
+    :func:`workflows.studies.test_set.test_set_runs`)."""
+    if study == "test_set":
+        if study not in config:
+            return {}
+        return {f: [] for f in config[study].get("families") or test_set_of(config).families}
+    return dict(config.get(study, {}).get("scenes", {}))
+
+
+def test_set_of(config: dict):
+    """The test set the config names (``test_set.name``; the current one by default)."""
+    from workflows.test_set import CURRENT, load
+
+    return load(config.get("test_set", {}).get("name", CURRENT))
+
+
+def scenes_with_families(config: dict) -> dict:
+    """``config['scenes']`` with the test set's families added (a family is a scene: the
+    studies name the hard cases and variants by it, typed once in the set).
+
+    Raises
+    ------
+    ConfigError
+        If a scene of the config has a family's name but another definition.
+    """
+    scenes = dict(config.get("scenes") or {})
+    for family, entry in test_set_of(config).families.items():
+        entry = {"problem": entry["problem"], **({"params": dict(entry["params"])}
+                                                  if entry.get("params") else {})}
+        mine = scenes.get(family)
+        if mine is not None and ({**mine, "params": dict(mine.get("params") or {})}
+                                 != {**entry, "params": entry.get("params", {})}):
+            raise ConfigError(f"config 'scenes.{family}': the test set defines this name as "
+                              f"{entry}; allowed: another name, or leave it out")
+        scenes[family] = entry
+    return scenes
+
+
+def scene_problem(config: dict, scene: str) -> tuple[str, dict]:
+    """The registered problem behind a scene and its parameter overrides."""
+    entry = config["scenes"][scene]
+    return entry["problem"], dict(entry.get("params") or {})
+
+
+def thesis_table(config: dict, scene: str, study: str) -> str | None:
+    """``reference/<table>.csv`` a scene regenerates in ``study``, if it runs with the
+    thesis's own parameters (no overrides) and its problem declares one."""
+    from problems.spec import problems
+
+    problem, params = scene_problem(config, scene)
+    table = problems()[problem].thesis_tables.get(study)
+    return str(REFERENCE / f"{table}.csv") if table and not params else None
+
+
+def set_args(config: dict, scene: str) -> str:
+    """Command-line arguments for a scene: ``--problem P --set k=v ...``."""
+    problem, params = scene_problem(config, scene)
+    sets = " ".join(f"--set {k}={v}" for k, v in params.items())
+    return f"--problem {problem} {sets}".strip()
+
+
+def log_path(rule: str, name: str = "{scene}") -> str:
+    """The log file of a rule's job (``name`` may hold wildcards)."""
+    return COMMON_PATHS["log"].format(rule=rule, name=name)
+
+
+def bench_path(rule: str, name: str = "{scene}") -> str:
+    """The Snakemake benchmark file of a rule's job."""
+    return COMMON_PATHS["benchmark"].format(rule=rule, name=name)
+
+
+def check_registered_solvers(config: dict, study: str) -> None:
+    """``config[study]['solvers']``, if given, names registered solvers only."""
+    chosen = config.get(study, {}).get("solvers", [])
+    if chosen:
+        from solvers.interface import solvers
+        unknown = sorted(set(chosen) - set(solvers()))
+        if unknown:
+            raise ConfigError(f"config '{study}.solvers': {unknown} are not registered; "
+                              f"allowed: {', '.join(solvers())}")

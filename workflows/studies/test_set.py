@@ -1,0 +1,93 @@
+"""The contact QP test set: every family at the configured size classes exported and run by
+every registered solver; qpbenchmark's summary over the runs."""
+from workflows.studies._base import (ConfigError, Study, check_registered_solvers, scenes_of,
+                                     test_set_of)
+
+PATHS = {
+    "test_set_export": "results/test_set/{set}/export/{size_class}",
+    "test_set_runs": "results/test_set/{set}/runs/{size_class}/{scene}.csv",
+    "solver_summary": "results/solver_summary/summary.csv",
+    "solver_summary_by_class": "results/solver_summary/summary_by_class.csv",
+    "solver_summary_by_scene": "results/solver_summary/summary_by_scene.csv",
+    "solver_summary_claims": "results/solver_summary/claims.csv",
+    "solver_profiles": "results/solver_summary/performance_profiles.png",
+    "solver_work_precision": "results/solver_summary/work_precision/{scene}.png",
+}
+
+
+def test_set_runs(config: dict) -> list[str]:
+    """Every run table of the test_set study: family x size class (with problems)."""
+    if "test_set" not in config:
+        return []
+    ts, cfg = test_set_of(config), config["test_set"]
+    return [PATHS["test_set_runs"].format(set=ts.id, size_class=c, scene=f)
+            for c in cfg["classes"] for f in scenes_of(config, "test_set")
+            if ts.problems(c, [f])]
+
+
+def test_set_hard_cases(config: dict) -> tuple[list[str], list[str]]:
+    """The run tables holding the hard cases and the cases as ``family:level``."""
+    if "test_set" not in config:
+        return [], []
+    ts = test_set_of(config)
+    cases, files = [], []
+    for family, levels in scenes_of(config, "hard_cases").items():
+        for level in levels:
+            cases.append(f"{family}:{level}")
+            for c in config["test_set"]["classes"]:
+                if any(p.level == level for p in ts.problems(c, [family])):
+                    files.append(PATHS["test_set_runs"].format(set=ts.id, size_class=c,
+                                                               scene=family))
+    return sorted(set(files)), cases
+
+
+def check(config: dict, registry: dict) -> None:
+    """A known set, its families, registered solvers; every hard case a family of the set
+    at a level of the configured classes."""
+    from workflows.test_set import TestSetError
+
+    if "test_set" not in config:
+        if scenes_of(config, "hard_cases"):
+            raise ConfigError("config 'hard_cases': the hard cases are the test set's runs; "
+                              "allowed: with a 'test_set' entry")
+        return
+    cfg = config["test_set"]
+    try:
+        ts = test_set_of(config)
+        ts.problems(families=cfg.get("families") or None)
+    except TestSetError as err:
+        raise ConfigError(f"config 'test_set': {err}") from None
+    check_registered_solvers(config, "test_set")
+    hc = config.get("hard_cases", {})
+    run = set(scenes_of(config, "test_set"))
+    for family, levels in scenes_of(config, "hard_cases").items():
+        have = {p.level for c in cfg["classes"] for p in ts.problems(c, [family])} \
+            if family in ts.families else set()
+        if family not in run or not set(levels) <= have:
+            raise ConfigError(f"config 'hard_cases.scenes.{family}': levels {levels} are not "
+                              f"among the test set's runs; allowed: a family of "
+                              f"test_set.families at a level of test_set.classes "
+                              f"{cfg['classes']}")
+    if hc and hc["preset"] not in cfg["presets"]:
+        raise ConfigError(f"config 'hard_cases.preset': {hc.get('preset')!r} is not run; "
+                          f"allowed: one of test_set.presets {cfg['presets']}")
+
+
+STUDY = Study(
+    name="test_set",
+    summary="the contact QP test set (workflows/config/test_sets/): every family at "
+            "the configured size classes exported (contactbench export) and solved by "
+            "every registered solver at every preset; qpbenchmark's summary (success "
+            "and correct rates, shifted geometric means, performance profiles) "
+            "overall, by size class and by scene; a work-precision figure per family",
+    thesis="Ch. 8 (solvers) on every scene of Ch. 9 and its hard variants",
+    order=40,
+    rule_file="test_set.smk",
+    scripts={"test_set": "workflows.scripts.test_set_runs"},
+    paths=PATHS,
+    outputs=("solver_summary", "solver_summary_by_class", "solver_summary_by_scene",
+             "solver_summary_claims", "solver_profiles", "solver_work_precision"),
+    heavy_rules=("test_set_export", "test_set_runs"),
+    runs_alone=("test_set_runs",),
+    check=check,
+)
