@@ -299,7 +299,7 @@ class Friction:
 
         slip(u) = T u + offset - previous
 
-    and one step is the Tresca problem
+    and one step is the Tresca problem::
 
         minimise 1/2 u'Au - f'u + sum_i s_i |slip_i(u)|   subject to   B u <= g
 
