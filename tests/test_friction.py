@@ -1,4 +1,4 @@
-"""Friction, first part: the model (tangential rows, load path), the exact 2D Tresca
+"""Friction: the model (tangential rows, load path), the exact 2D Tresca
 reference, Coulomb's fixed point, and Cattaneo-Mindlin partial slip on circle_square
 (elastically similar bodies: E1 = E2 = 1, nu1 = nu2 = 0.3, the scene's defaults)."""
 from __future__ import annotations
