@@ -63,7 +63,7 @@ SOLVER_TESTS := tests/test_rounding.py tests/test_solvers.py tests/test_semismoo
 	tests/test_solver_contract.py tests/test_two_pass.py tests/test_friction.py
 
 test: setup browser petsc
-	CONTACTBENCH_CHROMIUM=$(CHROMIUM) $(BIN)/python -m pytest -q
+	CONTACTBENCH_CHROMIUM=$(CHROMIUM) $(BIN)/python -m pytest -q --durations=15
 	@kernels="$$($(BIN)/python tests/blas_kernels.py)" || exit 1; \
 	for k in $$kernels; do \
 		echo "== the solver tests again under OPENBLAS_CORETYPE=$$k"; \
