@@ -59,8 +59,8 @@ from problems.fem.mesh import (Hierarchy, nested_prolongation, netgen_disk, proj
 from problems.fem.stabilised import COUPLING_PARAMETERS, check_coupling, coupling_parameter, couple
 from problems.fem.surface import tensor_coarsening
 from problems.fem.two_body import ELEMENT_DEGREE, Body, TwoBodyScene, assemble_two_body
-from problems.qp import ContactQP, HertzSetup
-from problems.spec import Options, Parameter, ProblemSpec
+from problems.qp import FRICTION_LAWS, ContactQP, HertzSetup, LoadStep
+from problems.spec import Options, Parameter, ParameterError, ProblemSpec
 from reference.hertz import effective_modulus
 
 DISK_MAXH = 0.05
@@ -105,7 +105,7 @@ def scene(level: int, p: Options) -> TwoBodyScene:
         top_cos = p.radius * np.cos(np.radians(p.held_arc)) - 1e-12
         held = np.flatnonzero(on_circle & (rel[:, 1] >= top_cos))
         fixed = np.concatenate([2 * bottom, 2 * bottom + 1, 2 * held, 2 * held + 1])
-        values = np.concatenate([np.zeros(2 * len(bottom)), np.zeros(len(held)),
+        values = np.concatenate([np.zeros(2 * len(bottom)), np.full(len(held), p.shift),
                                  np.full(len(held), -p.indent)])
         return fixed, values
 
@@ -120,11 +120,34 @@ def scene(level: int, p: Options) -> TwoBodyScene:
 
 
 def build(level: int, p: Options) -> ContactQP:
-    """The circle-square ContactQP at uniform level ``level`` (see module docstring)."""
+    """The circle-square ContactQP at uniform level ``level`` (see module docstring);
+    with friction, the first step of its load path (:func:`frictional_build`)."""
     check_coupling(p)
+    if p.friction != "none":
+        return frictional_build(level, p)
     return couple(assemble_two_body(scene(level, p), level, degree=p.degree,
                                     name=f"circle_square level {level}" + (" P2" if p.degree == 2 else "")),
                   p)
+
+
+def frictional_build(level: int, p: Options) -> ContactQP:
+    """The frictional circle-square ContactQP: its load path is the normal load (the held
+    arc pressed down by ``indent``, ``shift`` = 0) and then the tangential step (the held arc
+    moved along x by ``shift``); the ContactQP holds the first step's data, slip measured
+    from the unloaded state, slip bounds zero (the path's driver sets them:
+    ``s_i = mu p_i``, Coulomb)."""
+    for name, value, allowed in (("coupling", p.coupling, "nodal"), ("degree", p.degree, 1)):
+        if value != allowed:
+            raise ParameterError(f"parameter '{name}': {value!r} is not allowed with "
+                                 f"friction={p.friction!r}; allowed: {allowed!r} (the tangential "
+                                 "rows are built for the nodal P1 constraints)")
+    name = f"circle_square level {level} {p.friction} mu={p.mu:g}"
+    steps = [assemble_two_body(scene(level, Options({**p, "shift": shift})), level, name=name,
+                               tangential=True) for shift in (0.0, p.shift)]
+    qp = steps[0]
+    qp.friction.law, qp.friction.mu = p.friction, float(p.mu)
+    qp.friction.path = tuple(LoadStep(s.f, s.g, s.friction.offset) for s in steps)
+    return qp
 
 
 PROBLEM = ProblemSpec(
@@ -164,6 +187,12 @@ PROBLEM = ProblemSpec(
         ELEMENT_DEGREE,
         coupling_parameter(with_mortar=True),
         *COUPLING_PARAMETERS[1:],     # alpha, penalty
+        Parameter("friction", "none", "friction law on the contact (none: the thesis's "
+                  "frictionless problem; tresca: slip bound mu p of the normal step; coulomb: "
+                  "s = mu p by a fixed point)", choices=FRICTION_LAWS),
+        Parameter("mu", 0.0, "friction coefficient", low=0.0),
+        Parameter("shift", 0.0, "tangential load: prescribed x-displacement of the circle's held "
+                  "arc after the normal load", low=-0.2, high=0.2),
     ),
     build=build,
     thesis_tables={"augmented_projection": "table_9_1", "adaptive": "table_9_2"},

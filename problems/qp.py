@@ -263,6 +263,84 @@ class Stabilisation:
         return len(self.nodes)
 
 
+#: The friction laws a ContactQP can carry (``none``: the thesis's frictionless problem).
+FRICTION_LAWS = ("none", "tresca", "coulomb")
+
+
+@dataclass
+class LoadStep:
+    """One step of a quasi-static load path: the ContactQP's data of that step.
+
+    Attributes
+    ----------
+    f : (n,) array
+        Load vector of the step (with the step's prescribed displacements lifted).
+    g : (m,) array
+        Gaps of the step.
+    offset : (m_contact,) array
+        Tangential relative displacement of the step's prescribed values
+        (``T_full @ u_fixed``): the step's relative tangential displacement is
+        ``T u + offset``.
+    """
+
+    f: np.ndarray
+    g: np.ndarray
+    offset: np.ndarray
+
+
+@dataclass
+class Friction:
+    """Tresca or Coulomb friction on the constrained rows (2D: one tangential row each).
+
+    The tangential row of constrained node ``i`` is ``t_i . (u(P) - sum_k w_k u(P_k))``,
+    the same interpolation (Alg. 7.1, (7.14)) as its normal row with the unit tangent
+    ``t_i`` orthogonal to the row's direction ``n_i``. The slip of ``u`` is measured from
+    the previous state of the load path::
+
+        slip(u) = T u + offset - previous
+
+    and one step is the Tresca problem::
+
+        minimise 1/2 u'Au - f'u + sum_i s_i |slip_i(u)|   subject to   B u <= g
+
+    with KKT conditions ``A u + B'p + T'lam = f``, ``|lam_i| <= s_i``,
+    ``lam_i slip_i = s_i |slip_i|`` (and the normal ones). Coulomb friction sets
+    ``s_i = mu p_i`` by a fixed point over Tresca problems.
+
+    Attributes
+    ----------
+    law : {"tresca", "coulomb"}
+    mu : float
+        Friction coefficient (Coulomb; for Tresca it documents how ``slip_bound`` was made).
+    T : (m_contact, n) sparse
+        Tangential rows on the free DOFs.
+    tangent : (m_contact, d) array
+        Unit tangent ``t_i`` of each row.
+    slip_bound : (m_contact,) array
+        ``s_i >= 0``, a force (the bound on ``|lam_i|``).
+    offset : (m_contact,) array
+        ``T_full @ u_fixed`` of this step's prescribed values.
+    previous : (m_contact,) array
+        Relative tangential displacement ``T u_prev + offset_prev`` of the previous state.
+    path : tuple of LoadStep
+        The scene's load path (normal load first, then the tangential step); the
+        ContactQP's ``f``, ``g`` and ``offset`` are those of one of its steps.
+    """
+
+    law: str
+    mu: float
+    T: sp.spmatrix
+    tangent: np.ndarray
+    slip_bound: np.ndarray
+    offset: np.ndarray
+    previous: np.ndarray
+    path: tuple = ()
+
+    def slip(self, u: np.ndarray) -> np.ndarray:
+        """Tangential slip ``T u + offset - previous`` of ``u`` in this step."""
+        return self.T @ np.asarray(u, dtype=float) + self.offset - self.previous
+
+
 @dataclass
 class SharedWork:
     """What is computed once per :class:`ContactQP` and shared, typed (``qp.cache``).
@@ -318,6 +396,9 @@ class ContactQP:
     contact : ContactSurface, optional
     multilevel : Multilevel
     hertz : HertzSetup, optional
+    friction : Friction, optional
+        Tresca or Coulomb friction on the constrained rows; ``None``: frictionless (the
+        thesis's problem). Solvers that do not declare ``handles_friction`` refuse it.
     stabilisation : Stabilisation, optional
         Set when the last ``stabilisation.n_rows`` rows of ``B`` are reverse rows
         (penalised, Sect. 7.5, or hard, two-pass); ``contact`` and
@@ -347,6 +428,7 @@ class ContactQP:
     multilevel: Multilevel = field(default_factory=Multilevel)
     hertz: HertzSetup | None = None
     stabilisation: Stabilisation | None = None
+    friction: Friction | None = None
     name: str = ""
     units: str = "dimensionless"
     level: int = 0
@@ -462,6 +544,9 @@ class ContactQP:
                 raise QPValidationError(f"multilevel.surface must end on the {mc} constraints, "
                                         f"got {len(s.masses[-1])}")
 
+        if self.friction is not None:
+            _validate_friction(self.friction, n, self.m_contact)
+
     def full_displacement(self, u: np.ndarray) -> np.ndarray:
         """Nodal displacement array ``(n_nodes, dim)`` including prescribed values."""
         if self.free_dofs is None or self.u_fixed is None:
@@ -479,6 +564,30 @@ class ContactQP:
         if self.mesh is None or self.contact is None:
             raise QPValidationError("this ContactQP has no mesh/contact surface")
         return self.mesh.points[self.contact.nodes]
+
+
+def _validate_friction(fr: Friction, n: int, mc: int) -> None:
+    """Shapes and ranges of a ContactQP's friction data (the message names the field)."""
+    if fr.law not in FRICTION_LAWS[1:]:
+        raise QPValidationError(f"friction.law {fr.law!r} is not allowed; allowed: "
+                                f"{', '.join(FRICTION_LAWS[1:])}")
+    fr.T = sp.csr_matrix(fr.T, dtype=float)
+    if fr.T.shape != (mc, n):
+        raise QPValidationError(f"friction.T must have shape ({mc}, {n}) (one tangential row "
+                                f"per constrained row), got {fr.T.shape}")
+    for name in ("slip_bound", "offset", "previous"):
+        v = np.asarray(getattr(fr, name), dtype=float).ravel()
+        if v.shape != (mc,) or not np.all(np.isfinite(v)):
+            raise QPValidationError(f"friction.{name} must be {mc} finite values, got shape "
+                                    f"{v.shape}")
+        setattr(fr, name, v)
+    if np.any(fr.slip_bound < 0) or not fr.mu >= 0:
+        raise QPValidationError("friction.slip_bound and friction.mu must be >= 0")
+    for k, step in enumerate(fr.path):
+        for name, size in (("f", n), ("offset", mc)):
+            if np.shape(getattr(step, name)) != (size,):
+                raise QPValidationError(f"friction.path[{k}].{name} must have shape ({size},), "
+                                        f"got {np.shape(getattr(step, name))}")
 
 
 def surface_multipliers(qp: ContactQP, p: np.ndarray) -> np.ndarray:

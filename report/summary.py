@@ -46,6 +46,7 @@ CLAIMS: dict[str, Callable[[pd.DataFrame], pd.DataFrame]] = {
     "hard_nu_claims": lambda t: t,
     "roll_claims": lambda t: t,
     "eo_claims": lambda t: t,
+    "ps_claims": lambda t: t,
 }
 
 #: Tables shown inline (ours beside the thesis's where it has values), each with the

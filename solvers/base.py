@@ -196,6 +196,10 @@ class SolverSpec:
         solver would receive; ``(False, reason)`` makes the run ``skipped`` at once with
         that reason (a floating body, a size beyond a dense method, ...). It must be
         cheap (well under a second).
+    handles_friction : bool
+        The solver takes a ContactQP with friction (``qp.friction``, Tresca or Coulomb);
+        every other solver refuses such a problem at once (``skipped``, with the reason)
+        rather than solve it frictionless.
     """
 
     name: str
@@ -207,6 +211,7 @@ class SolverSpec:
     role: Role = Role.OTHER
     handles_C: bool = False
     supports: Callable[[Any], tuple[bool, str]] | None = None
+    handles_friction: bool = False
 
     def __post_init__(self):
         try:
@@ -221,6 +226,10 @@ class SolverSpec:
 
     def check(self, qp) -> tuple[bool, str]:
         """``(True, "")`` if the solver takes ``qp``, else ``(False, reason)``."""
+        friction = getattr(qp, "friction", None)
+        if friction is not None and not self.handles_friction:
+            return False, (f"{friction.law} friction on the contact: this solver solves the "
+                           "frictionless problem only")
         if self.supports is None:
             return True, ""
         ok, reason = self.supports(qp)

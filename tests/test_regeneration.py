@@ -32,11 +32,11 @@ PROFILE = ROOT / "workflows/profiles/default"
 #: Columns that measure time, memory or the machine, not the mathematics (the only
 #: ones two runs may disagree in).
 TIMING = re.compile(r"(^|_)(t|s|cpu|wall|rss|mb|peak|memory|created)($|_)|time|seconds|speedup|"
-                    r"floor_ratio|ratio_to_floor")
+                    r"floor_ratio|ratio_to_floor|efficiency|tnnmg_over_petsc")
 
 
 #: Claims whose measured value is a time ratio or a time's growth, or a memory ratio.
-TIMING_CLAIM = re.compile(r"T_solve|time|faster|speed|memory")
+TIMING_CLAIM = re.compile(r"T_solve|time|faster|speed|memory|efficiency")
 
 
 def regenerate(cwd: Path, *extra: str, popen: bool = False, env: dict | None = None):

@@ -347,6 +347,15 @@ def test_slurm_profile_dry_run_plans_every_job_with_its_resources(scale):
         assert int(res["mem_mb"]) == want["mem_mb"] and int(res["runtime"]) == want["runtime"], (
             rule, res)
     assert set(HEAVY_RULES) <= {rule for rule, _ in jobs}
+    # the distributed solves: one MPI job per scene with the most ranks as Slurm tasks of
+    # one CPU each and the configured launcher as 'mpi'
+    ps = config["petsc_scaling"]
+    mpi = [dict(re.findall(r"(\w+)=([^,\s]+)", re.search(r"resources: (.*)", block)[1]))
+           for rule, block in jobs if rule == "petsc_scaling_study"]
+    assert len(mpi) == len(ps["scenes"])
+    for res in mpi:
+        assert (int(res["tasks"]), int(res["cpus_per_task"]), res["mpi"]) == (
+            max(ps["ranks"]), 1, ps["launcher"])
 
 
 def test_every_heavy_rule_has_a_benchmark_and_measured_resources():

@@ -665,6 +665,37 @@ def _assemble(rows, facet_nodes, w, n, n_nodes, dim) -> sp.csr_matrix:
     return B
 
 
+def tangent_directions(direction: np.ndarray) -> np.ndarray:
+    """Unit tangent ``t = (n_y, -n_x)`` of each 2D row direction ``n`` (``t`` is ``n``
+    turned clockwise: ``n = (0, 1)`` gives ``t = (1, 0)``).
+
+    Raises
+    ------
+    ValueError
+        For directions that are not 2D (3D needs two tangents per row).
+    """
+    n = np.asarray(direction, dtype=float)
+    if n.ndim != 2 or n.shape[1] != 2:
+        raise ValueError(f"direction: shape {n.shape} is not allowed; allowed: (m, 2) "
+                         "(tangential rows are built for 2D)")
+    return np.stack([n[:, 1], -n[:, 0]], axis=1)
+
+
+def tangential_rows(cc: ContactConstraints, n_nodes: int) -> tuple[sp.csr_matrix, np.ndarray]:
+    """The tangential rows of the constraints ``cc`` (2D): ``t_i . (u(P) - sum_k w_k u(P_k))``.
+
+    The same interpolation (Alg. 7.1, (7.14)) as the normal rows of ``cc.B`` with the
+    unit tangent ``t_i`` (:func:`tangent_directions`) in place of ``n_i``.
+
+    Returns
+    -------
+    T : (m, n_nodes*dim) csr_matrix
+    tangent : (m, dim) array
+    """
+    t = tangent_directions(cc.direction)
+    return _assemble(cc.rows, cc.facet_nodes, cc.weights, t, n_nodes, cc.dim), t
+
+
 def quadratic_constraints(cc: ContactConstraints, facet_nodes: np.ndarray,
                           n_nodes: int) -> ContactConstraints:
     """The constraints ``cc`` for P2 elements (Remark 7.11).

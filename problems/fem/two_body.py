@@ -31,7 +31,7 @@ from typing import Callable
 import numpy as np
 import scipy.sparse as sp
 
-from problems.fem.contact import contact_constraints, quadratic_constraints
+from problems.fem.contact import contact_constraints, quadratic_constraints, tangential_rows
 from problems.fem.elasticity import (body_force_vector, boundary_facets, dirichlet_split,
                                      lumped_surface_mass, rigid_body_modes, stiffness_matrix,
                                      traction_vector)
@@ -41,7 +41,7 @@ from problems.fem.quadratic import (FACET_EDGES, body_force_vector_p2, edge_look
                                     stiffness_matrix_p2, surface_mass_p2, traction_vector_p2)
 from problems.fem.surface import facet_sizes, surface_levels
 from problems.spec import Parameter
-from problems.qp import ContactQP, ContactSurface, HertzSetup, Mesh, Multilevel
+from problems.qp import ContactQP, ContactSurface, Friction, HertzSetup, Mesh, Multilevel
 
 #: The scenes' element order (one declaration, every two-body scene lists it).
 ELEMENT_DEGREE = Parameter(
@@ -274,7 +274,7 @@ def spring_forces(scene: TwoBodyScene, qp: ContactQP, u: np.ndarray) -> np.ndarr
 
 
 def assemble_two_body(scene: TwoBodyScene, level: int, name: str = "",
-                      degree: int = 1) -> ContactQP:
+                      degree: int = 1, tangential: bool = False) -> ContactQP:
     """The ContactQP of ``scene`` on mesh level ``level`` (see the module docstring).
 
     Parameters
@@ -285,6 +285,10 @@ def assemble_two_body(scene: TwoBodyScene, level: int, name: str = "",
     name : str
     degree : {1, 2}
         Lagrange elements of first or second order (Remark 7.11).
+    tangential : bool
+        Also build the tangential rows (:func:`problems.fem.contact.tangential_rows`,
+        2D, P1) as a Tresca :class:`Friction` with zero slip bounds, which the scene
+        completes; ``False`` leaves the frictionless ContactQP exactly as it is.
 
     Returns
     -------
@@ -332,6 +336,8 @@ def assemble_two_body(scene: TwoBodyScene, level: int, name: str = "",
                              search=scene.search, n_nodes=n_nodes)
     if quad is not None:
         cc = quadratic_constraints(cc, quadratic_facets(quad, cc.facet_nodes), n_nodes)
+    if tangential and (quad is not None or dim != 2):
+        raise ValueError("tangential rows are built for 2D P1 elements; allowed: degree=1 in 2D")
     if cc.m == 0:
         raise ValueError("no constrained node finds an opposing facet: the bodies never face "
                          "each other along the contact direction (check on_opposing)")
@@ -366,8 +372,15 @@ def assemble_two_body(scene: TwoBodyScene, level: int, name: str = "",
     surface.masses[-1] = surface.masses[-1][cc.found]
     surface.sizes[-1] = surface.sizes[-1][cc.found]
 
+    friction = None
+    if tangential:
+        T_full, tangent = tangential_rows(cc, n_nodes)
+        zero = np.zeros(cc.m)
+        friction = Friction(law="tresca", mu=0.0, T=T_full[:, free].tocsr(), tangent=tangent,
+                            slip_bound=zero, offset=T_full @ u_fixed, previous=zero.copy())
+
     return ContactQP(
-        A=A, f=f, B=B, g=g, free_dofs=free, u_fixed=u_fixed, dim=dim,
+        A=A, f=f, B=B, g=g, free_dofs=free, u_fixed=u_fixed, dim=dim, friction=friction,
         mesh=Mesh(points=points, cells=cells, body_of_node=body_of_node, E_cell=E_cell,
                   nu_cell=nu_cell, bodies=tuple(b.name for b in scene.bodies)),
         contact=ContactSurface(nodes=cc.rows, mass=mass[cc.found], direction=cc.direction,

@@ -8,7 +8,9 @@ hung, killed or failed MPI job is a row), at one preset. The table
 run ``T(1) / T(r)``, the parallel efficiency ``T(1) / (r T(r))`` and TNNMG's time over
 PETSc's (above 1: PETSc pays there); ``T`` is the run's total time, the MPI job's start-up
 and the problem's transfer included (what a user waits for). Rows that did not converge
-have no speed-up. The claims (:func:`scaling_claims`) say it as data: the best
+have no speed-up. Each PETSc run at more than one rank also records how far its answer
+lies from the one-rank answer, ``||u_r - u_1||_A / ||u_1||_A``, and the bar the two
+certified energy-error bounds give it (:func:`agreement`). The claims (:func:`scaling_claims`) say it as data: the best
 efficiency at the most ranks, and the smallest problem where PETSc beats TNNMG.
 
 Example::
@@ -56,6 +58,31 @@ def scaling_table(rows: pd.DataFrame) -> pd.DataFrame:
     return t
 
 
+def agreement(A, u_r, u_1, bound_r: float, bound_1: float) -> tuple[float, float]:
+    """How far the ``r``-rank answer lies from the one-rank answer, and how far it may.
+
+    Returns ``(distance, bar)``: ``distance = ||u_r - u_1||_A / ||u_1||_A`` and, from the
+    certified relative energy-error bounds ``b`` of the two runs (each at least its
+    floating-point floor; :class:`solvers.certificate.DualityGap`), ``bar = (b_r + b_1)
+    / (1 - b_1)``: by the triangle inequality ``||u_r - u_1||_A <= (b_r + b_1) ||u*||_A``
+    and ``||u*||_A <= ||u_1||_A / (1 - b_1)``. Two correct runs always meet the bar; a
+    distributed solve that converged to something else does not.
+    """
+    d = np.asarray(u_r, dtype=float) - np.asarray(u_1, dtype=float)
+    norm_1 = float(np.sqrt(max(float(u_1 @ (A @ u_1)), 0.0)))
+    distance = float(np.sqrt(max(float(d @ (A @ d)), 0.0))) / norm_1 if norm_1 > 0 else np.nan
+    bar = (bound_r + bound_1) / (1.0 - bound_1) if bound_1 < 1.0 else np.inf
+    return distance, bar
+
+
+def _bound(res) -> float:
+    """A run's certified relative energy-error bound, at least its floating-point floor
+    (inf without a certificate)."""
+    if res.gap is None or not res.gap.certified:
+        return np.inf
+    return max(res.gap.relative_energy_bound, res.gap.floor)
+
+
 def scaling_claims(table: pd.DataFrame) -> pd.DataFrame:
     """The study's statements as data: per scene, the parallel efficiency at the most ranks
     on the largest level, and the smallest problem (unknowns) where PETSc at some rank
@@ -96,7 +123,7 @@ def main(argv=None) -> None:
     levels = check_levels(parser, spec, args.levels)
     runs = [(level, "petsc_tao", r) for level in levels for r in sorted(set(args.ranks))]
     runs += [(level, BESIDE, 1) for level in levels]
-    rows, built = [], {}
+    rows, built, one_rank = [], {}, {}
     for level, solver, ranks in study_progress(sorted(runs), rule="petsc_scaling",
                                                out=args.out, desc=f"{spec.name} scaling"):
         if level not in built:
@@ -104,8 +131,16 @@ def main(argv=None) -> None:
         qp = built[level]
         options = {"ranks": ranks} if solver == "petsc_tao" else {}
         res = solve_isolated(qp, solver, args.preset, time_limit=args.time_limit, **options)
+        distance = bar = np.nan
+        if solver == "petsc_tao" and res.status == "converged":
+            if ranks == 1:
+                one_rank[level] = res
+            elif level in one_rank:
+                base = one_rank[level]
+                distance, bar = agreement(qp.A, res.u, base.u, _bound(res), _bound(base))
         rows.append({"scene_problem": spec.name, "level": level, "n": qp.n, "m": qp.m,
-                     "ranks": ranks, "preset": args.preset, **res.summary()})
+                     "ranks": ranks, "preset": args.preset, **res.summary(),
+                     "distance_to_one_rank": distance, "agreement_bar": bar})
     table = scaling_table(pd.DataFrame(rows))
     write_csv(args.out, table)
     claims = args.claims or str(Path(args.out).with_name(Path(args.out).stem + "_claims.csv"))

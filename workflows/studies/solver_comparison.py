@@ -15,10 +15,7 @@ STUDY = Study(
     thesis="Ch. 8 (solvers) on the scenes of Ch. 9",
     order=30,
     rule_file="solver_comparison.smk",
-    # by hand only (a quiet machine, or a cluster allocation with the ranks): the strong
-    # scaling of the distributed solver against TNNMG (docs/guide/distributed.md)
-    scripts={"solver_comparison": "workflows.scripts.solver_comparison",
-             "petsc_scaling": "workflows.scripts.petsc_scaling"},
+    scripts={"solver_comparison": "workflows.scripts.solver_comparison"},
     paths={
         "solver_runs": "results/{scene}/solvers_L{level}.csv",
         "solver_table": "results/{scene}/solvers.csv",

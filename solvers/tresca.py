@@ -1,0 +1,346 @@
+"""Friction: the exact reference of a 2D Tresca step, the load path and Coulomb's fixed point.
+
+One Tresca step (:class:`problems.qp.Friction`)::
+
+    minimise 1/2 u'Au - f'u + sum_i s_i |T_i u - r_i|   subject to   B u <= g,
+
+``r = previous - offset`` (the slip is measured from the previous state). Splitting the
+slip into two nonnegative parts, ``T_i u - r_i = a_i - b_i`` with ``a, b >= 0``, makes it
+a QP whose dual is the box-constrained problem in ``y = (p, lam)``::
+
+    minimise 1/2 y'Sy - y'(G A^-1 f - h)   subject to   p >= 0,  -s <= lam <= s,
+
+``G = [B; T]``, ``S = G A^-1 G'``, ``h = (g, r)``; the slip parts are the multipliers of
+the two bounds on ``lam``, and ``u = A^-1 (f - G'y)``. :func:`tresca_exact` factorises
+``A`` once, forms ``S`` densely (``2 m`` columns: the reference is for small surfaces)
+and solves the box problem by a primal active-set method, which ends after finitely many
+steps on the exact active sets; the answer is then exact to round-off, and
+:func:`problems.kkt.friction_residuals` verifies it.
+
+:func:`friction_path` runs a scene's load path (normal load, then the tangential step,
+each step's slip measured from the previous step's state); for Coulomb friction each step
+is the fixed point ``s = mu p`` over Tresca steps (its iterations and contraction are
+reported); for Tresca friction the slip bound is ``mu p`` of the frictionless normal step.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+import scipy.sparse as sp
+
+from problems.kkt import FrictionResiduals, friction_residuals
+from problems.qp import ContactQP, LoadStep
+from problems.spec import ParameterError
+from solvers.cholesky import factorize
+
+#: Largest constrained surface (rows) :func:`tresca_exact` takes: ``S`` is dense, ``2m`` square.
+TRESCA_EXACT_MAX_M = 2000
+
+
+@dataclass
+class TrescaSolution:
+    """The answer of one Tresca step.
+
+    Attributes
+    ----------
+    u : (n,) array
+    p : (m,) array
+        Normal multipliers (forces).
+    lam : (m,) array
+        Tangential multipliers (forces), ``|lam_i| <= s_i``.
+    stick : (m,) bool array
+        Rows in contact (``s_i > 0``) whose tangential multiplier is strictly inside its
+        bound (the dual active set): they do not slip.
+    status : str
+        ``converged`` (the active-set method ended on its optimality test) or ``max_iter``.
+    iterations : int
+    kkt : FrictionResiduals
+    active : (2m,) int array
+        The dual active set of ``(p, lam)``: ``-1`` at the lower bound, ``+1`` at the upper,
+        ``0`` free (a warm start for a neighbouring problem).
+    """
+
+    u: np.ndarray
+    p: np.ndarray
+    lam: np.ndarray
+    stick: np.ndarray
+    status: str
+    iterations: int
+    kkt: FrictionResiduals
+    active: np.ndarray | None = None
+
+
+def box_qp_active_set(S: np.ndarray, c: np.ndarray, lo: np.ndarray, hi: np.ndarray,
+                      max_iter: int | None = None,
+                      start: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, int, bool]:
+    """``min 1/2 y'Sy - c'y`` s.t. ``lo <= y <= hi`` (``S`` symmetric positive definite), by
+    the primal active-set method (Nocedal-Wright, Alg. 16.3): exact on its final active set.
+
+    ``start``: a guess of the active set (``at_bound`` of a neighbouring problem); the
+    method starts from the minimiser on that face, projected onto the box (feasible), with
+    the bounds it meets as its active set.
+
+    Returns
+    -------
+    y : array
+    at_bound : (k,) int array
+        ``-1`` at the lower bound, ``+1`` at the upper, ``0`` free.
+    iterations : int
+    converged : bool
+        The optimality test held (every bound's multiplier has the right sign).
+    """
+    k = len(c)
+    max_iter = 10 * k + 50 if max_iter is None else max_iter
+    y = np.clip(np.zeros(k), lo, hi)
+    if start is not None and np.shape(start) == (k,):
+        guess = np.where(start < 0, lo, np.where(start > 0, hi, 0.0))
+        guess = np.where(np.isfinite(guess), guess, 0.0)
+        face = (start == 0) | ~np.isfinite(np.where(start < 0, lo, hi))
+        if face.any():
+            guess[face] = np.linalg.solve(S[np.ix_(face, face)],
+                                          c[face] - S[np.ix_(face, ~face)] @ guess[~face])
+        y = np.clip(guess, lo, hi)
+    at = np.where(lo == hi, -1, np.where(y <= lo, -1, np.where(y >= hi, 1, 0)))
+    for it in range(1, max_iter + 1):
+        free = at == 0
+        target = y.copy()
+        if free.any():
+            rhs = c[free] - S[np.ix_(free, ~free)] @ y[~free]
+            target[free] = np.linalg.solve(S[np.ix_(free, free)], rhs)
+        d = target - y
+        with np.errstate(divide="ignore", invalid="ignore"):
+            room = np.where(d < 0, (lo - y) / d, np.where(d > 0, (hi - y) / d, np.inf))
+        room[~free] = np.inf
+        blocking = int(np.argmin(room)) if k else 0
+        if k and room[blocking] < 1.0:
+            y = y + max(room[blocking], 0.0) * d
+            y[blocking] = lo[blocking] if d[blocking] < 0 else hi[blocking]
+            at[blocking] = -1 if d[blocking] < 0 else 1
+            continue
+        y = target
+        grad = S @ y - c
+        wrong = np.where(at == -1, -grad, np.where(at == 1, grad, 0.0))
+        wrong[lo == hi] = 0.0
+        worst = int(np.argmax(wrong)) if k else 0
+        if not k or wrong[worst] <= 1e-14 * max(float(np.max(np.abs(c))), 1e-300):
+            return y, at, it, True
+        at[worst] = 0
+    return y, at, max_iter, False
+
+
+@dataclass
+class DualOperators:
+    """What every step of one ContactQP's load path shares: ``A`` factorised,
+    ``G = [B; T]``, ``W = A^-1 G'`` and ``S = G W`` (module docstring)."""
+
+    factor: object
+    G: sp.csr_matrix
+    W: np.ndarray
+    S: np.ndarray
+
+
+def dual_operators(qp: ContactQP) -> DualOperators:
+    """:class:`DualOperators` of the frictional ``qp`` (2D, nodal rows).
+
+    Raises
+    ------
+    ValueError
+        Without friction, with reverse rows, or beyond :data:`TRESCA_EXACT_MAX_M` rows.
+    """
+    fr = qp.friction
+    if fr is None or qp.stabilisation is not None or qp.C is not None:
+        raise ValueError("tresca_exact takes a frictional ContactQP with nodal rows only")
+    if qp.m > TRESCA_EXACT_MAX_M:
+        raise ValueError(f"tresca_exact: {qp.m} rows is not allowed; allowed: at most "
+                         f"{TRESCA_EXACT_MAX_M} (S is dense)")
+    G = sp.vstack([qp.B, fr.T]).tocsr()
+    factor = factorize(qp.A)
+    W = factor.solve(G.T.toarray())                       # A^-1 G'
+    S = G @ W
+    return DualOperators(factor, G, W, 0.5 * (S + S.T))
+
+
+def tresca_exact(qp: ContactQP, ops: DualOperators | None = None,
+                 start: np.ndarray | None = None) -> TrescaSolution:
+    """The exact solution of the Tresca step ``qp`` (module docstring; 2D, nodal rows).
+
+    ``ops``: :func:`dual_operators` of a ContactQP with the same ``A``, ``B`` and ``T``
+    (the other steps of its load path), computed here if not given. ``start``: the dual
+    active set of a neighbouring problem (:attr:`TrescaSolution.active`), a warm start.
+    """
+    fr = qp.friction
+    ops = dual_operators(qp) if ops is None else ops
+    G, W = ops.G, ops.W
+    Ainv_f = ops.factor.solve(qp.f)
+    h = np.concatenate([qp.g, fr.previous - fr.offset])
+    m = qp.m
+    lo = np.concatenate([np.zeros(m), -fr.slip_bound])
+    hi = np.concatenate([np.full(m, np.inf), fr.slip_bound])
+    y, at, iterations, ok = box_qp_active_set(ops.S, G @ Ainv_f - h, lo, hi, start=start)
+    u = Ainv_f - W @ y
+    p, lam = np.maximum(y[:m], 0.0), y[m:]
+    stick = (fr.slip_bound > 0) & (at[m:] == 0)
+    return TrescaSolution(u=u, p=p, lam=lam, stick=stick,
+                          status="converged" if ok else "max_iter", iterations=iterations,
+                          kkt=friction_residuals(qp, u, p, lam), active=at)
+
+
+@dataclass
+class PathStep:
+    """One solved step of a frictional load path.
+
+    Attributes
+    ----------
+    qp : ContactQP
+        The step's Tresca problem (its final slip bounds).
+    solution : TrescaSolution
+    tresca_solves : int
+        Tresca problems the step took (Coulomb: the fixed point's iterations).
+    contraction : float
+        Coulomb: the last ratio ``||s_k+1 - s_k|| / ||s_k - s_k-1||`` (``nan`` with fewer
+        than two updates; Tresca: ``nan``).
+    """
+
+    qp: ContactQP
+    solution: TrescaSolution
+    tresca_solves: int = 1
+    contraction: float = float("nan")
+    history: list = field(default_factory=list)
+
+
+def with_step(qp: ContactQP, step: int, slip_bound: np.ndarray, previous: np.ndarray) -> ContactQP:
+    """The Tresca problem of ``qp``'s load-path step ``step`` with the given slip bounds,
+    its slip measured from ``previous``."""
+    ls = qp.friction.path[step]
+    fr = replace(qp.friction, slip_bound=np.asarray(slip_bound, float), offset=ls.offset,
+                 previous=np.asarray(previous, float))
+    return replace(qp, f=ls.f, g=ls.g, friction=fr)
+
+
+def coulomb_step(qp: ContactQP, step: int, previous: np.ndarray, s0: np.ndarray,
+                 solve, tol: float = 1e-12, max_iter: int = 50) -> PathStep:
+    """Coulomb friction in one step: the fixed point ``s = mu p`` over Tresca problems,
+    from the slip bound ``s0``; stops when ``||s_k+1 - s_k||_inf <= tol ||s_k+1||_inf``."""
+    mu, s = qp.friction.mu, np.asarray(s0, float)
+    changes = []
+    for k in range(1, max_iter + 1):
+        step_qp = with_step(qp, step, s, previous)
+        sol = solve(step_qp)
+        s_new = mu * sol.p
+        changes.append(float(np.max(np.abs(s_new - s))) if s.size else 0.0)
+        if changes[-1] <= tol * max(float(np.max(np.abs(s_new))), 1e-300):
+            break
+        s = s_new
+    contraction = changes[-1] / changes[-2] if len(changes) > 1 and changes[-2] > 0 else float("nan")
+    if changes[-1] > tol * max(float(np.max(np.abs(s_new))), 1e-300):
+        sol = replace(sol, status="max_iter")
+    return PathStep(step_qp, sol, tresca_solves=k, contraction=contraction, history=changes)
+
+
+def friction_path(qp: ContactQP, solve=None, tol: float = 1e-12, max_iter: int = 50,
+                  done: tuple = ()) -> list[PathStep]:
+    """Run the load path of the frictional ``qp`` (``qp.friction.path``): each step's slip
+    measured from the previous step's state (the first: from the unloaded state).
+    ``solve(step_qp) -> TrescaSolution`` solves one Tresca step (default: :func:`tresca_exact`).
+    ``done``: the first steps, already solved on the same path (kept as they are).
+
+    Tresca: ``s = mu p`` of the frictionless normal step, the same in every step.
+    Coulomb: each step the fixed point ``s = mu p`` (:func:`coulomb_step`), started from the
+    previous step's bound (the first: from the frictionless normal step's).
+    """
+    fr = qp.friction
+    if fr is None or not fr.path:
+        raise ValueError("friction_path needs a ContactQP with friction and a load path")
+    if solve is None:                               # the exact reference, A factorised once
+        ops = dual_operators(qp)
+        solve = lambda step_qp: tresca_exact(step_qp, ops)
+    zero = np.zeros(qp.m)
+    steps = list(done)
+    if steps:
+        last = steps[-1].qp.friction
+        s, previous = last.slip_bound, last.T @ steps[-1].solution.u + last.offset
+    else:
+        s, previous = fr.mu * solve(with_step(qp, 0, zero, zero)).p, zero
+    for k in range(len(steps), len(fr.path)):
+        if fr.law == "coulomb":
+            done = coulomb_step(qp, k, previous, s, solve, tol, max_iter)
+            s = done.qp.friction.slip_bound
+        else:
+            step_qp = with_step(qp, k, s, previous)
+            done = PathStep(step_qp, solve(step_qp))
+        steps.append(done)
+        previous = done.qp.friction.T @ done.solution.u + done.qp.friction.offset
+    return steps
+
+
+def scaled_tangential_step(qp: ContactQP, factor: float) -> ContactQP:
+    """``qp`` with the tangential step of its two-step load path scaled by ``factor``
+    (the step's data are affine in the prescribed shift: exact)."""
+    fr = qp.friction
+    if fr is None or len(fr.path) != 2:
+        raise ValueError("scaled_tangential_step needs a two-step frictional load path")
+    normal, tangential = fr.path
+    step = LoadStep(*(a + factor * (b - a) for a, b in
+                      ((normal.f, tangential.f), (normal.g, tangential.g),
+                       (normal.offset, tangential.offset))))
+    return replace(qp, friction=replace(fr, path=(normal, step)))
+
+
+def tangential_ratio(steps: list[PathStep]) -> float:
+    """``Q / (mu P)`` of the last step: the total tangential over ``mu`` times the total
+    normal contact force."""
+    sol, mu = steps[-1].solution, steps[-1].qp.friction.mu
+    return abs(float(np.sum(sol.lam))) / (mu * float(np.sum(sol.p)))
+
+
+def path_for_ratio(qp: ContactQP, ratio: float, rtol: float = 1e-6,
+                   max_iter: int = 60) -> list[PathStep]:
+    """The load path of ``qp`` with its tangential step scaled so that ``Q / (mu P)`` of the
+    last step is ``ratio`` (within ``rtol``), by bracketing and the Illinois variant of
+    regula falsi on the monotone ``Q / (mu P)`` of the scale.
+
+    Raises
+    ------
+    ParameterError
+        ``ratio`` outside ``[0, 1)``: at ``Q >= mu P`` the whole contact slips (gross
+        sliding) and there is no static equilibrium to find.
+    """
+    if not 0.0 <= ratio < 1.0:
+        raise ParameterError(f"parameter 'ratio': Q/(mu P) = {ratio!r} is not allowed; allowed: "
+                             "[0, 1) (at Q >= mu P the whole contact slips: gross sliding, no "
+                             "static equilibrium)")
+    ops = dual_operators(qp)
+    exact = lambda step_qp: tresca_exact(step_qp, ops)
+    normal = friction_path(replace(qp, friction=replace(qp.friction, path=qp.friction.path[:1])),
+                           exact)                  # the normal step: the same for every scale
+    warm = {"active": normal[-1].solution.active}
+
+    def tangential(step_qp):                     # warm-started from the last scale's answer
+        sol = tresca_exact(step_qp, ops, start=warm["active"])
+        warm["active"] = sol.active
+        return sol
+
+    run = lambda t: friction_path(scaled_tangential_step(qp, t), tangential, done=normal)
+    lo, f_lo = 0.0, tangential_ratio(run(0.0)) - ratio
+    hi, steps = 1.0, run(1.0)
+    f_hi = tangential_ratio(steps) - ratio
+    while f_hi < 0 and hi < 2.0 ** 30:
+        lo, f_lo, hi = hi, f_hi, 2.0 * hi
+        steps = run(hi)
+        f_hi = tangential_ratio(steps) - ratio
+    side = 0
+    for _ in range(max_iter):
+        if abs(f_hi) <= rtol * ratio:
+            return steps
+        t = hi - f_hi * (hi - lo) / (f_hi - f_lo)
+        steps = run(t)
+        f_t = tangential_ratio(steps) - ratio
+        if (f_t > 0) == (f_hi > 0):
+            hi, f_hi = t, f_t
+            f_lo, side = (f_lo / 2, side) if side == 1 else (f_lo, 1)
+        else:
+            lo, f_lo, hi, f_hi = hi, f_hi, t, f_t
+            side = 0
+    raise RuntimeError(f"path_for_ratio: Q/(mu P) = {ratio} not reached within {max_iter} "
+                       "solves")
