@@ -384,6 +384,8 @@ def test_two_runs_agree_apart_from_timing_columns(tiny_run, resumed_run):
         a, b = (pd.read_csv(root / rel, keep_default_na=False) for root in (tiny_run, other))
         assert list(a.columns) == list(b.columns) and len(a) == len(b), rel
         a, b = comparable(a), comparable(b)
+        if a.empty and b.empty:     # only timing rows (their blanks may change a dtype)
+            continue
         cols = [c for c in a.columns if not a[c].equals(b[c])]
         if cols:
             differing[str(rel)] = cols
