@@ -33,6 +33,9 @@ library used it.
 """
 from __future__ import annotations
 
+import contextlib
+import os
+import sys
 import time
 import warnings
 from dataclasses import dataclass, field
@@ -215,13 +218,31 @@ def _clarabel_call(data: ScaledQP, settings: dict, x0, z0) -> Outcome:
                           "clarabel_r_dual": float(sol.r_dual)})
 
 
+@contextlib.contextmanager
+def _banner_silenced():
+    """Standard output (file descriptor 1) closed to the C library for a moment: the first
+    ``highspy.Highs()`` of a process prints HiGHS's banner there before any option can
+    be set, which would land in the output of ``contactbench solve``."""
+    sys.stdout.flush()
+    saved = os.dup(1)
+    try:
+        null = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(null, 1)
+        os.close(null)
+        yield
+    finally:
+        os.dup2(saved, 1)
+        os.close(saved)
+
+
 def _highs_call(data: ScaledQP, settings: dict, x0, z0) -> Outcome:
     """Direct: qpsolvers returns none of HiGHS's status (``extras`` is empty), which would
     turn its own "Solve error" into a bare failure. ``min 1/2 x'Px + q'x`` with the rows
     ``-inf <= Gx <= h``; HiGHS's row duals are ``-z`` (minimisation, upper bounds)."""
     import highspy
 
-    h = highspy.Highs()
+    with _banner_silenced():
+        h = highspy.Highs()
     for key, value in settings.items():
         h.setOptionValue(key, value)
     n, m = data.A.shape[0], data.B.shape[0]

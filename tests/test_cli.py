@@ -267,3 +267,16 @@ def test_a_reader_that_stops_early_ends_the_listing_quietly(tmp_path):
                           cwd=tmp_path)
     os.close(writer)
     assert (proc.returncode, proc.stderr) == (141, "")
+
+
+def test_a_library_prints_nothing_of_its_own_through_the_cli(tmp_path):
+    """HiGHS prints its banner at the first ``Highs()`` of a process, before options
+    apply: the command's output is the suite's one line, nothing of the library's."""
+    out = tmp_path / "run.json"
+    cmd = [sys.executable, "-m", "workflows.cli", "solve", "--problem", "circle_square",
+           "--level", "0", "--solver", "highs", "--out", str(out)]
+    run = subprocess.run(cmd, capture_output=True, text=True, timeout=600, cwd=Path(__file__).resolve().parent.parent)
+    assert run.returncode == 0, run.stderr
+    assert run.stdout.splitlines() == [f"circle_square level 0: highs "
+                                       f"{json.loads(out.read_text())['status']} -> {out}"]
+    assert "HiGHS" not in run.stderr
