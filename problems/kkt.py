@@ -5,7 +5,7 @@ same formula for every solver (DESIGN.md: conventions).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 
 import numpy as np
 
@@ -32,12 +32,16 @@ class KKTResiduals:
     raw: dict = field(default_factory=dict)
 
     @property
+    def names(self) -> tuple[str, ...]:
+        """The scaled residuals' names, in order (every field but ``raw``)."""
+        return tuple(f.name for f in fields(self) if f.name != "raw")
+
+    @property
     def max(self) -> float:
-        return max(self.stationarity, self.primal, self.dual, self.complementarity)
+        return max(getattr(self, k) for k in self.names)
 
     def as_dict(self, prefix: str = "kkt_") -> dict:
-        return {f"{prefix}stationarity": self.stationarity, f"{prefix}primal": self.primal,
-                f"{prefix}dual": self.dual, f"{prefix}complementarity": self.complementarity}
+        return {f"{prefix}{k}": getattr(self, k) for k in self.names}
 
 
 def kkt_residuals(qp: ContactQP, u: np.ndarray, p: np.ndarray) -> KKTResiduals:
@@ -65,7 +69,7 @@ def kkt_residuals(qp: ContactQP, u: np.ndarray, p: np.ndarray) -> KKTResiduals:
 
 
 @dataclass
-class FrictionResiduals:
+class FrictionResiduals(KKTResiduals):
     """The KKT residuals of a Tresca step (:class:`problems.qp.Friction`), scaled like
     :class:`KKTResiduals`.
 
@@ -77,23 +81,8 @@ class FrictionResiduals:
     max(||slip||_inf, ||Bu||_inf, ||g||_inf))`` (entrywise, as for the normal rows).
     """
 
-    stationarity: float
-    primal: float
-    dual: float
-    complementarity: float
-    bound: float
-    slip_complementarity: float
-    raw: dict = field(default_factory=dict)
-
-    @property
-    def max(self) -> float:
-        return max(self.stationarity, self.primal, self.dual, self.complementarity, self.bound,
-                   self.slip_complementarity)
-
-    def as_dict(self, prefix: str = "kkt_") -> dict:
-        return {f"{prefix}{k}": getattr(self, k) for k in
-                ("stationarity", "primal", "dual", "complementarity", "bound",
-                 "slip_complementarity")}
+    bound: float = field(kw_only=True)
+    slip_complementarity: float = field(kw_only=True)
 
 
 def friction_residuals(qp: ContactQP, u: np.ndarray, p: np.ndarray,
