@@ -111,6 +111,9 @@ class SolveResult:
     traceback : str
         The traceback of an exception the solver raised (empty otherwise): kept with the
         row, never in its table columns.
+    tangential : array or None
+        On a frictional problem (``qp.friction``), the tangential multipliers (forces) of
+        the constrained rows, ``|tangential_i| <= s_i``; ``None`` on a frictionless one.
     """
 
     u: np.ndarray
@@ -130,6 +133,7 @@ class SolveResult:
     options: dict = field(default_factory=dict)
     failed_check: str = ""
     traceback: str = ""
+    tangential: np.ndarray | None = None
 
     @classmethod
     def without_answer(cls, n: int, m: int, solver: str, tol: float, status: str,
