@@ -4,32 +4,39 @@
 # A study is one module of workflows/studies/ (its paths, outputs, thesis items, config
 # checks), discovered; its rules live in the rule file it names (workflows/<study>.smk),
 # included below, and run on the scenes its config lists.
+import atexit
 import hashlib
 import json
 import os
 import shlex
+import shutil
 import sys
+import tempfile
 
 from snakemake.utils import validate
 
 from solvers.interface import solver_set
 from workflows.io import SOLVER_SET_ENV, run_solver_set, sweep_results
 from workflows.progress import clear as clear_progress, start_reporter
-from workflows.settings import SCHEMA
 
-from workflows.studies import (PATHS, STUDIES, all_targets, bench_path, check_config,
-                               coarser_levels, log_path, rule_resources, scenes_of,
-                               scenes_with_families, set_args, summary_items, test_set_of,
-                               thesis_table)
+from workflows.studies import (PATHS, STUDIES, all_targets, at_scale, bench_path,
+                               caption_files, check_config, coarser_levels, log_path,
+                               rule_resources, scenes_of, scenes_with_families, schema_file,
+                               set_args, summary_items, test_set_of, thesis_table)
 
 # the quick scale unless --configfile names another (merging quick.yaml under full.yaml or
 # tiny.yaml would leave quick's scenes in them)
 if not workflow.overwrite_configfiles:
     configfile: os.path.join(workflow.basedir, "workflows/config/quick.yaml")
 report: "report/workflow.rst"
+# the sections and resources the studies declare at the config's scale (scale: quick)
+config.update(at_scale(config))
 # the test set's families are scenes too (workflows/config/test_sets/): typed once there
 config["scenes"] = scenes_with_families(config)
-validate(config, str(SCHEMA))   # fills in the schema's defaults (workflows/settings.py)
+# the schema: workflows/config.schema.yaml and each study's own section (its module);
+# validating fills in the schema's defaults (workflows/settings.py)
+with schema_file() as schema:
+    validate(config, schema)
 check_config(config)   # scenes exist, problems and parameters valid, variant names known
 
 # provenance of every result names the config; corrupted results and partial files of a
@@ -60,6 +67,11 @@ SCALE = "+".join(os.path.splitext(os.path.basename(str(f)))[0]
 PY = sys.executable  # the interpreter snakemake runs under (the venv's, via `make run`)
 ENV = "envs/contactbench.yaml"
 
+
+# each study's captions file split into one file per output, for report(caption=...)
+_CAPTION_DIR = tempfile.mkdtemp(prefix="contactbench-captions-")
+atexit.register(shutil.rmtree, _CAPTION_DIR, ignore_errors=True)
+CAPTIONS = caption_files(_CAPTION_DIR)
 
 # every study's rule file (its own helpers it imports from its study module), then the
 # summary page over them

@@ -18,9 +18,9 @@ rule element_order_study:
 rule element_order_report:
     input: PATHS["eo_study"]
     output:
-        claims=report(PATHS["eo_claims"], caption="../report/captions/eo_claims.rst",
+        claims=report(PATHS["eo_claims"], caption=CAPTIONS["eo_claims"],
                       category="{scene}", subcategory="P1 against P2"),
-        figure=report(PATHS["eo_figure"], caption="../report/captions/eo_figure.rst",
+        figure=report(PATHS["eo_figure"], caption=CAPTIONS["eo_figure"],
                       category="{scene}", subcategory="P1 against P2")
     log: log_path("element_order_report")
     conda: ENV

@@ -19,17 +19,28 @@ so a new scene joins a study by a config line; results land under ``results/<sce
 """
 from __future__ import annotations
 
+import contextlib
+import copy
+import os
 import re
+import tempfile
+from pathlib import Path
+
+import yaml
 
 from problems.spec import discover
-from workflows.studies._base import (COMMON_PATHS, REFERENCE, RESULTS, ConfigError, Study,
-                                     ThesisItem, bench_path, coarser_levels, log_path,
-                                     scene_problem, scenes_of, scenes_with_families, set_args,
-                                     test_set_of, thesis_table)
+from workflows.settings import SCHEMA
+from workflows.studies._base import (COMMON_PATHS, REFERENCE, RESULTS, SCALES, AtScale,
+                                     ConfigError, Study, ThesisItem, bench_path, captions_of,
+                                     coarser_levels, log_path, scene_problem, scenes_of,
+                                     scenes_with_families, set_args, test_set_of,
+                                     thesis_table)
 
 __all__ = ["ALONE_CPUS", "COMMON_PATHS", "HEAVY_RULES", "MACHINE_SHARE", "PATHS", "REFERENCE",
-           "RESULTS", "RUNS_ALONE", "STUDIES", "THESIS_ITEMS", "ConfigError", "Study",
-           "ThesisItem", "all_targets", "bench_path", "check_config", "coarser_levels",
+           "RESULTS", "RUNS_ALONE", "SCALES", "STUDIES", "THESIS_ITEMS", "AtScale",
+           "ConfigError", "Study", "ThesisItem", "all_targets", "at_scale", "bench_path",
+           "caption_files", "captions_of", "check_config", "claim_keys", "coarser_levels",
+           "config_schema", "load_config", "schema_file",
            "log_path", "rule_resources", "scene_problem", "scenes_of", "scenes_with_families",
            "set_args", "study_commands", "study_of", "summary_items", "test_set_of", "thesis_item_files",
            "thesis_table"]
@@ -166,3 +177,88 @@ def summary_items(config: dict) -> str:
 def all_targets(config: dict) -> list[str]:
     """Every study's outputs under ``config`` (the Snakefile's default target)."""
     return [t for study in STUDIES.values() for t in study.targets(config)]
+
+
+def config_schema() -> dict:
+    """The workflow's config schema: ``workflows/config.schema.yaml`` (the scenes, the
+    resources, the shared definitions, and the sections of the studies configured in the
+    scale files) with every study's own ``settings`` section added, and ``scale`` naming
+    one of :data:`SCALES`.
+
+    Raises
+    ------
+    RuntimeError
+        If a study's section is declared both in its module and in the file.
+    """
+    with open(SCHEMA, encoding="utf-8") as f:
+        schema = yaml.safe_load(f)
+    properties = schema["properties"]
+    for study in STUDIES.values():
+        if study.settings is None:
+            continue
+        if study.name in properties:
+            raise RuntimeError(f"the config section of study {study.name!r} is declared in "
+                               f"its module and again in {SCHEMA.name}")
+        properties[study.name] = copy.deepcopy(study.settings)
+    properties["scale"] = {"enum": list(SCALES), "description":
+                           "the scale whose study sections and resources the studies "
+                           "declare (workflows/studies/); a section the file gives wins"}
+    return schema
+
+
+@contextlib.contextmanager
+def schema_file():
+    """The path of a temporary file holding :func:`config_schema` (Snakemake validates a
+    config against a schema file), removed on leaving."""
+    fd, path = tempfile.mkstemp(prefix="contactbench-config-schema-", suffix=".yaml")
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as f:
+            yaml.safe_dump(config_schema(), f, sort_keys=False)
+        yield path
+    finally:
+        os.unlink(path)
+
+
+def at_scale(config: dict) -> dict:
+    """``config`` with the sections and resources the studies declare at its ``scale``
+    (:attr:`Study.scales`) that it does not give itself (a config without ``scale`` is
+    returned as it is)."""
+    scale = config.get("scale")
+    if scale is None:
+        return config
+    if scale not in SCALES:
+        raise ConfigError(f"config 'scale': {scale!r} is not allowed; allowed: "
+                          f"{', '.join(SCALES)}")
+    out = copy.deepcopy(config)
+    for study in STUDIES.values():
+        declared = study.scales.get(scale)
+        if declared is None:
+            continue
+        if study.name not in config:
+            out[study.name] = copy.deepcopy(declared.settings)
+        resources = out.setdefault("resources", {})
+        for rule, measured in declared.resources.items():
+            resources.setdefault(rule, dict(measured))
+    return out
+
+
+def load_config(path) -> dict:
+    """A config file as the workflow sees it before validation: the file, then
+    :func:`at_scale`."""
+    return at_scale(yaml.safe_load(Path(path).read_text(encoding="utf-8")))
+
+
+def claim_keys() -> tuple[str, ...]:
+    """Path keys of every study's checked-claims tables (:attr:`Study.claims`)."""
+    return tuple(key for study in STUDIES.values() for key in study.claims)
+
+
+def caption_files(folder) -> dict[str, str]:
+    """``{path key: caption file}``: each study's captions file split into one file per
+    output under ``folder`` (Snakemake's ``report(..., caption=FILE)`` takes a file)."""
+    out = {}
+    for study in STUDIES.values():
+        for key, text in captions_of(study).items():
+            out[key] = os.path.join(folder, f"{key}.rst")
+            Path(out[key]).write_text(text + "\n", encoding="utf-8")
+    return out

@@ -7,11 +7,15 @@ and scenes (:func:`problems.spec.discover`).
 """
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
 RESULTS = "results"
+#: The scales a study declares its config section at (``workflows/config/<scale>.yaml``
+#: names one as ``scale:``).
+SCALES = ("tiny", "quick", "full", "huge")
 #: The thesis's tables (absolute: the workflow may run in another working directory).
 REFERENCE = Path(__file__).resolve().parents[2] / "reference"
 
@@ -43,6 +47,19 @@ class ThesisItem:
     key: str | None
     problem: str | None = None
     note: str = ""
+
+
+@dataclass(frozen=True)
+class AtScale:
+    """A study's config section at one scale, and its heavy rules' resources there.
+
+    ``settings`` is the section (validated against the study's ``settings`` schema, which
+    fills in its defaults); ``resources`` is ``{heavy rule: {"mem_mb": MB, "runtime":
+    minutes}}``, the rule's largest job at this scale as measured, with headroom.
+    """
+
+    settings: dict
+    resources: dict = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -83,6 +100,20 @@ class Study:
         scripts). The first command is the study's name.
     rule_file : str
         Its Snakemake rules, ``workflows/<rule_file>``.
+    settings : dict, optional
+        The JSON schema of its config section (``config[name]``); the workflow's schema
+        is assembled from the studies' (:func:`workflows.studies.config_schema`).
+    scales : dict
+        ``{scale: AtScale}``: its config section and resources at each scale of
+        :data:`SCALES` it runs at; a config naming the scale (``scale: quick``) gets them
+        unless it gives the section itself. A study without ``scales`` is configured in
+        the scale files.
+    claims : tuple of str
+        Keys of ``paths``: its checked-claims tables (columns claim, measured, bar, pass),
+        collected by the summary page.
+    captions : str
+        Its captions file, ``report/captions/<captions>``: one ``.. caption:: KEY``
+        section per output its rules show in the report (:func:`captions_of`).
     """
 
     name: str
@@ -98,6 +129,23 @@ class Study:
     check: Callable[[dict, dict], None] | None = None
     scripts: dict = field(default_factory=dict)
     rule_file: str = ""
+    settings: dict | None = None
+    scales: dict = field(default_factory=dict)
+    claims: tuple[str, ...] = ()
+    captions: str = ""
+
+    def __post_init__(self):
+        unknown = sorted(set(self.scales) - set(SCALES))
+        if unknown:
+            raise ValueError(f"study {self.name!r}: scales {unknown} are not allowed; "
+                             f"allowed: {', '.join(SCALES)}")
+        if self.scales and self.settings is None:
+            raise ValueError(f"study {self.name!r} declares scales but no settings schema")
+        undeclared = sorted({rule for at in self.scales.values() for rule in at.resources}
+                            - set(self.heavy_rules))
+        if undeclared:
+            raise ValueError(f"study {self.name!r}: resources of {undeclared}, which are "
+                             "not among its heavy_rules")
 
     def items(self, config: dict) -> list[tuple[str, str | None, str]]:
         """``(path key, scene or None, path)`` of every file this study produces."""
@@ -136,6 +184,33 @@ class Study:
             return [template]
         return [template.format(scene=item.problem)] if item.problem in scenes_of(
             config, self.name) else []
+
+
+#: A section of a captions file: ``.. caption: KEY`` on a line of its own (an RST
+#: comment), then the caption of the output ``KEY`` up to the next section.
+CAPTION_SECTION = re.compile(r"^\.\. caption: (\w+)[ \t]*$", flags=re.M)
+
+
+def captions_of(study: Study, root: Path = REFERENCE.parent) -> dict[str, str]:
+    """``{path key: caption}`` of the study's captions file (empty if it declares none).
+
+    Raises
+    ------
+    ValueError
+        If a section names a key the study does not declare, or a key twice.
+    """
+    if not study.captions:
+        return {}
+    text = (root / "report" / "captions" / study.captions).read_text(encoding="utf-8")
+    parts = CAPTION_SECTION.split(text)
+    keys, bodies = parts[1::2], [body.strip() for body in parts[2::2]]
+    wrong = sorted({k for k in keys if k not in study.paths} | {k for k in keys
+                                                                 if keys.count(k) > 1})
+    if wrong or parts[0].strip():
+        raise ValueError(f"report/captions/{study.captions}: sections {wrong} are not "
+                         f"allowed; allowed: '.. caption: KEY' once per key of "
+                         f"{', '.join(study.paths)}, the first line a section")
+    return dict(zip(keys, bodies))
 
 
 def cases_of(config: dict, study: str) -> list[str]:

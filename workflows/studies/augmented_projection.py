@@ -45,4 +45,5 @@ STUDY = Study(
                    "cube_sphere"),
     ),
     check=check,
+    claims=("ap_claims",),
 )

@@ -1,5 +1,7 @@
 """P1 against P2 elements on a contact scene (thesis Remark 7.11), Alg. 8.4 on P2."""
-from workflows.studies._base import ConfigError, Study, ThesisItem, scenes_of
+from workflows.studies._base import AtScale, ConfigError, Study, ThesisItem, scenes_of
+
+RULE = "element_order_study"
 
 
 def element_order_args(config: dict, scene: str) -> str:
@@ -53,8 +55,8 @@ STUDY = Study(
         "eo_figure": "results/{scene}/element_order.png",
     },
     outputs=("eo_study", "eo_claims", "eo_figure"),
-    heavy_rules=("element_order_study",),
-    runs_alone=("element_order_study",),
+    heavy_rules=(RULE,),
+    runs_alone=(RULE,),
     thesis_items=(
         ThesisItem("Remark 7.11 (2D)", "second-order elements, circle-square: P1 against P2, "
                    "Alg. 8.4 on P2", "eo_figure", "circle_square"),
@@ -62,4 +64,41 @@ STUDY = Study(
                    "Alg. 8.4 on P2", "eo_figure", "cube_sphere"),
     ),
     check=check,
+    settings={
+        "type": "object",
+        "description": "P1 against P2 (Remark 7.11, workflows/scripts/element_order.py): "
+                       "per scene, P2 at the listed levels and P1 at one level more, against "
+                       "a P2 reference at reference_level; Alg. 8.4 on each",
+        "additionalProperties": False,
+        "required": ["scenes", "reference_level", "time_limit"],
+        "properties": {
+            "scenes": {"$ref": "#/definitions/scene_levels", "description":
+                       "{scene: [P2 levels]} (a scene whose problem has the 'degree' "
+                       "parameter)"},
+            "reference_level": {"type": "object", "description": "{scene: level} of the P2 "
+                                "reference, above every level of the scene",
+                                "additionalProperties": {"type": "integer", "minimum": 0}},
+            "time_limit": {"$ref": "#/definitions/time_limit"},
+        },
+    },
+    # P2 levels per scene; P1 runs one level more. Resources: the largest job, measured
+    # (quick) or predicted from the quick and full runs (full, huge: `make plan`).
+    scales={
+        # 3D from the full scale on: its P2 level-2 reference takes 18 min
+        "quick": AtScale({"scenes": {"circle_square": [0, 1, 2]},
+                          "reference_level": {"circle_square": 3}, "time_limit": 120},
+                         {RULE: {"mem_mb": 3500, "runtime": 2}}),    # measured 35 s, 2.3 GB
+        "full": AtScale({"scenes": {"circle_square": [0, 1, 2], "cube_sphere": [0, 1]},
+                         "reference_level": {"circle_square": 3, "cube_sphere": 2},
+                         "time_limit": 600},
+                        # e_t 0.89, e_mem 1.15 (contact_level (proxy)); cube_sphere x1
+                        {RULE: {"mem_mb": 4000, "runtime": 47}}),
+        "huge": AtScale({"scenes": {"circle_square": [0, 1, 2, 3], "cube_sphere": [0, 1, 2]},
+                         "reference_level": {"circle_square": 4, "cube_sphere": 3},
+                         "time_limit": 600},
+                        # e_t 0.89, e_mem 1.15 (contact_level (proxy)); cube_sphere x8
+                        {RULE: {"mem_mb": 37400, "runtime": 298}}),
+    },
+    claims=("eo_claims",),
+    captions="element_order.rst",
 )

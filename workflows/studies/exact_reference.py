@@ -43,4 +43,5 @@ STUDY = Study(
     heavy_rules=("exact_reference",),
     runs_alone=("exact_reference",),
     check=check,
+    claims=("exact_claims",),
 )

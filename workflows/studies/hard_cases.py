@@ -48,4 +48,5 @@ STUDY = Study(
     outputs=("hard_table", "hard_heatmap", "hard_nu_runs", "hard_nu_claims", "hard_nu_figure"),
     heavy_rules=("hard_cases_incompressibility",),
     check=check,
+    claims=("hard_nu_claims",),
 )

@@ -76,4 +76,5 @@ STUDY = Study(
     heavy_rules=(RULE,),
     runs_alone=(RULE,),
     check=check,
+    claims=("ps_claims",),
 )

@@ -118,4 +118,5 @@ STUDY = Study(
                    "beam model", "roll_table", "roll_stack"),
     ),
     check=check,
+    claims=("roll_claims",),
 )
