@@ -90,6 +90,22 @@ PAGES = [ROOT / "README.md", *sorted(p for p in DOCS.rglob("*.md")
                                      if not {"_build", "generated"} & set(p.parts))]
 
 
+def page_texts() -> dict[str, str]:
+    """``{page: text}`` of :data:`PAGES` and of the study pages generated from a study
+    module's docstring (a study without a hand-written page)."""
+    import importlib
+    import inspect
+
+    from workflows.studies import STUDIES
+
+    texts = {page.name: page.read_text(encoding="utf-8") for page in PAGES}
+    for name in STUDIES:
+        if not (DOCS / "studies" / f"{name}.md").is_file():
+            module = importlib.import_module(f"workflows.studies.{name}")
+            texts[f"workflows/studies/{name}.py"] = inspect.getdoc(module) or ""
+    return texts
+
+
 def shell_lines(text: str) -> list[str]:
     """The lines of the ``bash`` fenced blocks of a page, continuation lines joined and
     comments dropped."""
@@ -109,11 +125,11 @@ def shown_commands() -> list[tuple[str, list[str]]]:
     """``(page, argv)`` of every ``contactbench`` command in a fenced block of the pages
     (continuation lines joined, comments dropped)."""
     found = []
-    for page in PAGES:
-        for line in shell_lines(page.read_text(encoding="utf-8")):
+    for page, text in page_texts().items():
+        for line in shell_lines(text):
             words = shlex.split(line)
             if words[0].endswith("contactbench"):
-                found.append((page.name, words[1:]))
+                found.append((page, words[1:]))
     return found
 
 
@@ -130,8 +146,7 @@ def at_the_tiny_scale(argv: list[str]) -> list[str]:
 def test_the_pages_show_only_suite_commands():
     """The docs show contactbench, make and snakemake (and qpbenchmark on an export)."""
     allowed = ("contactbench", "make", "snakemake", "qpbenchmark", "pip")
-    for page in PAGES:
-        text = page.read_text(encoding="utf-8")
+    for page, text in page_texts().items():
         assert "python -m" not in text, page
         for line in shell_lines(text):
             assert shlex.split(line)[0].split("/")[-1] in allowed, (page, line)
@@ -159,9 +174,9 @@ def test_the_study_commands_quoted_with_a_measurement_name_real_options(capsys):
     from workflows.studies import study_commands
 
     quoted = []
-    for page in PAGES:
-        text = " ".join(page.read_text(encoding="utf-8").split())
-        quoted += [(page.name, m[0], m[1]) for m in
+    for page, text in page_texts().items():
+        text = " ".join(text.split())
+        quoted += [(page, m[0], m[1]) for m in
                    re.findall(r"contactbench study ([a-z_]+)((?: [^`]*)?)`", text)]
     assert len(quoted) >= 10
     for page, name, rest in quoted:
@@ -175,17 +190,24 @@ def test_the_study_commands_quoted_with_a_measurement_name_real_options(capsys):
                 (page, name, option)
 
 
+def study_page(site: Path, name: str) -> Path:
+    """A study's page: hand-written, or generated from its module alone."""
+    page = site / "studies" / f"{name}.html"
+    return page if page.is_file() else site / "generated" / "studies" / f"{name}.html"
+
+
 @pytest.mark.slow
 def test_each_study_page_shows_what_its_declaration_and_rules_say(site):
     from report.element_order import CLAIMS
     from workflows.studies import STUDIES
 
     for name, study in STUDIES.items():
-        page = plain_text_of(site / "studies" / f"{name}.html")
+        page = plain_text_of(study_page(site, name))
         assert f"contactbench study {next(iter(study.scripts))}" in page, name
         for item in study.thesis_items:
             assert item.item in page, (name, item.item)
-    page = plain_text_of(site / "studies" / "element_order.html")
+    page = plain_text_of(study_page(site, "element_order"))
+    assert "Remark 7.11" in page and "κ(Ŝ⁻¹S_in)" in page      # the module's docstring
     for claim in CLAIMS.values():                   # the report module's declared claims
         assert claim.thesis in page
     assert "P1 (circles) against P2 (squares)" in page         # the figure's caption

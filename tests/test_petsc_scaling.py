@@ -9,13 +9,12 @@ import numpy as np
 import pandas as pd
 import pytest
 
-import yaml
 from PIL import Image
 
 from report import petsc_scaling as report_scaling
 from solvers import petsc_tao
 from workflows.scripts import petsc_scaling
-from workflows.studies import ConfigError, check_config
+from workflows.studies import ConfigError, check_config, load_config
 from workflows.studies import petsc_scaling as study
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -134,7 +133,7 @@ def test_without_petsc_the_report_says_skipped_and_judges_nothing_of_it(tmp_path
 def test_each_scale_declares_the_runtime_its_time_limits_bound(scale):
     """The configs' runtime of the study is the bound of :func:`runtime_bound` (not a
     measurement: the config comment says so), and the ranks include 1."""
-    config = yaml.safe_load((ROOT / f"workflows/config/{scale}.yaml").read_text())
+    config = load_config(ROOT / f"workflows/config/{scale}.yaml")
     ps = config["petsc_scaling"]
     assert config["resources"]["petsc_scaling_study"]["runtime"] == study.runtime_bound(config)
     assert study.mpi_resources(config)["tasks"] == max(ps["ranks"])

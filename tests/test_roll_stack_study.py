@@ -16,7 +16,6 @@ import numpy as np
 import pandas as pd
 import pytest
 import scipy.sparse as sp
-import yaml
 
 from problems.floating import floating_modes
 from problems.kkt import kkt_residuals
@@ -25,7 +24,7 @@ from report import roll_stack as report
 from solvers.cholesky import FloatingCholesky
 from solvers.interface import solve
 from workflows.scripts import roll_stack_study as study
-from workflows.studies import ConfigError, all_targets, check_config
+from workflows.studies import ConfigError, all_targets, check_config, load_config, schema_file
 from workflows.studies.roll_stack import roll_args
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -177,7 +176,7 @@ def test_hertz_is_judged_only_where_resolved():
 
 
 def config(scale="tiny"):
-    return yaml.safe_load((ROOT / f"workflows/config/{scale}.yaml").read_text())
+    return load_config(ROOT / f"workflows/config/{scale}.yaml")
 
 
 @pytest.mark.parametrize("scale", ["tiny", "quick", "full"])
@@ -232,13 +231,13 @@ def test_schema_accepts_the_configs_and_refuses_unknown_roll_stack_keys(scale):
     from snakemake.exceptions import WorkflowError
     from snakemake.utils import validate
 
-    schema = str(ROOT / "workflows/config.schema.yaml")
-    c = config(scale)
-    validate(copy.deepcopy(c), schema)
-    c["roll_stack"]["crown"] = [0.0]                        # a typo: 'crowns'
-    with pytest.raises(WorkflowError, match="crown"):
-        validate(c, schema)
-    c = config(scale)
-    c["roll_stack"]["alg84_time_limit"] = 0
-    with pytest.raises(WorkflowError, match="alg84_time_limit"):
-        validate(c, schema)
+    with schema_file() as schema:
+        c = config(scale)
+        validate(copy.deepcopy(c), schema)
+        c["roll_stack"]["crown"] = [0.0]                        # a typo: 'crowns'
+        with pytest.raises(WorkflowError, match="crown"):
+            validate(c, schema)
+        c = config(scale)
+        c["roll_stack"]["alg84_time_limit"] = 0
+        with pytest.raises(WorkflowError, match="alg84_time_limit"):
+            validate(c, schema)

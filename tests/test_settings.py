@@ -3,15 +3,14 @@
 in :mod:`workflows.studies` and no script's option declares one of them again."""
 from __future__ import annotations
 
-import copy
 import re
 from pathlib import Path
 
 import pytest
-import yaml
 from snakemake.utils import validate
 
-from workflows.settings import SCHEMA, study_defaults
+from workflows.settings import section_defaults, study_defaults
+from workflows.studies import config_schema, load_config, schema_file
 from workflows.studies.adaptive import adaptive_args
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -24,11 +23,11 @@ GET_DEFAULT = r"""\.get\(\s*["']{key}["']\s*,(?!\s*(?:\{{\}}|\[\]|\(\)|None\b))"
 
 def _settings() -> dict:
     """``{study: (keys with a schema default, required keys)}``."""
-    schema = yaml.safe_load(SCHEMA.read_text())
+    schema = config_schema()
     out = {}
     for study, spec in schema["properties"].items():
         if spec.get("type") == "object" and spec.get("properties"):
-            out[study] = (set(study_defaults(study)), set(spec.get("required", ())))
+            out[study] = (set(section_defaults(spec)), set(spec.get("required", ())))
     return out
 
 
@@ -80,11 +79,11 @@ def test_no_script_option_repeats_a_schema_default():
 def test_validation_fills_the_defaults_in():
     """The Snakefile's validation (snakemake.utils.validate, set_default) puts the schema's
     defaults into a config that leaves them out, and the rules read them from there."""
-    config = yaml.safe_load((ROOT / "workflows" / "config" / "quick.yaml").read_text())
-    config = copy.deepcopy(config)
+    config = load_config(ROOT / "workflows" / "config" / "quick.yaml")
     for key in ("theta", "min_marked", "tol", "time_limit", "stabilisation"):
         config["adaptive"].pop(key, None)
-    validate(config, str(SCHEMA))
+    with schema_file() as schema:
+        validate(config, schema)
     ad = config["adaptive"]
     assert (ad["theta"], ad["min_marked"], ad["tol"], ad["time_limit"]) == (0.5, 0.0, 1e-8, 120.0)
     assert ad["stabilisation"] == {"alpha": 1.0, "penalty": 1.0}

@@ -12,7 +12,7 @@ import pandas as pd
 import pytest
 import yaml
 
-from workflows.studies import STUDIES, all_targets, check_config, ConfigError
+from workflows.studies import STUDIES, ConfigError, all_targets, check_config, load_config
 
 ROOT = Path(__file__).resolve().parent.parent
 SNAKEMAKE = Path(sys.executable).parent / "snakemake"
@@ -255,7 +255,7 @@ def test_snakemake_lint_is_clean():
 
 def test_a_new_scene_joins_a_study_by_config_alone(tmp_path):
     """Adding a scene is a config change only: its jobs land under results/<scene>/."""
-    config = yaml.safe_load((ROOT / "workflows/config/quick.yaml").read_text())
+    config = load_config(ROOT / "workflows/config/quick.yaml")
     config["scenes"]["circle_square_stiff"] = {"problem": "circle_square", "params": {"E2": 10.0}}
     config["solver_comparison"]["scenes"]["circle_square_stiff"] = [1]
     path = tmp_path / "config.yaml"
@@ -294,14 +294,14 @@ def test_a_new_scene_joins_a_study_by_config_alone(tmp_path):
      "'element_order.scenes.cs_p2': the scene sets 'degree'"),
 ])
 def test_config_errors_name_the_key(change, needle):
-    config = yaml.safe_load((ROOT / "workflows/config/quick.yaml").read_text())
+    config = load_config(ROOT / "workflows/config/quick.yaml")
     change(config)
     with pytest.raises(ConfigError, match=needle.replace("[", r"\[").replace("]", r"\]")):
         check_config(config)
 
 
 def test_config_schema_rejects_unknown_keys(tmp_path):
-    config = yaml.safe_load((ROOT / "workflows/config/quick.yaml").read_text())
+    config = load_config(ROOT / "workflows/config/quick.yaml")
     config["solver_comparison"]["timelimit"] = 5
     path = tmp_path / "config.yaml"
     path.write_text(yaml.safe_dump(config))
@@ -310,7 +310,7 @@ def test_config_schema_rejects_unknown_keys(tmp_path):
 
 
 def test_studies_declare_their_outputs_once():
-    config = yaml.safe_load((ROOT / "workflows/config/quick.yaml").read_text())
+    config = load_config(ROOT / "workflows/config/quick.yaml")
     targets = all_targets(config)
     assert len(targets) == len(set(targets))
     assert "results/circle_square/augmented_projection_table.csv" in targets
@@ -333,7 +333,7 @@ def test_slurm_profile_dry_run_plans_every_job_with_its_resources(scale):
     a cluster (the cluster's planning command)."""
     from workflows.studies import HEAVY_RULES
 
-    config = yaml.safe_load((ROOT / f"workflows/config/{scale}.yaml").read_text())
+    config = load_config(ROOT / f"workflows/config/{scale}.yaml")
     out = snakemake("-n", "--forceall", "--profile", "workflows/profiles/slurm",
                     "--configfile", f"workflows/config/{scale}.yaml")
     assert out.returncode == 0, (out.stdout + out.stderr)[-3000:]
@@ -367,7 +367,7 @@ def test_every_heavy_rule_has_a_benchmark_and_measured_resources():
         block = text.split(f"rule {rule}:")[1].split("\nrule ")[0]
         assert f'bench_path("{rule}"' in block and f'rule_resources(config, "{rule}")' in block
     for scale in ("tiny", "quick", "full", "huge"):
-        config = yaml.safe_load((ROOT / f"workflows/config/{scale}.yaml").read_text())
+        config = load_config(ROOT / f"workflows/config/{scale}.yaml")
         check_config(config)                         # a configured study needs its resources
         config["resources"].pop("contact_level")
         with pytest.raises(ConfigError, match="'resources.contact_level'"):

@@ -33,16 +33,17 @@ import sys
 from pathlib import Path
 
 import pandas as pd
-import yaml
 
 from workflows.io import write_csv
-from workflows.studies import HEAVY_RULES, scenes_of, scenes_with_families, test_set_of
+from workflows.studies import (HEAVY_RULES, STUDIES, load_config, scenes_of,
+                               scenes_with_families, test_set_of)
 
 #: A rule whose own jobs do not change size between the measured scales borrows the
 #: exponents of the rule that runs the same kind of solves.
 PROXY = {"test_set_runs": "solver_comparison", "test_set_export": "contact_level",
          "hard_cases_incompressibility": "augmented_projection_study",
-         "patch_test": "contact_level", "element_order_study": "contact_level"}
+         "patch_test": "contact_level",
+         **{rule: proxy for study in STUDIES.values() for rule, proxy in study.proxies.items()}}
 
 #: Headroom of the declared resources over the prediction.
 MEMORY_HEADROOM, TIME_HEADROOM = 1.5, 2.0
@@ -78,8 +79,9 @@ def rule_jobs(config: dict, rule: str) -> list[tuple[str, str, float]]:
     if rule == "patch_test":
         return [(s, s, _size(config, s, max(lv)))
                 for s, lv in cfg.get("patch_test", {}).get("scenes", {}).items()]
-    if rule == "element_order_study":
-        return [(s, s, _size(config, s, cfg["reference_level"][s])) for s in cfg["scenes"]]
+    if STUDIES[study].planned_jobs is not None:
+        return [(name, s, _size(config, s, level))
+                for name, s, level in STUDIES[study].planned_jobs(config, rule)]
     if rule == "hard_cases_incompressibility":
         inc = cfg["incompressibility"]      # one job over all scenes: sized by the 3D one
         scene = max(inc["scenes"], key=lambda s: _dim(config, s))
@@ -216,7 +218,7 @@ def _with_families(config: dict) -> dict:
 
 
 def _load(path: str) -> dict:
-    return yaml.safe_load(Path(path).read_text())
+    return load_config(path)
 
 
 def main(argv: list[str] | None = None) -> int:

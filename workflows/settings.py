@@ -1,11 +1,13 @@
-"""Study settings' defaults, declared once: in ``workflows/config.schema.yaml``.
+"""Study settings' defaults, declared once: in the config schema, assembled from
+``workflows/config.schema.yaml`` and each study module's ``settings`` section
+(:func:`workflows.studies.config_schema`).
 
 The Snakefile validates the config against the schema, which fills in every ``default``
 (:func:`snakemake.utils.validate`, ``set_default=True``); rules and
 :mod:`workflows.studies` then read the validated settings and never repeat a default.
 A script run by hand takes the same defaults for its options from here
-(:func:`study_defaults`), so a default has one home; ``tests/test_settings.py`` fails
-if one is declared a second time.
+(:func:`study_defaults`, the sections of the schema file), so a default has one home;
+``tests/test_settings.py`` fails if one is declared a second time.
 """
 from __future__ import annotations
 
@@ -24,20 +26,23 @@ def _schema() -> dict:
         return yaml.safe_load(f)
 
 
-def study_defaults(study: str) -> dict:
-    """``{key: default}`` of a study's settings that have one in the schema (nested
-    objects as dicts of their own defaults, where the object itself has none)."""
-    def defaults(node: dict) -> dict:
-        out = {}
-        for key, spec in (node.get("properties") or {}).items():
-            if "default" in spec:
-                out[key] = spec["default"]
-            elif spec.get("type") == "object" and defaults(spec):
-                out[key] = defaults(spec)
-        return out
+def section_defaults(section: dict) -> dict:
+    """``{key: default}`` of a config section's schema: the settings that have one
+    (nested objects as dicts of their own defaults, where the object itself has none)."""
+    out = {}
+    for key, spec in (section.get("properties") or {}).items():
+        if "default" in spec:
+            out[key] = spec["default"]
+        elif spec.get("type") == "object" and section_defaults(spec):
+            out[key] = section_defaults(spec)
+    return out
 
+
+def study_defaults(study: str) -> dict:
+    """``{key: default}`` of a study's settings whose section is in the schema file
+    (:func:`section_defaults`)."""
     properties = _schema()["properties"]
     if study not in properties:
         raise ValueError(f"parameter 'study': {study!r} is not allowed; allowed: "
                          f"{', '.join(sorted(properties))}")
-    return defaults(properties[study])
+    return section_defaults(properties[study])

@@ -6,10 +6,13 @@ At every build, before Sphinx reads the sources, it writes
   (:func:`problems.spec.problems`);
 * ``generated/solvers/<name>.md``: one page per registered solver
   (:func:`solvers.interface.solvers`), an installed plug-in solver included;
-* ``generated/studies/<name>.inc``: what each study regenerates, included at the end of
-  its hand-written page: its thesis items, its outputs with the captions the report shows
-  beside them, the claims its report modules check, its commands (the study's module,
-  :mod:`workflows.studies`, and the report modules and captions its rule file names);
+* ``generated/studies/<name>.md``: each study's page, from its module alone: the
+  module's docstring, then what it regenerates: its thesis items, its outputs with the
+  captions the report shows beside them, the claims its report modules check, its
+  commands (the study's module, :mod:`workflows.studies`, its captions file and the
+  report modules its rule file names); for a study with a hand-written page
+  ``studies/<name>.md``, the part after the docstring as ``<name>.inc``, which the page
+  includes; and ``toctree.inc``, the studies' table of contents;
 * ``generated/cli.md``: the command line, from :func:`workflows.cli.build_parser`;
 * ``generated/api/<module>.md``: the API reference of :data:`API_MODULES` (autodoc).
 
@@ -141,9 +144,13 @@ def study_facts(study, root: Path) -> str:
     """What a study regenerates, from its declaration and its rule file."""
     import importlib
 
+    from workflows.studies import captions_of
+
     rules = (root / "workflows" / study.rule_file).read_text(encoding="utf-8")
-    captions = dict(re.findall(r'report\(PATHS\["(\w+)"\],\s*caption="\.\./report/'
-                               r'captions/([\w.]+)"', rules))
+    captions = captions_of(study, root) or {
+        key: (root / "report" / "captions" / name).read_text(encoding="utf-8").strip()
+        for key, name in re.findall(r'report\(PATHS\["(\w+)"\],\s*caption="\.\./report/'
+                                    r'captions/([\w.]+)"', rules)}
     modules = sorted(set(re.findall(r"-m (report\.\w+)", rules)))
     lines = ["## What the workflow regenerates", "",
              f"Generated from the study's module, `workflows/studies/{study.name}.py`, and its "
@@ -160,8 +167,7 @@ def study_facts(study, root: Path) -> str:
                   *(f"| {cell(i.item)} | {cell(i.what)} | `{study.paths[i.key]}` "
                     f"({i.problem or 'every scene'}) |" for i in study.thesis_items)]
     lines += ["", "### Outputs and how to read them", ""]
-    for key, caption in captions.items():
-        text = (root / "report" / "captions" / caption).read_text(encoding="utf-8").strip()
+    for key, text in captions.items():
         lines += [f"**`{study.paths.get(key, key)}`**", "", "```{eval-rst}", text, "```", ""]
     claims = [(name, c) for module in modules
               for name, c in getattr(importlib.import_module(module), "CLAIMS", {}).items()]
@@ -173,6 +179,26 @@ def study_facts(study, root: Path) -> str:
                   *(f"| `{name}` | {cell(c.thesis)} | {cell(c.quantity)} | "
                     f"{cell(c.bar_text())} |" for name, c in claims)]
     return "\n".join(lines) + "\n"
+
+
+def study_page(study, root: Path) -> str:
+    """A study's page from its module alone: the module's docstring (Markdown: its first
+    line the title, then what the thesis says, what the study runs, its measurements),
+    then :func:`study_facts`."""
+    import importlib
+
+    doc = inspect.getdoc(importlib.import_module(f"workflows.studies.{study.name}")) or ""
+    title, _, narrative = doc.partition("\n")
+    return "\n".join([f"# `{study.name}`: {title.strip()}", "", narrative.strip(), "",
+                      study_facts(study, root)])
+
+
+def study_toctree(studies, srcdir: Path) -> str:
+    """The studies' table of contents, in the order of the report: a study's hand-written
+    page ``studies/<name>.md`` where it has one, else its generated page."""
+    entries = [name if (srcdir / "studies" / f"{name}.md").is_file()
+               else f"/{GENERATED}/studies/{name}" for name in studies]
+    return "\n".join(["```{toctree}", ":maxdepth: 1", "", *entries, "```", ""])
 
 
 def api_page(module: str) -> str:
@@ -202,8 +228,13 @@ def write_pages(srcdir: Path) -> None:
     (out / "studies").mkdir(parents=True)
     from workflows.studies import STUDIES
     for name, study in STUDIES.items():
-        (out / "studies" / f"{name}.inc").write_text(study_facts(study, SUITE),
-                                                     encoding="utf-8")
+        if (srcdir / "studies" / f"{name}.md").is_file():     # a hand-written page
+            text, page = study_facts(study, SUITE), f"{name}.inc"
+        else:
+            text, page = study_page(study, SUITE), f"{name}.md"
+        (out / "studies" / page).write_text(text, encoding="utf-8")
+    (out / "studies" / "toctree.inc").write_text(study_toctree(STUDIES, srcdir),
+                                                 encoding="utf-8")
     for module in API_MODULES:
         (out / "api" / f"{module}.md").write_text(api_page(module), encoding="utf-8")
     plugins = external_solvers()

@@ -111,6 +111,13 @@ class Study:
     claims : tuple of str
         Keys of ``paths``: its checked-claims tables (columns claim, measured, bar, pass),
         collected by the summary page.
+    planned_jobs : callable, optional
+        ``planned_jobs(config, rule) -> [(benchmark name, scene, level)]``: the jobs of a
+        heavy rule and the level that sizes each, for the resource plan
+        (:mod:`workflows.planning`; default: one job per scene at its finest level).
+    proxies : dict
+        ``{heavy rule: rule}``: a rule whose jobs keep their size between the measured
+        scales borrows the other rule's fitted exponents in the plan.
     captions : str
         Its captions file, ``report/captions/<captions>``: one ``.. caption:: KEY``
         section per output its rules show in the report (:func:`captions_of`).
@@ -132,6 +139,8 @@ class Study:
     settings: dict | None = None
     scales: dict = field(default_factory=dict)
     claims: tuple[str, ...] = ()
+    planned_jobs: Callable[[dict, str], list] | None = None
+    proxies: dict = field(default_factory=dict)
     captions: str = ""
 
     def __post_init__(self):
