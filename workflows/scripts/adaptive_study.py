@@ -540,7 +540,8 @@ def surface_table(qp: ContactQP, p: np.ndarray) -> pd.DataFrame:
                          "pressure": pressure, "active": active})
 
 
-def main(argv=None) -> None:
+def build_parser() -> argparse.ArgumentParser:
+    """The study's command line: the scene, the variants, the marking, the outputs."""
     parser = argparse.ArgumentParser(description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     add_scene_arguments(parser)
@@ -578,7 +579,12 @@ def main(argv=None) -> None:
                         help="output: the last step's fields per variant (VTU), same order")
     parser.add_argument("--surfaces", nargs="+", required=True,
                         help="output: the last step's contact surfaces per variant (CSV)")
-    args = parser.parse_args(argv)
+    return parser
+
+
+def checked_scene(parser: argparse.ArgumentParser, args) -> tuple:
+    """``(spec, params, start level)`` once every argument is checked; a bad value ends
+    with the parser's error naming the argument."""
     if not len(args.variants) == len(args.fields) == len(args.surfaces):
         parser.error("--variants, --fields and --surfaces need one entry per variant")
     spec, params = scene_from_args(parser, args)
@@ -601,6 +607,26 @@ def main(argv=None) -> None:
         parser.error(f"--penalty: {args.penalty!r} is not allowed; allowed: a number in (0, inf)")
     if args.uniform_levels and spec.make(0).dim != 2:
         parser.error("--uniform-levels: the accuracy comparison needs nested meshes (2D only)")
+    return spec, params, start_level
+
+
+def write_outputs(args, spec, rows: list[dict], finals: dict, t0: float) -> None:
+    """The last step's fields (VTU) and contact surfaces per variant, then the per-step
+    table with the study's wall time."""
+    for variant, vtu, surf in zip(args.variants, args.fields, args.surfaces):
+        qp, u, p = finals[variant]
+        write_vtu(vtu, contact_fields(qp, u, p))
+        write_csv(surf, surface_table(qp, p))
+    frame = pd.DataFrame(rows)
+    frame.insert(0, "scene", spec.name)
+    frame["wall_time_study"] = time.perf_counter() - t0
+    write_csv(args.steps, frame)
+
+
+def main(argv=None) -> None:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    spec, params, start_level = checked_scene(parser, args)
     t0 = time.perf_counter()
     # the console's progress line shows the latest step (workflows/progress.py)
     bar = study_progress(rule="adaptive_study", out=args.steps, desc=f"adaptive {spec.name}",
@@ -617,14 +643,7 @@ def main(argv=None) -> None:
                              args.tol, args.time_limit, args.max_steps,
                              (args.alpha, args.penalty), log=log, min_marked=args.min_marked)
     bar.close()
-    for variant, vtu, surf in zip(args.variants, args.fields, args.surfaces):
-        qp, u, p = finals[variant]
-        write_vtu(vtu, contact_fields(qp, u, p))
-        write_csv(surf, surface_table(qp, p))
-    frame = pd.DataFrame(rows)
-    frame.insert(0, "scene", spec.name)
-    frame["wall_time_study"] = time.perf_counter() - t0
-    write_csv(args.steps, frame)
+    write_outputs(args, spec, rows, finals, t0)
     print(f"{spec.name}: {len(rows)} rows, {time.perf_counter() - t0:.1f} s")
 
 

@@ -229,7 +229,8 @@ def _reference(qp, level, problem, cache, rows, base, method="pdas"):
     return ref.u
 
 
-def main(argv=None) -> None:
+def build_parser() -> argparse.ArgumentParser:
+    """The study's command line: the scene, its levels, the configurations and the rows."""
     parser = argparse.ArgumentParser(description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     add_scene_arguments(parser)
@@ -254,6 +255,77 @@ def main(argv=None) -> None:
     parser.add_argument("--ref-cache", default=None,
                         help="directory for the PDAS reference (u_ref) per level, reused if present")
     parser.add_argument("--out", required=True)
+    return parser
+
+
+def coarser(spec, params, level: int) -> list:
+    """The problems of the (up to) two levels below ``level``, built untimed."""
+    return [spec.build(k, params) for k in range(max(0, level - 2), level)]
+
+
+def nested_start(qps: list, qp, eps: float, options: dict) -> tuple:
+    """Nested iteration: Alg. 8.4 on each coarser problem, prolongated to the next, up to
+    ``qp``; returns its ``(u0, p0)`` and the seconds the coarse solves took."""
+    t0 = time.perf_counter()
+    guess = (None, None)
+    for q_c, q_f in zip(qps, qps[1:] + [qp]):
+        r_c = solve(q_c, solver="augmented_projection", tol=1e-12, u0=guess[0], p0=guess[1],
+                    stop="estimate", eps=eps, record_kkt=False, **options)
+        guess = ap.nested_initial_guess(q_c, r_c, q_f)
+    return guess[0], guess[1], time.perf_counter() - t0
+
+
+def alg84_rows(qp, u_ref, base: dict, spec, params, level: int, args, progress) -> list[dict]:
+    """One row per configuration of Alg. 8.4 (Table 9.1's columns); kappa(S-hat^-1 S),
+    which costs a PCG solve per product, once per S-hat kind."""
+    rows, measured = [], set()
+    for name in args.configs:
+        progress.set_postfix_str(f"level {level}: {name}")
+        variant = ap.VARIANTS[name]
+        schur = ap.resolve_kinds(qp, *(ap.SOLVER.options(**variant.options)[k]
+                                       for k in ("ahat", "schur")))[1]
+        kappa_exact = args.kappa_exact and schur not in measured
+        measured.add(schur)
+        u0 = p0 = None
+        t_coarse = 0.0
+        if variant.nested:
+            u0, p0, t_coarse = nested_start(coarser(spec, params, level), qp, args.eps,
+                                            variant.options)
+        row = run_config(qp, u_ref, variant.options, args.eps, args.target, args.max_iter,
+                         args.time_limit, u0, p0, kappa_exact)
+        rows.append({**base, "config": name, **row, "t_coarse_levels": t_coarse,
+                     **{f"opt_{k}": v for k, v in variant.options.items()}})
+        progress.update()
+    return rows
+
+
+def tnnmg_rows(qp, u_ref, base: dict, spec, params, level: int, args, progress) -> list[dict]:
+    """TNNMG from zero and nested from the coarser levels; the first row with its memory."""
+    rows = []
+    for name in TNNMG:
+        progress.set_postfix_str(f"level {level}: {name}")
+        coarse = coarser(spec, params, level) if name == "tnnmg_nested" else []
+        rows.append({**base, "config": name,
+                     **tnnmg_run(qp, u_ref, args.target, args.time_limit, coarse)})
+        progress.update()
+    if rows[0]["status"] != "skipped":
+        rows[0].update(tnnmg_memory(qp, args.target, args.time_limit))
+    return rows
+
+
+def floor_rows(qp, base: dict, target: float) -> list[dict]:
+    """The multigrid-PCG floor (geometric and smoothed aggregation); the geometric row
+    with its memory, from an untimed repeat."""
+    u_lin = linear_solution(qp)
+    rows = [{**base, "config": f"amg_pcg_{kind}", **amg_pcg_floor(qp, kind, target, u_lin)}
+            for kind in ("gmg", "sa")]
+    rows[0].update({"mem_input_mb": input_mb(qp), "mem_peak_mb": traced_peak_mb(
+        lambda: amg_pcg_floor(qp, "gmg", target, u_lin))})
+    return rows
+
+
+def main(argv=None) -> None:
+    parser = build_parser()
     args = parser.parse_args(argv)
     spec, params = scene_from_args(parser, args)
     levels = check_levels(parser, spec, args.levels)
@@ -270,55 +342,17 @@ def main(argv=None) -> None:
                 "coupling": "nodal" if qp.stabilisation is None else "stabilised"}
         u_ref = _reference(qp, level, spec.name, args.ref_cache, rows, base, args.reference)
         progress.update()
-        measured = set()   # kappa(S-hat^-1 S) costs a PCG solve per product: once per S-hat kind
-        for name in args.configs:
-            progress.set_postfix_str(f"level {level}: {name}")
-            variant = ap.VARIANTS[name]
-            schur = ap.resolve_kinds(qp, *(ap.SOLVER.options(**variant.options)[k]
-                                           for k in ("ahat", "schur")))[1]
-            kappa_exact = args.kappa_exact and schur not in measured
-            measured.add(schur)
-            u0 = p0 = None
-            t_coarse = 0.0
-            if variant.nested:
-                qps = [spec.build(k, params) for k in range(max(0, level - 2), level)]  # untimed
-                t0 = time.perf_counter()
-                guess = (None, None)
-                for q_c, q_f in zip(qps, qps[1:] + [qp]):
-                    r_c = solve(q_c, solver="augmented_projection", tol=1e-12, u0=guess[0],
-                                p0=guess[1], stop="estimate", eps=args.eps, record_kkt=False,
-                                **variant.options)
-                    guess = ap.nested_initial_guess(q_c, r_c, q_f)
-                u0, p0 = guess
-                t_coarse = time.perf_counter() - t0
-            row = run_config(qp, u_ref, variant.options, args.eps, args.target, args.max_iter,
-                             args.time_limit, u0, p0, kappa_exact)
-            rows.append({**base, "config": name, **row, "t_coarse_levels": t_coarse,
-                         **{f"opt_{k}": v for k, v in variant.options.items()}})
-            progress.update()
+        rows += alg84_rows(qp, u_ref, base, spec, params, level, args, progress)
         if not args.no_newton:
             progress.set_postfix_str(f"level {level}: {NEWTON}")
             rows.append({**base, "config": NEWTON,
                          **newton_run(qp, u_ref, args.target, args.time_limit)})
             progress.update()
         if not args.no_tnnmg:
-            for name in TNNMG:
-                progress.set_postfix_str(f"level {level}: {name}")
-                coarse = ([spec.build(k, params) for k in range(max(0, level - 2), level)]
-                          if name == "tnnmg_nested" else [])       # built untimed
-                rows.append({**base, "config": name,
-                             **tnnmg_run(qp, u_ref, args.target, args.time_limit, coarse)})
-                progress.update()
-            if rows[-len(TNNMG)]["status"] != "skipped":
-                rows[-len(TNNMG)].update(tnnmg_memory(qp, args.target, args.time_limit))
+            rows += tnnmg_rows(qp, u_ref, base, spec, params, level, args, progress)
         if not args.no_floor:
             progress.set_postfix_str(f"level {level}: multigrid-PCG floor")
-            u_lin = linear_solution(qp)
-            for kind in ("gmg", "sa"):
-                rows.append({**base, "config": f"amg_pcg_{kind}",
-                             **amg_pcg_floor(qp, kind, args.target, u_lin)})
-            rows[-2].update({"mem_input_mb": input_mb(qp), "mem_peak_mb": traced_peak_mb(
-                lambda: amg_pcg_floor(qp, "gmg", args.target, u_lin))})   # untimed repeat
+            rows += floor_rows(qp, base, args.target)
             progress.update()
         write_csv(args.out, pd.DataFrame(rows))  # after every level: partial results survive
     progress.close()

@@ -300,7 +300,8 @@ def solver_runs(spec, params, levels, names, time_limit) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-def main(argv=None) -> None:
+def build_parser() -> argparse.ArgumentParser:
+    """The study's command line: the level, the cases, the solver comparison."""
     parser = argparse.ArgumentParser(description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     add_scene_arguments(parser)
@@ -322,7 +323,13 @@ def main(argv=None) -> None:
                         help="seconds per solve at --alg84-levels (> 0; default --time-limit): "
                              "level 3 takes ~8 min, where the QP libraries' limit is minutes")
     parser.add_argument("--outdir", required=True)
-    args = parser.parse_args(argv)
+    return parser
+
+
+def checked_cases(parser: argparse.ArgumentParser, args) -> tuple:
+    """The checked arguments: ``(spec, level, solver levels, Alg. 8.4 levels, Alg. 8.4's
+    time limit, cases)``, a case the scene's options at one force and crown; a bad value
+    ends with the parser's error naming the argument."""
     spec, params = scene_from_args(parser, args)
     if spec.name != "roll_stack":
         parser.error(f"argument --problem: {spec.name!r} is not allowed; allowed: roll_stack")
@@ -337,7 +344,6 @@ def main(argv=None) -> None:
                         ("--alg84-time-limit", args.alg84_time_limit)):
         if value is not None and not value > 0:
             parser.error(f"argument {name}: {value} is not allowed; allowed: > 0")
-    alg84_time_limit = args.alg84_time_limit or args.time_limit
     cases = []
     try:
         for force in args.forces:
@@ -346,42 +352,62 @@ def main(argv=None) -> None:
     except ParameterError as err:
         parser.error(str(err).replace("parameter 'force'", "argument --forces").replace(
             "parameter 'crown'", "argument --crowns"))
+    return (spec, params, level, solver_levels, alg84_levels,
+            args.alg84_time_limit or args.time_limit, cases)
+
+
+def run_case(p, level: int, time_limit: float, fields_to: Path | None) -> tuple:
+    """One case (a force and a crown) at ``level``: built, solved exactly (PDAS), analysed
+    beside the beam model; its ``(row, profiles, contact table)``, and its contact fields
+    written to ``fields_to`` (VTU) when given."""
+    tag = f"F = {p.force / 1e6:g} MN, crown {p.crown * 1e6:g} um"
+    t0 = time.perf_counter()
+    sc = scene(level, p)
+    qp = assemble_two_body(sc, 0, name=f"roll_stack level {level} ({p.model})")
+    qp.level = level           # (each level is its own single mesh, problems.roll_stack)
+    t_build = time.perf_counter() - t0
+    log(f"{tag}: level {level}, {qp.n_nodes} nodes, {qp.m} constraints, built in "
+        f"{t_build:.1f} s")
+    t1 = time.perf_counter()
+    with peak_rss() as mem:
+        # the exact reference at every level: the slender rolls' factor stays small
+        # (nested dissection cuts them across), so no size limit applies here
+        res = solve(qp, "pdas", tol=TOL, time_limit=time_limit, method="schur")
+    t_solve = time.perf_counter() - t1
+    row, prof, table = analyse(qp, sc, res, p, level)
+    brow, bprof = beam_profiles(p)
+    row.update({"build_time": t_build, "solve_time": t_solve,
+                "wall_time": t_build + t_solve, "peak_mb": mem["peak_mb"], **brow})
+    profiles = [prof.assign(force=p.force, crown=p.crown),
+                bprof.assign(force=p.force, crown=p.crown, source="beam")]
+    if fields_to is not None:
+        write_vtu(fields_to, contact_fields(qp, res.u, res.p))
+    log(f"{tag}: {res.status} by {res.solver} (KKT {res.kkt.max:.1e}) in {t_solve:.1f} s; "
+        f"equilibrium {row['equilibrium_error']:+.2e}, springs {row['spring_fraction']:.1e} F, "
+        f"b0 {row['b0'] * 1e3:.2f} mm ({row['dev_b0']:+.1%} vs Hertz, "
+        f"{row['cells_across_2b']:.1f} cells across 2b), sag WR {row['sag_work_axis'] * 1e6:.0f} "
+        f"um (beam {row['beam_sag_work_axis'] * 1e6:.0f}), strip crown "
+        f"{row['strip_crown'] * 1e6:.1f} um (beam {row['beam_strip_crown'] * 1e6:.1f})")
+    return row, profiles, table
+
+
+def main(argv=None) -> None:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    (spec, params, level, solver_levels, alg84_levels, alg84_time_limit,
+     cases) = checked_cases(parser, args)
     out = Path(args.outdir)
     _PROGRESS[:] = [study_progress(rule="roll_stack_study", out=out / "roll_stack_runs.csv",
                                    desc="roll stack", unit="step", file=sys.stderr)]
     rows, profiles, contacts = [], [], []
     for p in cases:
-        tag = f"F = {p.force / 1e6:g} MN, crown {p.crown * 1e6:g} um"
-        t0 = time.perf_counter()
-        sc = scene(level, p)
-        qp = assemble_two_body(sc, 0, name=f"roll_stack level {level} ({p.model})")
-        qp.level = level           # (each level is its own single mesh, problems.roll_stack)
-        t_build = time.perf_counter() - t0
-        log(f"{tag}: level {level}, {qp.n_nodes} nodes, {qp.m} constraints, built in "
-            f"{t_build:.1f} s")
-        t1 = time.perf_counter()
-        with peak_rss() as mem:
-            # the exact reference at every level: the slender rolls' factor stays small
-            # (nested dissection cuts them across), so no size limit applies here
-            res = solve(qp, "pdas", tol=TOL, time_limit=args.time_limit, method="schur")
-        t_solve = time.perf_counter() - t1
-        row, prof, table = analyse(qp, sc, res, p, level)
-        brow, bprof = beam_profiles(p)
-        row.update({"build_time": t_build, "solve_time": t_solve,
-                    "wall_time": t_build + t_solve, "peak_mb": mem["peak_mb"], **brow})
+        crowned = p.crown == args.crowns[0]   # the crowned roll: its fields and contact
+        row, prof, table = run_case(p, level, args.time_limit, out / (
+            f"roll_stack_F{p.force / 1e6:g}MN.vtu") if crowned else None)
         rows.append(row)
-        profiles += [prof.assign(force=p.force, crown=p.crown),
-                     bprof.assign(force=p.force, crown=p.crown, source="beam")]
-        if p.crown == args.crowns[0]:
+        profiles += prof
+        if crowned:
             contacts.append(table.assign(force=p.force))
-            write_vtu(out / f"roll_stack_F{p.force / 1e6:g}MN.vtu", contact_fields(qp, res.u, res.p))
-        log(f"{tag}: {res.status} by {res.solver} (KKT {res.kkt.max:.1e}) in {t_solve:.1f} s; "
-            f"equilibrium {row['equilibrium_error']:+.2e}, springs {row['spring_fraction']:.1e} F, "
-            f"b0 {row['b0'] * 1e3:.2f} mm ({row['dev_b0']:+.1%} vs Hertz, "
-            f"{row['cells_across_2b']:.1f} cells across 2b), sag WR {row['sag_work_axis'] * 1e6:.0f} "
-            f"um (beam {row['beam_sag_work_axis'] * 1e6:.0f}), strip crown "
-            f"{row['strip_crown'] * 1e6:.1f} um (beam {row['beam_strip_crown'] * 1e6:.1f})")
-        del qp, sc, res
         gc.collect()          # frees the factorisation (PARDISO memory) before the next run
     write_csv(out / "roll_stack_runs.csv", pd.DataFrame(rows))
     write_csv(out / "roll_stack_profiles.csv", pd.concat(profiles, ignore_index=True))
