@@ -21,8 +21,9 @@ from workflows.progress import clear as clear_progress, start_reporter
 
 from workflows.studies import (PATHS, STUDIES, all_targets, at_scale, bench_path,
                                caption_files, check_config, coarser_levels, log_path,
-                               rule_resources, scenes_of, scenes_with_families, schema_file,
-                               set_args, summary_items, test_set_of, thesis_table)
+                               problem_set_of, rule_resources, scenes_of,
+                               scenes_with_families, schema_file, set_args, summary_items,
+                               thesis_table)
 
 # the quick scale unless --configfile names another (merging quick.yaml under full.yaml or
 # tiny.yaml would leave quick's scenes in them)

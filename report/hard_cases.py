@@ -2,7 +2,7 @@
 status, the worst KKT residual, the energy error against the reference and the time.
 
 The hard cases are families of the contact QP test set; their rows come from the
-test set's runs (``workflows/scripts/test_set_runs.py``), filtered to the configured
+test set's runs (``workflows/scripts/problem_set_runs.py``), filtered to the configured
 cases, levels and preset.
 
 The table also checks the study's two promises on every row: a ``converged`` run

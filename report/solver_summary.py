@@ -1,6 +1,6 @@
 """The solver summary over the contact QP test set, in the style of qpbenchmark.
 
-Inputs are the test set's run tables (``workflows/scripts/test_set_runs.py``: one per
+Inputs are the test set's run tables (``workflows/scripts/problem_set_runs.py``: one per
 family and size class; every registered solver at every preset, each problem's
 exact reference exported beside it). Broken down overall, by size class and by
 scene (the registered problem behind a family); one work-precision figure per
@@ -216,7 +216,7 @@ def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--inputs", nargs="+", required=True,
-                    help="the test set's run tables (workflows/scripts/test_set_runs.py)")
+                    help="the test set's run tables (workflows/scripts/problem_set_runs.py)")
     ap.add_argument("--time-limit", type=float, required=True,
                     help="the penalty time of an unverified run (the runs' time limit)")
     ap.add_argument("--summary", required=True, help="CSV: per solver and preset")

@@ -93,16 +93,15 @@ PAGES = [ROOT / "README.md", *sorted(p for p in DOCS.rglob("*.md")
 def page_texts() -> dict[str, str]:
     """``{page: text}`` of :data:`PAGES` and of the study pages generated from a study
     module's docstring (a study without a hand-written page)."""
-    import importlib
     import inspect
 
-    from workflows.studies import STUDIES
+    from workflows.studies import STUDIES, study_module
 
     texts = {page.name: page.read_text(encoding="utf-8") for page in PAGES}
-    for name in STUDIES:
+    for name, study in STUDIES.items():
         if not (DOCS / "studies" / f"{name}.md").is_file():
-            module = importlib.import_module(f"workflows.studies.{name}")
-            texts[f"workflows/studies/{name}.py"] = inspect.getdoc(module) or ""
+            module = study_module(study)
+            texts[module.__name__] = inspect.getdoc(module) or ""
     return texts
 
 

@@ -38,7 +38,7 @@ def test_initial_penetration_is_pushed_apart():
 def test_hard_case_report_from_the_test_set_runs(tmp_path):
     from report.hard_cases import main as report_main
     from workflows.cli import main as cli
-    from workflows.scripts.test_set_runs import main as runs_main
+    from workflows.scripts.problem_set_runs import main as runs_main
     export = tmp_path / "export"
     assert cli(["export", "--class", "small", "--families", "hard_thin_body", "hard_grazing",
                 "--out", str(export), "--quiet"]) == 0

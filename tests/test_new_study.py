@@ -176,3 +176,57 @@ def test_its_command_and_its_docs_page(suite):
     assert "`contactbench study toy_count`" in page
     toctree = (suite / "docs/generated/studies/toctree.inc").read_text(encoding="utf-8")
     assert "/generated/studies/toy_count" in toctree
+
+
+# ----------------------------------------------------------- the declarations, one by one
+def test_a_scale_file_gets_the_sections_and_resources_its_studies_declare():
+    """``scale: quick`` brings in element_order's quick section and resources; a section
+    or a rule's resources the file gives itself win; no scale, nothing is added."""
+    from workflows.studies import STUDIES, at_scale
+
+    declared = STUDIES["element_order"].scales["quick"]
+    got = at_scale({"scale": "quick", "scenes": {}})
+    assert got["element_order"] == declared.settings
+    assert got["resources"]["element_order_study"] == declared.resources["element_order_study"]
+    mine = {"scenes": {"circle_square": [0]}, "reference_level": {"circle_square": 1},
+            "time_limit": 5}
+    got = at_scale({"scale": "quick", "element_order": mine,
+                    "resources": {"element_order_study": {"mem_mb": 111, "runtime": 9}}})
+    assert got["element_order"] == mine
+    assert got["resources"]["element_order_study"] == {"mem_mb": 111, "runtime": 9}
+    assert "element_order" not in at_scale({"scenes": {}})
+    assert "element_order" not in at_scale({"scale": "tiny"})     # not declared at tiny
+    with pytest.raises(ValueError, match="config 'scale': 'medium' is not allowed"):
+        at_scale({"scale": "medium"})
+
+
+def test_the_schema_takes_each_section_from_one_place(monkeypatch):
+    """A study's section joins the schema from its module; declared in the schema file
+    too, it is refused."""
+    import dataclasses
+
+    from workflows import studies
+
+    schema = studies.config_schema()
+    assert schema["properties"]["element_order"] == studies.STUDIES["element_order"].settings
+    assert schema["properties"]["scale"]["enum"] == list(studies.SCALES)
+    twice = dataclasses.replace(studies.STUDIES["element_order"], name="adaptive")
+    monkeypatch.setitem(studies.STUDIES, "adaptive", twice)
+    with pytest.raises(RuntimeError, match="'adaptive' is declared in its module and again"):
+        studies.config_schema()
+
+
+def test_a_captions_file_has_one_section_per_declared_key(tmp_path):
+    import dataclasses
+
+    from workflows.studies import STUDIES, captions_of
+
+    study = STUDIES["element_order"]
+    captions = captions_of(study)
+    assert set(captions) == {"eo_claims", "eo_figure"}
+    assert captions["eo_figure"].startswith("P1 (circles) against P2 (squares)")
+    (tmp_path / "report" / "captions").mkdir(parents=True)
+    (tmp_path / "report" / "captions" / "bad.rst").write_text(
+        ".. caption: eo_claims\n\ntext\n\n.. caption: eo_typo\n\ntext\n")
+    with pytest.raises(ValueError, match=r"sections \['eo_typo'\] are not allowed"):
+        captions_of(dataclasses.replace(study, captions="bad.rst"), tmp_path)

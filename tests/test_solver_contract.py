@@ -261,8 +261,8 @@ def small_circle_square(tmp_path_factory):
 
 def test_the_test_set_runs_have_a_row_for_every_broken_case(broken_plugins, tmp_path,
                                                             small_circle_square, capsys):
-    from workflows.scripts.test_set_runs import main
-    from workflows.test_set import CURRENT
+    from workflows.scripts.problem_set_runs import main
+    from workflows.problem_set import CURRENT
 
     out = tmp_path / "runs.csv"
     main(["--set", CURRENT, "--class", "small", "--family", "circle_square", "--levels", "0",

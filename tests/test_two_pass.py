@@ -19,7 +19,7 @@ from problems.kkt import energy_error
 from problems.qp import QPValidationError, surface_pressure
 from problems.spec import ParameterError, problems
 from solvers.interface import solve
-from workflows.test_set import load
+from workflows.problem_set import load
 
 #: Agreement with the independent solver, relative energy norm.
 AGREEMENT = 1e-8

@@ -194,7 +194,7 @@ def cmd_solve(args: argparse.Namespace) -> int:
 
 def cmd_export(args: argparse.Namespace) -> int:
     from workflows.export import ExportError, export_set
-    from workflows.test_set import TestSetError, check_class, load
+    from workflows.problem_set import TestSetError, check_class, load
 
     try:
         ts = load(args.set)
@@ -237,7 +237,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--vtu", default=None, help="also write fields as VTU (contact problems)")
     s.add_argument("--force", action="store_true", help="replace existing output files")
     s.set_defaults(func=cmd_solve)
-    from workflows.test_set import CLASSES, CURRENT, available
+    from workflows.problem_set import CLASSES, CURRENT, available
     e = sub.add_parser("export", help="write a test set's problems as Matrix Market/npz "
                        "folders with the exact reference (min 1/2 x'Px + q'x s.t. Gx <= h)")
     e.add_argument("--set", default=CURRENT, help=f"test set (default {CURRENT}; allowed: "

@@ -32,7 +32,7 @@ import scipy.sparse.linalg as spla
 from problems.floating import floating_modes
 from problems.slack import slack_form
 from workflows.io import _sha256 as file_digest, json_text, provenance
-from workflows.test_set import SetProblem, TestSet
+from workflows.problem_set import SetProblem, TestSet
 
 CONVENTION = "min 1/2 x'Px + q'x  s.t.  Gx <= h"
 #: The qpbenchmark test-set module copied into every export (class ContactQp).

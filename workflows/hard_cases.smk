@@ -1,9 +1,9 @@
 # Study hard_cases: the hard variants of the scenes are families of the contact QP test
-# set; their table and heat map are a view of the test set's runs (workflows/test_set.smk)
+# set; their table and heat map are a view of the test set's runs (workflows/problem_set.smk)
 # at one preset. Paths: workflows/studies/.
-from workflows.studies.test_set import test_set_hard_cases
+from workflows.studies.problem_set import problem_set_hard_cases
 HC = config.get("hard_cases", {})
-HC_FILES, HC_CASES = test_set_hard_cases(config)
+HC_FILES, HC_CASES = problem_set_hard_cases(config)
 
 rule hard_cases_report:
     input: HC_FILES

@@ -35,8 +35,8 @@ from pathlib import Path
 import pandas as pd
 
 from workflows.io import write_csv
-from workflows.studies import (HEAVY_RULES, STUDIES, load_config, scenes_of,
-                               scenes_with_families, test_set_of)
+from workflows.studies import (HEAVY_RULES, STUDIES, load_config, problem_set_of,
+                               scenes_of, scenes_with_families)
 
 #: A rule whose own jobs do not change size between the measured scales borrows the
 #: exponents of the rule that runs the same kind of solves.
@@ -87,7 +87,7 @@ def rule_jobs(config: dict, rule: str) -> list[tuple[str, str, float]]:
         scene = max(inc["scenes"], key=lambda s: _dim(config, s))
         return [("all", scene, _size(config, scene, inc["level"]))]
     if rule in ("test_set_runs", "test_set_export"):
-        ts, jobs = test_set_of(config), []
+        ts, jobs = problem_set_of(config), []
         for c in cfg["classes"]:
             for family in ts.families:
                 levels = ts.levels(family, c)

@@ -31,7 +31,7 @@ from pathlib import Path
 GENERATED = "generated"
 #: The modules a user of the suite calls from Python, one API page each.
 API_MODULES = ("problems.spec", "problems.qp", "problems.kkt", "solvers.interface",
-               "solvers.base", "solvers.certificate", "workflows.test_set", "workflows.export",
+               "solvers.base", "solvers.certificate", "workflows.problem_set", "workflows.export",
                "workflows.io", "report.claims")
 
 
@@ -185,9 +185,9 @@ def study_page(study, root: Path) -> str:
     """A study's page from its module alone: the module's docstring (Markdown: its first
     line the title, then what the thesis says, what the study runs, its measurements),
     then :func:`study_facts`."""
-    import importlib
+    from workflows.studies import study_module
 
-    doc = inspect.getdoc(importlib.import_module(f"workflows.studies.{study.name}")) or ""
+    doc = inspect.getdoc(study_module(study)) or ""
     title, _, narrative = doc.partition("\n")
     return "\n".join([f"# `{study.name}`: {title.strip()}", "", narrative.strip(), "",
                       study_facts(study, root)])

@@ -2,12 +2,15 @@
 
 A study is one module of this package defining ``STUDY = Study(...)``
 (:class:`workflows.studies._base.Study`): what it shows, the thesis items it regenerates,
-every path template its rules write, its final outputs, its heavy rules, the config checks
-the schema cannot make, and the scripts that run it by hand. The package finds the modules
-like the solvers and scenes (:func:`problems.spec.discover`) and builds the views the
-Snakefile, the report and the command line read: :data:`STUDIES`, :data:`PATHS`,
-:data:`HEAVY_RULES`, :data:`RUNS_ALONE`, :data:`THESIS_ITEMS`. A study runs on the
-scenes its config entry lists::
+every path template its rules write, its final outputs, its heavy rules, its config
+section (schema, settings and resources per scale), the config checks the schema cannot
+make, its claims tables, its captions file, and the scripts that run it by hand. The
+package finds the modules like the solvers and scenes (:func:`problems.spec.discover`)
+and builds the views the Snakefile, the config validation, the report, the docs and the
+command line read: :data:`STUDIES`, :data:`PATHS`, :data:`HEAVY_RULES`,
+:data:`RUNS_ALONE`, :data:`THESIS_ITEMS`, :func:`config_schema`, :func:`at_scale`,
+:func:`claim_keys`, :func:`caption_files`. A study runs on the scenes its config entry
+lists::
 
     scenes:                                    # a scene = a registered problem + overrides
       circle_square: {problem: circle_square}
@@ -23,8 +26,10 @@ import contextlib
 import copy
 import os
 import re
+import sys
 import tempfile
 from pathlib import Path
+from types import ModuleType
 
 import yaml
 
@@ -32,18 +37,17 @@ from problems.spec import discover
 from workflows.settings import SCHEMA
 from workflows.studies._base import (COMMON_PATHS, REFERENCE, RESULTS, SCALES, AtScale,
                                      ConfigError, Study, ThesisItem, bench_path, captions_of,
-                                     coarser_levels, log_path, scene_problem, scenes_of,
-                                     scenes_with_families, set_args, test_set_of,
-                                     thesis_table)
+                                     coarser_levels, log_path, problem_set_of,
+                                     scene_problem, scenes_of, scenes_with_families,
+                                     set_args, thesis_table)
 
 __all__ = ["ALONE_CPUS", "COMMON_PATHS", "HEAVY_RULES", "MACHINE_SHARE", "PATHS", "REFERENCE",
-           "RESULTS", "RUNS_ALONE", "SCALES", "STUDIES", "THESIS_ITEMS", "AtScale",
-           "ConfigError", "Study", "ThesisItem", "all_targets", "at_scale", "bench_path",
-           "caption_files", "captions_of", "check_config", "claim_keys", "coarser_levels",
-           "config_schema", "load_config", "schema_file",
-           "log_path", "rule_resources", "scene_problem", "scenes_of", "scenes_with_families",
-           "set_args", "study_commands", "study_of", "summary_items", "test_set_of", "thesis_item_files",
-           "thesis_table"]
+           "RESULTS", "RUNS_ALONE", "SCALES", "STUDIES", "THESIS_ITEMS", "AtScale", "ConfigError",
+           "Study", "ThesisItem", "all_targets", "at_scale", "bench_path", "caption_files",
+           "captions_of", "check_config", "claim_keys", "coarser_levels", "config_schema",
+           "load_config", "log_path", "problem_set_of", "rule_resources", "scene_problem",
+           "scenes_of", "scenes_with_families", "schema_file", "set_args", "study_commands",
+           "study_module", "study_of", "summary_items", "thesis_item_files", "thesis_table"]
 
 
 def _thesis_order(item: ThesisItem) -> tuple[int, int]:
@@ -97,6 +101,12 @@ def study_commands() -> dict[str, str]:
                                    "again")
             found[command] = module
     return found
+
+
+def study_module(study: Study) -> ModuleType:
+    """The module that declares ``study`` (its docstring is the study's page)."""
+    return next(module for name, module in sorted(sys.modules.items())
+                if name.startswith(f"{__name__}.") and getattr(module, "STUDY", None) is study)
 
 
 def study_of(key: str) -> Study:

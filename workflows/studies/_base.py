@@ -1,9 +1,11 @@
 """What every study module declares, and the scene helpers the studies share.
 
 A study is one module of :mod:`workflows.studies` defining ``STUDY = Study(...)``: its
-path templates, final outputs, heavy rules, the thesis items it regenerates and the
-config checks the JSON schema cannot make; the package discovers it like the solvers
-and scenes (:func:`problems.spec.discover`).
+path templates, final outputs, heavy rules, the thesis items it regenerates, its config
+section (schema, and its settings and resources per scale), the config checks the JSON
+schema cannot make, its claims tables and captions file; its docstring is its page in
+the docs. The package discovers it like the solvers and scenes
+(:func:`problems.spec.discover`).
 """
 from __future__ import annotations
 
@@ -237,17 +239,17 @@ def coarser_levels(config: dict, study: str, scene: str, level) -> list[int]:
 def scenes_of(config: dict, study: str) -> dict[str, list[int]]:
     """``{scene: levels}`` a per-scene study runs (empty if the study is not configured);
     for the test set its families (levels by size class:
-    :func:`workflows.studies.test_set.test_set_runs`)."""
+    :func:`workflows.studies.problem_set.problem_set_runs`)."""
     if study == "test_set":
         if study not in config:
             return {}
-        return {f: [] for f in config[study].get("families") or test_set_of(config).families}
+        return {f: [] for f in config[study].get("families") or problem_set_of(config).families}
     return dict(config.get(study, {}).get("scenes", {}))
 
 
-def test_set_of(config: dict):
+def problem_set_of(config: dict):
     """The test set the config names (``test_set.name``; the current one by default)."""
-    from workflows.test_set import CURRENT, load
+    from workflows.problem_set import CURRENT, load
 
     return load(config.get("test_set", {}).get("name", CURRENT))
 
@@ -262,7 +264,7 @@ def scenes_with_families(config: dict) -> dict:
         If a scene of the config has a family's name but another definition.
     """
     scenes = dict(config.get("scenes") or {})
-    for family, entry in test_set_of(config).families.items():
+    for family, entry in problem_set_of(config).families.items():
         entry = {"problem": entry["problem"], **({"params": dict(entry["params"])}
                                                   if entry.get("params") else {})}
         mine = scenes.get(family)

@@ -5,7 +5,7 @@ from workflows.studies._base import ConfigError, Study
 
 def check(config: dict, registry: dict) -> None:
     """The incompressibility table: registered contact problems, a level and Poisson's
-    ratios each scene accepts (the hard cases themselves: :mod:`workflows.studies.test_set`)."""
+    ratios each scene accepts (the hard cases themselves: :mod:`workflows.studies.problem_set`)."""
     from problems.spec import ParameterError
 
     inc = config.get("hard_cases", {}).get("incompressibility")

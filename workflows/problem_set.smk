@@ -1,9 +1,9 @@
 # Study test_set: the contact QP test set (workflows/config/test_sets/<set>.yaml) exported per
 # size class, every registered solver on every problem at every preset, and the summary
 # over it. Paths: workflows/studies/.
-from workflows.studies.test_set import test_set_runs
+from workflows.studies.problem_set import problem_set_runs
 TS = config.get("test_set", {})
-TS_ID = test_set_of(config).id if TS else ""
+TS_ID = problem_set_of(config).id if TS else ""
 TS_FAMILIES = list(scenes_of(config, "test_set"))
 
 rule test_set_export:
@@ -30,13 +30,13 @@ rule test_set_runs:
         py=PY, presets=" ".join(TS.get("presets", [])), limit=TS.get("time_limit"),
         solvers=" ".join(["--solvers", *TS["solvers"]]) if TS.get("solvers") else ""
     shell:
-        "{params.py} -m workflows.scripts.test_set_runs --set {wildcards.set} "
+        "{params.py} -m workflows.scripts.problem_set_runs --set {wildcards.set} "
         "--class {wildcards.size_class} --family {wildcards.scene} --export {input} "
         "--presets {params.presets} --time-limit {params.limit} {params.solvers} "
         "--out {output} > {log} 2>&1"
 
 rule solver_summary:
-    input: test_set_runs(config)
+    input: problem_set_runs(config)
     output:
         summary=report(PATHS["solver_summary"], caption="../report/captions/solver_summary_table.rst",
             category="solvers", subcategory="test set summary"),

@@ -14,7 +14,7 @@ error. Called by the rule ``test_set_runs``.
 
 Example::
 
-    python -m workflows.scripts.test_set_runs --set contact-qp-1 --class small \\
+    python -m workflows.scripts.problem_set_runs --set contact-qp-1 --class small \\
         --family hard_si_units --export results/test_set/contact-qp-1/small \\
         --presets low mid high --time-limit 20 --out runs.csv
 """
@@ -35,7 +35,7 @@ from workflows.io import read_json, run_solvers, write_csv
 from workflows.isolation import log_traceback, solve_batch_isolated
 from workflows.measure import multiplier_errors
 from workflows.progress import study_progress
-from workflows.test_set import TestSetError, check_class, load
+from workflows.problem_set import TestSetError, check_class, load
 
 #: Largest relative difference between a rebuilt problem and its exported arrays.
 IDENTICAL = 1e-12

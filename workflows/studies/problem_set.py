@@ -1,7 +1,7 @@
 """The contact QP test set: every family at the configured size classes exported and run by
 every registered solver; qpbenchmark's summary over the runs."""
 from workflows.studies._base import (ConfigError, Study, check_registered_solvers, scenes_of,
-                                     test_set_of)
+                                     problem_set_of)
 
 PATHS = {
     "test_set_export": "results/test_set/{set}/export/{size_class}",
@@ -15,21 +15,21 @@ PATHS = {
 }
 
 
-def test_set_runs(config: dict) -> list[str]:
+def problem_set_runs(config: dict) -> list[str]:
     """Every run table of the test_set study: family x size class (with problems)."""
     if "test_set" not in config:
         return []
-    ts, cfg = test_set_of(config), config["test_set"]
+    ts, cfg = problem_set_of(config), config["test_set"]
     return [PATHS["test_set_runs"].format(set=ts.id, size_class=c, scene=f)
             for c in cfg["classes"] for f in scenes_of(config, "test_set")
             if ts.problems(c, [f])]
 
 
-def test_set_hard_cases(config: dict) -> tuple[list[str], list[str]]:
+def problem_set_hard_cases(config: dict) -> tuple[list[str], list[str]]:
     """The run tables holding the hard cases and the cases as ``family:level``."""
     if "test_set" not in config:
         return [], []
-    ts = test_set_of(config)
+    ts = problem_set_of(config)
     cases, files = [], []
     for family, levels in scenes_of(config, "hard_cases").items():
         for level in levels:
@@ -44,7 +44,7 @@ def test_set_hard_cases(config: dict) -> tuple[list[str], list[str]]:
 def check(config: dict, registry: dict) -> None:
     """A known set, its families, registered solvers; every hard case a family of the set
     at a level of the configured classes."""
-    from workflows.test_set import TestSetError
+    from workflows.problem_set import TestSetError
 
     if "test_set" not in config:
         if scenes_of(config, "hard_cases"):
@@ -53,7 +53,7 @@ def check(config: dict, registry: dict) -> None:
         return
     cfg = config["test_set"]
     try:
-        ts = test_set_of(config)
+        ts = problem_set_of(config)
         ts.problems(families=cfg.get("families") or None)
     except TestSetError as err:
         raise ConfigError(f"config 'test_set': {err}") from None
@@ -82,8 +82,8 @@ STUDY = Study(
             "overall, by size class and by scene; a work-precision figure per family",
     thesis="Ch. 8 (solvers) on every scene of Ch. 9 and its hard variants",
     order=40,
-    rule_file="test_set.smk",
-    scripts={"test_set": "workflows.scripts.test_set_runs"},
+    rule_file="problem_set.smk",
+    scripts={"test_set": "workflows.scripts.problem_set_runs"},
     paths=PATHS,
     outputs=("solver_summary", "solver_summary_by_class", "solver_summary_by_scene",
              "solver_summary_claims", "solver_profiles", "solver_work_precision"),

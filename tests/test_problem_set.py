@@ -17,7 +17,7 @@ import pytest
 from workflows.cli import main as cli
 from workflows.export import load_problem
 from workflows.export import objective as suite_objective
-from workflows.test_set import CLASSES, CURRENT, TestSet, TestSetError, check, load
+from workflows.problem_set import CLASSES, CURRENT, TestSet, TestSetError, check, load
 
 SMALL_LIMIT = 20_000          # the quick run's budget: the small class stays below it
 
@@ -215,7 +215,7 @@ def test_qpbenchmark_runner_agrees_with_the_suite(small, tmp_path):
 
 
 def test_runs_script_on_one_family(small, tmp_path):
-    from workflows.scripts.test_set_runs import main as runs_main
+    from workflows.scripts.problem_set_runs import main as runs_main
     from report.solver_summary import main as summary_main
 
     out = tmp_path / "runs.csv"
@@ -243,7 +243,7 @@ def test_runs_script_on_one_family(small, tmp_path):
 def test_a_rebuilt_problem_that_differs_from_its_export_is_refused(small, tmp_path):
     import shutil
 
-    from workflows.scripts.test_set_runs import check_identical
+    from workflows.scripts.problem_set_runs import check_identical
     folder = tmp_path / "hard_no_contact_L0"
     shutil.copytree(small / "hard_no_contact_L0", folder)
     item = next(p for p in load().problems("small") if p.name == folder.name)
