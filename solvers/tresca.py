@@ -166,7 +166,7 @@ def dual_operators(qp: ContactQP) -> DualOperators:
         return kept
     G = (qp.B if fr is None else sp.vstack([qp.B, fr.T])).tocsr()
     factor = factorize(qp.A)
-    W = factor.solve(G.T.toarray())                       # A^-1 G'
+    W = factor.solve(G.T.toarray()) if G.shape[0] else np.zeros((qp.n, 0))   # A^-1 G'
     S = G @ W
     ops = DualOperators(factor, G, W, 0.5 * (S + S.T))
     qp.cache.dual_operators[fr is not None] = ops

@@ -64,7 +64,15 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
     t0 = time.perf_counter()
     ops = dual_operators(qp)
     t1 = time.perf_counter()
-    sol = tresca_exact(qp, ops, max_iter=max_iter)
+    try:
+        sol = tresca_exact(qp, ops, max_iter=max_iter)
+    except np.linalg.LinAlgError as err:          # S singular on a face: no answer
+        nan = lambda k: np.full(k, np.nan)
+        return SolveResult(u=nan(qp.n), p=nan(qp.m), claimed_status="failed",
+                           message=f"the dual Hessian is singular on the free set (linearly "
+                                   f"dependent rows, or no feasible point): {err}",
+                           setup_time=t1 - t0, solve_time=time.perf_counter() - t1,
+                           tangential=None if qp.friction is None else nan(qp.m))
     t2 = time.perf_counter()
     stats = {"dual_unknowns": int(ops.S.shape[0])}
     if qp.friction is not None:

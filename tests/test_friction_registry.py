@@ -8,8 +8,10 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+import scipy.sparse as sp
 
 from problems.kkt import energy_error
+from problems.qp import ContactQP
 from problems.spec import problems
 from solvers.base import CONTRACT, SolveResult, contract_violation
 from solvers.certificate import verify
@@ -58,6 +60,26 @@ def test_without_friction_it_is_the_exact_qp_route():
     res, ref = solve(qp, "tresca_exact", tol=TIGHT), solve(qp, "pdas", tol=TIGHT)
     assert res.status == "converged" and res.tangential is None
     assert energy_error(qp, res.u, ref.u) <= 1e-12
+
+
+def test_its_limits_and_failures_are_reported():
+    """The active-set cap is a ``max_iter`` row; no rows is the linear solve; rows that no
+    ``u`` satisfies (a singular dual Hessian) a ``failed`` row saying so; an indefinite
+    ``A`` a ``failed`` row naming it."""
+    qp = SCENE.make(1)
+    res = solve(qp, "tresca_exact", "mid", max_iter=1)
+    assert res.claimed_status == res.status == "max_iter" and "stopped after 1" in res.message
+    free = ContactQP(A=2 * sp.eye(3), f=np.ones(3), B=sp.csr_matrix((0, 3)), g=np.zeros(0))
+    res = solve(free, "tresca_exact", "mid")
+    assert res.status == "converged" and np.allclose(res.u, 0.5, rtol=1e-14)
+    infeasible = ContactQP(A=2 * sp.eye(2), f=np.ones(2), g=[-1.0, -1.0],
+                           B=sp.csr_matrix([[1.0, 0.0], [-1.0, 0.0]]))
+    res = solve(infeasible, "tresca_exact", "mid")
+    assert res.status == "failed" and "dual Hessian is singular" in res.message
+    indefinite = ContactQP(A=sp.diags([1.0, -1.0]), f=np.ones(2), g=[0.0],
+                           B=sp.csr_matrix([[1.0, 0.0]]))
+    res = solve(indefinite, "tresca_exact", "mid")
+    assert res.status == "failed" and "not positive definite" in res.message
 
 
 @pytest.mark.parametrize("level", [1, pytest.param(2, marks=pytest.mark.slow)])
