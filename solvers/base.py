@@ -36,6 +36,12 @@ VERIFIED_PRESETS = preset_texts("stop when verified: KKT and certified energy bo
 #: cannot take the problem (:meth:`SolverSpec.check`); the message says why.
 STATUSES = ("converged", "inaccurate", "max_iter", "time_limit", "failed", "skipped")
 
+#: ``stats["friction"]`` of an answer that solved a Coulomb step itself, monolithically
+#: (``s = mu p`` of its own ``p`` inside its iteration), instead of the Tresca step of the
+#: given ``slip_bound``: the verification judges it as the Tresca step of its own bound
+#: ``mu p`` (:func:`solvers.certificate.verify`).
+COULOMB_MONOLITHIC = "coulomb_monolithic"
+
 #: The rules of a solver's answer, checked by :func:`contract_violation` before anything
 #: uses it: ``{rule: what the solver must deliver}``. A broken rule makes the row
 #: ``failed`` with ``failed_check = "contract:<rule>"``. A solver that stops without an

@@ -13,7 +13,7 @@ projection) call :func:`certify`.
 from __future__ import annotations
 
 import hashlib
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Callable
 
 import numpy as np
@@ -22,7 +22,8 @@ import scipy.sparse as sp
 from problems.floating import floating_modes
 from problems.kkt import KKTResiduals, friction_residuals, kkt_residuals, tresca_energy
 from problems.qp import ContactQP
-from solvers.base import CONTRACT, SolveResult, contract_violation, tangential_rows
+from solvers.base import (CONTRACT, COULOMB_MONOLITHIC, SolveResult, contract_violation,
+                          tangential_rows)
 
 
 @dataclass
@@ -342,7 +343,9 @@ def verify(qp: ContactQP, result: SolveResult, tol: float) -> SolveResult:
     becomes a ``failed`` row without residuals, ``failed_check = "contract:<rule>"``.
     On a frictional problem (``qp.friction``: one Tresca step) the residuals are the six
     of :func:`problems.kkt.friction_residuals` with ``result.tangential`` and the bound
-    is that of the Tresca step (:func:`duality_gap` with ``lam``).
+    is that of the Tresca step (:func:`duality_gap` with ``lam``); an answer that solved
+    a Coulomb step itself is judged on the Tresca step of its own bound
+    (:func:`judged_step`).
     Otherwise qpbenchmark's rule, strengthened: ``converged`` only if the solver claims
     it, every scaled KKT residual is <= ``tol`` and the certified bound on the relative
     energy error (from the duality gap, :func:`duality_gap`) is <= ``tol`` (or at the
@@ -364,6 +367,7 @@ def verify(qp: ContactQP, result: SolveResult, tol: float) -> SolveResult:
         result.kkt = kkt_residuals(qp, result.u, result.p)
     else:
         lam = np.asarray(result.tangential, dtype=float)
+        qp = judged_step(qp, result)
         result.kkt = friction_residuals(qp, result.u, result.p, lam)
     from solvers.cholesky import FactorizationError
     try:
@@ -380,6 +384,19 @@ def verify(qp: ContactQP, result: SolveResult, tol: float) -> SolveResult:
     else:
         result.status, result.failed_check = result.claimed_status, "claimed"
     return result
+
+
+def judged_step(qp: ContactQP, result: SolveResult) -> ContactQP:
+    """The Tresca step a frictional answer is judged on: ``qp`` itself, or, for an answer
+    that solved the Coulomb step itself (``stats["friction"]`` is
+    :data:`solvers.base.COULOMB_MONOLITHIC`), the Tresca step of its own bound
+    ``s = mu p_+`` (the condition of Coulomb friction; its certificate bounds the error
+    against the Tresca step of that bound, as for the last step of the fixed point)."""
+    fr = qp.friction
+    if fr.law != "coulomb" or result.stats.get("friction") != COULOMB_MONOLITHIC:
+        return qp
+    own = fr.mu * np.maximum(np.asarray(result.p, dtype=float), 0.0)
+    return replace(qp, friction=replace(fr, slip_bound=own))
 
 
 def failed_checks(kkt: KKTResiduals, gap: DualityGap, tol: float) -> list[str]:

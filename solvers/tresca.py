@@ -345,6 +345,9 @@ def run_load_path(qp: ContactQP, solve_step, tol: float, max_iter: int = 50) -> 
     ``tol max(s)`` (:meth:`problems.qp.Friction.states`). Gross sliding (no row of the
     last step sticks although some have a bound, ``mu > 0``: the tangential load has
     reached ``mu P`` and no static partial-slip state is left) makes the run ``failed``.
+    A solver that solves a Coulomb step itself (``stats["friction"]`` is
+    :data:`solvers.base.COULOMB_MONOLITHIC`; verified on its own bound ``mu p``) ends the
+    fixed point at its second solve, which confirms ``s = mu p``.
     """
     fr = qp.friction
     if fr is None or not fr.path:

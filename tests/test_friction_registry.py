@@ -121,6 +121,48 @@ def test_the_tangential_rules_of_the_contract(tangential, rule):
     assert contract_violation(ok, 4, 2, 2) is None
 
 
+#: every registered solver that takes friction (each Tresca step through the registry)
+FRICTIONAL = sorted(name for name, spec in solvers().items() if spec.handles_friction)
+
+
+@pytest.mark.parametrize("law", ["tresca", "coulomb"])
+@pytest.mark.parametrize("name", FRICTIONAL)
+def test_every_frictional_solver_verifies_along_the_path_and_agrees(name, law):
+    """Each frictional solver, run along the load path through the registry at ``high``,
+    is verified ``converged`` on every step and agrees with the exact reference to 1e-8
+    in the relative energy norm (both steps)."""
+    assert "tresca_exact" in FRICTIONAL and len(FRICTIONAL) >= 2
+    qp = _scene(1, law)
+    ref = _registered_path(qp)
+    run = run_load_path(qp, lambda step: solve(step, name, tol="high"), 1e-9)
+    assert run.result.status == "converged", run.result.message
+    assert [r["status"] for r in run.records] == ["converged", "converged"]
+    for mine, exact in zip(run.steps, ref.steps, strict=True):
+        assert energy_error(qp, mine.solution.u, exact.solution.u) <= 1e-8, name
+
+
+def test_a_coulomb_step_solved_monolithically_is_judged_on_its_own_bound():
+    """semismooth_newton with coulomb='monolithic' answers the Coulomb step itself
+    (s = mu p inside its iteration): verified on the Tresca step of its own bound mu p,
+    not on the slip bound it was handed, and the path's fixed point then stops at its
+    second solve (s = mu p holds at once)."""
+    qp = _scene(1, "coulomb")
+    ref = _registered_path(qp)
+    run = run_load_path(qp, lambda step: solve(step, "semismooth_newton", tol="high",
+                                               coulomb="monolithic"), 1e-9)
+    assert run.result.status == "converged", run.result.message
+    assert run.result.stats["friction"] == "coulomb_monolithic"
+    assert [r["tresca_solves"] for r in run.records] == [2, 2]
+    assert energy_error(qp, run.result.u, ref.result.u) <= 1e-8
+    # handed a slip bound far from mu p, the answer is still judged on its own
+    handed = replace(run.qp, friction=replace(run.qp.friction,
+                                              slip_bound=2 * run.qp.friction.slip_bound))
+    res = solve(handed, "semismooth_newton", tol="high", coulomb="monolithic")
+    assert res.status == "converged" and res.kkt.bound <= 1e-9
+    tresca = solve(handed, "semismooth_newton", tol="high")     # the handed Tresca step
+    assert tresca.status == "converged" and energy_error(qp, tresca.u, res.u) > 1e-6
+
+
 def _answer(u, p, lam):
     return SolveResult(u=np.array(u), p=np.array(p), claimed_status="converged",
                        tangential=None if lam is None else np.array(lam))
