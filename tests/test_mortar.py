@@ -155,8 +155,3 @@ def test_standard_rows_are_solved_by_the_exact_methods_and_skipped_by_tnnmg():
 def test_bad_mortar_settings_name_the_parameter(bad, needle):
     with pytest.raises(ParameterError, match=needle):
         CIRCLE.make(0, coupling="mortar_dual", **bad)
-
-
-def test_cube_sphere_does_not_offer_mortar():
-    with pytest.raises(ParameterError, match="parameter 'coupling'"):
-        PROBLEMS["cube_sphere"].make(0, coupling="mortar")
