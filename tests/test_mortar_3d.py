@@ -16,10 +16,11 @@ What is tested, with its known answer:
   ball's nodal loads node by node;
 * the rows' consistency: a rigid translation by ``d`` along ``n`` of the ball changes
   every weighted gap by ``d``, of the cube by ``-d`` (the rows' weights sum to one);
-* the solvers: PDAS verified ``converged`` on both bases at levels 0 and 1; on the dual
-  rows (one per constrained node) TNNMG and the augmented projection are verified
-  ``converged`` and agree with PDAS to 1e-8 in the relative energy norm at ``high``;
-  TNNMG skips the standard rows with its reason;
+* the solvers: PDAS verified ``converged`` on both bases at levels 0 and 1, with the same
+  pressure whichever body comes first in memory; on the dual rows (one per constrained
+  node) TNNMG and the augmented projection are verified ``converged`` and agree with
+  PDAS to 1e-8 in the relative energy norm at ``high``; TNNMG skips the standard rows
+  with its reason;
 * the nodal coupling stays as it was: the scene's nodal rows are the assembled ones,
   unchanged by the coupling step.
 """
@@ -226,6 +227,16 @@ def test_pdas_converges_on_both_bases(level):
         assert res.status == "converged", (coupling, res.message)
         assert res.kkt.max <= 1e-9, coupling
         assert res.p.max() > 0, coupling                     # the bodies touch
+
+
+@pytest.mark.parametrize("coupling", MORTAR)
+def test_the_solution_does_not_depend_on_the_bodies_order(coupling):
+    first = make(0, coupling)
+    second = CUBE.make(0, coupling=coupling, order="ball_first")
+    np.testing.assert_array_equal(first.mesh.points[first.contact.nodes],
+                                  second.mesh.points[second.contact.nodes])
+    pressure = [qp.contact.pressure(solve(qp, "pdas", "high").p) for qp in (first, second)]
+    assert np.abs(pressure[0] - pressure[1]).max() <= ROUND_OFF * pressure[0].max()
 
 
 def agree_on_dual_rows(level):
