@@ -35,7 +35,7 @@ from problems.cube_sphere import scene
 from problems.fem.mortar import mortar_integrals, multiplier_basis, surface_quadrature
 from problems.fem.two_body import assemble_two_body
 from problems.kkt import energy_error
-from problems.spec import ParameterError, problems
+from problems.spec import problems
 from solvers.contact_box import check_structure
 from solvers.interface import solve
 
@@ -257,13 +257,3 @@ def test_solvers_agree_with_the_exact_reference_on_dual_rows(level):
 @pytest.mark.slow
 def test_solvers_agree_with_the_exact_reference_on_dual_rows_at_level_2():
     agree_on_dual_rows(2)
-
-
-@pytest.mark.parametrize("bad, needle", [
-    ({"search": "closest_point"}, "parameter 'coupling'"),
-    ({"degree": 2}, "parameter 'degree'"),
-    ({"radius": 0.5}, "does not cover"),
-])
-def test_bad_mortar_settings_name_the_parameter(bad, needle):
-    with pytest.raises(ParameterError, match=needle):
-        CUBE.make(0, coupling="mortar_dual", **bad)
