@@ -19,8 +19,8 @@ What is tested, with its known answer:
 * the solvers: PDAS verified ``converged`` on both bases at levels 0 and 1, with the same
   pressure whichever body comes first in memory; on the dual rows (one per constrained
   node) TNNMG and the augmented projection are verified ``converged`` and agree with
-  PDAS to 1e-8 in the relative energy norm at ``high``; TNNMG skips the standard rows
-  with its reason;
+  PDAS to 1e-8 in the relative energy norm at ``high``, as semismooth Newton and the
+  augmented projection do on the standard rows; TNNMG skips those with its reason;
 * the nodal coupling stays as it was: the scene's nodal rows are the assembled ones,
   unchanged by the coupling step.
 """
@@ -239,11 +239,10 @@ def test_the_solution_does_not_depend_on_the_bodies_order(coupling):
     assert np.abs(pressure[0] - pressure[1]).max() <= ROUND_OFF * pressure[0].max()
 
 
-def agree_on_dual_rows(level):
-    qp = make(level, "mortar_dual")
+def agree_with_pdas(qp, names):
     ref = solve(qp, "pdas", "high")
     assert ref.status == "converged", ref.message
-    for name in ("tnnmg", "augmented_projection"):
+    for name in names:
         res = solve(qp, name, "high")
         assert res.status == "converged", (name, res.message)
         assert energy_error(qp, res.u, ref.u) <= AGREEMENT, name
@@ -251,9 +250,13 @@ def agree_on_dual_rows(level):
 
 @pytest.mark.parametrize("level", [0, 1])
 def test_solvers_agree_with_the_exact_reference_on_dual_rows(level):
-    agree_on_dual_rows(level)
+    agree_with_pdas(make(level, "mortar_dual"), ("tnnmg", "augmented_projection"))
 
 
 @pytest.mark.slow
 def test_solvers_agree_with_the_exact_reference_on_dual_rows_at_level_2():
-    agree_on_dual_rows(2)
+    agree_with_pdas(CUBE.make(2, coupling="mortar_dual"), ("tnnmg", "augmented_projection"))
+
+
+def test_standard_rows_are_solved_by_semismooth_newton_and_the_augmented_projection():
+    agree_with_pdas(make(1, "mortar"), ("semismooth_newton", "augmented_projection"))
