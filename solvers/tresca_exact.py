@@ -9,8 +9,8 @@ The answer carries the tangential multipliers in ``SolveResult.tangential``. A l
 this solver by :func:`solvers.tresca.run_load_path` (``contactbench solve`` on a
 frictional scene).
 
-Without friction the same route (``y = p``, ``G = B``) is the exact QP route of the
-frictionless problem, a cross-check of ``pdas``. Refused at once (``skipped``): more than
+Refused at once (``skipped``): a frictionless problem (its exact reference is ``pdas``;
+the dense dual would only add a slower second route to every frictionless study), more than
 :data:`solvers.tresca.TRESCA_EXACT_MAX_M` rows (``S`` is dense), friction on anything but
 2D nodal rows, and a floating body (``A`` is then nearly singular and a plain
 factorisation of it useless).
@@ -30,6 +30,9 @@ from solvers.tresca import TRESCA_EXACT_MAX_M, dual_operators, tresca_exact
 
 def supports(qp: ContactQP) -> tuple[bool, str]:
     """``(True, "")`` if :func:`solve` takes ``qp``, else ``(False, reason)``."""
+    if qp.friction is None:
+        return False, ("a frictionless problem: this is the reference of a Tresca step; "
+                       "the frictionless problem's exact reference is pdas")
     if qp.m > TRESCA_EXACT_MAX_M:
         return False, (f"{qp.m} constraint rows: the dual Hessian is dense, at most "
                        f"{TRESCA_EXACT_MAX_M} rows")
@@ -47,7 +50,7 @@ def supports(qp: ContactQP) -> tuple[bool, str]:
 
 def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
           u0: np.ndarray | None, p0: np.ndarray | None, opts: Options) -> SolveResult:
-    """One Tresca step (or the frictionless problem) solved exactly
+    """One Tresca step solved exactly
     (:func:`solvers.tresca.tresca_exact`).
 
     ``tol`` is left to the verification: the method is exact on its final active sets.
@@ -88,8 +91,8 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
 SOLVER = SolverSpec(
     name="tresca_exact",
     summary="exact reference of one 2D Tresca step: the dual box problem in (p, lam) with "
-            "A factorised once and S = G A^-1 G' dense, by a primal active-set method; "
-            "without friction the exact QP route (a cross-check of pdas)",
+            "A factorised once and S = G A^-1 G' dense, by a primal active-set method "
+            "(frictional problems only)",
     solve=solve,
     presets=preset_texts("exact active sets; verified at"),
     default_max_iter=100_000,
