@@ -1,9 +1,10 @@
 """A new study is five files: its module, its script, its rule file, its report module and
 its captions (docs/design.md, "Add a study"). A toy study declared in exactly these five
 files, in a copy of the suite, is discovered: ``snakemake -n`` at the tiny scale plans its
-jobs with the resources its module declares, the validation takes its config section from
-the module, ``contactbench study`` knows its command, and the docs give it its page and an
-entry in the studies' table of contents."""
+jobs with the resources its module declares, its jobs run and the HTML report shows its
+caption, the validation takes its config section from the module, ``contactbench study``
+knows its command, and the docs give it its page and an entry in the studies' table of
+contents."""
 from __future__ import annotations
 
 import os
@@ -177,6 +178,23 @@ def test_its_command_and_its_docs_page(suite):
     toctree = (suite / "docs/generated/studies/toctree.inc").read_text(encoding="utf-8")
     assert "/generated/studies/toy_count" in toctree
 
+
+
+@pytest.mark.slow
+def test_it_runs_and_its_caption_reaches_the_report(suite):
+    """Its two jobs run at the tiny scale; the HTML report shows its output with the
+    caption from its captions file."""
+    target = "results/circle_square/toy_count_claims.csv"
+    out = run(suite, str(BIN / "snakemake"), target, "--cores", "1", "--configfile",
+              "workflows/config/tiny.yaml")
+    assert out.returncode == 0, (out.stdout + out.stderr)[-3000:]
+    claims = (suite / target).read_text(encoding="utf-8").splitlines()
+    assert claims == ["claim,measured,bar,pass", "toy_grows,1.0,1.0,True"]   # 4, 9 nodes
+    out = run(suite, str(BIN / "snakemake"), target, "--cores", "1", "--report",
+              "report.html", "--configfile", "workflows/config/tiny.yaml")
+    assert out.returncode == 0, (out.stdout + out.stderr)[-3000:]
+    report = (suite / "report.html").read_text(encoding="utf-8")
+    assert "Whether the number of nodes grows with the level on this scene." in report
 
 # ----------------------------------------------------------- the declarations, one by one
 def test_a_scale_file_gets_the_sections_and_resources_its_studies_declare():
