@@ -104,6 +104,33 @@ def test_the_block_minimiser_meets_the_blocks_optimality_conditions():
     assert len(seen) == 6, seen
 
 
+def test_the_line_search_over_kinks_is_exact():
+    """phi(a) = base a + curvature a^2/2 + sum_j jumps_j max(a - kinks_j, 0) on [0, longest]:
+    the search's answer has the least phi of all candidates (0, the end, every kink, every
+    piece's clipped stationary point), and meets the one-sided optimality conditions."""
+    rng = np.random.default_rng(11)
+    for trial in range(300):
+        k = int(rng.integers(0, 6))
+        kinks = np.sort(rng.uniform(0, 3, size=k))
+        jumps = rng.uniform(0, 2, size=k)
+        base, curvature = rng.normal() * 2, rng.uniform(0.05, 2)
+        longest = np.inf if trial % 3 == 0 else rng.uniform(0.1, 4)
+        phi = lambda a: base * a + 0.5 * curvature * a * a + jumps @ np.maximum(a - kinks, 0)
+        dphi = lambda a, side: base + curvature * a + jumps @ (
+            (kinks < a) if side < 0 else (kinks <= a))      # phi'(a-), phi'(a+)
+        a = tnnmg._kink_search(base, curvature, kinks, jumps, longest)
+        assert 0 <= a <= longest
+        edges = np.r_[0.0, kinks[kinks < longest], min(longest, 1e6)]
+        stationary = np.clip(-(base + np.r_[0.0, np.cumsum(jumps)][:edges.size - 1])
+                             / curvature, edges[:-1], edges[1:])
+        best = min(phi(c) for c in np.r_[edges, stationary])
+        assert phi(a) <= best + 1e-13 * (1 + abs(best))
+        if a > 0:
+            assert dphi(a, -1) <= 1e-12
+        if a < longest:
+            assert dphi(a, +1) >= -1e-12
+
+
 def test_the_tresca_kernel_with_zero_weight_is_the_frictionless_sweep():
     """Both kernels share the residual and the bounded block update: with zero weights and
     the frictionless modes the Tresca sweep gives the same iterate, bit for bit."""
@@ -164,9 +191,10 @@ def test_tnnmg_agrees_with_the_exact_tresca_reference(level, ratio):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("ratio", [0.3, 0.7])
-def test_tnnmg_agrees_with_the_exact_tresca_reference_level_3(ratio):
-    _agrees_with_the_exact_reference(3, ratio)
+def test_tnnmg_agrees_with_the_exact_tresca_reference_level_3():
+    """Level 3 (129 rows) at the larger slip zone; Q/(mu P) = 0.3 there is measured in the
+    friction guide."""
+    _agrees_with_the_exact_reference(3, 0.7)
 
 
 def test_mu_zero_is_the_frictionless_answer():
