@@ -60,7 +60,8 @@ coordinates too (:mod:`solvers.contact_box`: ``T_i u = theta_i v_s[1]``), so the
 blocks with the normal bound on ``v_s[0]``. The step is the one above with:
 
 1. the node block's exact minimiser of the normal bound and the term (stick, or slip
-   either way, times the normal unknown free or at its bound; :func:`solvers._block_gs._tresca_block`);
+   either way, times the normal unknown free or at its bound;
+   :func:`solvers._block_gs._tresca_block`);
 2. the truncation of the normal-active pivots and of the sticking rows' tangential
    unknowns (slip exactly zero); a slipping row's term is linear near the iterate, its
    derivative ``weight sign(slip)`` part of the correction's right-hand side;
@@ -70,9 +71,9 @@ blocks with the normal bound on ``v_s[0]``. The step is the one above with:
 It stops when the friction KKT residuals (:func:`problems.kkt.friction_residuals`) meet
 tol, with the tangential multipliers ``lam_i = r[v_s[1]] / theta_i`` from the
 stationarity of the tangential unknown, in ``[-s_i, s_i]`` (``SolveResult.tangential``;
-:meth:`_TrescaTerm.multipliers`). Coulomb friction (the
-load path's fixed point ``s = mu p`` over Tresca steps is the path runner's) and 3D (a
-disc of tangential slips per node) are ``skipped`` with the reason.
+:meth:`_TrescaTerm.multipliers`). A Coulomb problem is solved as the Tresca step of its
+given slip bound (the fixed point ``s = mu p`` over Tresca steps is the load path's); 3D
+(a disc of tangential slips per node) is ``skipped`` with the reason.
 """
 from __future__ import annotations
 
@@ -762,7 +763,8 @@ def _tresca_solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | 
     u, p = box.to_u(v), box.multipliers(r, bound)
     lam = term.multipliers(r, qp.friction.slip_bound)
     stick = term.stick(v)
-    stats = {"n_steps": k, "n_cg": 0, "n_vcycles": k, "presmoothing": opts.presmoothing,
+    stats = {"friction": "tresca_step", "n_steps": k, "n_cg": 0, "n_vcycles": k,
+             "presmoothing": opts.presmoothing,
              "truncation_updates": ml.updates, "n_active": int(np.count_nonzero(p > 0)),
              "n_stick": int(np.count_nonzero(stick)),
              "n_slip": int(np.count_nonzero(~stick & (term.weight > 0))),
@@ -774,13 +776,11 @@ def _tresca_solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | 
 
 def supports(qp: ContactQP) -> tuple[bool, str]:
     """Nodal constraints with one row per constrained node (:mod:`solvers.contact_box`);
-    with friction, one 2D Tresca step whose tangential rows become coordinates too."""
+    with friction, one 2D Tresca step whose tangential rows become coordinates too (a
+    Coulomb problem's step at its given slip bound: the fixed point ``s = mu p`` is the
+    load path's)."""
     fr = qp.friction
     if fr is not None:
-        if fr.law != "tresca":
-            return False, (f"{fr.law} friction: TNNMG takes one Tresca step (a given slip "
-                           "bound); Coulomb's s = mu p is the load path's fixed point over "
-                           "Tresca steps")
         if qp.dim != 2:
             return False, ("Tresca friction in 3D: the node block's exact minimiser with a "
                            "disc of tangential slips is not built (2D only)")

@@ -220,10 +220,11 @@ def test_a_huge_mu_sticks_everywhere():
     assert energy_error(st.qp, res.u, st.solution.u) <= 1e-8
 
 
-def test_the_load_path_run_by_tnnmg_is_the_exact_path():
-    """friction_path with TNNMG's steps (each from TNNMG's previous state) against the
-    exact path."""
-    qp = _frictional(1)
+@pytest.mark.parametrize("law", ["tresca", "coulomb"])
+def test_the_load_path_run_by_tnnmg_is_the_exact_path(law):
+    """friction_path with TNNMG's steps (each from TNNMG's previous state; Coulomb: the
+    fixed point s = mu p over them) against the exact path."""
+    qp = _frictional(1, friction=law)
 
     def by_tnnmg(step_qp):
         res = _tnnmg(step_qp)
@@ -232,13 +233,23 @@ def test_the_load_path_run_by_tnnmg_is_the_exact_path():
         return TrescaSolution(res.u, res.p, res.tangential, stick, res.claimed_status,
                               res.iterations, kkt)
     for mine, exact in zip(friction_path(qp, by_tnnmg), friction_path(qp)):
+        assert mine.solution.status == "converged"     # Coulomb: the fixed point too
         assert mine.solution.kkt.max <= 1e-10
         assert energy_error(exact.qp, mine.solution.u, exact.solution.u) <= 1e-8
 
 
-def test_coulomb_and_3d_friction_are_skipped_with_the_reason():
-    ok, why = tnnmg.supports(_frictional(0, friction="coulomb"))
-    assert not ok and "coulomb friction" in why and "fixed point" in why
+def test_a_coulomb_step_is_the_tresca_step_of_its_bound():
+    """The load path's fixed point hands over Coulomb steps with the bound given: TNNMG
+    solves that Tresca step, the same iterates as with the law named tresca."""
+    st = friction_path(_frictional(1))[-1]
+    coulomb = replace(st.qp, friction=replace(st.qp.friction, law="coulomb"))
+    assert tnnmg.supports(coulomb) == (True, "")
+    a, b = _tnnmg(st.qp), _tnnmg(coulomb)
+    assert np.array_equal(a.u, b.u) and np.array_equal(a.tangential, b.tangential)
+    assert a.stats["friction"] == "tresca_step"
+
+
+def test_3d_friction_is_skipped_with_the_reason():
     cube = problems()["cube_sphere"].make(0)
     m = cube.m
     fake = Friction("tresca", 0.5, cube.B, np.zeros((m, 3)), np.ones(m), np.zeros(m),
