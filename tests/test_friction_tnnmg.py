@@ -249,6 +249,19 @@ def test_a_coulomb_step_is_the_tresca_step_of_its_bound():
     assert a.stats["friction"] == "tresca_step"
 
 
+def test_a_run_stopped_short_says_so():
+    """Two steps of a tangential step: max_iter with its message, the energy never rising,
+    an answer of the right shape with its tangential multipliers inside their bounds."""
+    st = friction_path(_frictional(1))[-1]
+    res = tnnmg.solve(st.qp, 1e-10, 2, None, None, None, tnnmg.SOLVER.options())
+    assert res.claimed_status == "max_iter" and "not verified after 2 steps" in res.message
+    assert res.iterations == 2 and len(res.history["energy"]) == 2
+    assert res.history["energy"][1] <= res.history["energy"][0]
+    s = st.qp.friction.slip_bound
+    assert res.u.shape == (st.qp.n,) and np.all(np.abs(res.tangential) <= s)
+    assert friction_residuals(st.qp, res.u, res.p, res.tangential).max > 1e-10
+
+
 def test_3d_friction_is_skipped_with_the_reason():
     cube = problems()["cube_sphere"].make(0)
     m = cube.m
