@@ -68,8 +68,9 @@ blocks with the normal bound on ``v_s[0]``. The step is the one above with:
 3. the line search on the nonsmooth energy, exact over its kinks (:func:`_tresca_step`);
    conjugate gradients on a face (step 4) are not used.
 
-It stops when the friction KKT residuals (:func:`problems.kkt.friction_residuals`) meet
-tol, with the tangential multipliers ``lam_i = r[v_s[1]] / theta_i`` from the
+It stops when the suite's verification passes: the friction KKT residuals
+(:func:`problems.kkt.friction_residuals`) and the certified energy bound of the Tresca step
+(:func:`certify` with ``lam``) meet tol, with the tangential multipliers ``lam_i = r[v_s[1]] / theta_i`` from the
 stationarity of the tangential unknown, in ``[-s_i, s_i]`` (``SolveResult.tangential``;
 :meth:`_TrescaTerm.multipliers`). A Coulomb problem is solved as the Tresca step of its
 given slip bound (the fixed point ``s = mu p`` over Tresca steps is the load path's); 3D
@@ -748,11 +749,12 @@ def _tresca_solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | 
         if residual <= CHECK_FACTOR * tol or callback is not None:
             u, p = box.to_u(v), box.multipliers(r, bound)
             lam = term.multipliers(r, qp.friction.slip_bound)
-        if residual <= CHECK_FACTOR * tol:         # the friction KKT residuals decide
+        if residual <= CHECK_FACTOR * tol:         # the suite's verification decides
             kkt_max = friction_residuals(qp, u, p, lam).max
-            verified = kkt_max <= tol
+            verified = kkt_max <= tol and (opts.stop == "kkt"
+                                           or certify(qp, u, p, tol, lam=lam).meets(tol))
         end = log.close(k, (t0, t1, t2, t3), kkt_max, verified,
-                        f"friction KKT residuals met after {k} steps",
+                        f"verified after {k} steps",
                         lambda: callback is not None and callback(u, p))
         if end is not None:
             status, message = end

@@ -26,8 +26,8 @@ def _frictional(level, **kw):
 
 
 def _tnnmg(qp, tol=1e-10, **opts):
-    """TNNMG's answer to one step, called directly (the friction KKT residuals are its
-    stopping test)."""
+    """TNNMG's answer to one step, called directly (its stop is the suite's verification:
+    the friction KKT residuals and the certified Tresca bound)."""
     res = tnnmg.solve(qp, tol, 500, None, None, None, tnnmg.SOLVER.options(**opts))
     assert res.claimed_status == "converged", res.message
     return res
