@@ -56,7 +56,7 @@ import numpy as np
 from problems.fem.contact import RENAMED_SEARCHES, SEARCHES
 from problems.fem.mesh import (Hierarchy, nested_prolongation, netgen_disk, project_to_circle,
                                structured_rectangle, uniform_hierarchy)
-from problems.fem.stabilised import COUPLING_PARAMETERS, check_coupling, coupling_parameter, couple
+from problems.fem.stabilised import COUPLING_PARAMETERS, check_coupling, couple
 from problems.fem.surface import tensor_coarsening
 from problems.fem.two_body import ELEMENT_DEGREE, Body, TwoBodyScene, assemble_two_body
 from problems.qp import FRICTION_LAWS, ContactQP, HertzSetup, LoadStep
@@ -185,8 +185,7 @@ PROBLEM = ProblemSpec(
         Parameter("order", "square_first", "bodies' order in memory (a solution must not depend on it)",
                   choices=("square_first", "circle_first")),
         ELEMENT_DEGREE,
-        coupling_parameter(with_mortar=True),
-        *COUPLING_PARAMETERS[1:],     # alpha, penalty
+        *COUPLING_PARAMETERS,
         Parameter("friction", "none", "friction law on the contact (none: the thesis's "
                   "frictionless problem; tresca: slip bound mu p of the normal step; coulomb: "
                   "s = mu p by a fixed point)", choices=FRICTION_LAWS),

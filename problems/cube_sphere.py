@@ -46,7 +46,13 @@ constraints of Alg. 7.1 on the cube's top face (the thesis's one pass, the defau
 rows hard (:func:`problems.fem.stabilised.two_pass`): the ball's lower nodes are kept
 out of the cube too. Coinciding nodes are rare on the sphere; where the ball's lowest
 node lies above a cube node (level 0: one row), the two passes repeat a row and the
-rows of B are linearly dependent (level 0: 51 rows, rank 50).
+rows of B are linearly dependent (level 0: 51 rows, rank 50). ``mortar`` and
+``mortar_dual`` (:mod:`problems.fem.mortar`): the weighted gaps of the mortar method over
+the cube's flat top face, with the ball's lower triangles projected onto it along
+n = (0, 0, 1) and clipped against its triangles, with standard or dual (Wohlmuth)
+multipliers; the dual rows are node-wise. One row per node of the top face, as the
+nodal coupling; the pressure is the multiplier over the lumped mass. A ball too small
+to cover the top face along n (``radius`` below about 0.71) is refused with them.
 """
 from __future__ import annotations
 

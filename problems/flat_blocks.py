@@ -64,7 +64,7 @@ from __future__ import annotations
 import numpy as np
 
 from problems.fem.mesh import Hierarchy, nested_prolongation, structured_square
-from problems.fem.stabilised import COUPLING_PARAMETERS, check_coupling, couple, coupling_parameter
+from problems.fem.stabilised import COUPLING_PARAMETERS, check_coupling, couple
 from problems.fem.surface import tensor_coarsening
 from problems.fem.two_body import ELEMENT_DEGREE, Body, TwoBodyScene, assemble_two_body
 from problems.qp import ContactQP
@@ -147,8 +147,7 @@ PROBLEM = ProblemSpec(
         Parameter("ratio", "2:3", "cells per unit length of the lower : upper block"),
         Parameter("constrained", "coarse", "which block carries the constraints: the coarse "
                   "one (fewer cells; the lower at 2:3) or the fine one", choices=("coarse", "fine")),
-        coupling_parameter(with_mortar=True),
-        *COUPLING_PARAMETERS[1:],     # alpha, penalty
+        *COUPLING_PARAMETERS,
         Parameter("E", 1.0, "Young's modulus of both blocks", low=0.0, low_open=True),
         Parameter("nu", 0.3, "Poisson ratio of both blocks", low=-1.0, high=0.5, low_open=True,
                   high_open=True),

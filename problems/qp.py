@@ -340,6 +340,17 @@ class Friction:
         """Tangential slip ``T u + offset - previous`` of ``u`` in this step."""
         return self.T @ np.asarray(u, dtype=float) + self.offset - self.previous
 
+    def states(self, lam: np.ndarray, tol: float) -> np.ndarray:
+        """Stick/slip state of each row from its tangential multiplier ``lam``:
+        ``free`` where ``s_i = 0`` (no tangential force can act: out of contact under
+        Coulomb friction), ``stick`` where ``|lam_i|`` lies inside its bound by more
+        than ``tol max(s)`` (the slip is then zero), ``slip`` where it is at the bound.
+        """
+        s = self.slip_bound
+        margin = tol * (float(s.max()) if s.size else 0.0)
+        inside = s - np.abs(np.asarray(lam, dtype=float)) > margin
+        return np.where(s > 0, np.where(inside, "stick", "slip"), "free")
+
 
 @dataclass
 class SharedWork:
@@ -360,12 +371,17 @@ class SharedWork:
     certificate : tuple or None
         ``(digest of (u, p, tol), DualityGap)``: the last certificate
         (:func:`solvers.certificate.certify`).
+    dual_operators : dict
+        ``{frictional: DualOperators}`` (:func:`solvers.tresca.dual_operators`): ``A``
+        factorised and the dense dual Hessian, shared by the steps of a load path (with
+        and without the tangential rows).
     """
 
     floating_modes: dict = field(default_factory=dict)
     floating_factor: object | None = None
     linear_solver: Callable | None = None
     certificate: tuple | None = None
+    dual_operators: dict = field(default_factory=dict)
 
 
 @dataclass

@@ -36,6 +36,12 @@ VERIFIED_PRESETS = preset_texts("stop when verified: KKT and certified energy bo
 #: cannot take the problem (:meth:`SolverSpec.check`); the message says why.
 STATUSES = ("converged", "inaccurate", "max_iter", "time_limit", "failed", "skipped")
 
+#: ``stats["friction"]`` of an answer that solved a Coulomb step itself, monolithically
+#: (``s = mu p`` of its own ``p`` inside its iteration), instead of the Tresca step of the
+#: given ``slip_bound``: the verification judges it as the Tresca step of its own bound
+#: ``mu p`` (:func:`solvers.certificate.verify`).
+COULOMB_MONOLITHIC = "coulomb_monolithic"
+
 #: The rules of a solver's answer, checked by :func:`contract_violation` before anything
 #: uses it: ``{rule: what the solver must deliver}``. A broken rule makes the row
 #: ``failed`` with ``failed_check = "contract:<rule>"``. A solver that stops without an
@@ -52,6 +58,9 @@ CONTRACT = {
     "iterations": "iterations is an int >= 0",
     "times": "setup_time and solve_time are finite numbers >= 0",
     "records": "history and stats are dicts",
+    "tangential": "on a frictional problem (qp.friction), tangential is a 1-D float array of "
+                  "length qp.m (the tangential multipliers)",
+    "tangential_finite": "every entry of tangential is finite when the solver claims converged",
 }
 
 
@@ -107,7 +116,9 @@ class SolveResult:
         ``failed``), ``no_answer`` (it stopped short with non-finite ``u`` or ``p``),
         or, for a claimed convergence the verification did not confirm, the
         checks above ``tol`` joined by commas: ``kkt_stationarity``, ``kkt_primal``,
-        ``kkt_dual``, ``kkt_complementarity``, ``energy_bound`` (or ``no_certificate``).
+        ``kkt_dual``, ``kkt_complementarity``, on a frictional problem also ``kkt_bound``
+        (``|lam_i| <= s_i``) and ``kkt_slip_complementarity``
+        (``lam_i slip_i = s_i |slip_i|``), then ``energy_bound`` (or ``no_certificate``).
     traceback : str
         The traceback of an exception the solver raised (empty otherwise): kept with the
         row, never in its table columns.
@@ -240,7 +251,8 @@ class SolverSpec:
         return bool(ok), str(reason)
 
 
-def contract_violation(result: Any, n: int, m: int) -> tuple[str, str] | None:
+def contract_violation(result: Any, n: int, m: int,
+                       m_tangential: int | None = None) -> tuple[str, str] | None:
     """The first rule of :data:`CONTRACT` that a solver's answer breaks, as
     ``(rule, what is wrong)``, or None if it keeps them all.
 
@@ -250,6 +262,10 @@ def contract_violation(result: Any, n: int, m: int) -> tuple[str, str] | None:
         What the solver's ``solve`` returned.
     n, m : int
         The size of the problem the solver received (``qp.n``, ``qp.m``).
+    m_tangential : int, optional
+        On a frictional problem, its number of tangential rows (``qp.friction.T``):
+        ``tangential`` must then be an array of that length; ``None``: frictionless,
+        ``tangential`` is not checked.
 
     A ``skipped`` answer carries nothing to use: only its type, status and message are
     checked.
@@ -286,7 +302,27 @@ def contract_violation(result: Any, n: int, m: int) -> tuple[str, str] | None:
     for name in ("history", "stats"):
         if not isinstance(getattr(result, name), dict):
             return "records", f"{name} is a {type(getattr(result, name)).__name__}"
+    if m_tangential is not None:
+        value = result.tangential
+        try:
+            arr = np.asarray(value, dtype=float)
+        except (TypeError, ValueError):
+            return "tangential", f"tangential is a {type(value).__name__}, not numbers"
+        if value is None or arr.shape != (m_tangential,):
+            return "tangential", ("tangential is None" if value is None else
+                                  f"tangential has shape {arr.shape}, not ({m_tangential},)")
+        bad = np.flatnonzero(~np.isfinite(arr))
+        if bad.size:
+            return "tangential_finite", (f"tangential has {bad.size} non-finite entries "
+                                         f"(first at index {bad[0]}: {arr[bad[0]]})")
     return None
+
+
+def tangential_rows(qp) -> int | None:
+    """The number of tangential rows of a frictional ``qp`` (``None`` if frictionless):
+    the length :func:`contract_violation` asks of ``SolveResult.tangential``."""
+    friction = getattr(qp, "friction", None)
+    return None if friction is None else friction.T.shape[0]
 
 
 def parse_tolerance(tol: Any) -> float:

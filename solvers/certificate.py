@@ -1,8 +1,10 @@
 """The verification: how the suite certifies an answer, whoever produced it.
 
 :func:`verify` fills in a :class:`~solvers.base.SolveResult`'s four KKT residuals
-(:func:`problems.kkt.kkt_residuals`) and a certified bound on its energy error
-(:func:`duality_gap`, weak duality), and decides the verified status. :func:`certify`
+(:func:`problems.kkt.kkt_residuals`; on a frictional problem the six of
+:func:`problems.kkt.friction_residuals`) and a certified bound on its energy error
+(:func:`duality_gap`, weak duality; for a Tresca step with the tangential multipliers),
+and decides the verified status. :func:`certify`
 computes the bound (kept per problem, ``qp.cache.certificate``) with the linear solver
 of :func:`linear_solver` (kept per problem, ``qp.cache.linear_solver``). Solvers that
 stop on the verification itself (the exact PDAS, semismooth Newton, the augmented
@@ -11,16 +13,17 @@ projection) call :func:`certify`.
 from __future__ import annotations
 
 import hashlib
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Callable
 
 import numpy as np
 import scipy.sparse as sp
 
 from problems.floating import floating_modes
-from problems.kkt import KKTResiduals, kkt_residuals
+from problems.kkt import KKTResiduals, friction_residuals, kkt_residuals, tresca_energy
 from problems.qp import ContactQP
-from solvers.base import CONTRACT, SolveResult, contract_violation
+from solvers.base import (CONTRACT, COULOMB_MONOLITHIC, SolveResult, contract_violation,
+                          tangential_rows)
 
 
 @dataclass
@@ -133,7 +136,7 @@ def feasible_point(qp: ContactQP, u: np.ndarray, tight: np.ndarray | None = None
 
 def duality_gap(qp: ContactQP, u: np.ndarray, p: np.ndarray,
                 solve_A: Callable[..., np.ndarray],
-                target: float | None = None) -> DualityGap:
+                target: float | None = None, lam: np.ndarray | None = None) -> DualityGap:
     """The certified energy-error bound of ``u`` (:class:`DualityGap`).
 
     ``solve_A(r, guess=x0)`` returns ``A^{-1} r`` (the bound is certified up to that
@@ -155,14 +158,53 @@ def duality_gap(qp: ContactQP, u: np.ndarray, p: np.ndarray,
     ``P(u) = J(u) + 1/2 v'C^{-1}v``, ``v = (Bu - g)_+`` on the rows with ``C > 0``;
     ``u`` is made feasible on the hard rows only:
     ``P(u) - q(p) = 1/2 ||u - x||_A^2 + p'(g - Bu) + 1/2 p'Cp + 1/2 v'C^{-1}v``.
+
+    A Tresca step (``qp.friction``, the tangential multipliers ``lam`` given; nodal
+    rows, no ``C``): the primal function is ``J(u) = 1/2 u'Au - f'u + sum_i s_i
+    |slip_i(u)|``, ``slip(u) = T u - r`` (``r = previous - offset``). With
+    ``s_i |t| = max_{|l| <= s_i} l t`` the Lagrangian is
+    ``L(v, p, l) = 1/2 v'Av - f'v + p'(Bv - g) + l'(Tv - r)`` and for any dual point in
+    the box ``p~ >= 0``, ``|l~_i| <= s_i`` (``l~`` = ``lam`` clipped to ``[-s, s]``) and
+    any feasible ``u_f``: ``J(u_f) >= L(u_f, p~, l~) >= q(p~, l~) = min_v L``, the
+    minimiser ``x = A^{-1}(f - B'p~ - T'l~)``. The dual is the box problem of
+    :mod:`solvers.tresca` (``p >= 0``, ``|lam| <= s``), so weak duality holds as
+    above, and as ``L`` is quadratic in ``v`` with Hessian ``A`` the gap is again a sum
+    of non-negative terms::
+
+        J(u_f) - q(p~, l~) = 1/2 ||u_f - x||_A^2 + p~'(g - B u_f)
+                             + sum_i (s_i |slip_i(u_f)| - l~_i slip_i(u_f))
+
+    ``J`` is ``A``-strongly convex (a quadratic plus a convex term) and ``u*`` minimises
+    it on the convex feasible set, so ``J(u_f) - J(u*) >= 1/2 ||u_f - u*||_A^2`` as in
+    the frictionless case: the same bound ``||u - u*||_A <= ||u - u_f||_A +
+    sqrt(2 gap)``, relative to ``||u_f||_A - sqrt(2 gap)``, and ``relative_gap``
+    relative to the Tresca energy ``|J(u_f)|``. The pairs tried are those above, each
+    with ``l~``.
     """
     eps = np.finfo(float).eps
     u = np.asarray(u, dtype=float)
     p_plus = np.maximum(np.asarray(p, dtype=float), 0.0)
     inf = float("inf")
 
+    fr = qp.friction if lam is not None else None
+    if fr is not None:
+        if qp.C is not None:
+            return DualityGap(inf, inf, inf, inf, inf, inf, inf, False)
+        s = fr.slip_bound
+        lam_t = np.clip(np.asarray(lam, dtype=float), -s, s)       # into the dual box
+        energy = lambda v: tresca_energy(qp, v)
+    else:
+        energy = qp.energy
+
     def pair(u_f, p_t, extra=0.0):
-        x = solve_A(qp.f - qp.B.T @ p_t, guess=u_f)
+        r = qp.f - qp.B.T @ p_t
+        if fr is not None:
+            r = r - fr.T.T @ lam_t
+            slip = fr.slip(u_f)
+            extra = float(np.sum(s * np.abs(slip) - lam_t * slip))
+            extra_noise = float((s + np.abs(lam_t)) @ np.abs(slip)) + float(
+                np.abs(lam_t) @ (abs(fr.T) @ np.abs(u_f) + np.abs(fr.offset - fr.previous)))
+        x = solve_A(r, guess=u_f)
         e = u_f - x
         slack = qp.g - qp.B @ u_f
         gap = 0.5 * float(e @ (qp.A @ e)) + float(p_t @ slack) + extra
@@ -172,12 +214,14 @@ def duality_gap(qp: ContactQP, u: np.ndarray, p: np.ndarray,
         root = np.sqrt(2.0 * max(gap, 0.0))
         noise = 8 * eps * (float(p_t @ (np.abs(qp.g) + abs(qp.B) @ np.abs(u_f))) + norm ** 2
                            + abs(float(qp.f @ u_f)))
+        if fr is not None:
+            noise += 8 * eps * extra_noise
         if norm > 0:
             rel = (shift + root) / (norm - root) if norm > root else inf
             floor = np.sqrt(2 * noise) / norm
         else:            # u_f = 0: certified exactly if the bound is zero (e.g. no load)
             rel, floor = (0.0 if shift + root == 0 else inf), 0.0
-        return gap, shift, shift + root, rel, floor, gap / max(abs(qp.energy(u_f)), 1e-300)
+        return gap, shift, shift + root, rel, floor, gap / max(abs(energy(u_f)), 1e-300)
 
     if qp.C is not None:
         c = qp.C.diagonal()
@@ -264,21 +308,28 @@ def linear_solver(qp: ContactQP) -> Callable[..., np.ndarray]:
     return solve_A
 
 
-def certify(qp: ContactQP, u: np.ndarray, p: np.ndarray, tol: float | None = None) -> DualityGap:
+def certify(qp: ContactQP, u: np.ndarray, p: np.ndarray, tol: float | None = None,
+            lam: np.ndarray | None = None) -> DualityGap:
     """The certified bound of ``(u, p)`` (one to three linear solves with A; with
-    ``tol``, as few as meet it).
+    ``tol``, as few as meet it); of ``(u, p, lam)`` for a Tresca step (``lam`` its
+    tangential multipliers, :func:`duality_gap`).
 
     The last certificate is kept in ``qp.cache.certificate`` with the digest of
-    ``(u, p, tol)``:
+    ``(u, p, tol)`` (and of ``lam`` and the step's friction data: the steps of a load
+    path share the cache):
     a solver that certifies its own stop and :func:`verify` after it pay for one.
     """
     u, p = np.ascontiguousarray(u, dtype=float), np.ascontiguousarray(p, dtype=float)
-    key = hashlib.blake2b(u.tobytes() + p.tobytes() + repr(tol).encode(),
-                          digest_size=16).digest()
+    data = u.tobytes() + p.tobytes() + repr(tol).encode()
+    if lam is not None and qp.friction is not None:
+        fr = qp.friction
+        data += b"".join(np.ascontiguousarray(v, dtype=float).tobytes() for v in
+                         (lam, fr.slip_bound, fr.offset, fr.previous, qp.f, qp.g))
+    key = hashlib.blake2b(data, digest_size=16).digest()
     last = qp.cache.certificate
     if last is not None and last[0] == key:
         return last[1]
-    gap = duality_gap(qp, u, p, linear_solver(qp), target=tol)
+    gap = duality_gap(qp, u, p, linear_solver(qp), target=tol, lam=lam)
     qp.cache.certificate = (key, gap)
     return gap
 
@@ -287,8 +338,14 @@ def verify(qp: ContactQP, result: SolveResult, tol: float) -> SolveResult:
     """Fill in ``kkt``, ``gap``, the verified ``status`` and ``failed_check``.
 
     An answer that breaks the solver contract (:func:`solvers.base.contract_violation`:
-    its type, status vocabulary, the shapes and finiteness of ``u`` and ``p``, ...)
+    its type, status vocabulary, the shapes and finiteness of ``u`` and ``p``, on a
+    frictional problem of ``tangential``, ...)
     becomes a ``failed`` row without residuals, ``failed_check = "contract:<rule>"``.
+    On a frictional problem (``qp.friction``: one Tresca step) the residuals are the six
+    of :func:`problems.kkt.friction_residuals` with ``result.tangential`` and the bound
+    is that of the Tresca step (:func:`duality_gap` with ``lam``); an answer that solved
+    a Coulomb step itself is judged on the Tresca step of its own bound
+    (:func:`judged_step`).
     Otherwise qpbenchmark's rule, strengthened: ``converged`` only if the solver claims
     it, every scaled KKT residual is <= ``tol`` and the certified bound on the relative
     energy error (from the duality gap, :func:`duality_gap`) is <= ``tol`` (or at the
@@ -299,16 +356,22 @@ def verify(qp: ContactQP, result: SolveResult, tol: float) -> SolveResult:
     residual alone can pass a wrong answer when A is ill-conditioned; the certified bound
     cannot.
     """
-    broken = contract_violation(result, qp.n, qp.m)
+    broken = contract_violation(result, qp.n, qp.m, tangential_rows(qp))
     if broken is not None:
         return broken_contract(qp, result, tol, *broken)
     if result.claimed_status == "skipped":          # nothing was computed: nothing to check
         result.status, result.failed_check = "skipped", ""
         return result
-    result.kkt = kkt_residuals(qp, result.u, result.p)
+    lam = None
+    if qp.friction is None:
+        result.kkt = kkt_residuals(qp, result.u, result.p)
+    else:
+        lam = np.asarray(result.tangential, dtype=float)
+        qp = judged_step(qp, result)
+        result.kkt = friction_residuals(qp, result.u, result.p, lam)
     from solvers.cholesky import FactorizationError
     try:
-        result.gap = certify(qp, result.u, result.p, tol)
+        result.gap = certify(qp, result.u, result.p, tol, lam=lam)
     except FactorizationError as err:          # A not positive definite: no certificate
         inf = float("inf")
         result.gap = DualityGap(inf, inf, inf, inf, inf, inf, inf, False)
@@ -323,9 +386,23 @@ def verify(qp: ContactQP, result: SolveResult, tol: float) -> SolveResult:
     return result
 
 
+def judged_step(qp: ContactQP, result: SolveResult) -> ContactQP:
+    """The Tresca step a frictional answer is judged on: ``qp`` itself, or, for an answer
+    that solved the Coulomb step itself (``stats["friction"]`` is
+    :data:`solvers.base.COULOMB_MONOLITHIC`), the Tresca step of its own bound
+    ``s = mu p_+`` (the condition of Coulomb friction; its certificate bounds the error
+    against the Tresca step of that bound, as for the last step of the fixed point)."""
+    fr = qp.friction
+    if fr.law != "coulomb" or result.stats.get("friction") != COULOMB_MONOLITHIC:
+        return qp
+    own = fr.mu * np.maximum(np.asarray(result.p, dtype=float), 0.0)
+    return replace(qp, friction=replace(fr, slip_bound=own))
+
+
 def failed_checks(kkt: KKTResiduals, gap: DualityGap, tol: float) -> list[str]:
     """The verification's checks that ``(kkt, gap)`` fail at ``tol``, in order: the four
-    scaled KKT residuals (``kkt_<name>`` above ``tol``), then ``energy_bound`` (the
+    scaled KKT residuals (``kkt_<name>`` above ``tol``; a Tresca step's six, with
+    ``kkt_bound`` and ``kkt_slip_complementarity``), then ``energy_bound`` (the
     certified relative bound above ``tol`` and its floor) or ``no_certificate`` (no
     feasible point, or A not positive definite)."""
     out = [f"kkt_{name}" for name, value in kkt.as_dict(prefix="").items() if not value <= tol]
@@ -340,7 +417,8 @@ def broken_contract(qp: ContactQP, result, tol: float, rule: str, what: str) -> 
     """The ``failed`` row of an answer that broke the contract's ``rule``
     (:data:`solvers.base.CONTRACT`): no answer to use, the message naming the rule."""
     keep = isinstance(result, SolveResult)
-    if keep and rule in ("u_finite", "p_finite") and result.claimed_status != "converged":
+    if (keep and rule in ("u_finite", "p_finite", "tangential_finite")
+            and result.claimed_status != "converged"):
         text, check = f"no answer: {what}", "no_answer"
     else:
         text, check = f"the solver broke the contract: {CONTRACT[rule]} ({what})", \

@@ -23,12 +23,14 @@ from problems.qp import ContactQP
 from problems.slack import slack_form
 from problems.spec import Parameter, ParameterError, discover, lookup
 from solvers.base import (CONTRACT, STATUSES, TOLERANCES, Role, SolveResult, SolverSpec,
-                          contract_violation, parse_tolerance)
+                          contract_violation, parse_tolerance, tangential_rows)
 from solvers.certificate import broken_contract, certify, linear_solver, verify
+from solvers.tresca import LoadPathRun, run_load_path
 
-__all__ = ["CONTRACT", "ENTRY_POINT_GROUP", "STATUSES", "TOLERANCES", "Role", "SolveResult",
-           "SolverSpec", "certify", "check_limits", "external_solvers", "linear_solver",
-           "parse_tolerance", "solve", "solver_set", "solvers", "verify"]
+__all__ = ["CONTRACT", "ENTRY_POINT_GROUP", "STATUSES", "TOLERANCES", "LoadPathRun", "Role",
+           "SolveResult", "SolverSpec", "certify", "check_limits", "external_solvers",
+           "linear_solver", "parse_tolerance", "run_load_path", "solve", "solver_set",
+           "solvers", "verify"]
 
 
 #: The entry-point group through which another installed package registers a solver: its
@@ -187,7 +189,7 @@ def solve(qp: ContactQP, solver: str = "pdas", tol: float | str = "mid",
             traceback=traceback.format_exc())
         result.options = opts.flat()
         return result
-    broken = contract_violation(result, target.n, target.m)
+    broken = contract_violation(result, target.n, target.m, tangential_rows(target))
     if broken is not None:
         row = broken_contract(qp, result, tol, *broken)
         row.solver, row.options = spec.name, opts.flat()

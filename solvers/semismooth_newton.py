@@ -42,22 +42,34 @@ instead, and ``patience=0`` runs the monotone method from the start.
 
 It stops when the suite's verification passes (KKT residuals and the certified
 energy bound, :func:`solvers.interface.verify`), so its claims are never refuted.
+
+Friction (2D, a ContactQP with ``qp.friction``; :func:`solve_friction`): the primal-dual
+active set method of Hüeber, Stadler and Wohlmuth (SIAM J. Sci. Comput. 30, 2008) with
+the normal active set, the sticking rows (``slip = 0``) and the slipping rows
+(``lam = s sign``) as its sets. Each step is solved exactly: ``A`` factorised once and
+the dense Schur complement of the normal and tangential rows, as the ``schur`` route of
+:mod:`solvers.pdas` (the inner options ``ahat``, ``inner``, ``face``, ``forcing``,
+``tighten``, ``patience`` and ``fallback`` do not apply). It takes one Tresca step, the
+slip bound given; with ``coulomb="monolithic"`` a Coulomb problem is solved with
+``s = mu p`` inside the Newton iteration. A frictionless problem never reaches it.
 """
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
+import scipy.linalg as sla
+import scipy.sparse as sp
 
-from problems.kkt import kkt_residuals
+from problems.kkt import friction_residuals, kkt_residuals
 from problems.qp import ContactQP
 from problems.spec import ComponentParameter, Options, Parameter, ParameterError
 from solvers.face import FACE_PROJECTION, FaceProjector, face_hops, face_projector
 from solvers.multigrid import AHAT, component_vcycle
 from solvers.base import VERIFIED_PRESETS, Role, SolveResult, SolverSpec
 from solvers.certificate import certify
-from solvers.cholesky import InfeasibleError
+from solvers.cholesky import BLOCK as SCHUR_BLOCK, InfeasibleError, factorize, row_basis
 from solvers.active_set import (check_positive_diagonal, damped_update, initial_active_set,
                                 pdas_update, stiffness_scale)
 
@@ -124,6 +136,8 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
     the initial residual) and those of the setup, and say whether the monotone
     fallback ran (``fallback``) and why (the message).
     """
+    if qp.friction is not None:
+        return solve_friction(qp, tol, max_iter, time_limit, u0, p0, opts)
     t_start = time.perf_counter()
     if qp.C is not None:
         raise ValueError("semismooth_newton solves Bu <= g only; the ContactQP has a "
@@ -423,6 +437,314 @@ def _monotone(run: _Run, u: np.ndarray, active: np.ndarray, budget: int,
                     f"not verified after {budget} steps", done + budget)
 
 
+# ---------------------------------------------------------------------------------------
+# Friction: the primal-dual active set method of Hüeber, Stadler and Wohlmuth (2D)
+# ---------------------------------------------------------------------------------------
+
+#: Tangential state of a row whose tangential multiplier is free (stick: ``slip = 0``);
+#: ``+1``/``-1`` slip with ``lam = +-s``, ``0``: no friction force (``s = 0``).
+STICK = 2
+
+#: Iterative refinement steps after each solve with the factorised ``A``.
+FRICTION_REFINE = 3
+
+#: Largest number of constrained rows of a frictional solve: the Schur complement of the
+#: ``2 m`` normal and tangential rows is dense.
+FRICTION_MAX_M = 2500
+
+
+def supports(qp: ContactQP) -> tuple[bool, str]:
+    """Every frictionless problem; a frictional one in 2D with nodal rows and at most
+    :data:`FRICTION_MAX_M` of them (the dense Schur complement of the friction branch)."""
+    fr = qp.friction
+    if fr is None:
+        return True, ""
+    if qp.C is not None or qp.stabilisation is not None:
+        return False, "friction is solved for nodal rows only (no reverse or stabilised rows)"
+    if fr.T.shape[0] != qp.m:
+        return False, (f"friction is solved in 2D (one tangential row per constrained row); "
+                       f"this problem has {fr.T.shape[0]} tangential rows for {qp.m}")
+    if qp.m > FRICTION_MAX_M:
+        return False, (f"{qp.m} constrained rows: the friction branch forms the dense Schur "
+                       f"complement of 2 m rows, for at most {FRICTION_MAX_M} rows")
+    return True, ""
+
+
+@dataclass
+class ContactSchur:
+    """``A`` factorised once and the dense Schur complement ``S = G A^-1 G'`` of the
+    normal and tangential rows ``G = [B; T]`` (formed by partial solves on the support
+    of ``G``, as :mod:`solvers.pdas` forms ``B A^-1 B'``).
+
+    Attributes
+    ----------
+    chol : solvers.cholesky.Cholesky
+    A : sparse
+    G : (2m, n) sparse
+    S : (2m, 2m) array
+    """
+
+    chol: object
+    A: object
+    G: object
+    S: np.ndarray
+
+    def solve_A(self, rhs: np.ndarray) -> np.ndarray:
+        """``A^-1 rhs``, iteratively refined (:data:`FRICTION_REFINE` steps)."""
+        x = self.chol.solve(rhs)
+        for _ in range(FRICTION_REFINE):
+            x = x + self.chol.solve(rhs - self.A @ x)
+        return x
+
+
+def contact_schur(qp: ContactQP, factorization: str = "auto") -> ContactSchur:
+    """:class:`ContactSchur` of the frictional ``qp``."""
+    G = sp.vstack([qp.B, qp.friction.T]).tocsr()
+    chol = factorize(qp.A, factorization, components=G.indices)
+    k = G.shape[0]
+    S = np.empty((k, k))
+    Gt = sp.csc_matrix(G.T)
+    for start in range(0, k, SCHUR_BLOCK):
+        cols = Gt[:, start:start + SCHUR_BLOCK]
+        S[:, start:start + cols.shape[1]] = G @ chol.solve(cols, partial=True)
+    return ContactSchur(chol, sp.csr_matrix(qp.A), G, 0.5 * (S + S.T))
+
+
+def tangential_update(state: np.ndarray, v: np.ndarray, bound: np.ndarray,
+                      eps: float) -> np.ndarray:
+    """The stick/slip sets of Hüeber, Stadler and Wohlmuth (2008, Alg. 2 in 2D) from
+    ``v = lam + c slip``: stick where ``|v_i| <= s_i``, slip with ``lam_i = s_i sign(v_i)``
+    elsewhere, no force where ``s_i = 0``.
+
+    Round-off hysteresis (as :func:`solvers.active_set.pdas_update`): a sticking row stays
+    while ``|v_i| <= s_i + eps``, a slipping one keeps its sign while
+    ``sign_i v_i >= s_i - eps``, so that a row on the stick/slip boundary (a weakly
+    slipping node) cannot flip forever on rounding.
+    """
+    new = np.where(np.abs(v) <= bound, STICK, np.sign(v)).astype(int)
+    new = np.where((state == STICK) & (np.abs(v) <= bound + eps), STICK, new)
+    new = np.where((np.abs(state) == 1) & (state * v >= bound - eps), state, new)
+    new[bound <= 0] = 0
+    return new
+
+
+def _damped_tangential(state: np.ndarray, proposed: np.ndarray, v: np.ndarray,
+                       bound: np.ndarray, limit: int) -> np.ndarray:
+    """Only the ``limit`` largest proposed stick/slip changes, ranked by how far
+    ``|v_i|`` is from ``s_i`` relative to the largest bound."""
+    changes = np.flatnonzero(proposed != state)
+    if changes.size <= limit:
+        return proposed
+    scale = max(float(np.max(bound, initial=0.0)), 1e-300)
+    score = np.abs(np.abs(v[changes]) - bound[changes]) / scale
+    chosen = changes[np.argsort(-score, kind="stable")[:limit]]
+    new = state.copy()
+    new[chosen] = proposed[chosen]
+    return new
+
+
+def _damped_sets(qp: ContactQP, sets: tuple, proposed: tuple, u, p, v, bound, limit: int,
+                 mu: float | None) -> tuple[np.ndarray, np.ndarray]:
+    """The normal and stick/slip sets with only the ``limit`` largest proposed changes of
+    each (:func:`solvers.active_set.damped_update`, :func:`_damped_tangential`); Coulomb
+    (``mu``): no friction force off the normal set."""
+    normal = damped_update(qp, sets[0], proposed[0], u, p, limit)
+    state = _damped_tangential(sets[1], proposed[1], v, bound, limit)
+    if mu is not None:
+        state = np.where(normal, state, 0)
+    return normal, state
+
+
+def _friction_step(ops: ContactSchur, rhs: np.ndarray, h: np.ndarray, m: int,
+                   normal: np.ndarray, state: np.ndarray, s: np.ndarray,
+                   mu: float | None) -> tuple[np.ndarray, int]:
+    """The Newton step of the sets: ``y = (p, lam)`` with ``B_i u = g_i`` on the normal
+    active rows (``p_i = 0`` off them), ``slip_i = 0`` on the sticking rows and
+    ``lam_i = s_i sign_i`` on the slipping ones, ``u = A^-1 (f - G'y)``; eliminating
+    ``u`` leaves the rows' block of ``S`` (``rhs = G A^-1 f - h``).
+
+    Tresca (``mu`` None): ``S`` on the normal active and sticking rows is symmetric
+    positive definite; dependent rows are reduced to a basis consistent with ``h``
+    (:func:`solvers.cholesky.row_basis`, their multipliers zero). Coulomb
+    (``mu``): ``lam_i = mu sign_i p_i`` on the slipping rows couples ``lam`` to ``p``
+    and the block is not symmetric (a dense LU).
+
+    Returns
+    -------
+    (y, n_dependent)
+    """
+    J_p = np.flatnonzero(normal)
+    J_t = np.flatnonzero(state == STICK)
+    slip = np.flatnonzero(np.abs(state) == 1)
+    rows = np.concatenate([J_p, m + J_t])
+    y = np.zeros(2 * m)
+    if mu is None:
+        y[m + slip] = s[slip] * state[slip]
+        b = rhs[rows] - ops.S[np.ix_(rows, m + slip)] @ y[m + slip]
+        if not rows.size:
+            return y, 0
+        basis = row_basis(ops.S[np.ix_(rows, rows)], h[rows], labels=rows)
+        y[rows[basis.kept]] = sla.cho_solve(basis.factor, b[basis.kept])
+        return y, int(basis.dropped.size)
+    if not rows.size:
+        return y, 0
+    K = ops.S[np.ix_(rows, rows)].copy()
+    where = np.searchsorted(J_p, slip)                # slipping rows lie in the normal set
+    K[:, where] += ops.S[np.ix_(rows, m + slip)] * (mu * state[slip])
+    try:
+        x = sla.lu_solve(sla.lu_factor(K, check_finite=True), rhs[rows])
+    except (sla.LinAlgError, ValueError) as err:
+        raise RuntimeError(f"singular Coulomb step system: {err}") from None
+    y[rows] = x
+    y[m + slip] = mu * state[slip] * y[slip]
+    return y, 0
+
+
+def solve_friction(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
+                   u0: np.ndarray | None, p0: np.ndarray | None,
+                   opts: Options) -> SolveResult:
+    """A 2D Tresca step (or, with ``coulomb="monolithic"``, a Coulomb step) by the
+    primal-dual active set method of Hüeber, Stadler and Wohlmuth (SIAM J. Sci. Comput.
+    30, 2008; in 2D Kunisch and Stadler, M2AN 39, 2005, where it is the semismooth
+    Newton method of the max/sign formulation).
+
+    The sets, from ``(u, p, lam)`` and ``c`` (relative to the stiffness scale):
+    normal active ``N = {p_i + c (B_i u - g_i) > 0}`` (:func:`solvers.active_set.pdas_update`);
+    stick ``{|lam_i + c slip_i| <= s_i}``, slip elsewhere (:func:`tangential_update`).
+    Each step solves the sets' linear system exactly (:func:`_friction_step`: ``A``
+    factorised once, the dense Schur complement of the normal and tangential rows,
+    :func:`contact_schur`). It stops when the sets repeat; the answer is then exact to
+    round-off and judged by :func:`problems.kkt.friction_residuals`.
+
+    Tresca: ``s = qp.friction.slip_bound``. Coulomb, monolithic (the quasi-variational
+    inequality, ``s = mu p`` of the iterate): the stick/slip sets use the bound
+    ``mu (p_i + c (B_i u - g_i))_+`` on the normal active rows and the slipping rows
+    carry ``lam_i = mu sign_i p_i`` in the step. Its convergence is shown for small
+    ``mu`` only; a run that does not converge says so.
+
+    A set pair that recurs is damped: only the ``k`` largest changes apply (``k`` halved
+    at each further recurrence, down to one); recurring under single changes ends the
+    run ``failed`` with the best iterate.
+    """
+    t_start = time.perf_counter()
+    check_positive_diagonal(qp.A)
+    ok, reason = supports(qp)
+    if not ok:
+        raise ValueError(f"semismooth_newton: {reason}")
+    fr, m = qp.friction, qp.m
+    monolithic = fr.law == "coulomb" and opts.coulomb == "monolithic"
+    mu = fr.mu if monolithic else None
+    c_eff = opts.c * stiffness_scale(qp)
+    c_slip = opts.c_slip * stiffness_scale(qp)
+    ops = contact_schur(qp)
+    w = ops.solve_A(qp.f)
+    r = fr.previous - fr.offset                              # slip = T u - r
+    h = np.concatenate([qp.g, r])
+    rhs = ops.G @ w - h
+    setup_time = time.perf_counter() - t_start
+
+    t_solve = time.perf_counter()
+    u = np.zeros(qp.n) if u0 is None else np.array(u0, dtype=float)
+    p = np.zeros(m) if p0 is None else np.maximum(np.asarray(p0, dtype=float), 0.0)
+    lam = np.zeros(m)
+    normal = initial_active_set(qp, u0, p0, c_eff)
+
+    def bound_of(normal, u, p):
+        if mu is None:
+            return fr.slip_bound
+        return np.where(normal, mu * np.maximum(p + c_eff * (qp.B @ u - qp.g), 0.0), 0.0)
+
+    def sets_of(state, normal, u, p, lam):
+        s_hat = bound_of(normal, u, p)
+        v = lam + c_slip * (fr.T @ u - r)
+        eps = opts.flip_tol * max(float(np.max(np.abs(v), initial=0.0)),
+                                  float(np.max(s_hat, initial=0.0)), 1e-300)
+        return tangential_update(state, v, s_hat, eps), v, s_hat
+
+    state, _, _ = sets_of(np.zeros(m, dtype=int), normal, u, p, lam)
+    history = {"n_active": [], "n_stick": [], "n_slip": [], "kkt_max": [], "time": []}
+    seen = {normal.tobytes() + state.tobytes()}
+    limit: int | None = None
+    best = None
+    status, message = "max_iter", f"the sets did not repeat within {max_iter} steps"
+    n_dependent, k = 0, 0
+    law = "Coulomb (monolithic)" if monolithic else "Tresca"
+    for k in range(1, max_iter + 1):
+        try:
+            y, n_dependent = _friction_step(ops, rhs, h, m, normal, state, fr.slip_bound, mu)
+        except InfeasibleError as err:
+            status, message = "failed", f"{law} step {k}: {err}"
+            break
+        except RuntimeError as err:
+            status, message = "failed", f"{law} step {k}: {err}"
+            break
+        p, lam = y[:m], y[m:]
+        u = ops.solve_A(qp.f - ops.G.T @ y)
+        kkt = _friction_kkt(qp, u, p, lam, mu)
+        history["n_active"].append(int(normal.sum()))
+        history["n_stick"].append(int(np.count_nonzero(state == STICK)))
+        history["n_slip"].append(int(np.count_nonzero(np.abs(state) == 1)))
+        history["kkt_max"].append(kkt)
+        history["time"].append(time.perf_counter() - t_solve)
+        if best is None or kkt < best[0]:
+            best = (kkt, u, p, lam, normal, state)
+        proposed_normal = pdas_update(qp, normal, u, p, opts.flip_tol)
+        proposed_state, v, s_hat = sets_of(state, proposed_normal, u, p, lam)
+        new_normal, new_state = proposed_normal, proposed_state
+        if limit is not None:
+            new_normal, new_state = _damped_sets(qp, (normal, state), (proposed_normal,
+                                                 proposed_state), u, p, v, s_hat, limit, mu)
+        if np.array_equal(new_normal, normal) and np.array_equal(new_state, state):
+            if kkt <= tol:
+                status, message = "converged", (f"{law}: sets fixed after {k} steps, friction "
+                                                f"KKT max {kkt:.1e}")
+            else:
+                status, message = "inaccurate", (f"{law}: sets fixed after {k} steps but "
+                                                 f"friction KKT max {kkt:.1e} > tol {tol:.0e}")
+            break
+        key = new_normal.tobytes() + new_state.tobytes()
+        if key in seen:                                     # cycling: damp the updates
+            if limit == 1:
+                kkt, u, p, lam, normal, state = best
+                status = "converged" if kkt <= tol else "failed"
+                message = (f"{law}: the sets cycle under single changes at step {k}; best "
+                           f"step has friction KKT max {kkt:.1e}")
+                break
+            n_changes = int(np.count_nonzero(proposed_normal != normal)
+                            + np.count_nonzero(proposed_state != state))
+            limit = max(1, n_changes // 2) if limit is None else max(1, limit // 2)
+            seen = set()
+            new_normal, new_state = _damped_sets(qp, (normal, state), (proposed_normal,
+                                                 proposed_state), u, p, v, s_hat, limit, mu)
+            key = new_normal.tobytes() + new_state.tobytes()
+        seen.add(key)
+        normal, state = new_normal, new_state
+        if time_limit is not None and time.perf_counter() - t_start > time_limit:
+            status, message = "time_limit", f"time limit {time_limit:g} s reached at step {k}"
+            break
+    if limit is not None:
+        message += f"; damped (at most {limit} set changes per step)"
+    if n_dependent:
+        message += f"; {n_dependent} linearly dependent row(s) carry a zero multiplier"
+    stats = {"friction": "coulomb_monolithic" if monolithic else "tresca_step",
+             "newton_steps": k, "n_active": int(np.count_nonzero(p > 0)),
+             "n_stick": int(np.count_nonzero(state == STICK)),
+             "n_slip": int(np.count_nonzero(np.abs(state) == 1)),
+             "n_dependent": n_dependent, "damped": limit is not None,
+             "factorization": ops.chol.backend, "c_eff": c_eff}
+    return SolveResult(u=u, p=p, claimed_status=status, message=message, iterations=k,
+                       setup_time=setup_time, solve_time=time.perf_counter() - t_solve,
+                       history=history, stats=stats, tangential=lam)
+
+
+def _friction_kkt(qp: ContactQP, u, p, lam, mu: float | None) -> float:
+    """The friction KKT residual (:func:`problems.kkt.friction_residuals`) of the step;
+    Coulomb (``mu``): of the Tresca step with ``s = mu p``."""
+    if mu is not None:
+        qp = replace(qp, friction=replace(qp.friction, slip_bound=mu * np.maximum(p, 0.0)))
+    return friction_residuals(qp, u, p, lam).max
+
+
 SOLVER = SolverSpec(
     name="semismooth_newton",
     summary="inexact semismooth Newton / primal-dual active set with warm-started "
@@ -455,8 +777,16 @@ SOLVER = SolverSpec(
                   low_open=True),
         Parameter("flip_tol", 1e-13, "relative size below which a sign change does not "
                   "change the active set", low=0.0, high=1e-6),
+        Parameter("c_slip", 0.01, "parameter of the stick/slip sets (lam + c slip) relative "
+                  "to the stiffness scale (friction only)", low=0.0, low_open=True),
+        Parameter("coulomb", "tresca_step", "on a Coulomb problem: solve the Tresca step of "
+                  "its given slip bound (a fixed point s = mu p runs around it), or Coulomb "
+                  "monolithically with s = mu p inside the Newton iteration (Hueber-Stadler-"
+                  "Wohlmuth)", choices=("tresca_step", "monolithic")),
     ),
     presets=VERIFIED_PRESETS,
     default_max_iter=100,
     role=Role.NEWTON,
+    supports=supports,
+    handles_friction=True,
 )

@@ -29,9 +29,10 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 import scipy.sparse as sp
 
-from problems.kkt import FrictionResiduals, friction_residuals
+from problems.kkt import FrictionResiduals, friction_residuals, kkt_residuals
 from problems.qp import ContactQP, LoadStep
 from problems.spec import ParameterError
+from solvers.base import SolveResult
 from solvers.cholesky import factorize
 
 #: Largest constrained surface (rows) :func:`tresca_exact` takes: ``S`` is dense, ``2m`` square.
@@ -56,6 +57,7 @@ class TrescaSolution:
         ``converged`` (the active-set method ended on its optimality test) or ``max_iter``.
     iterations : int
     kkt : FrictionResiduals
+        (:class:`problems.kkt.KKTResiduals` on a frictionless problem)
     active : (2m,) int array
         The dual active set of ``(p, lam)``: ``-1`` at the lower bound, ``+1`` at the upper,
         ``0`` free (a warm start for a neighbouring problem).
@@ -141,45 +143,67 @@ class DualOperators:
 
 
 def dual_operators(qp: ContactQP) -> DualOperators:
-    """:class:`DualOperators` of the frictional ``qp`` (2D, nodal rows).
+    """:class:`DualOperators` of ``qp``: frictional (2D, nodal rows; ``G = [B; T]``) or
+    frictionless (``G = B``, the same dual box problem without ``lam``: the exact QP
+    route). Computed once per problem and kept in ``qp.cache.dual_operators`` (the steps
+    of a load path share ``A``, ``B`` and ``T``).
 
     Raises
     ------
     ValueError
-        Without friction, with reverse rows, or beyond :data:`TRESCA_EXACT_MAX_M` rows.
+        With a stabilisation block ``C``, with friction on reverse rows, or beyond
+        :data:`TRESCA_EXACT_MAX_M` rows.
     """
     fr = qp.friction
-    if fr is None or qp.stabilisation is not None or qp.C is not None:
-        raise ValueError("tresca_exact takes a frictional ContactQP with nodal rows only")
+    if qp.C is not None or (fr is not None and qp.stabilisation is not None):
+        raise ValueError("tresca_exact takes a ContactQP without a stabilisation block, and "
+                         "friction on nodal rows only")
     if qp.m > TRESCA_EXACT_MAX_M:
         raise ValueError(f"tresca_exact: {qp.m} rows is not allowed; allowed: at most "
                          f"{TRESCA_EXACT_MAX_M} (S is dense)")
-    G = sp.vstack([qp.B, fr.T]).tocsr()
+    kept = qp.cache.dual_operators.get(fr is not None)
+    if kept is not None:
+        return kept
+    G = (qp.B if fr is None else sp.vstack([qp.B, fr.T])).tocsr()
     factor = factorize(qp.A)
-    W = factor.solve(G.T.toarray())                       # A^-1 G'
+    W = factor.solve(G.T.toarray()) if G.shape[0] else np.zeros((qp.n, 0))   # A^-1 G'
     S = G @ W
-    return DualOperators(factor, G, W, 0.5 * (S + S.T))
+    ops = DualOperators(factor, G, W, 0.5 * (S + S.T))
+    qp.cache.dual_operators[fr is not None] = ops
+    return ops
 
 
 def tresca_exact(qp: ContactQP, ops: DualOperators | None = None,
-                 start: np.ndarray | None = None) -> TrescaSolution:
+                 start: np.ndarray | None = None,
+                 max_iter: int | None = None) -> TrescaSolution:
     """The exact solution of the Tresca step ``qp`` (module docstring; 2D, nodal rows).
 
     ``ops``: :func:`dual_operators` of a ContactQP with the same ``A``, ``B`` and ``T``
     (the other steps of its load path), computed here if not given. ``start``: the dual
     active set of a neighbouring problem (:attr:`TrescaSolution.active`), a warm start.
+    ``max_iter``: the active-set method's cap (default ``10 k + 50`` for ``k`` dual
+    unknowns). Without friction (``qp.friction`` None) the same route solves the
+    frictionless QP (``y = p``; ``lam`` empty, the residuals :func:`kkt_residuals`).
     """
     fr = qp.friction
     ops = dual_operators(qp) if ops is None else ops
     G, W = ops.G, ops.W
     Ainv_f = ops.factor.solve(qp.f)
-    h = np.concatenate([qp.g, fr.previous - fr.offset])
     m = qp.m
-    lo = np.concatenate([np.zeros(m), -fr.slip_bound])
-    hi = np.concatenate([np.full(m, np.inf), fr.slip_bound])
-    y, at, iterations, ok = box_qp_active_set(ops.S, G @ Ainv_f - h, lo, hi, start=start)
+    if fr is None:
+        h, lo, hi = qp.g, np.zeros(m), np.full(m, np.inf)
+    else:
+        h = np.concatenate([qp.g, fr.previous - fr.offset])
+        lo = np.concatenate([np.zeros(m), -fr.slip_bound])
+        hi = np.concatenate([np.full(m, np.inf), fr.slip_bound])
+    y, at, iterations, ok = box_qp_active_set(ops.S, G @ Ainv_f - h, lo, hi,
+                                              max_iter=max_iter, start=start)
     u = Ainv_f - W @ y
     p, lam = np.maximum(y[:m], 0.0), y[m:]
+    if fr is None:
+        return TrescaSolution(u=u, p=p, lam=lam, stick=np.zeros(0, dtype=bool),
+                              status="converged" if ok else "max_iter",
+                              iterations=iterations, kkt=kkt_residuals(qp, u, p), active=at)
     stick = (fr.slip_bound > 0) & (at[m:] == 0)
     return TrescaSolution(u=u, p=p, lam=lam, stick=stick,
                           status="converged" if ok else "max_iter", iterations=iterations,
@@ -272,6 +296,109 @@ def friction_path(qp: ContactQP, solve=None, tol: float = 1e-12, max_iter: int =
         steps.append(done)
         previous = done.qp.friction.T @ done.solution.u + done.qp.friction.offset
     return steps
+
+
+@dataclass
+class LoadPathRun:
+    """A frictional load path run with a registered solver (:func:`run_load_path`).
+
+    Attributes
+    ----------
+    steps : list of PathStep
+        The steps solved and verified (all of the path unless the run stopped).
+    qp : ContactQP
+        The Tresca problem of ``result`` (the last step's, or the one the run stopped on).
+    result : SolveResult
+        The verified answer that ends the run: the last Tresca solve of the last step,
+        or the solve that did not verify. Its ``status`` is the run's: ``max_iter``
+        (``failed_check`` ``coulomb_fixed_point``) if a step's Coulomb fixed point did not
+        converge in ``max_iter`` Tresca solves, ``failed`` (``gross_sliding``) if every row with a slip bound slips in
+        the last step.
+    records : list of dict
+        Per step run: ``step`` (from 1), ``load`` (``normal`` or ``tangential``),
+        ``tresca_solves`` (the solver's runs in the step: Coulomb's fixed point
+        iterations, and for the first step of Tresca friction also the frictionless
+        normal solve that gives ``s = mu p``), ``contraction`` (Coulomb: the fixed
+        point's last ratio of changes, :class:`PathStep`; else ``nan``) and ``status``
+        (the step's verified status; ``max_iter`` where the fixed point did not converge).
+    """
+
+    steps: list
+    qp: ContactQP
+    result: SolveResult
+    records: list
+
+
+class _Stopped(Exception):
+    """A Tresca solve of the path did not verify: the path ends with its answer."""
+
+
+def run_load_path(qp: ContactQP, solve_step, tol: float, max_iter: int = 50) -> LoadPathRun:
+    """Run the load path of the frictional ``qp`` (:func:`friction_path`) with
+    ``solve_step(step_qp) -> SolveResult``, one verified Tresca solve of a registered
+    solver (:func:`solvers.interface.solve`), whose ``tangential`` are the multipliers.
+
+    The path stops at the first solve that is not verified ``converged`` (a solver that
+    cannot take friction: ``skipped`` at once). Coulomb's fixed point ``s = mu p`` runs
+    around the solver to the relative change ``tol`` (at most ``max_iter`` Tresca solves
+    per step). A row sticks when its multiplier lies inside its bound by more than
+    ``tol max(s)`` (:meth:`problems.qp.Friction.states`). Gross sliding (no row of the
+    last step sticks although some have a bound, ``mu > 0``: the tangential load has
+    reached ``mu P`` and no static partial-slip state is left) makes the run ``failed``.
+    A solver that solves a Coulomb step itself (``stats["friction"]`` is
+    :data:`solvers.base.COULOMB_MONOLITHIC`; verified on its own bound ``mu p``) ends the
+    fixed point at its second solve, which confirms ``s = mu p``.
+    """
+    fr = qp.friction
+    if fr is None or not fr.path:
+        raise ValueError("run_load_path needs a ContactQP with friction and a load path")
+    last, solves = {}, []
+
+    def step(step_qp):
+        res = solve_step(step_qp)
+        last.update(qp=step_qp, result=res)
+        solves[-1] += 1
+        if res.status != "converged":
+            raise _Stopped
+        lam = np.asarray(res.tangential, dtype=float)
+        return TrescaSolution(u=res.u, p=res.p, lam=lam,
+                              stick=step_qp.friction.states(lam, res.tol) == "stick",
+                              status=res.status, iterations=res.iterations, kkt=res.kkt)
+
+    steps, n, records = [], len(fr.path), []
+    for k in range(n):
+        head = replace(qp, friction=replace(fr, path=fr.path[:k + 1]))
+        solves.append(0)
+        record = {"step": k + 1, "load": "normal" if k == 0 else "tangential"}
+        try:
+            steps = friction_path(head, step, tol=tol, max_iter=max_iter, done=tuple(steps))
+        except _Stopped:
+            res = last["result"]
+            if res.status != "skipped":            # a skip says why on its own
+                res.message = f"load step {k + 1} of {n}: {res.message}"
+            records.append({**record, "tresca_solves": solves[-1], "contraction": float("nan"),
+                            "status": res.status})
+            break
+        records.append({**record, "tresca_solves": solves[-1],
+                        "contraction": steps[-1].contraction,
+                        "status": steps[-1].solution.status})
+    res = last["result"]
+    if len(steps) == n:
+        final = steps[-1]
+        states = final.qp.friction.states(final.solution.lam, res.tol)
+        short = [k for k, st in enumerate(steps) if st.solution.status != "converged"]
+        if short:
+            res.status, res.failed_check = steps[short[0]].solution.status, "coulomb_fixed_point"
+            res.message = (f"load step {short[0] + 1} of {n}: the Coulomb fixed point "
+                           f"s = mu p did not converge in {steps[short[0]].tresca_solves} "
+                           f"Tresca solves; {res.message}")
+        elif fr.mu > 0 and (states != "free").any() and not (states == "stick").any():
+            res.status, res.failed_check = "failed", "gross_sliding"
+            res.message = ("gross sliding: every row with a friction bound slips in the "
+                           "last step (the tangential load has reached mu P, no static "
+                           f"partial slip is left); allowed: a smaller tangential load; "
+                           f"{res.message}")
+    return LoadPathRun(steps=steps, qp=last["qp"], result=res, records=records)
 
 
 def scaled_tangential_step(qp: ContactQP, factor: float) -> ContactQP:

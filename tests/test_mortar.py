@@ -147,16 +147,13 @@ def test_standard_rows_are_solved_by_the_exact_methods_and_skipped_by_tnnmg():
     assert skipped.status == "skipped" and "cannot be turned into bounds" in skipped.message
 
 
-@pytest.mark.parametrize("bad, needle", [
-    ({"search": "closest_point"}, "parameter 'coupling'"),
-    ({"degree": 2}, "parameter 'degree'"),
-    ({"offset": 1.3}, "does not cover"),
+@pytest.mark.parametrize("scene, bad, needle", [
+    (scene, bad, needle) for scene, uncovered in (("circle_square", {"offset": 1.3}),
+                                                  ("cube_sphere", {"radius": 0.5}))
+    for bad, needle in (({"search": "closest_point"}, "parameter 'search'"),
+                        ({"degree": 2}, "parameter 'degree'"),
+                        (uncovered, "parameter 'coupling'.*does not cover"))
 ])
-def test_bad_mortar_settings_name_the_parameter(bad, needle):
+def test_bad_mortar_settings_name_the_parameter(scene, bad, needle):
     with pytest.raises(ParameterError, match=needle):
-        CIRCLE.make(0, coupling="mortar_dual", **bad)
-
-
-def test_cube_sphere_does_not_offer_mortar():
-    with pytest.raises(ParameterError, match="parameter 'coupling'"):
-        PROBLEMS["cube_sphere"].make(0, coupling="mortar")
+        PROBLEMS[scene].make(0, coupling="mortar_dual", **bad)

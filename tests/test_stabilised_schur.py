@@ -98,5 +98,5 @@ def test_coupling_parameter():
     assert circle_square.PROBLEM.make(0).stabilisation is None
     with pytest.raises(ParameterError, match="parameter 'degree'"):
         circle_square.PROBLEM.make(0, coupling="stabilised", degree=2)
-    with pytest.raises(ParameterError, match="parameter 'coupling'"):
-        cube_sphere.PROBLEM.make(0, coupling="mortar")
+    with pytest.raises(ParameterError, match="parameter 'degree'"):
+        cube_sphere.PROBLEM.make(0, coupling="mortar", degree=2)

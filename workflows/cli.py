@@ -140,8 +140,8 @@ def split_sets(params: dict, scene, solver) -> tuple[dict, dict]:
 
 
 def _solve_contact(spec, level: int, params: dict, args: argparse.Namespace) -> dict[str, Any]:
-    from problems.fem.fields import contact_fields, contact_state
-    from solvers.interface import check_limits, solve, solvers
+    from problems.fem.fields import contact_fields, contact_state, friction_state
+    from solvers.interface import check_limits, run_load_path, solve, solvers
     from workflows.isolation import solve_isolated
 
     solver = lookup(solvers(), args.solver or "pdas", "solver")
@@ -153,11 +153,21 @@ def _solve_contact(spec, level: int, params: dict, args: argparse.Namespace) -> 
     t0 = time.perf_counter()
     qp = spec.build(level, scene_opts)
     t_build = time.perf_counter() - t0
-    if time_limit is None:
-        result = solve(qp, solver.name, tol, max_iter, **solver_opts)
-    else:   # in a child process: one that crashes or hangs past the hard limit is a row
-        result = solve_isolated(qp, solver.name, tol, time_limit, max_iter=max_iter,
-                                **solver_opts)
+
+    def solve_one(problem):
+        if time_limit is None:
+            return solve(problem, solver.name, tol, max_iter, **solver_opts)
+        # in a child process: one that crashes or hangs past the hard limit is a row
+        return solve_isolated(problem, solver.name, tol, time_limit, max_iter=max_iter,
+                              **solver_opts)
+
+    friction = None
+    if qp.friction is None:
+        result = solve_one(qp)
+    else:   # the whole load path, each Tresca step by the solver (solvers.tresca)
+        run = run_load_path(qp, solve_one, tol)
+        qp, result = run.qp, run.result
+        friction = {"load_path": run.records}
     answer = result.kkt is not None
     record = {"params": dict(scene_opts), "n": qp.n, "m": qp.m, "n_nodes": qp.n_nodes,
               "units": qp.units, "build_time": t_build, **result.summary(),
@@ -165,6 +175,10 @@ def _solve_contact(spec, level: int, params: dict, args: argparse.Namespace) -> 
               "kkt": result.kkt.as_dict(prefix="") if answer else None,
               "contact": contact_state(qp, result.u, result.p) if answer else None,
               "traceback": result.traceback or None}
+    if friction is not None:
+        if answer:
+            friction.update(friction_state(qp, result.u, result.p, result.tangential, tol))
+        record["friction"] = friction
     if args.vtu and answer:
         write_vtu(args.vtu, contact_fields(qp, result.u, result.p))
     return record

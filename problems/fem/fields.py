@@ -59,6 +59,29 @@ def contact_state(qp: ContactQP, u: np.ndarray, p: np.ndarray,
     return out
 
 
+def friction_state(qp: ContactQP, u: np.ndarray, p: np.ndarray, lam: np.ndarray,
+                   tol: float) -> dict[str, Any]:
+    """Per constrained node of the Tresca step ``qp`` (its ``friction``): the tangential
+    multiplier, traction, slip, slip bound and stick/slip state; and the totals.
+
+    ``traction`` is ``lam`` turned into a traction as the normal multiplier is turned
+    into the pressure (:meth:`problems.qp.ContactSurface.pressure`: ``lam / mass``);
+    ``slip`` is the step's ``T u + offset - previous``; ``state`` is ``stick``, ``slip``
+    or ``free`` (:meth:`problems.qp.Friction.states` at ``tol``). ``tangential_force``
+    is ``sum_i lam_i t_i``; ``load_ratio`` is ``|sum lam| / (mu sum p)`` (Q/(mu P); nan
+    for ``mu = 0`` or no contact force).
+    """
+    fr = qp.friction
+    lam, p = np.asarray(lam, dtype=float), np.asarray(p, dtype=float)
+    P = float(p.sum())
+    return {"law": fr.law, "mu": fr.mu, "tangential": lam,
+            "traction": qp.contact.pressure(lam), "slip": fr.slip(u),
+            "slip_bound": fr.slip_bound, "state": fr.states(lam, tol),
+            "tangential_force": (lam[:, None] * fr.tangent).sum(axis=0),
+            "load_ratio": abs(float(lam.sum())) / (fr.mu * P) if fr.mu > 0 and P > 0
+            else float("nan")}
+
+
 def in_plane(qp: ContactQP) -> np.ndarray:
     """Positions of the constrained nodes in the contact plane: the coordinates
     orthogonal to the mean contact direction, ``(m, d - 1)``."""

@@ -1,6 +1,6 @@
-"""Mortar coupling of two non-matching 2D contact surfaces: segment-based integration,
-standard and dual Lagrange multipliers (thesis Sect. 6.1, Remark 6.8; Wohlmuth 2000;
-Hueber and Wohlmuth 2005).
+"""Mortar coupling of two non-matching contact surfaces, 2D and 3D: segment-based
+integration and clipping of projected triangles, standard and dual Lagrange multipliers
+(thesis Sect. 6.1, Remark 6.8; Wohlmuth 2000; Hueber and Wohlmuth 2005).
 
 The nodal constraints of Alg. 7.1 ask each constrained node to stay out of the
 opposing body. The mortar method asks it in the mean instead: row ``i`` is the
@@ -17,28 +17,38 @@ multiplier basis:
 * ``mortar``: the standard basis ``psi_i = phi_i``. Its constrained block
   ``D_ij = int phi_i phi_j`` is the surface mass matrix: each row reaches its node's
   neighbours, so the rows are not node-wise.
-* ``mortar_dual``: Wohlmuth's dual basis (Wohlmuth 2000), on each segment
-  ``psi_a = 2 phi_a - phi_b``: biorthogonal, ``int psi_i phi_j = delta_ij m_i``, so
-  ``D = diag(m)``, and row ``i`` moves its constrained node by exactly ``n``: each row
-  owns one constrained node, as nodal rows do (the box transformation of
-  :mod:`solvers.contact_box` applies).
+* ``mortar_dual``: Wohlmuth's dual basis (Wohlmuth 2000), on each facet with ``k``
+  vertices (a segment, ``k = 2``; a triangle, ``k = 3``) ``psi_a = (k + 1) phi_a - 1``:
+  biorthogonal, ``int psi_i phi_j = delta_ij m_i``, so ``D = diag(m)``, and row ``i``
+  moves its constrained node by exactly ``n``: each row owns one constrained node, as
+  nodal rows do (the box transformation of :mod:`solvers.contact_box` applies).
+  (With ``psi_a = alpha phi_a + beta`` on a simplex of dimension ``s = k - 1``,
+  ``int phi_a phi_b = |T| (1 + delta_ab) / ((s + 1)(s + 2))`` and
+  ``int phi_b = |T| / (s + 1)`` make biorthogonality read ``beta = -alpha / (s + 2)``
+  and ``alpha / (s + 2) = 1``: ``alpha = k + 1``, ``beta = -1``. In 2D this is
+  ``2 phi_a - phi_b``.)
 
-Both bases sum to 1 on each segment, so a uniform pressure is transmitted exactly (the
+Both bases sum to 1 on each facet, so a uniform pressure is transmitted exactly (the
 contact patch test); the multiplier over ``m_i`` is the nodal pressure (Sect. 8.6), as
-for flat_blocks' mortar rows.
+for the nodal rows.
 
 What is approximated, and how:
 
-* the surfaces are the meshes' polygons (the circle of circle_square by its chords);
+* the surfaces are the meshes' polygons and triangulations (the circle of circle_square
+  by its chords, the sphere of cube_sphere by its flat triangles);
 * the normal field is the constant contact direction ``n`` of the scene (Alg. 7.1
-  case b), which is the constrained surface's normal where that surface is straight
-  (circle_square's and flat_blocks' constrained edges): the opposing segments are
-  projected onto ``Gamma`` along ``n``. A curved constrained surface would need a
-  continuous nodal normal field (averaged normals) and is refused;
-* the integrals: the projected opposing nodes split ``Gamma`` into pieces on which
-  both surfaces are straight and the projection is affine, so every integrand is a
-  polynomial of degree <= 2 in the piece's parameter, integrated exactly by 3-point
-  Gauss quadrature (segment-based integration);
+  case b), which is the constrained surface's normal where that surface is flat
+  (the straight edges of circle_square and flat_blocks, the top face of cube_sphere):
+  the opposing facets are projected onto ``Gamma`` along ``n``. A curved constrained
+  surface would need a continuous nodal normal field (averaged normals) and is refused;
+* the integrals: ``Gamma`` is split into pieces on which both surfaces are flat and the
+  projection is affine, so every integrand is a polynomial of degree <= 2 on each
+  piece, integrated exactly. In 2D the projected opposing nodes split the segments
+  (segment-based integration, 3-point Gauss per piece, :func:`segment_quadrature`); in
+  3D each projected opposing triangle is clipped against each constrained triangle it
+  overlaps, the convex intersection triangulated and integrated by a 3-point rule of
+  degree 2 (:func:`clipped_quadrature`). Both backends give the same
+  :class:`SurfaceQuadrature`, from which :func:`mortar_integrals` assembles the rows;
 * linearisation: the weighted gaps are taken in the reference configuration (small
   displacements, as the nodal rows of Alg. 7.1).
 
@@ -50,19 +60,58 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 import scipy.sparse as sp
+from scipy.spatial import cKDTree
 
 from problems.qp import ContactQP, SharedWork
 
 #: The mortar couplings: standard and dual multipliers (module docstring).
 MORTAR_COUPLINGS = ("mortar", "mortar_dual")
 
-#: Gauss points per piece: exact for the degree-2 integrands of the module docstring.
+#: Gauss points per piece in 2D: exact for the degree-2 integrands of the module docstring.
 GAUSS_POINTS = 3
+
+#: A 3-point rule on the reference triangle, exact for degree 2 (Strang and Fix): its
+#: barycentric points and weights (summing to 1, times the piece's area).
+TRIANGLE_RULE = (np.array([[2 / 3, 1 / 6, 1 / 6], [1 / 6, 2 / 3, 1 / 6], [1 / 6, 1 / 6, 2 / 3]]),
+                 np.full(3, 1 / 3))
+
+#: Relative bar of the geometric tests (a point on an edge, parallel edges): far above
+#: round-off, far below any mesh feature.
+GEOMETRY_TOL = 1e-12
+
+#: Relative bar of the coverage test (each constrained triangle's area, covered once).
+COVERAGE_TOL = 1e-10
+
+
+@dataclass(frozen=True)
+class SurfaceQuadrature:
+    """A quadrature on the constrained surface, split into pieces on which both surfaces
+    are flat and the projection along ``n`` is affine, with both facets' hats at each point.
+
+    Attributes
+    ----------
+    weight : (q,) array
+        Weights (``ds``: the pieces' measure on ``Gamma``).
+    facet : (q,) int array
+        The constrained facet (a row of ``facets``) of each point.
+    constrained, opposing : (q, k) int arrays
+        The nodes of the constrained facet and of the opposing facet at each point.
+    phi, phi_opposing : (q, k) arrays
+        Their hats there (the opposing ones at the point's projection onto the opposing
+        facet along ``n``).
+    """
+
+    weight: np.ndarray
+    facet: np.ndarray
+    constrained: np.ndarray
+    opposing: np.ndarray
+    phi: np.ndarray
+    phi_opposing: np.ndarray
 
 
 @dataclass(frozen=True)
 class MortarIntegrals:
-    """The segment-based mortar integrals on a 2D constrained surface.
+    """The mortar integrals on a flat constrained surface.
 
     Attributes
     ----------
@@ -85,9 +134,15 @@ class MortarIntegrals:
     mass: np.ndarray
 
 
+def _not_covered(which: str) -> ValueError:
+    return ValueError(f"the opposing surface does not cover the constrained surface along the "
+                      f"contact direction n: the mortar integrals need it {which}")
+
+
 def _graph(points: np.ndarray, facets: np.ndarray, tangent: np.ndarray, which: str):
     """Segments of a polygon that is a graph over the tangent coordinate: their end
-    parameters ``(t0 < t1)`` and end nodes sorted by ``t0``; refuses overlapping ones."""
+    parameters ``(t0 < t1)``, end nodes and original indices, sorted by ``t0``; refuses
+    overlapping ones."""
     t = points[facets] @ tangent                                  # (k, 2)
     swap = t[:, 0] > t[:, 1]
     ends = np.where(swap[:, None], facets[:, ::-1], facets)
@@ -98,7 +153,7 @@ def _graph(points: np.ndarray, facets: np.ndarray, tangent: np.ndarray, which: s
     if np.any(t[:, 1] - t[:, 0] <= 1e-12 * scale) or np.any(t[1:, 0] < t[:-1, 1] - 1e-12 * scale):
         raise ValueError(f"the {which} surface is not a graph over the tangent of the contact "
                          "direction n: its segments cannot be projected one-to-one along n")
-    return t, ends
+    return t, ends, order
 
 
 def _locate(t_segments: np.ndarray, at: np.ndarray) -> np.ndarray:
@@ -107,50 +162,26 @@ def _locate(t_segments: np.ndarray, at: np.ndarray) -> np.ndarray:
                    len(t_segments) - 1)
 
 
-def mortar_integrals(points: np.ndarray, facets: np.ndarray, opposing_facets: np.ndarray,
-                     normal: np.ndarray, dual: bool) -> MortarIntegrals:
-    """The mortar integrals (module docstring) of a straight 2D constrained surface.
-
-    Parameters
-    ----------
-    points : (N, 2) array
-        All nodes (both bodies).
-    facets, opposing_facets : (k, 2), (k', 2) int arrays
-        Segments of the constrained and of the opposing surface.
-    normal : (2,) array
-        Unit contact direction ``n``, from the constrained towards the opposing body.
-    dual : bool
-        Dual (Wohlmuth) instead of standard multipliers.
-
-    Returns
-    -------
-    MortarIntegrals
-        Rows for every node of ``facets``, sorted by x, then y (the nodal rows' order).
+def segment_quadrature(points: np.ndarray, facets: np.ndarray, opposing_facets: np.ndarray,
+                       normal: np.ndarray) -> SurfaceQuadrature:
+    """Segment-based integration on a straight 2D constrained surface (module docstring):
+    the projected nodes of both surfaces split it into pieces, 3-point Gauss on each.
 
     Raises
     ------
     ValueError
-        If the constrained surface is not straight and normal to ``n``, or the opposing
-        surface does not cover it along ``n``.
+        If a surface is not a graph over the tangent, or the opposing surface does not
+        cover the constrained one along ``n``.
     """
-    n = np.asarray(normal, dtype=float) / np.linalg.norm(normal)
-    tangent = np.array([n[1], -n[0]])
-    c_nodes = np.unique(facets)
-    height = points[c_nodes] @ n
-    extent = float(np.ptp(points[c_nodes] @ tangent))
-    if np.ptp(height) > 1e-10 * max(extent, 1e-300):
-        raise ValueError("the constrained surface is not straight and normal to the contact "
-                         "direction n: the mortar coupling here projects along a constant n")
-    t_c, ends_c = _graph(points, facets, tangent, "constrained")
-    t_o, ends_o = _graph(points, opposing_facets, tangent, "opposing")
+    tangent = np.array([normal[1], -normal[0]])
+    t_c, ends_c, order_c = _graph(points, facets, tangent, "constrained")
+    t_o, ends_o, _ = _graph(points, opposing_facets, tangent, "opposing")
     lo, hi = t_c[0, 0], t_c[-1, 1]
-    tol = 1e-12 * max(extent, 1e-300)
+    tol = 1e-12 * max(hi - lo, 1e-300)
     covered = np.all(t_o[1:, 0] <= t_o[:-1, 1] + tol) and t_o[0, 0] <= lo + tol \
         and t_o[-1, 1] >= hi - tol
     if not covered:
-        raise ValueError("the opposing surface does not cover the constrained surface along "
-                         "the contact direction n: the mortar integrals need it over every "
-                         "constrained segment")
+        raise _not_covered("over every constrained segment")
     breaks = np.unique(np.concatenate([t_c.ravel(), t_o.ravel()]))
     breaks = breaks[(breaks >= lo) & (breaks <= hi)]
     g, w = np.polynomial.legendre.leggauss(GAUSS_POINTS)
@@ -160,17 +191,213 @@ def mortar_integrals(points: np.ndarray, facets: np.ndarray, opposing_facets: np
     kc, ko = _locate(t_c, tq), _locate(t_o, tq)
     sc = (tq - t_c[kc, 0]) / (t_c[kc, 1] - t_c[kc, 0])
     so = (tq - t_o[ko, 0]) / (t_o[ko, 1] - t_o[ko, 0])
-    phi_c = np.stack([1 - sc, sc], axis=1)               # hats of the constrained ends
-    phi_o = np.stack([1 - so, so], axis=1)
-    psi = np.stack([2 * phi_c[:, 0] - phi_c[:, 1], 2 * phi_c[:, 1] - phi_c[:, 0]],
-                   axis=1) if dual else phi_c
-    x_o = (phi_o[:, :1] * points[ends_o[ko, 0]] + phi_o[:, 1:] * points[ends_o[ko, 1]])
-    x_c = (phi_c[:, :1] * points[ends_c[kc, 0]] + phi_c[:, 1:] * points[ends_c[kc, 1]])
+    return SurfaceQuadrature(weight=wq, facet=order_c[kc], constrained=ends_c[kc],
+                             opposing=ends_o[ko], phi=np.stack([1 - sc, sc], axis=1),
+                             phi_opposing=np.stack([1 - so, so], axis=1))
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The z component of the cross product of 2D vectors (last axis)."""
+    return a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
+
+
+def _barycentric_2d(tri: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """Barycentric coordinates of points ``x (..., 2)`` in triangles ``tri (..., 3, 2)``."""
+    e1, e2, r = tri[..., 1, :] - tri[..., 0, :], tri[..., 2, :] - tri[..., 0, :], \
+        x - tri[..., 0, :]
+    det = _cross(e1, e2)
+    l1, l2 = _cross(r, e2) / det, _cross(e1, r) / det
+    return np.stack([1.0 - l1 - l2, l1, l2], axis=-1)
+
+
+def _counter_clockwise(tri: np.ndarray, nodes: np.ndarray):
+    """Triangles (and their nodes) reordered counter-clockwise, with their areas."""
+    area = 0.5 * _cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    flip = area < 0
+    tri, nodes = tri.copy(), nodes.copy()
+    tri[flip] = tri[flip][:, ::-1]
+    nodes[flip] = nodes[flip][:, ::-1]
+    return tri, nodes, np.abs(area)
+
+
+def _overlapping_pairs(tri_c: np.ndarray, tri_o: np.ndarray, tol: float):
+    """Pairs ``(c, o)`` of triangles whose bounding boxes overlap: a KD-tree of the opposing
+    centroids, searched within each constrained triangle's reach plus the largest
+    opposing one's, then the boxes compared."""
+    cent_c, cent_o = tri_c.mean(axis=1), tri_o.mean(axis=1)
+    reach_c = np.linalg.norm(tri_c - cent_c[:, None], axis=2).max(axis=1)
+    reach_o = np.linalg.norm(tri_o - cent_o[:, None], axis=2).max(axis=1)
+    found = cKDTree(cent_o).query_ball_point(cent_c, r=reach_c + reach_o.max() + tol)
+    c = np.repeat(np.arange(len(tri_c)), [len(f) for f in found])
+    o = np.fromiter((j for f in found for j in f), dtype=np.int64, count=len(c))
+    lo_c, hi_c, lo_o, hi_o = tri_c.min(axis=1), tri_c.max(axis=1), tri_o.min(axis=1), \
+        tri_o.max(axis=1)
+    keep = np.all((lo_c[c] <= hi_o[o] + tol) & (lo_o[o] <= hi_c[c] + tol), axis=1)
+    return c[keep], o[keep]
+
+
+def _inside(tri: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """Points ``x (p, j, 2)`` in the closed triangles ``tri (p, 3, 2)``, up to
+    :data:`GEOMETRY_TOL` in barycentric coordinates."""
+    lam = _barycentric_2d(tri[:, None], x)
+    return np.all(lam >= -GEOMETRY_TOL, axis=-1)
+
+
+def convex_intersections(a: np.ndarray, b: np.ndarray):
+    """The intersections of counter-clockwise triangles ``a[p]`` and ``b[p]``: the convex
+    polygons spanned by the vertices of each inside the other and the crossings of
+    their edges, sorted counter-clockwise.
+
+    Parameters
+    ----------
+    a, b : (p, 3, 2) arrays
+
+    Returns
+    -------
+    vertices : (p, 15, 2) array
+        The polygon's vertices first (counter-clockwise about their mean), unused slots
+        after them; a vertex may repeat (a corner on an edge).
+    count : (p,) int array
+        The number of vertices (fewer than 3: the triangles touch at most).
+    centre : (p, 2) array
+        The mean of the vertices (inside the polygon: it is convex).
+    """
+    ea = np.roll(a, -1, axis=1) - a                             # edges a_i -> a_i+1
+    eb = np.roll(b, -1, axis=1) - b
+    den = _cross(ea[:, :, None], eb[:, None, :])                # (p, 3, 3)
+    d = b[:, None, :, :] - a[:, :, None, :]
+    scale = np.linalg.norm(ea, axis=2)[:, :, None] * np.linalg.norm(eb, axis=2)[:, None, :]
+    crossing = np.abs(den) > GEOMETRY_TOL * scale               # parallel edges: the
+    safe = np.where(crossing, den, 1.0)                         # corners inside give them
+    s, t = _cross(d, eb[:, None, :]) / safe, _cross(d, ea[:, :, None]) / safe
+    crossing &= (s >= -GEOMETRY_TOL) & (s <= 1 + GEOMETRY_TOL) & (t >= -GEOMETRY_TOL) \
+        & (t <= 1 + GEOMETRY_TOL)
+    points = np.concatenate([a, b, (a[:, :, None, :] + s[..., None] * ea[:, :, None, :])
+                             .reshape(-1, 9, 2)], axis=1)
+    valid = np.concatenate([_inside(b, a), _inside(a, b), crossing.reshape(-1, 9)], axis=1)
+    count = valid.sum(axis=1)
+    mean = (points * valid[..., None]).sum(axis=1) / np.maximum(count, 1)[:, None]
+    angle = np.where(valid, np.arctan2(points[..., 1] - mean[:, None, 1],
+                                       points[..., 0] - mean[:, None, 0]), np.inf)
+    order = np.argsort(angle, axis=1, kind="stable")
+    return np.take_along_axis(points, order[..., None], axis=1), count, mean
+
+
+def clipped_quadrature(points: np.ndarray, facets: np.ndarray, opposing_facets: np.ndarray,
+                       normal: np.ndarray) -> SurfaceQuadrature:
+    """Integration on a flat 3D constrained surface by clipping (module docstring): each
+    opposing triangle projected along ``n`` onto the constrained plane is intersected with
+    each constrained triangle it overlaps (candidates from :func:`_overlapping_pairs`),
+    each convex intersection (:func:`convex_intersections`) split into triangles from its
+    vertices' mean, and :data:`TRIANGLE_RULE` applied on each (exact for degree 2).
+
+    Raises
+    ------
+    ValueError
+        If the projected opposing triangles do not cover every constrained triangle exactly
+        once (a gap, the surface's edge, or a fold of the opposing surface over the plane).
+    """
+    _, _, vt = np.linalg.svd(normal[None, :])
+    plane = vt[1:].T                                            # (3, 2) basis of n-perp
+    tri_c, nodes_c, area_c = _counter_clockwise(points[facets] @ plane, facets)
+    tri_o, nodes_o, area_o = _counter_clockwise(points[opposing_facets] @ plane,
+                                                opposing_facets)
+    extent = float(np.ptp(tri_c.reshape(-1, 2), axis=0).max())
+    seen = area_o > GEOMETRY_TOL * extent ** 2           # edge-on: no area along n
+    tri_o, nodes_o = tri_o[seen], nodes_o[seen]
+    c, o = _overlapping_pairs(tri_c, tri_o, GEOMETRY_TOL * extent)
+    poly, count, centre = convex_intersections(tri_c[c], tri_o[o])
+    j = np.arange(int(count.max(initial=0)))
+    nxt = np.where(j[None, :] + 1 < count[:, None], j[None, :] + 1, 0)
+    first = poly[:, :j.size]
+    second = np.take_along_axis(poly, nxt[..., None], axis=1)
+    use = (j[None, :] < count[:, None]) & (count[:, None] >= 3)
+    pair, _ = np.nonzero(use)
+    pieces = np.stack([centre[pair], first[use], second[use]], axis=1)   # (pieces, 3, 2)
+    piece_area = 0.5 * _cross(pieces[:, 1] - pieces[:, 0], pieces[:, 2] - pieces[:, 0])
+    lam, w = TRIANGLE_RULE
+    x = np.einsum("qk,pkd->pqd", lam, pieces).reshape(-1, 2)
+    weight = (piece_area[:, None] * w[None, :]).ravel()
+    pair = np.repeat(pair, len(w))
+    covered = np.bincount(c[pair], weight, minlength=len(tri_c))
+    if np.any(np.abs(covered - area_c) > COVERAGE_TOL * area_c):
+        raise _not_covered("over every constrained triangle, once")
+    return SurfaceQuadrature(weight=weight, facet=c[pair], constrained=nodes_c[c[pair]],
+                             opposing=nodes_o[o[pair]],
+                             phi=_barycentric_2d(tri_c[c[pair]], x),
+                             phi_opposing=_barycentric_2d(tri_o[o[pair]], x))
+
+
+def surface_quadrature(points: np.ndarray, facets: np.ndarray, opposing_facets: np.ndarray,
+                       normal: np.ndarray) -> SurfaceQuadrature:
+    """The quadrature of the mortar integrals on a flat constrained surface normal to
+    ``normal``: :func:`segment_quadrature` in 2D, :func:`clipped_quadrature` in 3D.
+
+    Raises
+    ------
+    ValueError
+        If the constrained surface is not flat and normal to ``n``, or the opposing surface
+        does not cover it along ``n``.
+    """
+    n = np.asarray(normal, dtype=float) / np.linalg.norm(normal)
+    c_nodes = np.unique(facets)
+    height = points[c_nodes] @ n
+    extent = float(np.ptp(points[c_nodes] - np.outer(height, n), axis=0).max())
+    if np.ptp(height) > 1e-10 * max(extent, 1e-300):
+        raise ValueError("the constrained surface is not flat and normal to the contact "
+                         "direction n: the mortar coupling here projects along a constant n")
+    backend = segment_quadrature if points.shape[1] == 2 else clipped_quadrature
+    return backend(points, facets, opposing_facets, n)
+
+
+def multiplier_basis(phi: np.ndarray, dual: bool) -> np.ndarray:
+    """The multipliers ``psi`` at the quadrature points from the constrained hats
+    ``phi (q, k)``: ``phi`` itself (standard) or Wohlmuth's dual basis
+    ``(k + 1) phi_a - 1``, written ``k phi_a - sum_{b != a} phi_b`` (module docstring)."""
+    if not dual:
+        return phi
+    k = phi.shape[1]
+    return k * phi - sum(np.roll(phi, shift, axis=1) for shift in range(1, k))
+
+
+def mortar_integrals(points: np.ndarray, facets: np.ndarray, opposing_facets: np.ndarray,
+                     normal: np.ndarray, dual: bool) -> MortarIntegrals:
+    """The mortar integrals (module docstring) of a flat constrained surface.
+
+    Parameters
+    ----------
+    points : (N, d) array
+        All nodes (both bodies), d = 2 or 3.
+    facets, opposing_facets : (k, d), (k', d) int arrays
+        Facets (segments, triangles) of the constrained and of the opposing surface.
+    normal : (d,) array
+        Unit contact direction ``n``, from the constrained towards the opposing body.
+    dual : bool
+        Dual (Wohlmuth) instead of standard multipliers.
+
+    Returns
+    -------
+    MortarIntegrals
+        Rows for every node of ``facets``, sorted by x, then y (then z): the nodal rows'
+        order.
+
+    Raises
+    ------
+    ValueError
+        As :func:`surface_quadrature`.
+    """
+    n = np.asarray(normal, dtype=float) / np.linalg.norm(normal)
+    quad = surface_quadrature(points, facets, opposing_facets, n)
+    wq, phi_c, phi_o = quad.weight, quad.phi, quad.phi_opposing
+    psi = multiplier_basis(phi_c, dual)
+    x_o = np.einsum("qk,qkd->qd", phi_o, points[quad.opposing])
+    x_c = np.einsum("qk,qkd->qd", phi_c, points[quad.constrained])
     gap = (x_o - x_c) @ n
-    row_of = -np.ones(len(points), dtype=np.int64)
+    c_nodes = np.unique(facets)
     c_nodes = c_nodes[np.lexsort(points[c_nodes].T[::-1])]   # as the nodal rows' order
+    row_of = -np.ones(len(points), dtype=np.int64)
     row_of[c_nodes] = np.arange(len(c_nodes))
-    rows_c = row_of[ends_c[kc]]                           # (q, 2)
+    rows_c = row_of[quad.constrained]                     # (q, k)
     m = len(c_nodes)
 
     def assemble(test, trial, cols):
@@ -185,7 +412,7 @@ def mortar_integrals(points: np.ndarray, facets: np.ndarray, opposing_facets: np
     else:
         r, c, v = assemble(psi, phi_c, rows_c)
         D = sp.csr_matrix((v, (r, c)), shape=(m, m))
-    r, c, v = assemble(psi, phi_o, ends_o[ko])
+    r, c, v = assemble(psi, phi_o, quad.opposing)
     M = sp.csr_matrix((v, (r, c)), shape=(m, len(points)))
     weighted_gap = np.bincount(rows_c.ravel(), (wq[:, None] * psi * gap[:, None]).ravel(),
                                minlength=m)
@@ -198,8 +425,8 @@ def mortar(qp: ContactQP, dual: bool = False) -> ContactQP:
     Parameters
     ----------
     qp : ContactQP
-        The nodal constraints of a 2D two-body scene, searched along a constant ``n``
-        (Alg. 7.1 case b), without reverse rows.
+        The nodal P1 constraints of a 2D or 3D two-body scene, searched along a constant
+        ``n`` (Alg. 7.1 case b), without reverse rows.
     dual : bool
         Dual multipliers (``mortar_dual``) instead of standard ones (``mortar``).
 
@@ -212,25 +439,26 @@ def mortar(qp: ContactQP, dual: bool = False) -> ContactQP:
     c = qp.contact
     if qp.mesh is None or c is None or qp.stabilisation is not None or qp.C is not None:
         raise ValueError("parameter 'qp': a nodal ContactQP with mesh and contact is required")
-    if qp.dim != 2:
-        raise ValueError(f"parameter 'dim': {qp.dim} is not allowed; allowed: 2 (the mortar "
-                         "coupling integrates on segments)")
+    if qp.mesh.degree != 1:
+        raise ValueError(f"parameter 'degree': {qp.mesh.degree} is not allowed; allowed: 1 "
+                         "(the mortar coupling is built for P1)")
     if c.search != "along_direction":
         raise ValueError(f"parameter 'search': {c.search!r} is not allowed with the mortar "
                          "coupling; allowed: along_direction (projection along a constant n)")
+    dim = qp.dim
     n = c.direction.mean(axis=0)
     n = n / np.linalg.norm(n)
     pts = qp.mesh.points
     mi = mortar_integrals(pts, c.facets, c.opposing_facets, n, dual)
     m = len(mi.nodes)
     D, M = mi.D.tocoo(), mi.M.tocoo()
-    rows = [np.concatenate([D.row, M.row])] * 2
+    rows = [np.concatenate([D.row, M.row])] * dim
     full = sp.csr_matrix(
-        (np.concatenate([np.concatenate([D.data, -M.data]) * n[k] for k in range(2)]),
-         (np.concatenate(rows), np.concatenate([np.concatenate([2 * mi.nodes[D.col] + k,
-                                                                2 * M.col + k])
-                                                for k in range(2)]))),
-        shape=(m, 2 * len(pts)))
+        (np.concatenate([np.concatenate([D.data, -M.data]) * n[k] for k in range(dim)]),
+         (np.concatenate(rows), np.concatenate([np.concatenate([dim * mi.nodes[D.col] + k,
+                                                                dim * M.col + k])
+                                                for k in range(dim)]))),
+        shape=(m, dim * len(pts)))
     full = sp.diags(1.0 / mi.mass) @ full
     full.eliminate_zeros()
     contact = replace(c, nodes=mi.nodes, mass=mi.mass, direction=np.tile(n, (m, 1)), dropped=0)

@@ -186,28 +186,17 @@ def two_pass(qp: ContactQP) -> ContactQP:
         name=f"{qp.name} (two-pass)", cache=SharedWork())
 
 
-#: A scene's choice between the nodal constraints and their stabilised form, with the
-#: stabilisation's settings: one declaration for every scene that offers it.
-#: The couplings every scene offers; the 2D scenes whose constrained surface is straight
-#: add the mortar couplings (:data:`MORTAR_COUPLINGS`, :func:`coupling_parameter`).
-COUPLINGS = ("nodal", "stabilised", "two_pass")
+#: The couplings of the two-body scenes (circle_square, cube_sphere, flat_blocks), with
+#: the stabilisation's settings: one declaration for every scene that offers them.
+COUPLINGS = ("nodal", "stabilised", "two_pass") + MORTAR_COUPLINGS
 
 COUPLING_HELP = ("nodal constraints (Alg. 7.1), the stabilised two-sided nodal constraints "
-                 "(Sect. 7.5, (7.10)/(7.11)) or two-pass node-to-segment constraints (both "
-                 "surfaces' nodes, hard; not in the thesis)")
-MORTAR_HELP = (", or the mortar weighted gaps (Sect. 6.1, Remark 6.8) with standard or dual "
-               "(Wohlmuth) multipliers")
-
-
-def coupling_parameter(with_mortar: bool) -> Parameter:
-    """The ``coupling`` choice of a scene: :data:`COUPLINGS`, and :data:`MORTAR_COUPLINGS`
-    ``with_mortar``."""
-    return Parameter("coupling", "nodal", COUPLING_HELP + (MORTAR_HELP if with_mortar else ""),
-                     choices=COUPLINGS + (MORTAR_COUPLINGS if with_mortar else ()))
-
+                 "(Sect. 7.5, (7.10)/(7.11)), two-pass node-to-segment constraints (both "
+                 "surfaces' nodes, hard; not in the thesis), or the mortar weighted gaps "
+                 "(Sect. 6.1, Remark 6.8) with standard or dual (Wohlmuth) multipliers")
 
 COUPLING_PARAMETERS = (
-    coupling_parameter(with_mortar=False),
+    Parameter("coupling", "nodal", COUPLING_HELP, choices=COUPLINGS),
     Parameter("alpha", 1.0, "stabilised coupling: exponent alpha of h^(-2 alpha) in (7.10)",
               low=0.0, high=2.0),
     Parameter("penalty", 1.0, "stabilised coupling: penalty factor (k = penalty E* "

@@ -1,0 +1,102 @@
+"""The exact reference of one Tresca step, registered as a solver (``tresca_exact``).
+
+One Tresca step (:class:`problems.qp.Friction`, its ``slip_bound`` given) is solved by
+:func:`solvers.tresca.tresca_exact`: the dual box problem in ``y = (p, lam)``
+(``p >= 0``, ``|lam| <= s``) with the dense Hessian ``S = G A^-1 G'``, ``G = [B; T]``,
+by a primal active-set method that ends on the exact active sets; ``u = A^-1 (f - G'y)``.
+The answer carries the tangential multipliers in ``SolveResult.tangential``. A load path
+(normal load, then the tangential step; Coulomb's fixed point ``s = mu p``) is run around
+this solver by :func:`solvers.tresca.run_load_path` (``contactbench solve`` on a
+frictional scene).
+
+Refused at once (``skipped``): a frictionless problem (its exact reference is ``pdas``;
+the dense dual would only add a slower second route to every frictionless study), more than
+:data:`solvers.tresca.TRESCA_EXACT_MAX_M` rows (``S`` is dense), friction on anything but
+2D nodal rows, and a floating body (``A`` is then nearly singular and a plain
+factorisation of it useless).
+"""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from problems.floating import floating_modes
+from problems.qp import ContactQP
+from problems.spec import Options
+from solvers.base import Role, SolveResult, SolverSpec, preset_texts
+from solvers.tresca import TRESCA_EXACT_MAX_M, dual_operators, tresca_exact
+
+
+def supports(qp: ContactQP) -> tuple[bool, str]:
+    """``(True, "")`` if :func:`solve` takes ``qp``, else ``(False, reason)``."""
+    if qp.friction is None:
+        return False, ("a frictionless problem: this is the reference of a Tresca step; "
+                       "the frictionless problem's exact reference is pdas")
+    if qp.m > TRESCA_EXACT_MAX_M:
+        return False, (f"{qp.m} constraint rows: the dual Hessian is dense, at most "
+                       f"{TRESCA_EXACT_MAX_M} rows")
+    if qp.C is not None:
+        return False, "a stabilisation block C: the dual box problem has no C"
+    fr = qp.friction
+    if fr is not None and (qp.dim != 2 or qp.stabilisation is not None
+                           or fr.T.shape[0] != qp.m):
+        return False, ("friction on 2D nodal rows only (one tangential row per "
+                       "constrained node)")
+    if floating_modes(qp).shape[1]:
+        return False, "a floating body: A is nearly singular, its plain factorisation useless"
+    return True, ""
+
+
+def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
+          u0: np.ndarray | None, p0: np.ndarray | None, opts: Options) -> SolveResult:
+    """One Tresca step solved exactly
+    (:func:`solvers.tresca.tresca_exact`).
+
+    ``tol`` is left to the verification: the method is exact on its final active sets.
+    ``max_iter`` caps the active-set steps (``max_iter`` claimed when it is reached);
+    ``time_limit``, ``u0`` and ``p0`` are not used (the method is finite and starts from
+    ``p = lam = 0``).
+
+    Returns
+    -------
+    SolveResult
+        ``tangential`` is ``lam`` on a frictional problem (``None`` otherwise); ``stats``
+        hold the number of dual unknowns, the sticking and slipping rows.
+    """
+    t0 = time.perf_counter()
+    ops = dual_operators(qp)
+    t1 = time.perf_counter()
+    try:
+        sol = tresca_exact(qp, ops, max_iter=max_iter)
+    except np.linalg.LinAlgError as err:          # S singular on a face: no answer
+        nan = lambda k: np.full(k, np.nan)
+        return SolveResult(u=nan(qp.n), p=nan(qp.m), claimed_status="failed",
+                           message=f"the dual Hessian is singular on the free set (linearly "
+                                   f"dependent rows, or no feasible point): {err}",
+                           setup_time=t1 - t0, solve_time=time.perf_counter() - t1,
+                           tangential=None if qp.friction is None else nan(qp.m))
+    t2 = time.perf_counter()
+    stats = {"dual_unknowns": int(ops.S.shape[0])}
+    if qp.friction is not None:
+        bounded = qp.friction.slip_bound > 0
+        stats.update(n_stick=int(sol.stick.sum()), n_slip=int((bounded & ~sol.stick).sum()))
+    message = ("active sets exact" if sol.status == "converged" else
+               f"active-set method stopped after {sol.iterations} steps")
+    return SolveResult(u=sol.u, p=sol.p, claimed_status=sol.status, message=message,
+                       iterations=int(sol.iterations), setup_time=t1 - t0, solve_time=t2 - t1,
+                       stats=stats, tangential=sol.lam if qp.friction is not None else None)
+
+
+SOLVER = SolverSpec(
+    name="tresca_exact",
+    summary="exact reference of one 2D Tresca step: the dual box problem in (p, lam) with "
+            "A factorised once and S = G A^-1 G' dense, by a primal active-set method "
+            "(frictional problems only)",
+    solve=solve,
+    presets=preset_texts("exact active sets; verified at"),
+    default_max_iter=100_000,
+    role=Role.EXACT,
+    supports=supports,
+    handles_friction=True,
+)
