@@ -5,7 +5,11 @@ presmoother (exact minimisation of the energy over one node's unknowns with a bo
 its first unknown: the unconstrained block solve, or, when it crosses the bound, the
 first unknown clamped to it and the others solved again) and the linear smoother of the
 truncated correction (the bounded unknown of an active node held fixed). Blocks have at
-most three unknowns; their inverses come from :func:`block_inverses`.
+most three unknowns; their inverses come from :func:`block_inverses`. A second kernel,
+:func:`tresca_block_gauss_seidel`, adds 2D Tresca friction: the exact block minimiser with
+the normal bound and the term ``s |x_t - c|`` (:func:`_tresca_block`) and the linear
+smoother with a sticking node's tangential unknown held; both kernels share the block
+residual and the bounded block update.
 
 Compiled with numba (``cache=True``: compiled once per machine, then read from
 numba's cache beside this file); no Python loop over nodes runs in a sweep.
@@ -18,6 +22,10 @@ from numba import njit
 
 #: Block modes of :func:`block_gauss_seidel`.
 FREE, BOUNDED, FIXED = 0, 1, 2
+#: Further block modes of :func:`tresca_block_gauss_seidel` (2D blocks): the exact
+#: minimiser with the normal bound and Tresca's term (TRESCA), the second unknown held
+#: (TANGENT_FIXED), both held (BOTH_FIXED).
+TRESCA, TANGENT_FIXED, BOTH_FIXED = 4, 5, 6
 
 
 def unsigned_index(a: np.ndarray) -> np.ndarray:
@@ -132,36 +140,128 @@ def block_gauss_seidel(indptr, indices, data, c_indptr, c_indices, c_data, x, b,
     for blk in range(start, stop, stride):
         s = node_ptr[blk]
         k = node_ptr[blk + 1] - s
+        _block_residual(indptr, indices, data, c_indptr, c_indices, c_data, x, b, node_dofs,
+                        s, k, r)
+        _block_update(x, r, dx, blk, s, k, node_dofs, diag0, inv_full, inv_sub, mode[blk],
+                      upper)
+
+
+@njit(cache=True, nogil=True)
+def _block_residual(indptr, indices, data, c_indptr, c_indices, c_data, x, b, node_dofs, s,
+                    k, r):   # pragma: no cover (compiled)
+    """``r[:k] = (b - (A + C) x)`` on the block's unknowns ``node_dofs[s:s+k]``."""
+    for a in range(k):
+        i = node_dofs[s + a]
+        acc = b[i]
+        for q in range(indptr[i], indptr[i + 1]):
+            acc -= data[q] * x[indices[q]]
+        for q in range(c_indptr[i], c_indptr[i + 1]):
+            acc -= c_data[q] * x[c_indices[q]]
+        r[a] = acc
+
+
+@njit(cache=True, nogil=True)
+def _block_update(x, r, dx, blk, s, k, node_dofs, diag0, inv_full, inv_sub, md,
+                  upper):   # pragma: no cover (compiled)
+    """One block of :func:`block_gauss_seidel` in mode FREE, BOUNDED or FIXED, from the
+    block's residual ``r``."""
+    i0 = node_dofs[s]
+    if md != FIXED:
         for a in range(k):
-            i = node_dofs[s + a]
-            acc = b[i]
-            for q in range(indptr[i], indptr[i + 1]):
-                acc -= data[q] * x[indices[q]]
-            for q in range(c_indptr[i], c_indptr[i + 1]):
-                acc -= c_data[q] * x[c_indices[q]]
-            r[a] = acc
+            acc = 0.0
+            for c in range(k):
+                acc += inv_full[blk, a, c] * r[c]
+            dx[a] = acc
+        if md == BOUNDED and x[i0] + dx[0] > upper[blk]:
+            md = 3
+    if md == FIXED or md == 3:
+        d0 = 0.0 if md == FIXED else upper[blk] - x[i0]
+        dx[0] = d0
+        for a in range(1, k):
+            acc = 0.0
+            for c in range(1, k):
+                acc += inv_sub[blk, a, c] * (r[c] - diag0[blk, c] * d0)
+            dx[a] = acc
+    for a in range(k):
+        x[node_dofs[s + a]] += dx[a]
+    if md == 3:
+        x[i0] = upper[blk]
+
+
+@njit(cache=True, nogil=True)
+def tresca_block_gauss_seidel(indptr, indices, data, c_indptr, c_indices, c_data, x, b,
+                              node_ptr, node_dofs, diag0, inv_full, inv_sub, mode, upper,
+                              weight, centre, forward):   # pragma: no cover (compiled)
+    """One sweep of node-block Gauss-Seidel for the energy ``1/2 x'(A + C)x - b'x +
+    sum_k weight[k] |x[second_k] - centre[k]|`` (2D blocks), in place on ``x``.
+
+    ``mode[k]``: as :func:`block_gauss_seidel`, and TRESCA (the exact minimiser over the
+    block with ``x[first] <= upper[k]`` and the term ``weight[k] |x[second] -
+    centre[k]|``: :func:`_tresca_block`), TANGENT_FIXED (the second unknown kept, the
+    first solved), BOTH_FIXED (the block kept). With ``weight`` zero and the modes of
+    :func:`block_gauss_seidel` it is that sweep.
+    """
+    nb = node_ptr.size - 1
+    r = np.zeros(3)
+    dx = np.zeros(3)
+    start, stop, stride = (0, nb, 1) if forward else (nb - 1, -1, -1)
+    for blk in range(start, stop, stride):
         md = mode[blk]
-        i0 = node_dofs[s]
-        if md != FIXED:
-            for a in range(k):
-                acc = 0.0
-                for c in range(k):
-                    acc += inv_full[blk, a, c] * r[c]
-                dx[a] = acc
-            if md == BOUNDED and x[i0] + dx[0] > upper[blk]:
-                md = 3
-        if md == FIXED or md == 3:
-            d0 = 0.0 if md == FIXED else upper[blk] - x[i0]
-            dx[0] = d0
-            for a in range(1, k):
-                acc = 0.0
-                for c in range(1, k):
-                    acc += inv_sub[blk, a, c] * (r[c] - diag0[blk, c] * d0)
-                dx[a] = acc
-        for a in range(k):
-            x[node_dofs[s + a]] += dx[a]
-        if md == 3:
-            x[i0] = upper[blk]
+        if md == BOTH_FIXED:
+            continue
+        s = node_ptr[blk]
+        k = node_ptr[blk + 1] - s
+        _block_residual(indptr, indices, data, c_indptr, c_indices, c_data, x, b, node_dofs,
+                        s, k, r)
+        if md == TRESCA:
+            _tresca_block(x, r, node_dofs[s], node_dofs[s + 1], diag0[blk, 0],
+                          diag0[blk, 1], 1.0 / inv_sub[blk, 1, 1], inv_full[blk],
+                          upper[blk], weight[blk], centre[blk])
+        elif md == TANGENT_FIXED:
+            x[node_dofs[s]] += r[0] / diag0[blk, 0]
+        else:
+            _block_update(x, r, dx, blk, s, k, node_dofs, diag0, inv_full, inv_sub, md,
+                          upper)
+
+
+@njit(cache=True, nogil=True)
+def _tresca_block(x, r, i0, i1, m00, m01, m11, inv, upper, weight,
+                  centre):   # pragma: no cover (compiled)
+    """The exact minimiser of one 2D block's energy in its update ``d``::
+
+        1/2 d'Md - r'd + weight |x1 + d1 - centre|   subject to   x0 + d0 <= upper
+
+    (``M = [[m00, m01], [m01, m11]]``, ``inv = M^-1``), written into ``x``. The minimiser
+    is one of six points: the normal unknown free or at its bound, times the tangential
+    one sticking (``x1 = centre``) or slipping either way (the term linear); each such
+    point solves its case's stationarity by a 2x2 or 1x1 solve. Of those that keep the
+    bound, the one with the least energy is the minimiser (it is among them, and every
+    one is feasible); the bound and the stick point are written exactly.
+    """
+    h = upper - x[i0]
+    e = centre - x[i1]
+    best, best0, best1, at_bound, stick = np.inf, 0.0, 0.0, False, False
+    for case in range(6):
+        normal_bound = case < 3
+        side = case % 3                        # 0: stick, 1: slip +, 2: slip -
+        sign = 1.0 if side == 1 else -1.0
+        if normal_bound:
+            d0 = h
+            d1 = e if side == 0 else (r[1] - m01 * h - sign * weight) / m11
+        elif side == 0:
+            d1 = e
+            d0 = (r[0] - m01 * e) / m00
+        else:
+            d0 = inv[0, 0] * r[0] + inv[0, 1] * (r[1] - sign * weight)
+            d1 = inv[1, 0] * r[0] + inv[1, 1] * (r[1] - sign * weight)
+        if not normal_bound and d0 > h:
+            continue
+        energy = (0.5 * (m00 * d0 * d0 + 2.0 * m01 * d0 * d1 + m11 * d1 * d1)
+                  - r[0] * d0 - r[1] * d1 + weight * abs(d1 - e))
+        if energy < best:
+            best, best0, best1, at_bound, stick = energy, d0, d1, normal_bound, side == 0
+    x[i0] = upper if at_bound else x[i0] + best0
+    x[i1] = centre if stick else x[i1] + best1
 
 
 def with_pattern(A: sp.csr_matrix, pattern: sp.csr_matrix) -> sp.csr_matrix:

@@ -29,10 +29,25 @@ not have that structure; :func:`check_structure` says why. Mortar rows with dual
 multipliers (:mod:`problems.fem.mortar`, ``D`` diagonal) have it: row ``i`` moves its
 constrained node by ``n`` and the opposing surface's unknowns by the mortar weights, the
 form of a nodal row.
+
+Tangential rows (2D friction, :class:`problems.qp.Friction`) become coordinates the same
+way. Row ``i``'s tangential row ``T_i u = tau_i' u_s + sum_j T_ij u_j`` has the same
+constrained node and the same opposing unknowns as its normal row, with ``tau_i``
+orthogonal to ``n_i``; the Householder frame's second column ``H_i e_2`` is
+``sigma_i tau_i / gamma_i`` (``gamma_i = |tau_i|``, ``sigma_i = +-1``), so with
+``theta_i = sigma_i gamma_i`` the second new unknown at ``s_i``::
+
+    v_s = H_i u_s + e_1 (sum_j B_ij u_j) / beta_i + e_2 (sum_j T_ij u_j) / theta_i
+
+gives ``T_i u = theta_i v_s[1]``, and the inverse is ``u_s = H_i v_s - n_i (sum_j B_ij
+v_j) / beta_i - tau_i (sum_j T_ij v_j) / gamma_i^2``. The tangential slip is then a
+function of one unknown, and Tresca's term ``s_i |T_i u - r_i|`` is
+``s_i gamma_i |v_s[1] - r_i / theta_i|``: separable by node blocks, as truncated
+nonsmooth Newton multigrid needs (:mod:`solvers.tnnmg`).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
@@ -68,6 +83,11 @@ class BoxTransformation:
     changed : int array
         The constrained nodes' unknowns (sorted): the only rows where ``T`` and ``T_inv``
         differ from the identity (:meth:`operator`, :meth:`prolongation`).
+    tangential_pivot : (m,) int array
+        With tangential rows (:func:`box_transformation`): the unknown of ``v`` that row
+        ``i``'s tangential row reads (second unknown of its node block); empty without.
+    tangential_scale : (m,) array
+        ``theta_i``: ``T_i u = theta_i v[tangential_pivot_i]`` (signed); empty without.
     """
 
     D: sp.csr_matrix
@@ -79,6 +99,8 @@ class BoxTransformation:
     node_dofs: np.ndarray
     block_row: np.ndarray
     changed: np.ndarray
+    tangential_pivot: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    tangential_scale: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     def operator_update(self, A: sp.spmatrix) -> sp.csr_matrix:
         """``T' A T - A`` for a symmetric ``A`` (sorted CSR), without a product of two
@@ -233,13 +255,23 @@ def _own_nodes(qp: ContactQP, node_ptr, node_dofs, node_of_block) -> np.ndarray:
     return node_of_block[own[order][first]]
 
 
-def box_transformation(qp: ContactQP) -> BoxTransformation:
+def box_transformation(qp: ContactQP, tangential: sp.spmatrix | None = None
+                       ) -> BoxTransformation:
     """The change of variables of the module docstring for ``qp``.
+
+    Parameters
+    ----------
+    qp : ContactQP
+    tangential : (m, n) sparse, optional
+        Tangential rows (2D: ``qp.friction.T``), one per row of ``B``, made coordinates
+        too (the module docstring's second unknown at each constrained node).
 
     Raises
     ------
     TransformationError
-        If the constraints lack the structure (:func:`check_structure` says why).
+        If the constraints lack the structure (:func:`check_structure` says why), or the
+        tangential rows do not share their normal rows' constrained nodes and opposing
+        unknowns with a tangent orthogonal to the normal.
     """
     node_ptr, node_dofs, block_of_row = _rows_and_slaves(qp)
     n, m, d = qp.n, qp.m, qp.dim
@@ -297,6 +329,18 @@ def box_transformation(qp: ContactQP) -> BoxTransformation:
     rows_i.append(local[slave[r_o, 0]])
     cols_i.append(c_o)
     vals_i.append(val_o)
+    t_pivot, t_scale = np.zeros(0, np.int64), np.zeros(0)
+    if tangential is not None:
+        theta, (r_t, c_t, val_t) = _tangential_frames(tangential, slave, normal, H, is_slave)
+        for a in range(d):
+            has = slave[r_t, a] >= 0
+            rows_t.append(local[slave[r_t[has], a]])
+            cols_t.append(c_t[has])
+            vals_t.append(-H[r_t[has], a, 1] * val_t[has] / theta[r_t[has]])
+        rows_i.append(local[slave[r_t, 1]])
+        cols_i.append(c_t)
+        vals_i.append(val_t / theta[r_t])
+        t_pivot, t_scale = slave[:, 1], theta
     shape = (changed.size, n)
     D = sp.csr_matrix((np.concatenate(vals_t), (np.concatenate(rows_t), np.concatenate(cols_t))),
                       shape=shape)
@@ -306,4 +350,38 @@ def box_transformation(qp: ContactQP) -> BoxTransformation:
         M.eliminate_zeros()
         M.sort_indices()
     return BoxTransformation(D, D_inv, slave[:, 0], beta, qp.g / beta, node_ptr, node_dofs,
-                             block_row, changed)
+                             block_row, changed, t_pivot, t_scale)
+
+
+def _tangential_frames(tangential: sp.spmatrix, slave: np.ndarray, normal: np.ndarray,
+                       H: np.ndarray, is_slave: np.ndarray):
+    """``theta`` (``T_i u = theta_i v_s[1]``, module docstring) and the tangential rows'
+    entries off the constrained nodes ``(row, col, value)``; checks the structure."""
+    m, d = slave.shape
+    Tt = sp.csr_matrix(tangential)
+    if Tt.shape != (m, is_slave.size):
+        raise TransformationError(f"tangential rows of shape {Tt.shape}; allowed: ({m}, "
+                                  f"{is_slave.size}) (one per row of B)")
+    if d != 2 or np.any(slave < 0):
+        raise TransformationError("tangential coordinates are built for 2D constrained nodes "
+                                  "with both unknowns free")
+    tau = np.stack([np.asarray(Tt[np.arange(m), slave[:, a]]).ravel() for a in range(d)],
+                   axis=1)
+    gamma = np.linalg.norm(tau, axis=1)
+    if np.any(gamma <= 0.0):
+        raise TransformationError(f"{int(np.sum(gamma <= 0))} tangential rows do not move "
+                                  "their constrained node")
+    if np.any(np.abs(np.einsum("ij,ij->i", tau, normal)) > 1e-12 * gamma):
+        raise TransformationError("a tangential row's tangent is not orthogonal to its "
+                                  "normal row's direction")
+    theta = np.sign(np.einsum("ij,ij->i", H[:, :, 1], tau)) * gamma
+    coo = Tt.tocoo()
+    other = ~is_slave[coo.col]
+    own = np.zeros(coo.row.size, dtype=bool)
+    for a in range(d):
+        own |= coo.col == slave[coo.row, a]
+    if np.any(~other & ~own & (coo.data != 0.0)):
+        raise TransformationError("a tangential row reaches another row's constrained node "
+                                  "(the tangential rows must share their normal rows' "
+                                  "structure)")
+    return theta, (coo.row[other], coo.col[other], coo.data[other])

@@ -52,6 +52,29 @@ normal unknowns, which hold a body that only contact holds. The stabilised probl
 so are mortar rows with standard multipliers (a non-diagonal ``D``), while mortar rows
 with dual multipliers (``D`` diagonal, :mod:`problems.fem.mortar`) are one row per
 constrained node and are taken.
+
+Tresca friction (one 2D step of a load path, :class:`problems.qp.Friction`; Gräser and
+Kornhuber's setting of a block-separable nonsmooth energy). The tangential rows become
+coordinates too (:mod:`solvers.contact_box`: ``T_i u = theta_i v_s[1]``), so the energy
+``J~(v) + sum_i weight_i |v_s[1] - centre_i|`` (:class:`_TrescaTerm`) is separable by node
+blocks with the normal bound on ``v_s[0]``. The step is the one above with:
+
+1. the node block's exact minimiser of the normal bound and the term (stick, or slip
+   either way, times the normal unknown free or at its bound;
+   :func:`solvers._block_gs._tresca_block`);
+2. the truncation of the normal-active pivots and of the sticking rows' tangential
+   unknowns (slip exactly zero); a slipping row's term is linear near the iterate, its
+   derivative ``weight sign(slip)`` part of the correction's right-hand side;
+3. the line search on the nonsmooth energy, exact over its kinks (:func:`_tresca_step`);
+   conjugate gradients on a face (step 4) are not used.
+
+It stops when the suite's verification passes: the friction KKT residuals
+(:func:`problems.kkt.friction_residuals`) and the certified energy bound of the Tresca step
+(:func:`certify` with ``lam``) meet tol, with the tangential multipliers ``lam_i = r[v_s[1]] / theta_i`` from the
+stationarity of the tangential unknown, in ``[-s_i, s_i]`` (``SolveResult.tangential``;
+:meth:`_TrescaTerm.multipliers`). A Coulomb problem is solved as the Tresca step of its
+given slip bound (the fixed point ``s = mu p`` over Tresca steps is the load path's); 3D
+(a disc of tangential slips per node) is ``skipped`` with the reason.
 """
 from __future__ import annotations
 
@@ -64,15 +87,17 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from pyamg.relaxation.relaxation import gauss_seidel
 
-from problems.kkt import kkt_residuals
+from problems.kkt import friction_residuals, kkt_residuals
 from problems.qp import ContactQP
 from problems.spec import Options, Parameter
-from solvers._block_gs import (BOUNDED, FIXED, FREE, block_gauss_seidel, block_inverses,
+from solvers._block_gs import (BOTH_FIXED, BOUNDED, FIXED, FREE, TANGENT_FIXED, TRESCA,
+                               block_gauss_seidel, block_inverses, tresca_block_gauss_seidel,
                                unsigned_index, with_pattern)
 from solvers.base import VERIFIED_PRESETS, Role, SolveResult, SolverSpec
 from solvers.certificate import certify
 from solvers.cholesky import FactorizationError, factorize
-from solvers.contact_box import BoxTransformation, box_transformation, check_structure
+from solvers.contact_box import (BoxTransformation, TransformationError, box_transformation,
+                                 check_structure)
 
 
 #: The suite's KKT check (and the certificate) runs once the transformed problem's own
@@ -111,6 +136,7 @@ class _Fine:
     kernel_index: tuple = ()
     update_rows: np.ndarray | None = None
     update_part: sp.csr_matrix | None = None
+    tresca: "_TrescaTerm | None" = None
 
     def __post_init__(self):
         # unsigned indices (views, no copies): the compiled sweep then skips numba's
@@ -123,9 +149,15 @@ class _Fine:
 
     def sweep(self, x: np.ndarray, b: np.ndarray, mode: np.ndarray, forward: bool) -> None:
         indptr, indices, c_indptr, c_indices, node_dofs = self.kernel_index
-        block_gauss_seidel(indptr, indices, self.A.data, c_indptr, c_indices, self.C.data,
-                           x, b, self.box.node_ptr, node_dofs, self.diag0, self.inv_full,
-                           self.inv_sub, mode, self.upper_block, forward)
+        if self.tresca is None:
+            block_gauss_seidel(indptr, indices, self.A.data, c_indptr, c_indices, self.C.data,
+                               x, b, self.box.node_ptr, node_dofs, self.diag0, self.inv_full,
+                               self.inv_sub, mode, self.upper_block, forward)
+            return
+        tresca_block_gauss_seidel(indptr, indices, self.A.data, c_indptr, c_indices,
+                                  self.C.data, x, b, self.box.node_ptr, node_dofs, self.diag0,
+                                  self.inv_full, self.inv_sub, mode, self.upper_block,
+                                  self.tresca.weight_block, self.tresca.centre_block, forward)
 
     def matvec(self, x: np.ndarray) -> np.ndarray:
         """``A~ x``."""
@@ -138,8 +170,60 @@ class _Fine:
         return sp.csr_matrix(self.A[idx] + self.C[idx])
 
 
-def _fine_system(qp: ContactQP) -> _Fine:
-    box = box_transformation(qp)
+@dataclass
+class _TrescaTerm:
+    """Tresca's term of a 2D step in the transformed unknowns (:mod:`solvers.contact_box`:
+    ``T_i u = theta_i v[pivot_i]``)::
+
+        sum_i s_i |T_i u + offset_i - previous_i| = sum_i weight_i |v[pivot_i] - centre_i|
+
+    with ``weight = s |theta|`` and ``centre = (previous - offset) / theta``; per row, and
+    per node block for the compiled sweep (zero weight off the constrained nodes).
+    """
+
+    pivot: np.ndarray
+    theta: np.ndarray
+    weight: np.ndarray
+    centre: np.ndarray
+    weight_block: np.ndarray
+    centre_block: np.ndarray
+
+    def value(self, v: np.ndarray) -> float:
+        return float(self.weight @ np.abs(v[self.pivot] - self.centre))
+
+    def stick(self, v: np.ndarray) -> np.ndarray:
+        """Rows whose slip is exactly zero (with a positive slip bound)."""
+        return (v[self.pivot] == self.centre) & (self.weight > 0)
+
+    def multipliers(self, residual_v: np.ndarray, slip_bound: np.ndarray) -> np.ndarray:
+        """The tangential multipliers ``lam`` (``A u + B'p + T'lam = f``) from the residual
+        ``f~ - A~v`` of the transformed problem: ``r[pivot_i] / theta_i`` (the stationarity
+        of the tangential unknown), in ``[-s_i, s_i]`` (as ``p >= 0``: what is left over
+        stays in the stationarity residual)."""
+        return np.clip(residual_v[self.pivot] / self.theta, -slip_bound, slip_bound)
+
+    def gradient(self, v: np.ndarray) -> np.ndarray:
+        """Per row, the term's derivative off the kinks (``weight sign(slip)``; 0 there)."""
+        return self.weight * np.sign(v[self.pivot] - self.centre)
+
+
+def _tresca_term(qp: ContactQP, box: BoxTransformation) -> _TrescaTerm:
+    fr = qp.friction
+    theta = box.tangential_scale
+    weight = np.asarray(fr.slip_bound, dtype=float) * np.abs(theta)
+    centre = (np.asarray(fr.previous, dtype=float) - fr.offset) / theta
+    nb = box.node_ptr.size - 1
+    weight_block, centre_block = np.zeros(nb), np.zeros(nb)
+    rows = box.block_row
+    bounded = rows >= 0
+    weight_block[bounded], centre_block[bounded] = weight[rows[bounded]], centre[rows[bounded]]
+    return _TrescaTerm(box.tangential_pivot, theta, weight, centre, weight_block, centre_block)
+
+
+def _fine_system(qp: ContactQP, tresca: bool = False) -> _Fine:
+    """The transformed fine system; ``tresca``: the tangential rows made coordinates too and
+    the step's Tresca term (:class:`_TrescaTerm`)."""
+    box = box_transformation(qp, qp.friction.T if tresca else None)
     A = sp.csr_matrix(qp.A)
     if not A.has_sorted_indices:
         A = A.sorted_indices()
@@ -148,7 +232,8 @@ def _fine_system(qp: ContactQP) -> _Fine:
     bounded = np.flatnonzero(box.block_row >= 0)
     upper = np.full(box.node_ptr.size - 1, np.inf)
     upper[bounded] = box.upper[box.block_row[bounded]]
-    return _Fine(A, C, box.load(qp.f), box, diag0, inv_full, inv_sub, bounded, upper)
+    return _Fine(A, C, box.load(qp.f), box, diag0, inv_full, inv_sub, bounded, upper,
+                 tresca=_tresca_term(qp, box) if tresca else None)
 
 
 def _positions(M: sp.csr_matrix, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
@@ -224,7 +309,8 @@ class _TruncatedHierarchy:
     sweeps: int
     truncate_coarse: bool
     patch: np.ndarray | None = None    # unknowns of the contact patch (None: no patch solve)
-    active: np.ndarray | None = None
+    truncatable: np.ndarray | None = None  # unknowns that may be truncated (None: the pivots)
+    frozen: np.ndarray | None = None   # the truncated unknowns
     A_t: list = field(default_factory=list)
     coarse_solve: Callable | None = None
     mode: np.ndarray | None = None
@@ -237,7 +323,7 @@ class _TruncatedHierarchy:
 
     def __post_init__(self, A_coarse):
         self.coarse_R = [sp.csr_matrix(Pl.T) for Pl in self.coarse_P]  # restrictions, once
-        pivots = self.fine.box.pivot
+        pivots = self.fine.box.pivot if self.truncatable is None else self.truncatable
         patterns = (self._deltas(pivots) if self.truncate_coarse and self.P is not None
                     and pivots.size else [None] * len(A_coarse))
         self.coarse_ops = [_UpdatedOperator(M, d) for M, d in zip(A_coarse, patterns)]
@@ -270,14 +356,20 @@ class _TruncatedHierarchy:
 
     def update(self, active: np.ndarray) -> None:
         """Truncate at the active pivots (a repeated set keeps its operators)."""
-        if self.active is not None and np.array_equal(active, self.active):
+        fine = self.fine
+        mode = np.full(fine.box.node_ptr.size - 1, FREE, dtype=np.int64)
+        mode[fine.bounded_blocks[active[fine.box.block_row[fine.bounded_blocks]]]] = FIXED
+        self.truncate(fine.box.pivot[active], mode)
+
+    def truncate(self, E: np.ndarray, mode: np.ndarray) -> None:
+        """Truncate at the unknowns ``E``, the linear smoother's block modes ``mode`` (a
+        repeated ``E`` keeps its operators)."""
+        if self.frozen is not None and np.array_equal(E, self.frozen):
             return
         self.updates += 1
-        self.active = active.copy()
+        self.frozen = E.copy()
         fine = self.fine
-        self.mode = np.full(fine.box.node_ptr.size - 1, FREE, dtype=np.int64)
-        self.mode[fine.bounded_blocks[active[fine.box.block_row[fine.bounded_blocks]]]] = FIXED
-        E = fine.box.pivot[active]
+        self.mode = mode
         if self.patch is not None and self.P is not None:
             self._update_patch(E)
         if self.P is None:                       # no hierarchy: exact truncated solve
@@ -307,7 +399,7 @@ class _TruncatedHierarchy:
         if self.P is None:
             return self.coarse_solve(r)
         fine = self.fine
-        E = fine.box.pivot[self.active]
+        E = self.frozen
         c = np.zeros_like(r)
         for _ in range(self.sweeps):
             fine.sweep(c, r, self.mode, True)
@@ -347,11 +439,12 @@ def contact_patch(qp: ContactQP, fine: _Fine, hops: int) -> np.ndarray | None:
     return patch
 
 
-def _hierarchy(qp: ContactQP, fine: _Fine, sweeps: int, truncate_coarse: bool, hops: int
-               ) -> _TruncatedHierarchy:
+def _hierarchy(qp: ContactQP, fine: _Fine, sweeps: int, truncate_coarse: bool, hops: int,
+               truncatable: np.ndarray | None = None) -> _TruncatedHierarchy:
     prolongations = [sp.csr_matrix(P) for P in qp.multilevel.prolongations]
     if not prolongations:
-        return _TruncatedHierarchy(fine, None, [], [], sweeps, truncate_coarse)
+        return _TruncatedHierarchy(fine, None, [], [], sweeps, truncate_coarse,
+                                   truncatable=truncatable)
     P = fine.box.prolongation(prolongations[-1])
     # P~' A~ P~ = P' T' A T T^{-1} P = P' A P: the untruncated coarse operators are the
     # scene's own Galerkin products
@@ -360,7 +453,7 @@ def _hierarchy(qp: ContactQP, fine: _Fine, sweeps: int, truncate_coarse: bool, h
         mats.append(sp.csr_matrix(sp.csr_matrix(Pl.T) @ (mats[-1] @ Pl)))
     mats = mats[1:]
     return _TruncatedHierarchy(fine, P, prolongations[:-1], mats, sweeps, truncate_coarse,
-                               contact_patch(qp, fine, hops))
+                               contact_patch(qp, fine, hops), truncatable)
 
 
 def _stationarity(fine: _Fine, r: np.ndarray, bound: np.ndarray) -> float:
@@ -407,17 +500,64 @@ def _step(fine: _Fine, v: np.ndarray, r: np.ndarray, c: np.ndarray, piv: np.ndar
             step = min(step, float(np.min(slack[rising] / d[piv][rising])))
         cut = step < free
     v_line, r_line = v + step * d, r - step * Ad
-    J_line = _energy(fine, v_line, r_line)
+    return _arc_or_line(fine, _energy, v, c, piv, upper, v_line, r_line, step, cut)
+
+
+def _arc_or_line(fine: _Fine, energy: Callable, v: np.ndarray, c: np.ndarray,
+                 piv: np.ndarray, upper: np.ndarray, v_line: np.ndarray, r_line: np.ndarray,
+                 step: float, cut: bool) -> tuple[np.ndarray, np.ndarray, float]:
+    """The line search's point ``v_line`` (step ``step``), or where a bound ``cut`` it short
+    the first point of the projection arc with a lower ``energy(fine, v, r)``
+    (:func:`_step`)."""
+    J_line = energy(fine, v_line, r_line)
     arc = 1.0 if cut else 0.0          # the arc only where a bound cut the line search short
     while arc >= ARC_MIN:
         v_arc = v + arc * c
         v_arc[piv] = np.minimum(v_arc[piv], upper)
         r_arc = fine.f - fine.matvec(v_arc)
-        if _energy(fine, v_arc, r_arc) < J_line:
+        if energy(fine, v_arc, r_arc) < J_line:
             return v_arc, r_arc, -arc
         arc *= ARC_FACTOR
     v_line[piv] = np.minimum(v_line[piv], upper)
     return v_line, r_line, step
+
+
+@dataclass
+class _StepLog:
+    """A TNNMG solve's per-step history, its phases' times and its end (:func:`solve`)."""
+
+    t_solve: float
+    deadline: float | None
+    history: dict = field(default_factory=lambda: {
+        key: [] for key in ("energy", "residual", "kkt_max", "n_active", "step", "phase",
+                            "time")})
+    timing: dict = field(default_factory=lambda: dict.fromkeys(
+        ("t_smoother", "t_truncation", "t_vcycle", "t_check"), 0.0))
+
+    def record(self, **values) -> None:
+        """Append the step's ``values`` (a new name starts its list) and its time."""
+        for key, value in values.items():
+            self.history.setdefault(key, []).append(value)
+        self.history["time"].append(time.perf_counter() - self.t_solve)
+
+    def close(self, k: int, times: tuple, kkt_max: float, verified: bool, converged: str,
+              stop: Callable[[], bool]) -> tuple[str, str] | None:
+        """Record the check and the phases' times ``(t0, t1, t2, t3)`` of step ``k``, then
+        ask ``stop`` (the caller's callback); ``(status, message)`` if the solve ends here."""
+        t0, t1, t2, t3 = times
+        self.history["kkt_max"].append(kkt_max)
+        self.timing["t_smoother"] += t1 - t0
+        self.timing["t_truncation"] += t2 - t1
+        self.timing["t_vcycle"] += t3 - t2
+        self.timing["t_check"] += time.perf_counter() - t3
+        stopped = stop()
+        if verified:
+            return "converged", converged
+        if stopped:
+            return "max_iter", f"stopped by the caller after {k} steps"
+        if self.deadline is not None and time.perf_counter() > self.deadline:
+            return "time_limit", f"time limit reached after {k} steps"
+        return None
 
 
 @dataclass
@@ -472,8 +612,185 @@ class _FaceCG:
         return v, r, alpha, leave
 
 
+def _kink_search(base: float, curvature: float, kinks: np.ndarray, jumps: np.ndarray,
+                 longest: float) -> float:
+    """The minimiser over ``[0, longest]`` of a convex piecewise quadratic ``phi`` with
+    ``phi'(a) = base + a curvature`` on ``(0, kinks[0])`` and ``phi'`` rising by ``jumps[j]``
+    at ``kinks[j]`` (sorted, positive; ``curvature > 0``): the first piece on whose right
+    end ``phi'`` is not negative holds it, at its stationary point or at its left end (a
+    kink); exact."""
+    ends = np.append(kinks[kinks < longest], longest)
+    slopes = base + np.r_[0.0, np.cumsum(jumps[:ends.size - 1])]   # phi' at each piece's start
+    starts = np.r_[0.0, ends[:-1]]
+    if not np.isfinite(ends[-1]):
+        ends = ends.copy()
+        ends[-1] = max(float(starts[-1]), -float(slopes[-1]) / curvature) + 1.0
+    turning = np.flatnonzero(slopes + ends * curvature >= 0.0)
+    if turning.size == 0:
+        return float(longest)
+    j = int(turning[0])
+    return float(min(max(float(starts[j]), -float(slopes[j]) / curvature), ends[j]))
+
+
+def _tresca_energy(fine: _Fine, v: np.ndarray, r: np.ndarray) -> float:
+    """The transformed Tresca step's energy ``J~(v) + sum_i weight_i |v_t,i - centre_i|``."""
+    return _energy(fine, v, r) + fine.tresca.value(v)
+
+
+def _tresca_step(fine: _Fine, v: np.ndarray, r: np.ndarray, c: np.ndarray, piv: np.ndarray,
+                 upper: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+    """The new iterate of a Tresca step from the truncated correction ``c``: :func:`_step`
+    with the line search on the nonsmooth energy.
+
+    Along the projected correction ``d`` the energy is convex and piecewise quadratic in
+    the step ``a``: the quadratic part, and ``weight_i |z_i + a d_i|`` with a kink at
+    ``-z_i / d_i`` for every slipping row (``z = v_t - centre``); its exact minimiser over
+    the feasible segment (:func:`_kink_search`; a kink reached is written exactly, the row
+    then sticks). Where the normal bounds cut the segment short, the projection arc
+    ``min(v + a c, upper)`` as in :func:`_step`, judged by the nonsmooth energy.
+    """
+    term = fine.tresca
+    slack = upper - v[piv]
+    d = c.copy()
+    d[piv] = np.minimum(d[piv], slack)
+    Ad = fine.matvec(d)
+    curvature, slope = float(d @ Ad), float(r @ d)
+    step, cut = 0.0, True
+    if curvature > 0:
+        rising = d[piv] > 0
+        longest = float(np.min(slack[rising] / d[piv][rising])) if rising.any() else np.inf
+        z, dt = v[term.pivot] - term.centre, d[term.pivot]
+        moving = (dt != 0) & (term.weight > 0)
+        kink = np.full(z.size, -np.inf)
+        kink[moving] = -z[moving] / dt[moving]
+        ahead = moving & (kink > 0)
+        behind = moving & ~ahead
+        base = -slope + float(term.weight[behind] @ np.abs(dt[behind])) \
+            - float(term.weight[ahead] @ np.abs(dt[ahead]))
+        order = np.argsort(kink[ahead], kind="stable")
+        kinks = kink[ahead][order]
+        jumps = 2.0 * (term.weight[ahead] * np.abs(dt[ahead]))[order]
+        step = _kink_search(base, curvature, kinks, jumps, longest)
+        cut = step == 0.0 or (step >= longest and base + longest * curvature + float(
+            jumps[kinks < longest].sum()) < 0.0)
+    v_line, r_line = v + step * d, r - step * Ad
+    if step > 0:
+        reached = (kink == step) if curvature > 0 else np.zeros(term.pivot.size, dtype=bool)
+        v_line[term.pivot[reached]] = term.centre[reached]
+    return _arc_or_line(fine, _tresca_energy, v, c, piv, upper, v_line, r_line, step, cut)
+
+
+def _tresca_stationarity(fine: _Fine, r: np.ndarray, bound: np.ndarray, v: np.ndarray
+                         ) -> float:
+    """:func:`_stationarity` with Tresca's term: at a tangential unknown ``r`` minus the
+    term's derivative where the row slips, the excess of ``|r|`` over the weight where it
+    sticks."""
+    term = fine.tresca
+    res = r.copy()
+    res[bound] = np.minimum(res[bound], 0.0)
+    rt = r[term.pivot]
+    stick = v[term.pivot] == term.centre
+    res[term.pivot] = np.where(stick, np.sign(rt) * np.maximum(np.abs(rt) - term.weight, 0.0),
+                               rt - term.gradient(v))
+    scale = max(float(np.abs(fine.f).max()), float(np.abs(fine.f - r).max()), 1e-300)
+    return float(np.abs(res).max()) / scale
+
+
+def _tresca_solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
+                  u0: np.ndarray | None, opts: Options, callback: Callable | None
+                  ) -> SolveResult:
+    """One 2D Tresca step (``qp.friction``) by TNNMG (module docstring, Tresca friction)."""
+    t_start = time.perf_counter()
+    fine = _fine_system(qp, tresca=True)
+    box, term = fine.box, fine.tresca
+    piv, upper, tpiv = box.pivot, box.upper, term.pivot
+    ml = _hierarchy(qp, fine, opts.sweeps or AUTO_SWEEPS.get(qp.dim, 2),
+                    opts.coarse == "truncated", opts.patch, np.concatenate([piv, tpiv]))
+    nb = box.node_ptr.size - 1
+    mode_nonlinear = np.full(nb, FREE, dtype=np.int64)
+    mode_nonlinear[fine.bounded_blocks] = TRESCA
+    block_of_row = np.empty(qp.m, dtype=np.int64)
+    block_of_row[box.block_row[fine.bounded_blocks]] = fine.bounded_blocks
+    v = np.zeros(qp.n) if u0 is None else box.to_v(np.asarray(u0, dtype=float))
+    v[piv] = np.minimum(v[piv], upper)
+    setup_time = time.perf_counter() - t_start
+    deadline = None if time_limit is None else t_start + time_limit
+
+    log = _StepLog(time.perf_counter(), deadline)
+    status, message, k = "max_iter", f"not verified after {max_iter} steps", 0
+    forward = True
+    for k in range(1, max_iter + 1):
+        t0 = time.perf_counter()
+        for _ in range(opts.presmoothing):
+            fine.sweep(v, fine.f, mode_nonlinear, forward)
+            forward = not forward
+        t1 = time.perf_counter()
+        r = fine.f - fine.matvec(v)
+        active, stick = v[piv] >= upper, term.stick(v)
+        mode = np.full(nb, FREE, dtype=np.int64)
+        mode[block_of_row[active]] = FIXED
+        mode[block_of_row[stick]] = TANGENT_FIXED
+        mode[block_of_row[active & stick]] = BOTH_FIXED
+        E = np.concatenate([piv[active], tpiv[stick]])
+        ml.truncate(E, mode)
+        t2 = time.perf_counter()
+        g = r.copy()
+        g[tpiv] -= term.gradient(v)
+        g[E] = 0.0
+        c = ml.vcycle(g)
+        v, r, step = _tresca_step(fine, v, r, c, piv, upper)
+        t3 = time.perf_counter()
+        bound = v[piv] >= upper
+        residual = _tresca_stationarity(fine, r, piv[bound], v)
+        log.record(energy=_tresca_energy(fine, v, r), residual=residual,
+                   n_active=int(np.count_nonzero(bound)), step=step, phase="tnnmg",
+                   n_stick=int(np.count_nonzero(term.stick(v))))
+        verified, kkt_max = False, np.nan
+        if residual <= CHECK_FACTOR * tol or callback is not None:
+            u, p = box.to_u(v), box.multipliers(r, bound)
+            lam = term.multipliers(r, qp.friction.slip_bound)
+        if residual <= CHECK_FACTOR * tol:         # the suite's verification decides
+            kkt_max = friction_residuals(qp, u, p, lam).max
+            verified = kkt_max <= tol and (opts.stop == "kkt"
+                                           or certify(qp, u, p, tol, lam=lam).meets(tol))
+        end = log.close(k, (t0, t1, t2, t3), kkt_max, verified,
+                        f"verified after {k} steps",
+                        lambda: callback is not None and callback(u, p))
+        if end is not None:
+            status, message = end
+            break
+    if k == 0:
+        r = fine.f - fine.matvec(v)
+    bound = v[piv] >= upper
+    u, p = box.to_u(v), box.multipliers(r, bound)
+    lam = term.multipliers(r, qp.friction.slip_bound)
+    stick = term.stick(v)
+    stats = {"friction": "tresca_step", "n_steps": k, "n_cg": 0, "n_vcycles": k,
+             "presmoothing": opts.presmoothing,
+             "truncation_updates": ml.updates, "n_active": int(np.count_nonzero(p > 0)),
+             "n_stick": int(np.count_nonzero(stick)),
+             "n_slip": int(np.count_nonzero(~stick & (term.weight > 0))),
+             "n_levels": len(ml.coarse_ops) + 1, **log.timing}
+    return SolveResult(u=u, p=p, claimed_status=status, message=message, iterations=k,
+                       setup_time=setup_time, solve_time=time.perf_counter() - log.t_solve,
+                       history=log.history, stats=stats, tangential=lam)
+
+
 def supports(qp: ContactQP) -> tuple[bool, str]:
-    """Nodal constraints with one row per constrained node (:mod:`solvers.contact_box`)."""
+    """Nodal constraints with one row per constrained node (:mod:`solvers.contact_box`);
+    with friction, one 2D Tresca step whose tangential rows become coordinates too (a
+    Coulomb problem's step at its given slip bound: the fixed point ``s = mu p`` is the
+    load path's)."""
+    fr = qp.friction
+    if fr is not None:
+        if qp.dim != 2:
+            return False, ("Tresca friction in 3D: the node block's exact minimiser with a "
+                           "disc of tangential slips is not built (2D only)")
+        try:
+            box_transformation(qp, fr.T)
+        except TransformationError as err:
+            return False, f"the constraints cannot be turned into bounds: {err}"
+        return True, ""
     ok, reason = check_structure(qp)
     return ok, (f"the constraints cannot be turned into bounds: {reason}" if not ok else "")
 
@@ -485,8 +802,11 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
 
     ``callback(u, p)``, if given, is called after every step, after ``history["time"]``
     is stamped (its cost is the caller's to subtract), and stops an unverified run by
-    returning True (status ``max_iter``).
+    returning True (status ``max_iter``). A Tresca step (``qp.friction``) goes to
+    :func:`_tresca_solve`.
     """
+    if qp.friction is not None:
+        return _tresca_solve(qp, tol, max_iter, time_limit, u0, opts, callback)
     t_start = time.perf_counter()
     fine = _fine_system(qp)
     ml = _hierarchy(qp, fine, opts.sweeps or AUTO_SWEEPS.get(qp.dim, 2),
@@ -500,10 +820,7 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
     setup_time = time.perf_counter() - t_start
     deadline = None if time_limit is None else t_start + time_limit
 
-    t_solve = time.perf_counter()
-    history = {"energy": [], "residual": [], "kkt_max": [], "n_active": [], "step": [],
-               "phase": [], "time": []}
-    timing = {"t_smoother": 0.0, "t_truncation": 0.0, "t_vcycle": 0.0, "t_check": 0.0}
+    log = _StepLog(time.perf_counter(), deadline)
     status, message, k = "max_iter", f"not verified after {max_iter} steps", 0
     forward, cg, n_cg, previous = True, None, 0, None
     for k in range(1, max_iter + 1):
@@ -537,12 +854,8 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
                 cg = None
         t3 = time.perf_counter()
         residual = _stationarity(fine, r, piv[bound])
-        history["energy"].append(_energy(fine, v, r))
-        history["residual"].append(residual)
-        history["n_active"].append(int(np.count_nonzero(bound)))
-        history["step"].append(step)
-        history["phase"].append(phase)
-        history["time"].append(time.perf_counter() - t_solve)
+        log.record(energy=_energy(fine, v, r), residual=residual,
+                   n_active=int(np.count_nonzero(bound)), step=step, phase=phase)
         verified, kkt_max = False, np.nan
         if residual <= CHECK_FACTOR * tol or callback is not None:
             u, p = box.to_u(v), box.multipliers(r, bound)
@@ -550,30 +863,21 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
             kkt_max = kkt_residuals(qp, u, p).max
             verified = kkt_max <= tol and (opts.stop == "kkt"
                                            or certify(qp, u, p, tol).meets(tol))
-        history["kkt_max"].append(kkt_max)
-        timing["t_smoother"] += t1 - t0
-        timing["t_truncation"] += t2 - t1
-        timing["t_vcycle"] += t3 - t2
-        timing["t_check"] += time.perf_counter() - t3
-        stop = callback is not None and callback(u, p)
-        if verified:
-            status, message = "converged", f"verified after {k} steps ({n_cg} of them CG)"
-            break
-        if stop:
-            status, message = "max_iter", f"stopped by the caller after {k} steps"
-            break
-        if deadline is not None and time.perf_counter() > deadline:
-            status, message = "time_limit", f"time limit reached after {k} steps"
+        end = log.close(k, (t0, t1, t2, t3), kkt_max, verified,
+                        f"verified after {k} steps ({n_cg} of them CG)",
+                        lambda: callback is not None and callback(u, p))
+        if end is not None:
+            status, message = end
             break
     if k == 0:
         r = fine.f - fine.matvec(v)
     u, p = box.to_u(v), box.multipliers(r, v[piv] >= upper)
     stats = {"n_steps": k, "n_cg": n_cg, "n_vcycles": k, "presmoothing": opts.presmoothing,
              "truncation_updates": ml.updates, "n_active": int(np.count_nonzero(p > 0)),
-             "n_levels": len(ml.coarse_ops) + 1, **timing}
+             "n_levels": len(ml.coarse_ops) + 1, **log.timing}
     return SolveResult(u=u, p=p, claimed_status=status, message=message, iterations=k,
-                       setup_time=setup_time, solve_time=time.perf_counter() - t_solve,
-                       history=history, stats=stats)
+                       setup_time=setup_time, solve_time=time.perf_counter() - log.t_solve,
+                       history=log.history, stats=stats)
 
 
 SOLVER = SolverSpec(
@@ -609,6 +913,7 @@ SOLVER = SolverSpec(
     presets=VERIFIED_PRESETS,
     default_max_iter=500,
     role=Role.NEWTON,
+    handles_friction=True,
     # not that it solves the stabilised problem: handed over as it is, ``supports`` sees
     # its C block and names it as the reason to skip (its slack form would hide why)
     handles_C=True,
