@@ -37,6 +37,7 @@ import matplotlib.tri as mtri
 import numpy as np
 import pandas as pd
 
+from reference.roll_stack import THESIS_FIG_9_11
 from report.claims import Claim
 from report.figures import save_figure
 from workflows.io import read_checked, read_csv, write_csv
@@ -183,7 +184,10 @@ def mesh_figure(vtu: str, path: str) -> None:
         a.set_aspect("equal")
         a.set_xlabel("y (rolling direction) [m]")
         a.set_ylabel("z [m]")
-    ax[0].set_title(f"cut x = 0: {len(pts):,} nodes, {len(cells):,} tetrahedra", fontsize=8)
+    thesis = THESIS_FIG_9_11
+    ax[0].set_title(f"cut x = 0: {len(pts):,} nodes, {len(cells):,} tetrahedra\n(thesis "
+                    f"Fig. 9.11: {thesis['nodes']:,} nodes, {thesis['tetrahedra']:,} "
+                    f"tetrahedra, {thesis['inequalities']:,} inequalities)", fontsize=8)
     z0 = float(pts[body == 0, 2].max())
     ax[1].set_xlim(-0.002, 0.03)
     ax[1].set_ylim(z0 - 0.02, z0 + 0.02)
@@ -274,10 +278,22 @@ def sag_figure(profiles: pd.DataFrame, path: str) -> None:
             a.set_xlabel("x along the rolls [m]")
             a.set_ylabel("vertical displacement (up) [um]")
             a.grid(alpha=0.3)
-            a.legend(fontsize=6)
         ax[row, 0].set_title(f"{_label(force)}: sag along lines (as measured)", fontsize=8)
         ax[row, 1].set_title(f"{_label(force)}: with the crown (Schliff) added back", fontsize=8)
+    grouped_legend(ax[0, 1], {label: color for group in (curves, crowned_curves)
+                              for _, label, color in group},
+                   {"FE": "-", "beam model": "--"})
     save_figure(fig, path)
+
+
+def grouped_legend(ax, colours: dict[str, str], styles: dict[str, str]) -> None:
+    """One legend right of ``ax``, clear of the data: each curve by its colour, then each
+    source by its line style (explained once, not per curve)."""
+    from matplotlib.lines import Line2D
+    handles = [Line2D([], [], color=c, lw=2, label=label) for label, c in colours.items()]
+    handles += [Line2D([], [], color="0.3", ls=ls, label=label) for label, ls in styles.items()]
+    ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0,
+              fontsize=7)
 
 
 def strip_figure(profiles: pd.DataFrame, path: str) -> None:
@@ -289,14 +305,15 @@ def strip_figure(profiles: pd.DataFrame, path: str) -> None:
         lab = f"{_label(force)}, crown {crown * UM:g} um"
         fe = g[g.source == "fe"].dropna(subset=["strip_profile"]).sort_values("x")
         bm = g[g.source == "beam"].dropna(subset=["strip_profile"]).sort_values("x")
-        ax.plot(fe.x, fe.strip_profile * UM, "o-", ms=3, color=c, label=f"FE (axis + crown), {lab}")
-        ax.plot(fe.x, fe.strip_profile_surface * UM, ":", color=c, label=f"FE (bottom line), {lab}")
-        ax.plot(bm.x, bm.strip_profile * UM, "--", color=c, label=f"beam, {lab}")
+        ax.plot(fe.x, fe.strip_profile * UM, "o-", ms=3, color=c)
+        ax.plot(fe.x, fe.strip_profile_surface * UM, ":", color=c)
+        ax.plot(bm.x, bm.strip_profile * UM, "--", color=c)
         styles[lab] = c
     ax.set_xlabel("x across the strip [m]")
     ax.set_ylabel("strip thickness h(x) - h(0) [um]")
     ax.grid(alpha=0.3)
-    ax.legend(fontsize=6)
+    grouped_legend(ax, styles, {"FE (axis + crown)": "-", "FE (bottom line)": ":",
+                                "beam model": "--"})
     save_figure(fig, path)
 
 

@@ -39,6 +39,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
+from report import charts  # noqa: E402
 from report.claims import Claim  # noqa: E402
 from report.figures import (nothing_to_draw, save_figure, solver_legend,  # noqa: E402
                             solver_style)
@@ -113,41 +114,105 @@ def summary(t: pd.DataFrame, by: tuple[str, ...] = ()) -> pd.DataFrame:
     return out.sort_values([*by, "preset", "sgm_time"]).reset_index(drop=True)
 
 
-def performance_profiles(t: pd.DataFrame, path: str) -> None:
-    """One panel per preset: share of problems solved (verified) within tau x the best."""
-    presets = [p for p in TOLERANCES if p in set(t.preset)]
-    fig, axes = plt.subplots(1, len(presets), figsize=(5.2 * len(presets), 4.4), squeeze=False)
-    for ax, preset in zip(axes[0], presets):
+#: The performance profiles' range of tau (time within tau x the best verified).
+TAU_MAX = 1e3
+
+
+def profile_frame(t: pd.DataFrame) -> pd.DataFrame:
+    """The performance profiles as data (preset, solver, tau, share, problems): per preset
+    and solver, the share of problems verified converged within ``tau`` x the best
+    verified time, at tau = 1, at every finite ratio up to :data:`TAU_MAX` and at
+    :data:`TAU_MAX` (a step curve: the share holds until the next tau)."""
+    rows = []
+    for preset in [p for p in TOLERANCES if p in set(t.preset)]:
         g = t[t.preset == preset]
         times = g.pivot_table(index="problem", columns="solver", values="time", aggfunc="first")
         ok = g.pivot_table(index="problem", columns="solver", values="status",
                            aggfunc="first") == "converged"
         times = times.where(ok.reindex_like(times).fillna(False))
-        best = times.min(axis=1)
-        ratio = times.div(best, axis=0).fillna(np.inf)
-        taus = np.logspace(0, 3, 300)
+        ratio = times.div(times.min(axis=1), axis=0).fillna(np.inf)
         for solver in sorted(ratio.columns):
-            share = [(ratio[solver] <= tau).mean() for tau in taus]
+            r = ratio[solver].to_numpy(float)
+            taus = np.unique([1.0, *r[np.isfinite(r) & (r <= TAU_MAX)], TAU_MAX])
+            rows += [{"preset": preset, "solver": solver, "tau": float(tau),
+                      "share": float((r <= tau).mean()), "problems": len(r)} for tau in taus]
+    return pd.DataFrame(rows, columns=["preset", "solver", "tau", "share", "problems"])
+
+
+def performance_profiles(profiles: pd.DataFrame, path: str) -> None:
+    """One panel per preset: share of problems solved (verified) within tau x the best
+    (``profiles``: :func:`profile_frame`)."""
+    presets = [p for p in TOLERANCES if p in set(profiles.preset)]
+    if not presets:
+        nothing_to_draw(path, "Performance profiles over the contact QP test set",
+                        "no solver ran on the test set")
+        return
+    fig, axes = plt.subplots(1, len(presets), figsize=(5.2 * len(presets), 4.4), squeeze=False)
+    for ax, preset in zip(axes[0], presets):
+        g = profiles[profiles.preset == preset]
+        for solver, curve in g.groupby("solver"):
             style = solver_style(solver)
-            ax.semilogx(taus, share, lw=1.5, color=style["color"], marker=style["marker"],
-                        markevery=0.1, ms=4)
+            ax.semilogx(curve.tau, curve.share, lw=1.5, color=style["color"],
+                        drawstyle="steps-post")
+            ax.semilogx(curve.tau.iloc[:-1], curve.share.iloc[:-1], style["marker"],
+                        color=style["color"], ms=4, ls="none")
         ax.set_xlabel("tau: time within this factor of the best verified")
         ax.set_ylabel("share of problems")
-        ax.set_title(f"preset {preset} ({len(ratio)} problems)", fontsize=9)
+        ax.set_title(f"preset {preset} ({int(g.problems.max())} problems)", fontsize=9)
+        ax.set_xlim(1.0, TAU_MAX)
         ax.set_ylim(0, 1.02)
         ax.grid(True, which="both", alpha=0.3)
-    solver_legend(axes[0][-1], sorted(t.solver.unique()), status=False)
+    solver_legend(axes[0][-1], sorted(profiles.solver.unique()), status=False)
     fig.suptitle("Performance profiles (Dolan-Moré) over the contact QP test set; "
                  "only verified runs count", fontsize=10)
     save_figure(fig, path)
 
 
-def work_precision(t: pd.DataFrame, family: str, path: str) -> None:
-    """Energy error against time for every solver on one family: one panel per level,
-    one line per solver through its presets (runs without a solution left out; a run
-    that is not verified converged drawn hollow). A family without any such run gets
-    no axes, only the reason (:func:`report.figures.nothing_to_draw`)."""
+def profiles_chart(profiles: pd.DataFrame) -> tuple[str, dict]:
+    """The performance profiles as an interactive chart (note, Vega-Lite spec)."""
+    spec = charts.solver_chart(
+        profiles, ("tau", "tau: time within this factor of the best verified", True),
+        ("share", "share of problems", False),
+        "Performance profiles (Dolan-Moré) over the contact QP test set",
+        tooltip=("preset", "problems"), facet="preset", interpolate="step-after")
+    return ("One panel per preset: the share of problems each solver solves, verified "
+            "converged, within tau times the best verified time.", spec)
+
+
+def work_frame(t: pd.DataFrame, family: str) -> pd.DataFrame:
+    """The work-precision data of one family: every run with an energy error against the
+    exact reference (level, n, solver, preset, time, energy_error floored at 1e-16,
+    verified, status, problem), presets in their order low, mid, high."""
     g = t[(t.family == family) & np.isfinite(t.energy_error.astype(float))]
+    g = g.assign(order=g.preset.map({p: k for k, p in enumerate(TOLERANCES)}))
+    g = g.sort_values(["level", "solver", "order"])
+    return pd.DataFrame({"family": family, "level": g.level.astype(int),
+                         "n": g.n.astype(int), "solver": g.solver, "preset": g.preset,
+                         "time": g.time.astype(float),
+                         "energy_error": np.maximum(g.energy_error.astype(float), 1e-16),
+                         "verified": g.status == "converged", "status": g.status,
+                         "problem": g.problem}).reset_index(drop=True)
+
+
+def work_chart(work: pd.DataFrame, family: str) -> tuple[str, dict]:
+    """One family's work-precision as an interactive chart (note, Vega-Lite spec)."""
+    spec = charts.solver_chart(
+        work, ("time", "solver time (s)", True),
+        ("energy_error", "energy error ||u - u_ref||_A / ||u_ref||_A", True),
+        f"Work-precision, family {family}",
+        tooltip=("preset", "status", "level", "n", "problem"), facet="level",
+        filled="verified")
+    return ("One panel per level, one line per solver through its presets low, mid, high; "
+            "hollow: not verified converged.", spec)
+
+
+def work_precision(work: pd.DataFrame, family: str, path: str) -> None:
+    """Energy error against time for every solver on one family (``work``:
+    :func:`work_frame`): one panel per level, one line per solver through its presets
+    (runs without a solution left out; a run that is not verified converged drawn
+    hollow). A family without any such run gets no axes, only the reason
+    (:func:`report.figures.nothing_to_draw`)."""
+    g = work
     levels = sorted(g.level.unique())
     if not levels:
         nothing_to_draw(path, f"Work-precision, family {family}",
@@ -161,12 +226,10 @@ def work_precision(t: pd.DataFrame, family: str, path: str) -> None:
         gl = g[g.level == level]
         for solver in sorted(gl.solver.unique()):
             r = gl[gl.solver == solver]
-            r = r.assign(order=r.preset.map({p: k for k, p in enumerate(TOLERANCES)}))
-            r = r.sort_values("order")
             style = solver_style(solver)
-            err = np.maximum(r.energy_error.astype(float), 1e-16)
+            err = r.energy_error
             ax.loglog(r.time, err, "-", color=style["color"], lw=1.2)
-            ok = r.status == "converged"
+            ok = r.verified
             ax.loglog(r.time[ok], err[ok], style["marker"], color=style["color"], ms=5)
             ax.loglog(r.time[~ok], err[~ok], style["marker"], mfc="none", color=style["color"],
                       ms=5)
@@ -226,16 +289,26 @@ def main(argv=None) -> None:
     ap.add_argument("--profiles", required=True, help="PNG: performance profiles")
     ap.add_argument("--work-precision", nargs="*", default=[], metavar="FAMILY=PNG",
                     help="work-precision figures, one per family")
+    ap.add_argument("--charts", default=None,
+                    help="HTML: the profiles and work-precision as interactive charts")
     args = ap.parse_args(argv)
     t = runs(args.inputs, args.time_limit)
     write_csv(args.summary, summary(t))
     write_csv(args.by_class, summary(t, ("size_class",)))
     write_csv(args.by_scene, summary(t, ("scene",)))
     write_csv(args.claims, claims(t))
-    performance_profiles(t, args.profiles)
+    profiles = profile_frame(t)
+    performance_profiles(profiles, args.profiles)
+    pages = [profiles_chart(profiles)] if len(profiles) else []
     for item in args.work_precision:
         family, _, path = item.partition("=")
-        work_precision(t, family, path)
+        work = work_frame(t, family)
+        work_precision(work, family, path)
+        if len(work):
+            pages.append(work_chart(work, family))
+    if args.charts:
+        charts.write_page(args.charts, pages, "The contact QP test set: performance "
+                          "profiles and work-precision, interactive")
 
 
 if __name__ == "__main__":

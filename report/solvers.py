@@ -12,6 +12,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
+from report import charts  # noqa: E402
 from report.figures import (PRESET_LINES, nothing_to_draw, save_figure,  # noqa: E402
                             solver_legend, solver_style)
 from report.rates import fitted_slope  # noqa: E402
@@ -64,24 +65,33 @@ def _scene(table: pd.DataFrame) -> str:
     return ", ".join(names) or "unknown scene"
 
 
-def times_figure(table: pd.DataFrame, path: str) -> None:
-    """Wall time against problem size per solver and preset: colour and marker the solver
+def times_frame(table: pd.DataFrame) -> pd.DataFrame:
+    """The data of the times figure: every solver run (the exact reference left out) with
+    its size n, preset, wall time, status and whether it is verified converged, sorted
+    by solver, preset and n."""
+    runs = table[table.preset != "reference"].sort_values(["solver", "preset", "n"])
+    return pd.DataFrame({"solver": runs.solver, "preset": runs.preset, "level": runs.level,
+                         "n": runs.n.astype(int), "total_time": runs.total_time.astype(float),
+                         "status": runs.status, "verified": runs.status == "converged"}
+                        ).reset_index(drop=True)
+
+
+def times_figure(runs: pd.DataFrame, scene: str, path: str) -> None:
+    """Wall time against problem size per solver and preset (``runs``:
+    :func:`times_frame`): colour and marker the solver
     (:func:`report.figures.solver_style`), line style the preset, filled markers the
     verified-converged runs; the slope-1 guide only where there are two sizes or more."""
-    runs = table[table.preset != "reference"]
-    scene = _scene(table)
     sizes = np.array(sorted(runs["n"].unique()), dtype=float)
     if runs.empty:
         nothing_to_draw(path, f"{scene}: time per solver", "no solver ran on this scene")
         return
     fig, ax = plt.subplots(figsize=(8.5, 4.8))
     for (solver, preset), grp in runs.groupby(["solver", "preset"]):
-        grp = grp.sort_values("n")
         style = solver_style(solver)
         lw = 2 if solver == FLOOR else 1
         ax.loglog(grp["n"], grp["total_time"], PRESET_LINES.get(preset, "-"), color=style["color"],
                   lw=lw, alpha=0.8)
-        ok = grp["status"] == "converged"
+        ok = grp["verified"]
         ax.loglog(grp["n"][ok], grp["total_time"][ok], style["marker"], color=style["color"],
                   ms=6, ls="none")
         ax.loglog(grp["n"][~ok], grp["total_time"][~ok], style["marker"], color=style["color"],
@@ -102,11 +112,34 @@ def times_figure(table: pd.DataFrame, path: str) -> None:
     save_figure(fig, path)
 
 
-def work_precision_figure(table: pd.DataFrame, path: str) -> None:
-    """Energy-norm error against time, one curve per solver and level (points = presets)."""
+def times_chart(runs: pd.DataFrame, scene: str) -> tuple[str, dict]:
+    """The times figure as an interactive chart (note, Vega-Lite spec)."""
+    spec = charts.solver_chart(
+        runs, ("n", "unknowns N (free DOFs)", True),
+        ("total_time", "wall time, setup + solve [s]", True),
+        f"{scene}: time per solver and preset", tooltip=("preset", "level", "status"),
+        line_by=("preset",), dash="preset", filled="verified")
+    return ("Colour and shape: the solver; line style: the preset; hollow: not verified "
+            "converged.", spec)
+
+
+def work_frame(table: pd.DataFrame) -> pd.DataFrame:
+    """The data of the work-precision figure: every solver run with an energy error
+    against the exact reference (floored at 1e-16), presets in their order."""
     runs = table[(table.preset != "reference") & (table.solver != FLOOR)
                  & np.isfinite(table.energy_error)]
-    scene = _scene(table)
+    runs = runs.assign(order=runs["preset"].map({k: i for i, k in enumerate(TOLERANCES)}))
+    runs = runs.sort_values(["solver", "level", "order"])
+    return pd.DataFrame({"solver": runs.solver, "level": runs.level.astype(int),
+                         "preset": runs.preset, "total_time": runs.total_time.astype(float),
+                         "energy_error": np.maximum(runs.energy_error.astype(float), 1e-16),
+                         "status": runs.status, "verified": runs.status == "converged"}
+                        ).reset_index(drop=True)
+
+
+def work_precision_figure(runs: pd.DataFrame, scene: str, path: str) -> None:
+    """Energy-norm error against time, one curve per solver and level (points = presets;
+    ``runs``: :func:`work_frame`)."""
     if runs.empty:
         nothing_to_draw(path, f"{scene}: work-precision",
                         "no run has an energy error against the exact reference")
@@ -115,12 +148,9 @@ def work_precision_figure(table: pd.DataFrame, path: str) -> None:
     levels = sorted(runs.level.unique())
     styles = dict(zip(levels, ["-", "--", ":", "-.", (0, (1, 3))]))
     for (solver, level), grp in runs.groupby(["solver", "level"]):
-        order = grp["preset"].map({k: i for i, k in enumerate(TOLERANCES)}).argsort()
-        grp = grp.iloc[order]
-        err = np.maximum(grp["energy_error"], 1e-16)
         style = solver_style(solver)
-        ax.loglog(grp["total_time"], err, linestyle=styles[level], color=style["color"], lw=1,
-                  marker=style["marker"], ms=4)
+        ax.loglog(grp["total_time"], grp["energy_error"], linestyle=styles[level],
+                  color=style["color"], lw=1, marker=style["marker"], ms=4)
     ax.set_xlabel("wall time, setup + solve [s]")
     ax.set_ylabel(r"energy-norm error $\|u-u_{ref}\|_A/\|u_{ref}\|_A$ (floored at 1e-16)")
     ax.set_title(f"{scene}: work-precision, presets low/mid/high along each curve; "
@@ -131,6 +161,17 @@ def work_precision_figure(table: pd.DataFrame, path: str) -> None:
     save_figure(fig, path)
 
 
+def work_chart(runs: pd.DataFrame, scene: str) -> tuple[str, dict]:
+    """The work-precision figure as an interactive chart (note, Vega-Lite spec)."""
+    spec = charts.solver_chart(
+        runs, ("total_time", "wall time, setup + solve [s]", True),
+        ("energy_error", "energy-norm error ||u - u_ref||_A / ||u_ref||_A", True),
+        f"{scene}: work-precision", tooltip=("preset", "level", "status"),
+        line_by=("level",), filled="verified")
+    return ("One line per solver and level through the presets low, mid, high; hollow: "
+            "not verified converged.", spec)
+
+
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--inputs", nargs="+", required=True)
@@ -139,6 +180,8 @@ def main(argv=None) -> None:
     ap.add_argument("--times", required=True)
     ap.add_argument("--work", required=True)
     ap.add_argument("--costs", required=True)
+    ap.add_argument("--charts", default=None,
+                    help="HTML: the times and work-precision as interactive charts")
     args = ap.parse_args(argv)
     table = pd.concat([read_csv(f) for f in args.inputs], ignore_index=True)
     keep = ["scene_problem", "level", "N", "n", "m", "solver", "preset", "tol", "status",
@@ -151,8 +194,15 @@ def main(argv=None) -> None:
     write_csv(args.table, table)
     write_csv(args.presets, preset_table())
     write_csv(args.costs, cost_table(table))
-    times_figure(table, args.times)
-    work_precision_figure(table, args.work)
+    scene = _scene(table)
+    times, work = times_frame(table), work_frame(table)
+    times_figure(times, scene, args.times)
+    work_precision_figure(work, scene, args.work)
+    if args.charts:
+        charts.write_page(args.charts, [c for c, data in ((times_chart(times, scene), times),
+                                                          (work_chart(work, scene), work))
+                                        if len(data)],
+                          f"{scene}: solver times and work-precision, interactive")
 
 
 if __name__ == "__main__":

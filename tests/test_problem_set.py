@@ -232,12 +232,23 @@ def test_runs_script_on_one_family(small, tmp_path):
     summary_main(["--inputs", str(out), "--time-limit", "20", "--summary", str(files["summary"]),
                   "--by-class", str(files["by_class"]), "--by-scene", str(files["by_scene"]),
                   "--claims", str(files["claims"]), "--profiles", str(tmp_path / "p.png"),
+                  "--charts", str(tmp_path / "p.html"),
                   "--work-precision", f"flat_blocks_stabilised={tmp_path / 'w.png'}"])
     s = pd.read_csv(files["summary"])
     assert set(s.solver) == {"pdas", "osqp", "semismooth_newton"} and (s.problems == 2).all()
     assert (pd.read_csv(files["by_scene"]).scene == "flat_blocks").all()
     assert pd.read_csv(files["claims"])["pass"].iloc[0]
     assert (tmp_path / "w.png").read_bytes()[:4] == b"\x89PNG"
+    from report.charts import page_specs, spec_problems
+    profiles, work = page_specs((tmp_path / "p.html").read_text())
+    assert spec_problems(profiles) == [] and spec_problems(work) == []
+    assert {r["solver"] for r in profiles["data"]["values"]} == set(s.solver)
+    shares = pd.DataFrame(profiles["data"]["values"])
+    assert shares["share"].between(0, 1).all() and (shares.groupby(
+        ["preset", "solver"])["share"].apply(lambda x: x.is_monotonic_increasing)).all()
+    # the work-precision chart has the runs the PNG draws: one per run with an energy error
+    solved = t[~t.solver.isin(["reference", "linear_floor"])]
+    assert len(work["data"]["values"]) == int(solved.energy_error.notna().sum())
 
 
 def test_a_rebuilt_problem_that_differs_from_its_export_is_refused(small, tmp_path):

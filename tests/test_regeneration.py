@@ -8,6 +8,7 @@ interrupted (SIGINT to the whole process group, as Ctrl-C does) and then resumed
 """
 from __future__ import annotations
 
+import base64
 import os
 import re
 import shutil
@@ -217,6 +218,25 @@ def test_html_report_opens_in_chromium_with_every_figure(tiny_run):
     assert all(size[0] > 100 and size[1] > 100 for size in shown.values()), shown
 
 
+def report_html(run: Path) -> Path:
+    """The run's Snakemake report (``report.html``), made if not yet there."""
+    report = run / "report.html"
+    if not report.exists():
+        out = regenerate(run, "--report", "report.html")
+        assert out.returncode == 0, out.stderr[-3000:]
+    return report
+
+
+def open_result(page, path: str) -> None:
+    """Open the report's result ``path`` as a reader would: home, the report's search,
+    the result's eye button."""
+    page.locator("nav ol li a").first.click()                 # home
+    search = page.locator("input[placeholder='Search...']")
+    search.fill(path)
+    search.press("Enter")
+    page.locator(f"tr:has-text('{path}')").first.locator("a[iconname=eye]").click()
+
+
 def report_figures(page) -> dict[str, tuple[int, int]]:
     """Every PNG the report registers, found through the report's own search and opened
     with its eye button as a reader would; returns file name -> the decoded image's
@@ -224,11 +244,7 @@ def report_figures(page) -> dict[str, tuple[int, int]]:
     registered = page.evaluate("Object.keys(results)")
     shown = {}
     for path in (k for k in registered if k.endswith(".png")):
-        page.locator("nav ol li a").first.click()                 # home
-        search = page.locator("input[placeholder='Search...']")
-        search.fill(path)
-        search.press("Enter")
-        page.locator(f"tr:has-text('{path}')").first.locator("a[iconname=eye]").click()
+        open_result(page, path)
         name = Path(path).name
         img = page.wait_for_selector(f"img[src*='filename={name};']", timeout=20_000)
         shown[path] = tuple(page.evaluate(
@@ -243,10 +259,7 @@ def test_summary_page_renders_in_the_report(tiny_run):
         pytest.skip("no Chromium on this machine (`make test` installs Debian's chromium)")
     from playwright.sync_api import sync_playwright
 
-    report = tiny_run / "report.html"
-    if not report.exists():
-        out = regenerate(tiny_run, "--report", "report.html")
-        assert out.returncode == 0, out.stderr[-3000:]
+    report = report_html(tiny_run)
     with sync_playwright() as p:
         browser = p.chromium.launch(executable_path=chromium(), args=BROWSER_ARGS)
         page = browser.new_page()
@@ -309,6 +322,77 @@ def test_every_figure_is_drawn_and_titled_with_its_own_scene(tiny_run):
               if log.is_file() for line in log.read_text(errors="replace").splitlines()
               if PLOT_WARNING.search(line)]
     assert not warned, warned[:5]
+
+
+def charts_of_run() -> list[str]:
+    """The interactive chart pages the run registers: one beside each charted figure
+    (report/charts.py: CHARTED)."""
+    from report.charts import chart_path, charted
+    return sorted({chart_path(t) for t in targets() if t.endswith(".png") and charted(t)})
+
+
+def test_every_chart_is_valid_vega_lite_with_the_figures_colours(tiny_run):
+    """Each registered chart page: Vega-Lite v5 specs (Snakemake's bundled version) with
+    inline, non-empty data and encodings naming fields of the data, every solver in the
+    PNGs' colour, and the scripts inline (nothing fetched from the network)."""
+    from report.charts import SCRIPTS, page_scripts, page_specs, spec_problems
+    from matplotlib.colors import to_hex
+
+    from report.figures import solver_style
+    pages = charts_of_run()
+    assert len(pages) >= 2, pages       # the test set's, and circle_square's solver times
+    for rel in pages:
+        text = (tiny_run / rel).read_text()
+        assert not re.search(r"<script[^>]+src=|<link[^>]+href=\s*['\"]?http", text), rel
+        assert set(page_scripts(text)) == set(SCRIPTS) and "vegaEmbed" in text
+        assert len(base64.b64encode(text.encode())) < 2_000_000     # the report frames it
+        specs = page_specs(text)
+        assert specs, rel
+        for spec in specs:
+            assert spec_problems(spec) == [], (rel, spec.get("title"), spec_problems(spec))
+            layers = spec.get("spec", spec)["layer"]
+            scale = layers[0]["encoding"]["color"]["scale"]
+            assert scale["range"] == [to_hex(solver_style(s)["color"]) for s in scale["domain"]]
+            assert set(scale["domain"]) == {row["solver"] for row in spec["data"]["values"]}
+
+
+def test_every_chart_renders_inside_the_report_offline(tiny_run):
+    """Snakemake's report in headless Chromium with every request outside the file
+    refused: each chart page, opened from the report as a reader would, draws every one
+    of its charts (an svg or canvas in each embed) and logs no error."""
+    if chromium() is None:
+        pytest.skip("no Chromium on this machine (`make test` installs Debian's chromium)")
+    from playwright.sync_api import sync_playwright
+
+    from report.charts import page_specs
+    report = report_html(tiny_run)
+    pages = charts_of_run()
+    drawn, requests, errors = {}, [], []
+    with sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=chromium(), args=BROWSER_ARGS)
+        page = browser.new_page(viewport={"width": 1400, "height": 900})
+        page.route(re.compile(r"^(https?|wss?)://"),
+                   lambda route: (requests.append(route.request.url), route.abort()))
+        page.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
+        page.on("pageerror", lambda e: errors.append(str(e)))
+        page.goto(report.as_uri())
+        page.wait_for_selector("text=0 summary", timeout=60_000)
+        for rel in pages:
+            open_result(page, rel)
+            frame = page.frame_locator("iframe").first
+            embeds = frame.locator("div.chart")
+            embeds.first.wait_for(timeout=20_000)
+            n = embeds.count()
+            marks = frame.locator("div.chart :is(svg.marks, canvas.marks)")   # vega's drawing
+            marks.nth(n - 1).wait_for(timeout=30_000)
+            drawn[rel] = (n, marks.count(),
+                          frame.locator("div.chart", has_text="chart failed").count())
+        browser.close()
+    for rel in pages:
+        n_specs = len(page_specs((tiny_run / rel).read_text()))
+        assert drawn[rel] == (n_specs, n_specs, 0), (rel, drawn[rel])
+    assert not requests, requests
+    assert not errors, errors
 
 
 def test_headline_page_fits_1400_px_without_horizontal_scroll(tiny_run):

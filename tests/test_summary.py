@@ -138,3 +138,23 @@ def test_tables_put_the_thesis_beside_ours_and_explain_empty_cells():
     assert "-" not in _fmt(1e-9) and _fmt(float("nan")) == ""
     html = table_html(beside_thesis(frame), name="x")
     assert html.count(f'title="{EMPTY_THESIS}"') == 2 and EMPTY_THESIS in html
+
+
+def test_leaderboard_links_each_failing_scene_to_its_rows():
+    import pandas as pd
+
+    from report.summary import failure_anchor, failures, leaderboard, link_failing_scenes
+    by_scene = pd.DataFrame({"preset": ["mid", "low", "low", "low"],
+                             "solver": ["pdas", "osqp", "osqp", "pdas"],
+                             "scene": ["roll_stack", "cube_sphere", "circle_square", "flat"],
+                             "runs": [2, 2, 2, 2], "converged": [0, 1, 2, 2],
+                             "inaccurate": [2, 1, 0, 0]})
+    fails = failures(by_scene)
+    assert list(fails["scene"]) == ["cube_sphere", "roll_stack"]     # converged < runs only
+    board = leaderboard(_solver_summary(), by_scene)
+    cell = link_failing_scenes(board["not converged"].iloc[1])
+    assert cell == f"1 inaccurate (on <a href='#{failure_anchor('cube_sphere')}'>cube_sphere</a>)"
+    assert link_failing_scenes("0") == "0"
+    page = summary.table_html(fails, name="failures",
+                              row_id=lambda r: failure_anchor(r["scene"]))
+    assert page.count("id='failures-cube_sphere'") == 1 and "id='failures-roll_stack'" in page

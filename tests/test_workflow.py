@@ -110,6 +110,7 @@ def test_solver_comparison_and_its_report(tmp_path):
     assert set(t.loc[t.solver == "linear_floor", "preset"]) == {"mid"}     # the floor row
     outs = {k: str(tmp_path / f"{k}.{'csv' if k in ('table', 'presets', 'costs') else 'png'}")
             for k in ("table", "presets", "times", "work", "costs")}
+    outs["charts"] = str(tmp_path / "times.html")
     run("report.solvers", "--inputs", str(tmp_path / "solvers_L0.csv"),
         *[a for k, v in outs.items() for a in (f"--{k}", v)])
     assert len(pd.read_csv(outs["table"])) == len(t)
@@ -118,6 +119,10 @@ def test_solver_comparison_and_its_report(tmp_path):
     costs = pd.read_csv(outs["costs"])
     assert set(costs["solver"]) == set(solvers()) - {"pdas"}      # the reference is its own row
     assert (costs["floor_ratio_L0"] > 0).all()
+    from report.charts import page_specs, spec_problems
+    times, work = page_specs(Path(outs["charts"]).read_text())
+    assert spec_problems(times) == [] and spec_problems(work) == []
+    assert len(times["data"]["values"]) == (t.preset != "reference").sum()   # every run
 
 
 def test_augmented_projection_study_and_its_report(tmp_path):

@@ -1,6 +1,7 @@
 # Study test_set: the contact QP test set (workflows/config/test_sets/<set>.yaml) exported per
 # size class, every registered solver on every problem at every preset, and the summary
 # over it. Paths: workflows/studies/.
+from report.charts import chart_path
 from workflows.studies.problem_set import problem_set_runs
 TS = config.get("test_set", {})
 TS_ID = problem_set_of(config).id if TS else ""
@@ -49,6 +50,9 @@ rule solver_summary:
         claims=PATHS["solver_summary_claims"],
         profiles=report(PATHS["solver_profiles"], caption="../report/captions/solver_profiles.rst",
                         category="solvers", subcategory="test set summary"),
+        charts=report(chart_path(PATHS["solver_profiles"]),
+                      caption="../report/captions/solver_summary_charts.rst",
+                      category="solvers", subcategory="test set summary"),
         work=[report(PATHS["solver_work_precision"].format(scene=f),
                      caption="../report/captions/solver_work_precision.rst",
                      category="solvers", subcategory="work-precision per family")
@@ -63,4 +67,4 @@ rule solver_summary:
         "{params.py} -m report.solver_summary --inputs {input} --time-limit {params.limit} "
         "--summary {output.summary} --by-class {output.by_class} --by-scene {output.by_scene} "
         "--claims {output.claims} --profiles {output.profiles} "
-        "--work-precision {params.work} > {log} 2>&1"
+        "--charts {output.charts} --work-precision {params.work} > {log} 2>&1"

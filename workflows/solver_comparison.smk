@@ -1,5 +1,6 @@
 # Study solver_comparison: every registered solver at every preset on identical QPs of
 # each configured scene and level, against the exact reference. Paths: workflows/studies/.
+from report.charts import chart_path
 SC = config.get("solver_comparison", {})
 
 rule solver_comparison:
@@ -36,11 +37,14 @@ rule solver_comparison_report:
         work=report(PATHS["solver_work"], caption="../report/captions/solver_work.rst",
                     category="{scene}", subcategory="solver comparison"),
         costs=report(PATHS["solver_costs"], caption="../report/captions/solver_costs.rst",
-            category="{scene}", subcategory="solver comparison")
+            category="{scene}", subcategory="solver comparison"),
+        charts=report(chart_path(PATHS["solver_times"]),
+                      caption="../report/captions/solver_charts.rst",
+                      category="{scene}", subcategory="solver comparison")
     log: log_path("solver_comparison_report")
     conda: ENV
     params: py=PY
     shell:
         "{params.py} -m report.solvers --inputs {input} --table {output.table} "
         "--presets {output.presets} --times {output.times} --work {output.work} "
-        "--costs {output.costs} > {log} 2>&1"
+        "--costs {output.costs} --charts {output.charts} > {log} 2>&1"
