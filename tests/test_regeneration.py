@@ -43,9 +43,11 @@ TIMING_CLAIM = re.compile(r"T_solve|time|faster|speed|memory|efficiency")
 def regenerate(cwd: Path, *extra: str, popen: bool = False, env: dict | None = None):
     cmd = [str(SNAKEMAKE), "-s", str(ROOT / "Snakefile"), "--configfile", str(TINY),
            "--profile", str(PROFILE), "--cores", "2", *extra]
-    if popen:
+    if popen:     # SIGINT handled as a terminal's Ctrl-C is, even under a shell that started
+                  # this test in the background (its jobs inherit SIGINT ignored)
         return subprocess.Popen(cmd, cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                                text=True, start_new_session=True, env=env)
+                                text=True, start_new_session=True, env=env,
+                                preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     return subprocess.run(cmd, cwd=cwd, capture_output=True, text=True, timeout=1800, env=env)
 
 
