@@ -105,6 +105,22 @@ def test_every_solver_runs_through_the_cli(tmp_path, references, scene, solver):
     assert kkt_residuals(qp, res.u, res.p).max == pytest.approx(res.kkt.max)
 
 
+@pytest.mark.parametrize("solver", ["highs", "pdas"])
+def test_solve_without_out_prints_its_status_and_writes_nothing(tmp_path, monkeypatch, capsys,
+                                                                solver):
+    """``--out`` is optional: the status line (with the failed check and the residuals)
+    is the whole output, and no file appears."""
+    monkeypatch.chdir(tmp_path)
+    assert main(["solve", "--problem", "circle_square", "--level", "0",
+                 "--solver", solver]) == 0
+    line = capsys.readouterr().out.strip()
+    res = solve(problems()["circle_square"].make(0), solver, tol="mid")
+    assert line.startswith(f"circle_square level 0: {solver} {res.status}")
+    assert f"kkt_max {res.kkt.max:.1e}" in line and "->" not in line
+    assert (f"above tolerance: {res.failed_check}" in line) == bool(res.failed_check)
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_a_skipped_solve_is_reported_through_the_cli(tmp_path, capsys):
     out = tmp_path / "run.json"
     assert main(["solve", "--problem", "flat_blocks", "--level", "1", "--set",

@@ -193,16 +193,22 @@ def cmd_solve(args: argparse.Namespace) -> int:
     run = _solve_linear if spec.kind == "linear" else _solve_contact
     record = {"problem": spec.name, "level": level, "kind": spec.kind,
               **run(spec, level, params, args), "provenance": provenance()}
-    write_json(args.out, record)
+    if args.out is not None:
+        write_json(args.out, record)
     status = record["status"]
     why = f" ({record['message']})" if status in ("skipped", "failed") else ""
-    print(f"{spec.name} level {level}: {record['solver']} {status}{why} -> {args.out}")
+    if not why and record.get("failed_check"):
+        why = f" (above tolerance: {record['failed_check']})"
+    figures = "".join(f", {key} {record[key]:.1e}" for key in ("kkt_max", "energy_bound")
+                      if isinstance(record.get(key), float))
+    where = f" -> {args.out}" if args.out is not None else ""
+    print(f"{spec.name} level {level}: {record['solver']} {status}{why}{figures}{where}")
     if record.get("traceback"):
         if args.debug:
             print(record["traceback"], end="", file=sys.stderr)
         else:
-            print(f"contactbench: the solver raised; its traceback is in {args.out} "
-                  "('traceback'; --debug prints it)", file=sys.stderr)
+            kept = f"its traceback is in {args.out} ('traceback'; " if args.out else "("
+            print(f"contactbench: the solver raised; {kept}--debug prints it)", file=sys.stderr)
     return 0
 
 
@@ -247,7 +253,9 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="problem or solver parameter (repeatable; solver components as "
                         "name=kind and name.option=value)")
-    s.add_argument("--out", required=True, help="JSON file to write (atomically)")
+    s.add_argument("--out", default=None,
+                   help="JSON file to write (atomically); without it the run's status line "
+                        "is printed and nothing is written")
     s.add_argument("--vtu", default=None, help="also write fields as VTU (contact problems)")
     s.add_argument("--force", action="store_true", help="replace existing output files")
     s.set_defaults(func=cmd_solve)
