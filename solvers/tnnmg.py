@@ -696,6 +696,17 @@ def _tresca_stationarity(fine: _Fine, r: np.ndarray, bound: np.ndarray, v: np.nd
     return float(np.abs(res).max()) / scale
 
 
+def _verified(qp: ContactQP, u: np.ndarray, p: np.ndarray, tol: float, stop: str,
+              lam: np.ndarray | None = None) -> tuple[float, bool]:
+    """``(kkt_max, verified)`` of an iterate, judged as the suite's verification judges
+    it: the KKT residuals (the friction ones with the tangential multipliers ``lam``)
+    within ``tol`` and, unless ``stop`` is ``"kkt"``, the certified bound too."""
+    kkt_max = (kkt_residuals(qp, u, p) if lam is None
+               else friction_residuals(qp, u, p, lam)).max
+    return kkt_max, kkt_max <= tol and (stop == "kkt"
+                                        or certify(qp, u, p, tol, lam=lam).meets(tol))
+
+
 def _tresca_solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
                   u0: np.ndarray | None, opts: Options, callback: Callable | None
                   ) -> SolveResult:
@@ -750,9 +761,7 @@ def _tresca_solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | 
             u, p = box.to_u(v), box.multipliers(r, bound)
             lam = term.multipliers(r, qp.friction.slip_bound)
         if residual <= CHECK_FACTOR * tol:         # the suite's verification decides
-            kkt_max = friction_residuals(qp, u, p, lam).max
-            verified = kkt_max <= tol and (opts.stop == "kkt"
-                                           or certify(qp, u, p, tol, lam=lam).meets(tol))
+            kkt_max, verified = _verified(qp, u, p, tol, opts.stop, lam)
         end = log.close(k, (t0, t1, t2, t3), kkt_max, verified,
                         f"verified after {k} steps",
                         lambda: callback is not None and callback(u, p))
@@ -860,9 +869,7 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
         if residual <= CHECK_FACTOR * tol or callback is not None:
             u, p = box.to_u(v), box.multipliers(r, bound)
         if residual <= CHECK_FACTOR * tol:         # the suite's verification decides
-            kkt_max = kkt_residuals(qp, u, p).max
-            verified = kkt_max <= tol and (opts.stop == "kkt"
-                                           or certify(qp, u, p, tol).meets(tol))
+            kkt_max, verified = _verified(qp, u, p, tol, opts.stop)
         end = log.close(k, (t0, t1, t2, t3), kkt_max, verified,
                         f"verified after {k} steps ({n_cg} of them CG)",
                         lambda: callback is not None and callback(u, p))
