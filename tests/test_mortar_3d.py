@@ -31,10 +31,10 @@ from functools import cache
 import numpy as np
 import pytest
 
+from agreement import assert_solvers_agree
 from problems.cube_sphere import scene
 from problems.fem.mortar import mortar_integrals, multiplier_basis, surface_quadrature
 from problems.fem.two_body import assemble_two_body
-from problems.kkt import energy_error
 from problems.spec import problems
 from solvers.contact_box import check_structure
 from solvers.interface import solve
@@ -42,9 +42,6 @@ from solvers.interface import solve
 CUBE = problems()["cube_sphere"]
 MORTAR = ("mortar", "mortar_dual")
 N = np.array([0.0, 0.0, 1.0])
-
-#: Agreement with the exact reference, relative energy norm (the acceptance bar).
-AGREEMENT = 1e-8
 
 #: Round-off bar of the exact identities (relative).
 ROUND_OFF = 1e-12
@@ -239,24 +236,15 @@ def test_the_solution_does_not_depend_on_the_bodies_order(coupling):
     assert np.abs(pressure[0] - pressure[1]).max() <= ROUND_OFF * pressure[0].max()
 
 
-def agree_with_pdas(qp, names):
-    ref = solve(qp, "pdas", "high")
-    assert ref.status == "converged", ref.message
-    for name in names:
-        res = solve(qp, name, "high")
-        assert res.status == "converged", (name, res.message)
-        assert energy_error(qp, res.u, ref.u) <= AGREEMENT, name
-
-
 @pytest.mark.parametrize("level", [0, 1])
 def test_solvers_agree_with_the_exact_reference_on_dual_rows(level):
-    agree_with_pdas(make(level, "mortar_dual"), ("tnnmg", "augmented_projection"))
+    assert_solvers_agree(make(level, "mortar_dual"), ("tnnmg", "augmented_projection"))
 
 
 @pytest.mark.slow
 def test_solvers_agree_with_the_exact_reference_on_dual_rows_at_level_2():
-    agree_with_pdas(CUBE.make(2, coupling="mortar_dual"), ("tnnmg", "augmented_projection"))
+    assert_solvers_agree(CUBE.make(2, coupling="mortar_dual"), ("tnnmg", "augmented_projection"))
 
 
 def test_standard_rows_are_solved_by_semismooth_newton_and_the_augmented_projection():
-    agree_with_pdas(make(1, "mortar"), ("semismooth_newton", "augmented_projection"))
+    assert_solvers_agree(make(1, "mortar"), ("semismooth_newton", "augmented_projection"))

@@ -13,6 +13,7 @@ import dataclasses
 import numpy as np
 import pytest
 
+from agreement import AGREEMENT, assert_solvers_agree
 from problems.fem.stabilised import stabilise, two_pass
 from problems.flat_blocks import exact_pressure
 from problems.kkt import energy_error
@@ -20,9 +21,6 @@ from problems.qp import QPValidationError, surface_pressure
 from problems.spec import ParameterError, problems
 from solvers.interface import solve
 from workflows.problem_set import load
-
-#: Agreement with the independent solver, relative energy norm.
-AGREEMENT = 1e-8
 
 #: Singular values below this, relative to the largest, count as zero.
 RANK_RTOL = 1e-10
@@ -56,13 +54,7 @@ def interface_positions(qp, rows):
 def assert_exact_and_agrees(qp):
     """``pdas`` and ``semismooth_newton`` verified ``converged`` at ``high`` and within
     :data:`AGREEMENT` of OSQP's verified solution; returns OSQP's result."""
-    independent = solve(qp, "osqp", "high")
-    assert independent.status == "converged", independent.message
-    for name in ("pdas", "semismooth_newton"):
-        res = solve(qp, name, "high")
-        assert res.status == "converged", (name, res.message)
-        assert energy_error(qp, res.u, independent.u) <= AGREEMENT, name
-    return independent
+    return assert_solvers_agree(qp, ("pdas", "semismooth_newton"), reference="osqp")
 
 
 def test_the_current_set_has_degenerate_families_in_its_small_class():
