@@ -329,6 +329,16 @@ class LoadPathRun:
     records: list
 
 
+def as_tresca_solution(step_qp: ContactQP, res: SolveResult) -> TrescaSolution:
+    """A registered solver's verified answer of the Tresca step ``step_qp`` as a
+    :class:`TrescaSolution` (its ``tangential`` the multipliers; a row sticks by
+    :meth:`problems.qp.Friction.states` at the solve's tolerance)."""
+    lam = np.asarray(res.tangential, dtype=float)
+    return TrescaSolution(u=res.u, p=res.p, lam=lam,
+                          stick=step_qp.friction.states(lam, res.tol) == "stick",
+                          status=res.status, iterations=res.iterations, kkt=res.kkt)
+
+
 class _Stopped(Exception):
     """A Tresca solve of the path did not verify: the path ends with its answer."""
 
@@ -360,10 +370,7 @@ def run_load_path(qp: ContactQP, solve_step, tol: float, max_iter: int = 50) -> 
         solves[-1] += 1
         if res.status != "converged":
             raise _Stopped
-        lam = np.asarray(res.tangential, dtype=float)
-        return TrescaSolution(u=res.u, p=res.p, lam=lam,
-                              stick=step_qp.friction.states(lam, res.tol) == "stick",
-                              status=res.status, iterations=res.iterations, kkt=res.kkt)
+        return as_tresca_solution(step_qp, res)
 
     steps, n, records = [], len(fr.path), []
     for k in range(n):
@@ -422,10 +429,15 @@ def tangential_ratio(steps: list[PathStep]) -> float:
 
 
 def path_for_ratio(qp: ContactQP, ratio: float, rtol: float = 1e-6,
-                   max_iter: int = 60) -> list[PathStep]:
+                   max_iter: int = 60, solve=None) -> list[PathStep]:
     """The load path of ``qp`` with its tangential step scaled so that ``Q / (mu P)`` of the
     last step is ``ratio`` (within ``rtol``), by bracketing and the Illinois variant of
     regula falsi on the monotone ``Q / (mu P)`` of the scale.
+
+    ``solve(step_qp) -> TrescaSolution`` solves one Tresca step (default:
+    :func:`tresca_exact`, ``A`` factorised once, each tangential step warm-started from
+    the last scale's active set; a surface beyond :data:`TRESCA_EXACT_MAX_M` rows needs
+    another solver, e.g. a registered one through :func:`as_tresca_solution`).
 
     Raises
     ------
@@ -437,16 +449,21 @@ def path_for_ratio(qp: ContactQP, ratio: float, rtol: float = 1e-6,
         raise ParameterError(f"parameter 'ratio': Q/(mu P) = {ratio!r} is not allowed; allowed: "
                              "[0, 1) (at Q >= mu P the whole contact slips: gross sliding, no "
                              "static equilibrium)")
-    ops = dual_operators(qp)
-    exact = lambda step_qp: tresca_exact(step_qp, ops)
+    if solve is None:
+        ops = dual_operators(qp)
+        exact = lambda step_qp: tresca_exact(step_qp, ops)
+    else:
+        exact = solve
     normal = friction_path(replace(qp, friction=replace(qp.friction, path=qp.friction.path[:1])),
                            exact)                  # the normal step: the same for every scale
     warm = {"active": normal[-1].solution.active}
 
-    def tangential(step_qp):                     # warm-started from the last scale's answer
+    def warm_exact(step_qp):                     # warm-started from the last scale's answer
         sol = tresca_exact(step_qp, ops, start=warm["active"])
         warm["active"] = sol.active
         return sol
+
+    tangential = warm_exact if solve is None else solve
 
     run = lambda t: friction_path(scaled_tangential_step(qp, t), tangential, done=normal)
     lo, f_lo = 0.0, tangential_ratio(run(0.0)) - ratio
