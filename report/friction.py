@@ -1,0 +1,273 @@
+"""Friction: the claims and figures from ``workflows/scripts/friction_study.py``'s tables
+(its runs and its traction profiles, one scene).
+
+Claims, per scene: Cattaneo-Mindlin's stick zone c/a within 5 % and the tangential
+traction within 10 % in L2 at the finest level, for each load ratio (judged where the
+contact zone is resolved: at least :data:`RESOLVED_CONTACT_NODES` contact nodes); the
+fitted rates of both errors against N (reported); the solvers and the reference agreeing
+to 1e-8 in relative energy at every level where all ran; the mu = 0 path equal to the
+frictionless reference to 1e-10; every frictional solver run verified ``converged``;
+TNNMG's tangential-step iterations growing at most 15 % over the last two levels (judged
+on resolved levels); Coulomb's fixed point converging at every level, with its Tresca
+solves. Figures: the traction profiles at the finest level, c/a against Q/(mu P), and
+iterations and time against N per solver with fitted exponents.
+
+Example::
+
+    python -m report.friction --runs results/circle_square/friction.csv \\
+        --profiles results/circle_square/friction_profiles.csv --claims c.csv \\
+        --traction t.png --stick s.png --cost k.png
+"""
+from __future__ import annotations
+
+import argparse
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import pandas as pd  # noqa: E402
+
+from report.claims import COLUMNS, Claim  # noqa: E402
+from report.figures import save_figure  # noqa: E402
+from report.rates import fitted_slope  # noqa: E402
+from workflows.io import read_csv, write_csv  # noqa: E402
+
+#: Cattaneo-Mindlin bars at the finest level: c/a within 5 %, the traction within 10 % in L2.
+STICK_ZONE_BAR = 0.05
+TRACTION_BAR = 0.10
+#: The contact nodes a level needs for the accuracy and growth bars: circle-square level 3
+#: has 25 (at 7 and 13 nodes the stick zone spans a few cells, and c/a is off by up to 11 %).
+RESOLVED_CONTACT_NODES = 25
+#: Agreement of verified answers (the suite's bar for solvers on the same problem), and
+#: mu = 0 against the frictionless reference (the thesis's problem to round-off).
+AGREEMENT_BAR = 1e-8
+MU_ZERO_BAR = 1e-10
+#: TNNMG's iterations over the last two levels (multigrid: bounded in h).
+STEPS_GROWTH_BAR = 1.15
+CM = "Cattaneo-Mindlin (Johnson 1985, Sect. 7.1)"
+
+#: The friction study's claims (report/claims.py).
+CLAIMS = {
+    "stick_zone": Claim(CM, "{scene}: stick-zone c/a against sqrt(1 - Q/(mu P)) at Q/(mu P) = "
+                        "{ratio:g}, level {level} (relative deviation)", "|<=|", STICK_ZONE_BAR),
+    "traction": Claim(CM, "{scene}: tangential traction against q(x) at Q/(mu P) = {ratio:g}, "
+                      "level {level} (relative L2 error over the contact)", "<=", TRACTION_BAR),
+    "stick_rate": Claim(CM, "{scene}: |c/a deviation| ~ N^rate at Q/(mu P) = {ratio:g} "
+                        "(fitted over the levels)",
+                        unjudged="the theory gives the limit, not a rate: the fitted "
+                        "rate is reported beside the finest level's bar"),
+    "traction_rate": Claim(CM, "{scene}: traction L2 error ~ N^rate at Q/(mu P) = {ratio:g} "
+                           "(fitted over the levels)",
+                           unjudged="the theory gives the limit, not a rate: the fitted "
+                           "rate is reported beside the finest level's bar"),
+    "agreement": Claim("suite bar (verified answers of one Tresca problem agree to 1e-8)",
+                       "{scene}: {solvers} against the reference, largest relative energy "
+                       "distance over levels {levels}", "<=", AGREEMENT_BAR),
+    "mu_zero": Claim("suite bar (mu = 0 is the thesis's frictionless problem, to round-off)",
+                     "{scene}: the mu = 0 path against pdas, largest relative energy "
+                     "distance (both load steps, every level)", "<=", MU_ZERO_BAR),
+    "verified": Claim("suite bar (a frictional solve counts only when verified)",
+                      "{scene}: frictional solver runs verified converged (friction KKT "
+                      "and the Tresca certificate, every load step)", "given", "all"),
+    "tnnmg_steps": Claim("suite bar (TNNMG, a multigrid method: iterations bounded in h)",
+                         "{scene}: TNNMG tangential-step iterations, level {level} over "
+                         "level {coarser} at Q/(mu P) = {ratio:g}", "<=", STEPS_GROWTH_BAR),
+    "coulomb": Claim("suite bar (the fixed point s = mu p must converge to count)",
+                     "{scene}: Coulomb's fixed point converged in every load step of every "
+                     "level (Tresca solves per level, normal + tangential)", "given", "all"),
+}
+
+
+def claims(runs: pd.DataFrame) -> pd.DataFrame:
+    """The claims of the module docstring, per scene."""
+    rows = []
+    for scene, t in runs.groupby("scene", sort=True):
+        ref = t[(t.role == "reference") & (t.status == "converged")]
+        for ratio, g in ref.groupby("ratio", sort=True):
+            g = g.sort_values("N")
+            top = g.iloc[-1]
+            resolved = top.contact_nodes >= RESOLVED_CONTACT_NODES
+            why = (f"level {int(top.level)} has {int(top.contact_nodes)} contact nodes; the "
+                   f"bar is about a resolved zone (>= {RESOLVED_CONTACT_NODES})")
+            fields = dict(scene=scene, ratio=ratio, level=int(top.level))
+            rows.append(CLAIMS["stick_zone"].row(float(top.dev_c_over_a), judged=resolved,
+                                                 reason=why, **fields))
+            rows.append(CLAIMS["traction"].row(float(top.traction_l2), judged=resolved,
+                                               reason=why, **fields))
+            rows.append(CLAIMS["stick_rate"].row(
+                fitted_slope(g.N, g.dev_c_over_a.abs(), last=len(g)), scene=scene, ratio=ratio))
+            rows.append(CLAIMS["traction_rate"].row(
+                fitted_slope(g.N, g.traction_l2, last=len(g)), scene=scene, ratio=ratio))
+        rows.append(_agreement(t, scene))
+        mu0 = t[t.role == "mu_zero"]
+        ok = len(mu0) and (mu0.status == "converged").all()
+        rows.append(CLAIMS["mu_zero"].row(float(mu0.err_energy.max()) if ok else np.nan,
+                                          judged=bool(ok), scene=scene,
+                                          reason="the frictionless reference did not converge"))
+        solved = t[t.role == "solver"]
+        good = int((solved.status == "converged").sum())
+        rows.append(CLAIMS["verified"].row(f"{good} of {len(solved)}", passed=good == len(solved),
+                                           judged=len(solved) > 0, scene=scene,
+                                           reason="no solver ran"))
+        rows += _tnnmg_growth(solved, ref.groupby("level").contact_nodes.min(), scene)
+        rows.append(_coulomb(t[t.role == "coulomb"], scene))
+    return pd.DataFrame(rows, columns=COLUMNS)
+
+
+def _agreement(t: pd.DataFrame, scene: str) -> dict:
+    """The largest energy distance to the reference over the (level, ratio) pairs where
+    every solver ran verified."""
+    solved = t[t.role == "solver"]
+    names = sorted(solved.solver.dropna().unique())
+    both = [g for _, g in solved.groupby(["level", "ratio"])
+            if len(g) == len(names) and (g.status == "converged").all()]
+    levels = sorted({int(g.level.iloc[0]) for g in both})
+    worst = max((float(g.err_energy.max()) for g in both), default=np.nan)
+    return CLAIMS["agreement"].row(worst, judged=bool(both), scene=scene,
+                                   solvers=", ".join(names) or "no solver",
+                                   levels=", ".join(map(str, levels)) or "none",
+                                   reason="no level where every solver ran verified")
+
+
+def _tnnmg_growth(solved: pd.DataFrame, contact_nodes: pd.Series, scene: str) -> list[dict]:
+    """TNNMG's tangential-step iterations over the last two levels, per ratio
+    (``contact_nodes``: per level, from the reference rows)."""
+    tn = solved[(solved.solver == "tnnmg") & (solved.status == "converged")]
+    rows = []
+    for ratio, g in tn.groupby("ratio", sort=True):
+        g = g.sort_values("N")
+        if len(g) < 2:
+            rows.append(CLAIMS["tnnmg_steps"].row(np.nan, judged=False, scene=scene,
+                                                  ratio=ratio, level="-", coarser="-",
+                                                  reason="needs two levels"))
+            continue
+        fine, coarse = g.iloc[-1], g.iloc[-2]
+        resolved = contact_nodes.get(coarse.level, 0) >= RESOLVED_CONTACT_NODES
+        rows.append(CLAIMS["tnnmg_steps"].row(
+            float(fine.steps_tangential / coarse.steps_tangential), judged=resolved,
+            scene=scene, ratio=ratio, level=int(fine.level), coarser=int(coarse.level),
+            reason=f"level {int(coarse.level)} is not resolved (fewer than "
+                   f"{RESOLVED_CONTACT_NODES} contact nodes): h-independence is about "
+                   "fine levels"))
+    return rows
+
+
+def _coulomb(co: pd.DataFrame, scene: str) -> dict:
+    """Coulomb's fixed point: converged in every load step; its Tresca solves per level."""
+    if not len(co):
+        return CLAIMS["coulomb"].row("-", judged=False, scene=scene,
+                                     reason="no Coulomb runs at this configuration")
+    per_level = "; ".join(
+        f"level {int(lv)}: " + " + ".join(str(int(s)) for s in g.sort_values("load_step")
+                                           .tresca_solves)
+        + f" (contraction {g.contraction.max():.2g})"
+        for lv, g in co.groupby("level", sort=True))
+    good = int((co.status == "converged").sum())
+    return CLAIMS["coulomb"].row(f"{good} of {len(co)} load steps; {per_level}",
+                                 passed=good == len(co), scene=scene)
+
+
+def traction_figure(runs: pd.DataFrame, profiles: pd.DataFrame, path: str) -> None:
+    """The tangential traction at the finest level, one panel per ratio: measured nodes,
+    the Cattaneo-Mindlin curve, mu p (measured and Hertz)."""
+    scene = runs.scene.iloc[0]
+    top = profiles[profiles.N == profiles.N.max()]
+    ratios = sorted(top.ratio.unique())
+    fig, axes = plt.subplots(1, max(len(ratios), 1), figsize=(5.5 * max(len(ratios), 1), 4.2),
+                             squeeze=False)
+    for ax, ratio in zip(axes[0], ratios):
+        g = top[top.ratio == ratio].sort_values("x_over_a")
+        ref = runs[(runs.role == "reference") & (runs.ratio == ratio)
+                   & (runs.N == g.N.iloc[0])].iloc[0]
+        x = np.linspace(-1.2, 1.2, 481)
+        c = float(ref.c_over_a_exact)
+        mu_p0 = float(ref.mu) * float(ref.p0)
+        outer = mu_p0 * np.sqrt(np.clip(1 - x ** 2, 0, None))
+        inner = mu_p0 * c * np.sqrt(np.clip(1 - (x / c) ** 2, 0, None))
+        ax.plot(x, outer - inner, "-", color="C0", label="Cattaneo-Mindlin q(x)")
+        ax.plot(x, outer, ":", color="gray", label="mu p(x), Hertz")
+        ax.plot(g.x_over_a, g.mu_pressure, "x", color="gray", ms=4, label="mu p, measured")
+        for state, style in (("stick", "o"), ("slip", "s")):
+            h = g[g.state == state]
+            ax.plot(h.x_over_a, h.traction, style, color="C1" if state == "stick" else "C3",
+                    ms=4, ls="none", label=f"traction, {state} nodes")
+        ax.axvspan(-c, c, color="C0", alpha=0.06)
+        ax.set_xlim(-1.25, 1.25)
+        ax.set_xlabel("x / a (contact half-width a, measured)")
+        ax.set_ylabel("tangential traction (units of E)")
+        ax.set_title(f"{scene}: level {int(ref.level)}, Q/(mu P) = {ratio:g}, "
+                     f"L2 error {float(ref.traction_l2):.1%}", fontsize=9)
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=7)
+    save_figure(fig, path)
+
+
+def stick_figure(runs: pd.DataFrame, path: str) -> None:
+    """c/a against Q/(mu P): the measured points per level, the analytic curve."""
+    scene = runs.scene.iloc[0]
+    ref = runs[(runs.role == "reference") & (runs.status == "converged")]
+    fig, ax = plt.subplots(figsize=(6, 4.5))
+    r = np.linspace(0, 1, 201)
+    ax.plot(r, np.sqrt(1 - r), "-", color="gray", label="sqrt(1 - Q/(mu P))")
+    for i, (level, g) in enumerate(ref.groupby("level", sort=True)):
+        ax.plot(g.ratio_reached, g.c_over_a, "o", color=f"C{i}", ls="none",
+                label=f"level {int(level)} (N = {int(g.N.iloc[0]):,}, "
+                      f"{int(g.contact_nodes.iloc[0])} contact nodes)")
+    ax.set_xlabel("load ratio Q / (mu P) (dimensionless)")
+    ax.set_ylabel("stick-zone half-width c / a (dimensionless)")
+    ax.set_title(f"{scene}: Cattaneo-Mindlin stick zone")
+    ax.set_xlim(0, 1)
+    ax.set_ylim(0, 1.05)
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=8)
+    save_figure(fig, path)
+
+
+def cost_figure(runs: pd.DataFrame, path: str) -> None:
+    """Tangential-step iterations and solve time (whole path) against N per solver and
+    ratio, with fitted exponents."""
+    scene = runs.scene.iloc[0]
+    solved = runs[(runs.role == "solver") & (runs.status == "converged")]
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
+    for i, ((name, ratio), g) in enumerate(solved.groupby(["solver", "ratio"], sort=True)):
+        g = g.sort_values("N")
+        t = g.t_setup + g.t_solve
+        style = "o-" if ratio == min(solved.ratio) else "s--"
+        k = sorted(solved.solver.unique()).index(name)
+        axes[0].semilogx(g.N, g.steps_tangential, style, color=f"C{k}",
+                         label=f"{name}, Q/(mu P) = {ratio:g}: exponent "
+                               f"{fitted_slope(g.N, g.steps_tangential, last=len(g)):.2f}")
+        axes[1].loglog(g.N, t, style, color=f"C{k}",
+                       label=f"{name}, Q/(mu P) = {ratio:g}: exponent "
+                             f"{fitted_slope(g.N, t, last=len(g)):.2f}")
+    axes[0].set_ylabel("iterations of the tangential load step")
+    axes[1].set_ylabel("setup + solve time of the load path (s, this machine)")
+    for ax in axes:
+        ax.set_xlabel("nodes N")
+        ax.set_title(f"{scene}: Tresca friction, the solvers' cost", fontsize=9)
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=7)
+    save_figure(fig, path)
+
+
+def main(argv=None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--runs", required=True)
+    parser.add_argument("--profiles", required=True)
+    parser.add_argument("--claims", required=True)
+    parser.add_argument("--traction", required=True)
+    parser.add_argument("--stick", required=True)
+    parser.add_argument("--cost", required=True)
+    args = parser.parse_args(argv)
+    runs, profiles = read_csv(args.runs), read_csv(args.profiles)
+    write_csv(args.claims, claims(runs))
+    traction_figure(runs, profiles, args.traction)
+    stick_figure(runs, args.stick)
+    cost_figure(runs, args.cost)
+
+
+if __name__ == "__main__":
+    main()

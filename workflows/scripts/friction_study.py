@@ -1,0 +1,294 @@
+"""Friction on a 2D contact scene: Tresca partial slip against Cattaneo-Mindlin, the
+frictional solvers on the same load paths, mu = 0 against the frictionless reference, and
+Coulomb's fixed point.
+
+For one scene (a registered problem with the ``friction``, ``mu`` and ``shift``
+parameters, ``--problem P --set key=value``), at each of ``--levels``:
+
+* **the reference path per load ratio** -- Tresca friction with ``mu``; the tangential
+  step (the held part moved by ``--shift``) is scaled until ``Q/(mu P)`` of the last step
+  is each of ``--ratios`` (:func:`solvers.tresca.path_for_ratio`). The reference is
+  :func:`solvers.tresca.tresca_exact` (exact to round-off) where it takes the surface
+  (at most :data:`solvers.tresca.TRESCA_EXACT_MAX_M` rows), else ``semismooth_newton``
+  at the ``high`` tolerance through :func:`solvers.interface.solve` (the ``reference``
+  column names it);
+* **Cattaneo-Mindlin** on the reference's last step -- the contact half-width ``a`` and
+  the stick-zone half-width ``c`` as second moments of the nodal normal forces and of
+  the deficit ``s - |lam|`` (:func:`reference.cattaneo_mindlin.stick_zone_size`), against
+  ``c/a = sqrt(1 - Q/(mu P))``; the tangential traction ``lam / mass`` against
+  :func:`reference.cattaneo_mindlin.tangential_traction` with the measured ``a`` and peak
+  pressure ``p0`` and the analytic ``c``, its relative L2 error over the contact nodes
+  (the lumped surface mass the quadrature weights);
+* **the solvers** (``--solvers``, each ``handles_friction``) -- the same scaled load path
+  run as ``contactbench solve`` runs it (:func:`solvers.interface.run_load_path`, every
+  Tresca step verified by :func:`solvers.interface.solve` at ``--tol``): status, the
+  solver's iterations in the normal and in the tangential step, its setup and solve
+  time, and the relative energy-norm distance of its last step to the reference's;
+* **mu = 0** -- the reference's path with ``mu = 0`` against ``pdas`` on the frictionless
+  scene with the same shift, both load steps;
+* **Coulomb** (``friction=coulomb``, the unscaled ``--coulomb-shift``) -- the reference's
+  fixed point ``s = mu p`` over Tresca steps: its Tresca solves and last contraction per
+  load step (the frictionless solve that starts the path not counted).
+
+``--out`` gets one row per (level, ratio, role): ``role`` is ``reference``, ``solver``,
+``mu_zero`` or ``coulomb``; ``--profiles`` one row per constrained node of each
+reference's last step (position over ``a``, measured and analytic traction, ``mu`` times
+the measured and the Hertz pressure, stick/slip state).
+
+Example::
+
+    python -m workflows.scripts.friction_study --problem circle_square --levels 1 2 3 \\
+        --mu 0.5 --ratios 0.3 0.7 --shift 0.01 --coulomb-shift 0.02 \\
+        --solvers tnnmg semismooth_newton --tol high --time-limit 120 \\
+        --out results/circle_square/friction.csv \\
+        --profiles results/circle_square/friction_profiles.csv
+"""
+from __future__ import annotations
+
+import argparse
+import time
+from dataclasses import replace
+
+import numpy as np
+import pandas as pd
+
+from problems.fem.fields import in_plane
+from problems.kkt import energy_error, tresca_energy
+from problems.spec import ParameterError
+from reference.cattaneo_mindlin import stick_zone_ratio, stick_zone_size, tangential_traction
+from reference.hertz import moment_estimate
+from solvers import tresca
+from solvers.interface import parse_tolerance, run_load_path, solve, solvers
+from solvers.tresca import as_tresca_solution, friction_path, path_for_ratio, tangential_ratio
+from workflows.io import write_csv
+from workflows.progress import study_progress
+from workflows.scene_args import add_scene_arguments, check_levels, parse_sets, scene_from_args
+
+#: The parameters the study sets on the scene itself.
+FRICTION_PARAMETERS = ("friction", "mu", "shift")
+#: The fallback reference beyond tresca_exact's surface size, and its tolerance.
+FALLBACK_REFERENCE, FALLBACK_TOL = "semismooth_newton", "high"
+#: Tolerance of the frictionless pdas reference of the mu = 0 check.
+PDAS_TOL = 1e-12
+
+
+class ReferenceFailed(RuntimeError):
+    """The fallback reference did not verify a Tresca step (the message says why)."""
+
+
+def reference_route(qp) -> tuple[str, object]:
+    """``(name, solve)`` of the reference for the frictional ``qp``: ``tresca_exact``
+    (``solve`` None, the default of :func:`path_for_ratio` and :func:`friction_path`)
+    where it takes the surface, else the verified fallback, one Tresca step at a time."""
+    if qp.m <= tresca.TRESCA_EXACT_MAX_M:
+        return "tresca_exact", None
+
+    def fallback(step_qp):
+        res = solve(step_qp, FALLBACK_REFERENCE, FALLBACK_TOL)
+        if res.status != "converged":
+            raise ReferenceFailed(f"{FALLBACK_REFERENCE}: {res.status} ({res.message})")
+        return as_tresca_solution(step_qp, res)
+
+    return FALLBACK_REFERENCE, fallback
+
+
+def partial_slip(step, ratio: float) -> tuple[dict, pd.DataFrame]:
+    """Cattaneo-Mindlin measures of a reference's last step (a
+    :class:`solvers.tresca.PathStep`; module docstring): the row's fields and the
+    per-node profile."""
+    step_qp, sol = step.qp, step.solution
+    fr = step_qp.friction
+    x = in_plane(step_qp)[:, 0]
+    xbar, a, p0 = moment_estimate("line", x, sol.p)
+    _, c = stick_zone_size(x, sol.p, sol.lam, fr.slip_bound)
+    c_exact = stick_zone_ratio(ratio)
+    direction = 1.0 if sol.lam.sum() >= 0 else -1.0
+    traction = direction * step_qp.contact.pressure(sol.lam)
+    pressure = step_qp.contact.pressure(sol.p)
+    r = x - float(xbar[0])
+    exact = tangential_traction(r, a, a * c_exact, fr.mu * p0)
+    zone = sol.p > 0
+    w = step_qp.contact.mass
+    l2 = float(np.sqrt(np.sum(w[zone] * (traction[zone] - exact[zone]) ** 2)
+                       / np.sum(w[zone] * exact[zone] ** 2)))
+    state = np.where(fr.slip_bound > 0, np.where(sol.stick, "stick", "slip"), "free")
+    profile = pd.DataFrame({
+        "x_over_a": r / a, "traction": traction, "traction_exact": exact,
+        "mu_pressure": fr.mu * pressure,
+        "mu_pressure_exact": fr.mu * p0 * np.sqrt(np.clip(1 - (r / a) ** 2, 0, None)),
+        "state": state})
+    fields = {"ratio_reached": tangential_ratio([step]), "a": a, "p0": p0, "c": c,
+              "c_over_a": c / a, "c_over_a_exact": c_exact,
+              "dev_c_over_a": (c / a) / c_exact - 1.0, "traction_l2": l2,
+              "contact_nodes": int(zone.sum()), "stick_nodes": int(sol.stick.sum())}
+    return fields, profile
+
+
+def solver_row(path_qp, name: str, tol: str, time_limit: float, ref_step) -> dict:
+    """The load path ``path_qp`` run by the registered solver ``name`` (as
+    ``contactbench solve`` runs it) against the reference's last step ``ref_step``."""
+    calls = []
+
+    def step(step_qp):
+        res = solve(step_qp, name, tol, time_limit=time_limit)
+        calls.append(res)
+        return res
+
+    run = run_load_path(path_qp, step, tol=parse_tolerance(tol))
+    res = run.result
+    per_step, k = [], 0
+    for record in run.records:
+        per_step.append(calls[k:k + record["tresca_solves"]])
+        k += record["tresca_solves"]
+    steps = [sum(r.iterations for r in rs) for rs in per_step] + [np.nan, np.nan]
+    row = {"solver": name, "status": res.status, "failed_check": res.failed_check or "",
+           "message": res.message if res.status != "converged" else "",
+           "steps_normal": steps[0], "steps_tangential": steps[1],
+           "solves": len(calls), "t_setup": sum(r.setup_time for r in calls),
+           "t_solve": sum(r.solve_time for r in calls),
+           "kkt_max": res.kkt.max if res.kkt is not None else np.nan}
+    if res.status == "converged" and len(run.steps) == len(path_qp.friction.path):
+        last_qp = run.steps[-1].qp
+        row["err_energy"] = energy_error(last_qp, res.u, ref_step.solution.u)
+        e_ref = tresca_energy(ref_step.qp, ref_step.solution.u)
+        row["dev_energy"] = abs(tresca_energy(last_qp, res.u) - e_ref) / abs(e_ref)
+    return row
+
+
+def mu_zero_rows(spec, params: dict, level: int, qp, shift: float, ref_solve) -> list[dict]:
+    """The reference's path with ``mu = 0`` against ``pdas`` on the frictionless scene
+    with the same shift, per load step."""
+    steps = friction_path(replace(qp, friction=replace(qp.friction, mu=0.0)), ref_solve)
+    rows = []
+    for k, (st, shift_k) in enumerate(zip(steps, (0.0, shift)), start=1):
+        plain = spec.make(level, **params, shift=shift_k)
+        ref = solve(plain, "pdas", PDAS_TOL)
+        row = {"load_step": k, "status": ref.status}
+        if ref.status == "converged":
+            row["err_energy"] = energy_error(plain, st.solution.u, ref.u)
+            row["dev_p"] = float(np.max(np.abs(st.solution.p - ref.p)) / np.max(ref.p))
+        rows.append(row)
+    return rows
+
+
+def coulomb_rows(spec, params: dict, level: int, mu: float, shift: float, ref_solve) -> list[dict]:
+    """Coulomb's fixed point ``s = mu p`` over the reference's Tresca steps, per load step."""
+    qp = spec.make(level, **params, friction="coulomb", mu=mu, shift=shift)
+    steps = friction_path(qp, ref_solve)
+    return [{"load_step": k, "status": st.solution.status, "tresca_solves": st.tresca_solves,
+             "contraction": st.contraction,
+             "ratio_reached": tangential_ratio([st])}
+            for k, st in enumerate(steps, start=1)]
+
+
+def level_rows(spec, params: dict, level: int, args) -> tuple[list[dict], list[pd.DataFrame]]:
+    """Every row and profile of one level (module docstring)."""
+    t0 = time.perf_counter()
+    qp = spec.make(level, **params, friction="tresca", mu=args.mu, shift=args.shift)
+    t_build = time.perf_counter() - t0
+    ref_name, ref_solve = reference_route(qp)
+    size = {"level": level, "N": qp.n_nodes, "n": qp.n, "NC": qp.m, "reference": ref_name,
+            "t_build": t_build}
+    rows, profiles = [], []
+    for ratio in args.ratios:
+        t0 = time.perf_counter()
+        try:
+            steps = path_for_ratio(qp, ratio, solve=ref_solve)
+        except ReferenceFailed as err:
+            rows.append({**size, "ratio": ratio, "role": "reference", "status": "failed",
+                         "message": str(err)})
+            continue
+        ref = steps[-1]
+        fields, profile = partial_slip(ref, ratio)
+        rows.append({**size, "ratio": ratio, "role": "reference", "solver": ref_name,
+                     "status": ref.solution.status, "kkt_max": ref.solution.kkt.max,
+                     "steps_normal": steps[0].solution.iterations,
+                     "steps_tangential": ref.solution.iterations,
+                     "t_solve": time.perf_counter() - t0, **fields})
+        profiles.append(profile.assign(level=level, N=qp.n_nodes, ratio=ratio))
+        for name in args.solvers:
+            rows.append({**size, "ratio": ratio, "role": "solver",
+                         **solver_row(ref.qp, name, args.tol, args.time_limit, ref)})
+    try:
+        rows += [{**size, "role": "mu_zero", "solver": ref_name, **r}
+                 for r in mu_zero_rows(spec, params, level, qp, args.shift, ref_solve)]
+        if args.coulomb_shift > 0:
+            rows += [{**size, "role": "coulomb", "solver": ref_name, **r} for r in
+                     coulomb_rows(spec, params, level, args.mu, args.coulomb_shift, ref_solve)]
+    except ReferenceFailed as err:
+        rows.append({**size, "role": "mu_zero", "status": "failed", "message": str(err)})
+    return rows, profiles
+
+
+def main(argv=None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    add_scene_arguments(parser)
+    parser.add_argument("--levels", type=int, nargs="+", required=True, help="mesh levels")
+    parser.add_argument("--mu", type=float, required=True, help="friction coefficient (> 0)")
+    parser.add_argument("--ratios", type=float, nargs="+", required=True,
+                        help="load ratios Q/(mu P), each in (0, 1)")
+    parser.add_argument("--shift", type=float, required=True,
+                        help="the tangential step's shift before its scaling (nonzero)")
+    parser.add_argument("--coulomb-shift", type=float, required=True,
+                        help="the tangential shift of the Coulomb runs (0: no Coulomb runs)")
+    parser.add_argument("--solvers", nargs="*", required=True,
+                        help="registered solvers that take friction")
+    parser.add_argument("--tol", choices=["low", "mid", "high"], required=True,
+                        help="the solvers' verified tolerance")
+    parser.add_argument("--time-limit", type=float, required=True,
+                        help="seconds per Tresca solve (> 0)")
+    parser.add_argument("--out", required=True, help="the runs table (CSV)")
+    parser.add_argument("--profiles", required=True, help="the traction profiles (CSV)")
+    args = parser.parse_args(argv)
+    spec, _ = scene_from_args(parser, args)
+    params = parse_sets(args.set)
+    missing = [p for p in FRICTION_PARAMETERS if p not in {q.name for q in spec.parameters}]
+    if missing:
+        parser.error(f"argument --problem: {spec.name!r} is not allowed; allowed: a problem "
+                     f"with the parameters {', '.join(FRICTION_PARAMETERS)}")
+    fixed = sorted(set(params) & set(FRICTION_PARAMETERS))
+    if fixed:
+        parser.error(f"argument --set: {', '.join(fixed)} is not allowed; allowed: the "
+                     "other scene parameters (the study sets friction, mu and shift)")
+    levels = check_levels(parser, spec, args.levels)
+    if not args.mu > 0:
+        parser.error(f"argument --mu: {args.mu} is not allowed; allowed: > 0")
+    for ratio in args.ratios:
+        if not 0 < ratio < 1:
+            parser.error(f"argument --ratios: {ratio} is not allowed; allowed: in (0, 1) "
+                         "(at Q >= mu P the whole contact slips: gross sliding)")
+    if args.shift == 0:
+        parser.error("argument --shift: 0 is not allowed; allowed: a nonzero shift")
+    if args.time_limit <= 0:
+        parser.error(f"argument --time-limit: {args.time_limit} is not allowed; allowed: > 0")
+    registered = solvers()
+    frictional = sorted(n for n, s in registered.items() if s.handles_friction)
+    wrong = [n for n in args.solvers if n not in frictional]
+    if wrong:
+        parser.error(f"argument --solvers: {', '.join(wrong)} is not allowed; allowed: "
+                     f"{', '.join(frictional)} (registered solvers that take friction)")
+    try:                                       # the scene's own checks of the parameters
+        for shift in {args.shift, args.coulomb_shift}:
+            spec.options(**params, friction="tresca", mu=args.mu, shift=shift)
+    except ParameterError as err:
+        parser.error(str(err))
+
+    scene = " ".join([spec.name, *args.set])
+    rows, profiles = [], []
+    for level in study_progress(levels, rule="friction_study", out=args.out,
+                                desc=f"{scene} friction", unit="level"):
+        r, p = level_rows(spec, params, level, args)
+        rows += r
+        profiles += p
+    out = pd.DataFrame(rows)
+    out.insert(0, "scene", scene)
+    out.insert(1, "mu", args.mu)
+    prof = pd.concat(profiles, ignore_index=True) if profiles else pd.DataFrame()
+    prof.insert(0, "scene", scene)
+    write_csv(args.profiles, prof)
+    write_csv(args.out, out)
+
+
+if __name__ == "__main__":
+    main()

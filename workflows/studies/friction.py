@@ -1,0 +1,180 @@
+"""Friction: Tresca partial slip against Cattaneo-Mindlin, and the frictional solvers
+
+The thesis's problem is frictionless; the suite adds Tresca and Coulomb friction on the
+same ContactQP ({doc}`/guide/friction`). This study measures the 2D model on a contact
+scene with the `friction`, `mu` and `shift` parameters (circle–square; a scene of
+another dimension joins by config once its problem takes friction). Per scene and level
+(`workflows/scripts/friction_study.py`):
+
+- **Reference paths.** Tresca friction with `mu` (0.5), the normal load first, then the
+  held arc moved along x; the tangential step is scaled until Q/(μP) of the last step is
+  0.3 and 0.7 (`solvers.tresca.path_for_ratio`). The reference is `tresca_exact` (exact
+  to round-off) up to 2000 constrained rows; beyond, `semismooth_newton` at `high`, and
+  the table's `reference` column says which.
+- **Cattaneo–Mindlin** (Johnson, *Contact Mechanics*, 1985, Sect. 7.1). The contact
+  half-width a and the stick-zone half-width c are second moments of the nodal normal
+  forces and of the deficit s − |λ|, so no node has to be classified. c/a is compared
+  with √(1 − Q/(μP)). The nodal tangential traction λ/mass is compared with
+  q(x) = μp0(√(1 − x²/a²) − (c/a)√(1 − x²/c²)), with the measured a and p0 and the
+  analytic c, as a relative L2 error over the contact nodes.
+- **The solvers.** `tnnmg` and `semismooth_newton` run the same scaled load path as
+  `contactbench solve` runs it (`solvers.interface.run_load_path`), every Tresca step
+  verified at `high`. The table records status, iterations in the normal and the
+  tangential step, setup and solve time, and the relative energy-norm distance of the
+  last step to the reference's.
+- **μ = 0.** The reference's path with μ = 0 is compared with `pdas` on the
+  frictionless scene, both load steps.
+- **Coulomb** (`friction=coulomb`, shift 0.02): the fixed point s = μp over the
+  reference's Tresca steps; its Tresca solves and last contraction ratio per load step.
+
+| file | content |
+| --- | --- |
+| `results/<scene>/friction.csv` | one row per level, ratio and role (`reference`, `solver`, `mu_zero`, `coulomb`): N, rows, status, iterations per load step, times, the energy distance to the reference, a, c, c/a against theory, the traction's L2 error, Coulomb's solves and contraction |
+| `results/<scene>/friction_profiles.csv` | per level, ratio and constrained node of the reference's last step: x/a, the measured and analytic traction, μ times the measured and Hertz pressure, the stick/slip state |
+| `results/<scene>/friction_claims.csv` | the claims below, each judged or with the reason it is not |
+| `results/<scene>/friction_traction.png` | the traction profiles at the finest level, both ratios, with the Cattaneo–Mindlin curve and μp(x) |
+| `results/<scene>/friction_stick.png` | c/a against Q/(μP): measured points per level, the analytic curve |
+| `results/<scene>/friction_cost.png` | iterations of the tangential step and solve time against N per solver, with fitted exponents |
+
+How to read the figures: in the traction profiles, the measured nodal traction (markers)
+should follow the analytic curve (line): inside the stick zone (|x| < c) it lies below
+μp(x), and in the slip annulus it lies on μp(x). In the stick-zone figure, the points of
+each level should approach √(1 − Q/(μP)) as the level rises. In the cost figure, an
+exponent near 0 for the iterations means the solver's steps do not grow with N.
+
+The claims (`report/friction.py`):
+
+- c/a within 5 % at the finest level, for both ratios;
+- the traction profile within 10 % in L2 at the finest level;
+- TNNMG, semismooth Newton and the reference agree to 1e-8 in relative energy at every
+  level where they all ran;
+- the μ = 0 path equals `pdas` to 1e-10;
+- every frictional solve is verified `converged`;
+- TNNMG's tangential-step iterations grow at most 15 % over the last two levels;
+- Coulomb's fixed point converges at every level.
+
+The rates of the c/a error and the traction error against N are fitted and reported.
+The tiny scale's coarse levels cannot judge the accuracy bars; there the claims give
+the reason.
+"""
+from workflows.studies._base import AtScale, ConfigError, Study, scenes_of
+
+RULE = "friction_study"
+#: The scene parameters the study sets itself.
+FRICTION_PARAMETERS = ("friction", "mu", "shift")
+
+
+def friction_args(config: dict, scene: str) -> str:
+    """A scene's settings of the friction study as arguments of
+    ``workflows/scripts/friction_study.py``."""
+    fr = config["friction"]
+    levels = " ".join(map(str, scenes_of(config, "friction")[scene]))
+    ratios = " ".join(f"{r:g}" for r in fr["ratios"])
+    solvers = " ".join(fr["solvers"])
+    return (f"--levels {levels} --mu {fr['mu']:g} --ratios {ratios} --shift {fr['shift']:g} "
+            f"--coulomb-shift {fr['coulomb_shift']:g} --solvers {solvers} --tol {fr['tol']} "
+            f"--time-limit {fr['time_limit']:g}")
+
+
+def check(config: dict, registry: dict) -> None:
+    """Scenes whose problem takes friction and that leave its parameters to the study;
+    registered solvers that take friction."""
+    fr = config.get("friction")
+    if not fr:
+        return
+    for scene in scenes_of(config, "friction"):
+        spec = registry[config["scenes"][scene]["problem"]]
+        if not set(FRICTION_PARAMETERS) <= {p.name for p in spec.parameters}:
+            raise ConfigError(f"config 'friction.scenes.{scene}': problem {spec.name!r} "
+                              "takes no friction; allowed: a problem with the parameters "
+                              f"{', '.join(FRICTION_PARAMETERS)}")
+        fixed = sorted(set(config["scenes"][scene].get("params") or {})
+                       & set(FRICTION_PARAMETERS))
+        if fixed:
+            raise ConfigError(f"config 'friction.scenes.{scene}': the scene sets "
+                              f"{', '.join(fixed)}; allowed: a scene without them (the "
+                              "study sets friction, mu and shift)")
+    from solvers.interface import solvers
+
+    registered = solvers()
+    frictional = sorted(n for n, s in registered.items() if s.handles_friction)
+    wrong = sorted(set(fr.get("solvers", [])) - set(frictional))
+    if wrong:
+        raise ConfigError(f"config 'friction.solvers': {wrong} are not allowed; allowed: "
+                          f"{', '.join(frictional)} (registered solvers that take friction)")
+
+
+#: The study's settings at every scale but the levels: mu, the load ratios Q/(mu P), the
+#: shift the ratio search scales, Coulomb's shift (Q/(mu P) ~ 0.5 at mu = 0.5), the solvers
+#: and their verified tolerance (the agreement claim's 1e-8 needs 'high'), the time limit.
+COMMON = {"mu": 0.5, "ratios": [0.3, 0.7], "shift": 0.01, "coulomb_shift": 0.02,
+          "solvers": ["tnnmg", "semismooth_newton"], "tol": "high", "time_limit": 120}
+
+
+def settings_at(levels: list[int]) -> dict:
+    """The study's section at a scale: circle-square at ``levels``, :data:`COMMON` else."""
+    return {"scenes": {"circle_square": levels}, **COMMON}
+
+
+STUDY = Study(
+    name="friction",
+    summary="Tresca partial slip on a contact scene against Cattaneo-Mindlin (stick zone "
+            "c/a and the tangential traction, their convergence under refinement); TNNMG, "
+            "semismooth Newton and the exact reference on the same load paths (iterations, "
+            "time, agreement); mu = 0 against the frictionless reference; Coulomb's fixed "
+            "point",
+    thesis="beyond the thesis (frictionless): its Alg. 7.1 rows carry the tangential "
+           "relative displacement",
+    order=110,
+    rule_file="friction.smk",
+    scripts={"friction": "workflows.scripts.friction_study"},
+    paths={
+        "fr_runs": "results/{scene}/friction.csv",
+        "fr_profiles": "results/{scene}/friction_profiles.csv",
+        "fr_claims": "results/{scene}/friction_claims.csv",
+        "fr_traction": "results/{scene}/friction_traction.png",
+        "fr_stick": "results/{scene}/friction_stick.png",
+        "fr_cost": "results/{scene}/friction_cost.png",
+    },
+    outputs=("fr_runs", "fr_profiles", "fr_claims", "fr_traction", "fr_stick", "fr_cost"),
+    heavy_rules=(RULE,),
+    check=check,
+    settings={
+        "type": "object",
+        "description": "Friction (workflows/scripts/friction_study.py): per scene and level, "
+                       "Tresca load paths scaled to each Q/(mu P) of 'ratios', against "
+                       "Cattaneo-Mindlin, solved by the reference and 'solvers'; mu = 0; "
+                       "Coulomb",
+        "additionalProperties": False,
+        "required": ["scenes", *COMMON],
+        "properties": {
+            "scenes": {"$ref": "#/definitions/scene_levels", "description":
+                       "{scene: [levels]} (a scene whose problem takes friction)"},
+            "mu": {"type": "number", "exclusiveMinimum": 0,
+                   "description": "friction coefficient"},
+            "ratios": {"type": "array", "minItems": 1,
+                       "items": {"type": "number", "exclusiveMinimum": 0,
+                                 "exclusiveMaximum": 1},
+                       "description": "load ratios Q/(mu P) of the Tresca paths"},
+            "shift": {"type": "number", "description":
+                      "the tangential step's shift before its scaling (nonzero)"},
+            "coulomb_shift": {"type": "number", "minimum": 0,
+                              "description": "the Coulomb runs' tangential shift (0: none)"},
+            "solvers": {"type": "array", "items": {"type": "string"},
+                        "description": "registered solvers that take friction"},
+            "tol": {"enum": ["low", "mid", "high"],
+                    "description": "the solvers' verified tolerance"},
+            "time_limit": {"$ref": "#/definitions/time_limit"},
+        },
+    },
+    # circle-square levels; resources: the largest job, measured (tiny, quick) or
+    # predicted from them (full, huge: `make plan`)
+    scales={
+        "tiny": AtScale(settings_at([0, 1]), {RULE: {"mem_mb": 1000, "runtime": 2}}),
+        "quick": AtScale(settings_at([1, 2, 3]), {RULE: {"mem_mb": 2000, "runtime": 3}}),
+        "full": AtScale(settings_at([1, 2, 3, 4]), {RULE: {"mem_mb": 5000, "runtime": 15}}),
+        "huge": AtScale(settings_at([1, 2, 3, 4, 5]), {RULE: {"mem_mb": 20000, "runtime": 90}}),
+    },
+    claims=("fr_claims",),
+    captions="friction.rst",
+)
