@@ -24,11 +24,11 @@ parameters, ``--problem P --set key=value``), at each of ``--levels``:
   Tresca step verified by :func:`solvers.interface.solve` at ``--tol``): status, the
   solver's iterations in the normal and in the tangential step, its setup and solve
   time, and the relative energy-norm distance of its last step to the reference's;
-* **mu = 0** -- the reference's path with ``mu = 0`` against ``pdas`` on the frictionless
-  scene with the same shift, both load steps;
-* **Coulomb** (``friction=coulomb``, the unscaled ``--coulomb-shift``) -- the reference's
-  fixed point ``s = mu p`` over Tresca steps: its Tresca solves and last contraction per
-  load step (the frictionless solve that starts the path not counted).
+* **mu = 0** -- the reference's path with ``mu = 0`` against ``pdas`` on each load step's
+  frictionless problem, both load steps;
+* **Coulomb** (Coulomb's law, the tangential step at ``--coulomb-shift``) -- the
+  reference's fixed point ``s = mu p`` over Tresca steps: its Tresca solves and last
+  contraction per load step (the frictionless solve that starts the path not counted).
 
 ``--out`` gets one row per (level, ratio, role): ``role`` is ``reference``, ``solver``,
 ``mu_zero`` or ``coulomb``; ``--profiles`` one row per constrained node of each
@@ -59,7 +59,8 @@ from reference.cattaneo_mindlin import stick_zone_ratio, stick_zone_size, tangen
 from reference.hertz import moment_estimate
 from solvers import tresca
 from solvers.interface import parse_tolerance, run_load_path, solve, solvers
-from solvers.tresca import as_tresca_solution, friction_path, path_for_ratio, tangential_ratio
+from solvers.tresca import (as_tresca_solution, friction_path, path_for_ratio,
+                            scaled_tangential_step, tangential_ratio)
 from workflows.io import write_csv
 from workflows.progress import study_progress
 from workflows.scene_args import add_scene_arguments, check_levels, parse_sets, scene_from_args
@@ -155,13 +156,14 @@ def solver_row(path_qp, name: str, tol: str, time_limit: float, ref_step) -> dic
     return row
 
 
-def mu_zero_rows(spec, params: dict, level: int, qp, shift: float, ref_solve) -> list[dict]:
-    """The reference's path with ``mu = 0`` against ``pdas`` on the frictionless scene
-    with the same shift, per load step."""
+def mu_zero_rows(qp, ref_solve) -> list[dict]:
+    """The reference's path of ``qp`` with ``mu = 0`` against ``pdas`` on each load step's
+    frictionless problem (the step's ``f`` and ``g`` without friction: the scene built
+    with ``friction=none`` and the step's shift, array for array)."""
     steps = friction_path(replace(qp, friction=replace(qp.friction, mu=0.0)), ref_solve)
     rows = []
-    for k, (st, shift_k) in enumerate(zip(steps, (0.0, shift)), start=1):
-        plain = spec.make(level, **params, shift=shift_k)
+    for k, (st, load) in enumerate(zip(steps, qp.friction.path), start=1):
+        plain = replace(qp, f=load.f, g=load.g, friction=None)
         ref = solve(plain, "pdas", PDAS_TOL)
         row = {"load_step": k, "status": ref.status}
         if ref.status == "converged":
@@ -171,13 +173,14 @@ def mu_zero_rows(spec, params: dict, level: int, qp, shift: float, ref_solve) ->
     return rows
 
 
-def coulomb_rows(spec, params: dict, level: int, mu: float, shift: float, ref_solve) -> list[dict]:
-    """Coulomb's fixed point ``s = mu p`` over the reference's Tresca steps, per load step."""
-    qp = spec.make(level, **params, friction="coulomb", mu=mu, shift=shift)
-    steps = friction_path(qp, ref_solve)
+def coulomb_rows(qp, factor: float, ref_solve) -> list[dict]:
+    """Coulomb's fixed point ``s = mu p`` over the reference's Tresca steps on the load
+    path of ``qp`` with its tangential step scaled by ``factor`` (exact: the step is affine
+    in the shift), per load step."""
+    coulomb = replace(qp, friction=replace(qp.friction, law="coulomb"))
+    steps = friction_path(scaled_tangential_step(coulomb, factor), ref_solve)
     return [{"load_step": k, "status": st.solution.status, "tresca_solves": st.tresca_solves,
-             "contraction": st.contraction,
-             "ratio_reached": tangential_ratio([st])}
+             "contraction": st.contraction, "ratio_reached": tangential_ratio([st])}
             for k, st in enumerate(steps, start=1)]
 
 
@@ -211,10 +214,10 @@ def level_rows(spec, params: dict, level: int, args) -> tuple[list[dict], list[p
                          **solver_row(ref.qp, name, args.tol, args.time_limit, ref)})
     try:
         rows += [{**size, "role": "mu_zero", "solver": ref_name, **r}
-                 for r in mu_zero_rows(spec, params, level, qp, args.shift, ref_solve)]
+                 for r in mu_zero_rows(qp, ref_solve)]
         if args.coulomb_shift > 0:
             rows += [{**size, "role": "coulomb", "solver": ref_name, **r} for r in
-                     coulomb_rows(spec, params, level, args.mu, args.coulomb_shift, ref_solve)]
+                     coulomb_rows(qp, args.coulomb_shift / args.shift, ref_solve)]
     except ReferenceFailed as err:
         rows.append({**size, "role": "mu_zero", "status": "failed", "message": str(err)})
     return rows, profiles

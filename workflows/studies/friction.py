@@ -167,13 +167,16 @@ STUDY = Study(
             "time_limit": {"$ref": "#/definitions/time_limit"},
         },
     },
-    # circle-square levels; resources: the largest job, measured (tiny, quick) or
-    # predicted from them (full, huge: `make plan`)
+    # circle-square levels; resources: the largest job, measured alone at tiny and quick on
+    # the shared 2-core machine; full and huge estimated from quick's level 3 (its solver
+    # paths cost ~4x per level: N x4, iterations flat)
     scales={
-        "tiny": AtScale(settings_at([0, 1]), {RULE: {"mem_mb": 1000, "runtime": 2}}),
-        "quick": AtScale(settings_at([1, 2, 3]), {RULE: {"mem_mb": 2000, "runtime": 3}}),
-        "full": AtScale(settings_at([1, 2, 3, 4]), {RULE: {"mem_mb": 5000, "runtime": 15}}),
-        "huge": AtScale(settings_at([1, 2, 3, 4, 5]), {RULE: {"mem_mb": 20000, "runtime": 90}}),
+        "tiny": AtScale(settings_at([0, 1]),                   # measured 13 s, 0.4 GB
+                        {RULE: {"mem_mb": 1000, "runtime": 1}}),
+        "quick": AtScale(settings_at([1, 2, 3]),               # measured 125 s, 1.4-2.3 GB
+                         {RULE: {"mem_mb": 3000, "runtime": 4}}),
+        "full": AtScale(settings_at([1, 2, 3, 4]), {RULE: {"mem_mb": 8000, "runtime": 12}}),
+        "huge": AtScale(settings_at([1, 2, 3, 4, 5]), {RULE: {"mem_mb": 30000, "runtime": 50}}),
     },
     claims=("fr_claims",),
     captions="friction.rst",
