@@ -20,10 +20,9 @@ from pathlib import Path
 
 import pandas as pd
 import pytest
-import yaml
 
 from workflows.io import META, PARTIAL, check_result
-from workflows.studies import PATHS, all_targets
+from workflows.studies import PATHS, all_targets, load_config
 
 ROOT = Path(__file__).resolve().parent.parent
 SNAKEMAKE = Path(sys.executable).parent / "snakemake"
@@ -69,7 +68,9 @@ if _gate and set({HELD_JOB!r}) <= set(getattr(sys, "orig_argv", ())):
 
 
 def targets() -> list[str]:
-    config = yaml.safe_load(TINY.read_text())
+    """Every file the tiny run makes: the scale file read as the workflow reads it, with
+    the sections its studies declare at the tiny scale (``scale: tiny``)."""
+    config = load_config(TINY)
     return all_targets(config) + [PATHS["summary_html"], PATHS["summary_claims"]]
 
 
