@@ -432,52 +432,72 @@ def figure_eta(steps: pd.DataFrame, path: str) -> None:
     save_figure(fig, path)
 
 
-def figure_error(steps: pd.DataFrame, accuracy: pd.DataFrame, path: str) -> None:
-    """Accuracy per node: energy error (measured against the reference and estimated with
-    its own error), force error, Hertz deviation and zig-zag against N, fitted rates."""
-    fig, axes = plt.subplots(2, 2, figsize=(11, 8))
-    runs = steps[steps.variant != "reference"]
-    e_ref = float(accuracy["e_ref_estimated"].iloc[0]) if "e_ref_estimated" in accuracy \
-        and len(accuracy) else np.nan
-    acc = accuracy.set_index("variant") if len(accuracy) else pd.DataFrame()
-    ax = axes[0, 0]
-    if "err_energy" in runs and runs["err_energy"].notna().any():
-        for variant, grp in runs.groupby("variant", sort=False):
-            g = grp.dropna(subset=["err_energy"]).sort_values("N")
-            color, marker, ls = _style(variant)
-            rate = acc.loc[variant, "rate_N_measured"] if variant in acc.index else np.nan
-            extra = ""
-            if variant in acc.index and "node_saving_factor" in acc \
-                    and np.isfinite(acc.loc[variant, "node_saving_factor"]):
-                extra = f", {acc.loc[variant, 'node_saving_factor']:.1f}x fewer nodes"
-            ax.loglog(g["N"], g["err_energy"], marker=marker, color=color, ls=ls, ms=4,
-                      label=f"{variant}: slope {-rate:.2f}{extra}")
-            if np.isfinite(e_ref):
-                ax.loglog(g["N"], np.hypot(g["err_energy"], e_ref), color=color, ls=":", lw=1)
-        u = runs[runs.variant == "uniform"].dropna(subset=["err_energy"])
-        if len(u):
-            ax.axhline(u["err_energy"].iloc[-1], color="k", lw=0.6, ls="--")
-        ax.set_title("energy error ||u_ref - u_h||_A / ||u_ref||_A (solid);\n"
-                     f"dotted: with the reference's own error {e_ref:.3f} (orthogonality)",
-                     fontsize=8)
-        ax.legend(fontsize=6)
-    else:
-        ax.text(0.5, 0.5, "energy error not measured\n(3D: meshes of different runs\n"
-                "are not nested)", ha="center", va="center", transform=ax.transAxes)
-        ax.axis("off")                    # no empty axes: the reason stands in their place
+def _error_panels(runs: pd.DataFrame) -> list[tuple[str, list[tuple[str, str]]]]:
+    """The accuracy panels with something to draw: (title, [(column, name), ...]) each;
+    the energy-error panel is its own case (:func:`_energy_panel`)."""
     force_col, force_title = "err_force", "contact force: |P_h - P_ref| / P_ref"
     if "err_force" not in runs or not runs["err_force"].notna().any():
-        runs = runs.assign(force_dev=runs["force"] / runs.loc[runs["N"].idxmax(), "force"] - 1)
         force_col = "force_dev"
         force_title = ("contact force against the finest mesh's (no reference): "
                        "|P_h / P_finest - 1|")
-    for ax, cols, title in (
-            (axes[0, 1], [(force_col, "force")], force_title),
-            (axes[1, 0], [("dev_a_moment", "a"), ("dev_p0_moment", "p0")],
-             "Hertz deviation |a/a_H - 1| (solid), |p0/p0_H - 1| (dashed)"),
-            (axes[1, 1], [("zigzag_rms", "zig-zag"), ("dev_hertz_rms", "rms from Hertz")],
-             "nodal pressure / p0_H: zig-zag rms (solid), rms deviation from Hertz (dashed)")):
-        drew = False
+    panels = [(force_title, [(force_col, "force")]),
+              ("Hertz deviation |a/a_H - 1| (solid), |p0/p0_H - 1| (dashed)",
+               [("dev_a_moment", "a"), ("dev_p0_moment", "p0")]),
+              ("nodal pressure / p0_H: zig-zag rms (solid), rms deviation from Hertz (dashed)",
+               [("zigzag_rms", "zig-zag"), ("dev_hertz_rms", "rms from Hertz")])]
+    return [(title, cols) for title, cols in panels
+            if any(col in runs and runs[col].notna().any() for col, _ in cols)]
+
+
+def _energy_panel(ax, runs: pd.DataFrame, accuracy: pd.DataFrame) -> None:
+    """Energy error against the reference with fitted slopes, and dotted with the
+    reference's own estimated error added in quadrature (Galerkin orthogonality)."""
+    e_ref = float(accuracy["e_ref_estimated"].iloc[0]) if "e_ref_estimated" in accuracy \
+        and len(accuracy) else np.nan
+    acc = accuracy.set_index("variant") if len(accuracy) else pd.DataFrame()
+    for variant, grp in runs.groupby("variant", sort=False):
+        g = grp.dropna(subset=["err_energy"]).sort_values("N")
+        color, marker, ls = _style(variant)
+        rate = acc.loc[variant, "rate_N_measured"] if variant in acc.index else np.nan
+        extra = ""
+        if variant in acc.index and "node_saving_factor" in acc \
+                and np.isfinite(acc.loc[variant, "node_saving_factor"]):
+            extra = f", {acc.loc[variant, 'node_saving_factor']:.1f}x fewer nodes"
+        ax.loglog(g["N"], g["err_energy"], marker=marker, color=color, ls=ls, ms=4,
+                  label=f"{variant}: slope {-rate:.2f}{extra}")
+        if np.isfinite(e_ref):
+            ax.loglog(g["N"], np.hypot(g["err_energy"], e_ref), color=color, ls=":", lw=1)
+    u = runs[runs.variant == "uniform"].dropna(subset=["err_energy"])
+    if len(u):
+        ax.axhline(u["err_energy"].iloc[-1], color="k", lw=0.6, ls="--")
+    ax.set_title("energy error ||u_ref - u_h||_A / ||u_ref||_A (solid);\n"
+                 f"dotted: with the reference's own error {e_ref:.3f} (orthogonality)",
+                 fontsize=8)
+    ax.legend(fontsize=6)
+
+
+def figure_error(steps: pd.DataFrame, accuracy: pd.DataFrame, path: str) -> None:
+    """Accuracy per node: energy error (measured against the reference and estimated with
+    its own error), force error, Hertz deviation and zig-zag against N, fitted rates.
+
+    Only the panels with data are drawn: in 3D the meshes of different runs are not
+    nested, so there is no energy error against a reference and the figure has three
+    panels (the caption says why)."""
+    runs = steps[steps.variant != "reference"]
+    if "err_force" not in runs or not runs["err_force"].notna().any():
+        runs = runs.assign(force_dev=runs["force"] / runs.loc[runs["N"].idxmax(), "force"] - 1)
+    energy = "err_energy" in runs and runs["err_energy"].notna().any()
+    panels = _error_panels(runs)
+    n = len(panels) + energy
+    if n == 0:
+        raise ValueError("figure_error: no accuracy quantity measured in the steps")
+    shape = (2, 2) if n == 4 else (1, n)
+    fig, axes = plt.subplots(*shape, figsize=(11, 8) if n == 4 else (5.2 * n, 4.4),
+                             squeeze=False)
+    axes = list(axes.ravel())
+    if energy:
+        _energy_panel(axes.pop(0), runs, accuracy)
+    for ax, (title, cols) in zip(axes, panels):
         for variant, grp in runs.groupby("variant", sort=False):
             g = grp.sort_values("N")
             color, marker, _ = _style(variant)
@@ -487,15 +507,10 @@ def figure_error(steps: pd.DataFrame, accuracy: pd.DataFrame, path: str) -> None
                     y = np.abs(g[col].to_numpy(float))
                     ax.loglog(g["N"], np.where(y > 0, y, np.nan), marker=marker, color=color,
                               ls=ls, ms=3, label=None if labelled else variant)
-                    drew = labelled = True
+                    labelled = True
         ax.set_title(title, fontsize=8)
-        if drew:
-            ax.legend(fontsize=6)
-        else:
-            ax.text(0.5, 0.5, "not measured in this run", ha="center", va="center",
-                    transform=ax.transAxes)
-            ax.axis("off")
-    for ax in axes.ravel():
+        ax.legend(fontsize=6)
+    for ax in fig.axes:
         ax.set_xlabel("nodes N")
         ax.grid(True, which="both", alpha=0.3)
     save_figure(fig, path)

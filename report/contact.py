@@ -94,6 +94,11 @@ def _contact_window(points, pressure, dims=(0, 1)):
     return c, size
 
 
+#: above this many cells the deformed mesh's edges are not drawn: at the figure's size they
+#: would hide the displacement shading
+MAX_DRAWN_CELLS = 6000
+
+
 def fields_figure(vtu: str, path: str, magnify: float = 1.0) -> None:
     """Left: the deformed mesh shaded by the displacement's size; right: von Mises stress
     near the contact.
@@ -115,11 +120,14 @@ def fields_figure(vtu: str, path: str, magnify: float = 1.0) -> None:
     deformed = Triangulation(d[:, 0], d[:, 1], tri)
     size = np.linalg.norm(uv, axis=1)
     shade = ax.tripcolor(deformed, size, cmap="Blues", shading="gouraud")
-    ax.triplot(deformed, color="0.35", lw=0.15)
+    edges = len(tri) <= MAX_DRAWN_CELLS
+    if edges:                # finer meshes' edges would cover the shading at this size
+        ax.triplot(deformed, color="0.35", lw=0.15)
     ax.set_aspect("equal")
     fig.colorbar(shade, ax=ax, fraction=0.046, pad=0.02, label="displacement |u|")
     scale = "true scale" if magnify == 1 else f"displacements x{magnify:g}: bodies may overlap"
-    ax.set_title(f"{where}:\ndeformed mesh ({scale}), shaded by |u| "
+    what = "deformed mesh" if edges else f"deformed body, {len(tri):,} cells (edges not drawn)"
+    ax.set_title(f"{where}:\n{what}, {scale}, shaded by |u| "
                  f"(max {float(size.max()) if size.size else 0.0:.3g})", fontsize=9)
     ax.set_xlabel(labels[0])
     ax.set_ylabel(labels[1])

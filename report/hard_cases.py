@@ -13,6 +13,7 @@ has KKT residuals and a certified energy bound within the tolerance
 from __future__ import annotations
 
 import argparse
+import textwrap
 
 import matplotlib
 
@@ -34,7 +35,7 @@ def table(inputs: list[str], cases: list[str] | None = None,
           preset: str | None = None) -> pd.DataFrame:
     """The rows of ``cases`` (``family:level``) at ``preset`` (all rows if None), with the
     two promises checked per row."""
-    t = pd.concat([read_csv(f) for f in inputs], ignore_index=True)
+    t = pd.concat([read_csv(f) for f in inputs], ignore_index=True).copy()   # one block
     if "case" not in t:
         t["case"] = t["family"]
     if "wall_time" not in t:
@@ -109,6 +110,8 @@ def heatmap(t: pd.DataFrame, path: str) -> None:
         g = t.pivot_table(index="case", columns="solver", values=col, aggfunc="first")
         return g.reindex(index=cases, columns=solvers)
 
+    solved = grid("status").isin(["converged", "inaccurate", "max_iter"])
+
     status = grid("status").apply(lambda c: c.map({s: i for i, s in enumerate(STATUS_ORDER)}))
     width = max(3.2, 0.55 * len(solvers) + 1.6)
     fig, axes = plt.subplots(2, 2, figsize=(2 * width + 1.5, 2 * (0.4 * len(cases) + 2.2)),
@@ -119,7 +122,8 @@ def heatmap(t: pd.DataFrame, path: str) -> None:
                "log10 worst scaled KKT residual", "viridis", (-16, 0)),
               (np.log10(grid("energy_error").astype(float).clip(lower=1e-16)), "error",
                "log10 energy error vs the reference", "viridis", (-16, 0)),
-              (np.log10(grid("wall_time").astype(float).clip(lower=1e-3)), "time",
+              (np.log10(grid("wall_time").astype(float).clip(lower=1e-3)).where(
+                  solved | grid("status").isin(["time_limit"])), "time",
                "wall time [s] (colour: log10)", "magma_r", None)]
     for ax, (data, panel, title, cmap, lim) in zip(axes.flat, panels):
         vals = data.to_numpy(dtype=float)
@@ -140,13 +144,14 @@ def heatmap(t: pd.DataFrame, path: str) -> None:
         else:
             fig.colorbar(im, ax=ax, fraction=0.046, pad=0.02)
     preset = t["preset"].iloc[0]
-    fig.suptitle(f"Hard cases ({', '.join(cases)}), preset {preset} (tol "
-                 f"{t['tol'].iloc[0]:g}): every solver in its own process with a hard time "
+    fig.suptitle(f"Hard cases: {len(cases)} families, preset {preset} (tol "
+                 f"{t['tol'].iloc[0]:g}), every solver in its own process with a hard time "
                  "limit", fontsize=10)
     blank = blank_columns(t)
     if blank:
-        fig.text(0.01, 0.0, "-- : no value. " + "; ".join(blank), fontsize=7, ha="left",
-                 va="top", wrap=True)
+        note = textwrap.fill("-- : no value (no solution, or a skip's time). "
+                             + "; ".join(blank), width=int(14 * fig.get_figwidth()))
+        fig.text(0.01, 0.0, note, fontsize=7, ha="left", va="top")
     save_figure(fig, path)
 
 
@@ -160,7 +165,8 @@ def blank_columns(t: pd.DataFrame) -> list[str]:
         msg = next((str(m) for m in g.get("message", pd.Series(dtype=object)).dropna()
                     if str(m).strip()), "")
         statuses = ", ".join(sorted(set(g["status"])))
-        out.append(f"{solver}: {statuses}" + (f" ({msg[:90]})" if msg else ""))
+        out.append(f"{solver}: {statuses}"
+                   + (f" ({textwrap.shorten(msg, 200, placeholder=' ...')})" if msg else ""))
     return out
 
 

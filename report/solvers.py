@@ -66,10 +66,12 @@ def _scene(table: pd.DataFrame) -> str:
 
 
 def times_frame(table: pd.DataFrame) -> pd.DataFrame:
-    """The data of the times figure: every solver run (the exact reference left out) with
-    its size n, preset, wall time, status and whether it is verified converged, sorted
-    by solver, preset and n."""
-    runs = table[table.preset != "reference"].sort_values(["solver", "preset", "n"])
+    """The data of the times figure: every solver run (the exact reference and the skipped
+    runs left out: a skip's time is the refusal, not a solve) with its size n, preset,
+    wall time, status and whether it is verified converged, sorted by solver, preset
+    and n."""
+    runs = table[(table.preset != "reference") & (table.status != "skipped")]
+    runs = runs.sort_values(["solver", "preset", "n"])
     return pd.DataFrame({"solver": runs.solver, "preset": runs.preset, "level": runs.level,
                          "n": runs.n.astype(int), "total_time": runs.total_time.astype(float),
                          "status": runs.status, "verified": runs.status == "converged"}

@@ -336,8 +336,9 @@ def table_html(frame: pd.DataFrame, left: tuple[str, ...] = (), classes: dict | 
             f"{''.join(body)}</table></div>{notes}{more}")
 
 
-def thesis_rows(items, config_files: str) -> pd.DataFrame:
-    """Every thesis item, its output files and whether this run regenerated them."""
+def thesis_rows(items, scale: str) -> pd.DataFrame:
+    """Every thesis item, its output files and whether this run (at ``scale``) regenerated
+    them."""
     present = {(k, s): p for k, s, p in items}
     rows = []
     for t in THESIS_ITEMS:
@@ -348,7 +349,8 @@ def thesis_rows(items, config_files: str) -> pd.DataFrame:
         elif files:
             status, where = "regenerated", ", ".join(sorted(files))
         else:
-            status, where = "not in this configuration", f"{PATHS[t.key]} ({config_files})"
+            status = "not in this configuration"
+            where = f"{PATHS[t.key]}: not at the {scale} scale (a larger one regenerates it)"
         rows.append({"thesis": t.item, "what": t.what, "status": status, "output": where})
     return pd.DataFrame(rows)
 
@@ -576,7 +578,7 @@ def page(items, claims: pd.DataFrame, prov: dict, varying: dict, res: pd.DataFra
     the claims, the thesis's items, the tables beside the thesis's, the provenance and
     the resources."""
     _TABLE_IDS.clear()                  # table ids count from 1 on every page
-    th = thesis_rows(items, prov.get("configfile") or scale)
+    th = thesis_rows(items, scale)
     parts = [f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>contactbench summary "
              f"({html.escape(scale)})</title><style>{STYLE}</style></head><body>",
              "<h1>contactbench: summary of the regeneration</h1>",

@@ -94,6 +94,27 @@ def input_mb(qp) -> float:
                for M in (sp.csr_matrix(M) for M in mats)) / 1e6
 
 
+def median_run(run: Callable[[], dict], repeats: int, key: str = "t_to_target") -> dict:
+    """``run()`` ``repeats`` times; the run whose ``key`` is the median (the lower middle
+    for an even count), with the spread of ``key`` over the repeats
+    (``<key>_min``, ``<key>_max``) and ``timing_repeats``.
+
+    A timed solve is deterministic in its steps, not in its time: a claim judged on one
+    sub-second run flips with the machine's noise, the median of a few does not. A run
+    without a finite ``key`` (not reached, skipped) is returned at once, unrepeated."""
+    if repeats < 1:
+        raise ValueError(f"repeats must be >= 1, got {repeats}")
+    runs = [run()]
+    if not np.isfinite(runs[0].get(key, np.nan)):
+        return {**runs[0], "timing_repeats": 1}
+    runs += [run() for _ in range(repeats - 1)]
+    values = np.array([r.get(key, np.nan) for r in runs], dtype=float)
+    order = np.argsort(values)                  # NaN last
+    middle = runs[int(order[(len(runs) - 1) // 2])]
+    return {**middle, f"{key}_min": float(np.nanmin(values)),
+            f"{key}_max": float(np.nanmax(values)), "timing_repeats": repeats}
+
+
 def amg_pcg_floor(qp, kind: str, target: float, u_exact: np.ndarray,
                   max_iter: int = 500) -> dict:
     """PCG for ``A u = f`` (no contact) with one V-cycle, to energy error ``target``

@@ -247,6 +247,23 @@ def scenes_of(config: dict, study: str) -> dict[str, list[int]]:
     return dict(config.get(study, {}).get("scenes", {}))
 
 
+def check_reference_levels(config: dict, study: str, registry: dict) -> None:
+    """A study with a common finer reference per scene (``config[study]["reference_level"]``,
+    ``{scene: level}``): every scene it names is among the study's scenes, and each scene's
+    reference level lies above its levels and within its problem's range."""
+    section, runs = config[study], scenes_of(config, study)
+    for scene in section["reference_level"]:
+        if scene not in runs:
+            raise ConfigError(f"config '{study}.reference_level.{scene}': not among "
+                              f"{study}.scenes ({', '.join(runs)})")
+    for scene, levels in runs.items():
+        ref = section["reference_level"].get(scene)
+        lo, hi = registry[config["scenes"][scene]["problem"]].levels
+        if ref is None or not max(levels) < ref <= hi:
+            raise ConfigError(f"config '{study}.reference_level.{scene}': {ref} is not "
+                              f"allowed; allowed: a level in {max(levels) + 1}..{hi}")
+
+
 def problem_set_of(config: dict):
     """The test set the config names (``test_set.name``; the current one by default)."""
     from workflows.problem_set import CURRENT, load

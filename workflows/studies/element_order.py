@@ -50,7 +50,8 @@ at 18,360 nodes: P2 0.126 against P1 0.209 (ratio 0.60), Hertz at P2 level 1 −
 level 1 (κ(Ŝ⁻¹S_in) 4.9 at level 0 exceeds its switch), so n_o drops from 107 to 12 and no
 3D time exponent is judged from two levels.
 """
-from workflows.studies._base import AtScale, ConfigError, Study, ThesisItem, scenes_of
+from workflows.studies._base import (AtScale, ConfigError, Study, ThesisItem,
+                                     check_reference_levels, scenes_of)
 
 RULE = "element_order_study"
 
@@ -76,12 +77,7 @@ def check(config: dict, registry: dict) -> None:
     eo = config.get("element_order")
     if not eo:
         return
-    runs = scenes_of(config, "element_order")
-    for scene in eo["reference_level"]:
-        if scene not in runs:
-            raise ConfigError(f"config 'element_order.reference_level.{scene}': not among "
-                              f"element_order.scenes ({', '.join(runs)})")
-    for scene, levels in runs.items():
+    for scene in scenes_of(config, "element_order"):
         spec = registry[config["scenes"][scene]["problem"]]
         if "degree" not in {p.name for p in spec.parameters}:
             raise ConfigError(f"config 'element_order.scenes.{scene}': problem {spec.name!r} "
@@ -89,11 +85,7 @@ def check(config: dict, registry: dict) -> None:
         if "degree" in (config["scenes"][scene].get("params") or {}):
             raise ConfigError(f"config 'element_order.scenes.{scene}': the scene sets "
                               "'degree'; allowed: a scene without it (the study runs P1 and P2)")
-        ref = eo["reference_level"].get(scene)
-        lo, hi = spec.levels
-        if ref is None or not max(levels) < ref <= hi:
-            raise ConfigError(f"config 'element_order.reference_level.{scene}': {ref} is not "
-                              f"allowed; allowed: a level in {max(levels) + 1}..{hi}")
+    check_reference_levels(config, "element_order", registry)
 
 
 STUDY = Study(

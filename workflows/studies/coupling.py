@@ -1,0 +1,158 @@
+"""Nodal, stabilised and mortar couplings (thesis Ch. 6, Sect. 7.5, Prop. 7.6)
+
+The thesis discretises body-body contact by nodal constraints (Alg. 7.1) and proves for
+them the rate O(h^{1/2}) under H^2 regularity (Prop. 7.6, (7.8)); on a Laplace problem
+with non-matching grids (Ch. 6) nodal constraints lose the optimal primal rate, which a
+mesh-dependent stabilisation restores (Sect. 6.3, Remark 6.25, Fig. 6.5), and the
+mortar method is the yardstick that has it. This study puts the couplings the contact
+scenes offer (`coupling` = `nodal`, `stabilised` (Sect. 7.5), `mortar`, `mortar_dual`;
+`docs/guide/mortar.md`) side by side on the contact scenes.
+
+Per scene and coupling at the configured levels, and for a common reference (the same
+scene at `reference_level` with the `mortar_dual` coupling), every problem is solved
+exactly: PDAS through `solvers.interface.solve` at the `high` tolerance, verified
+(`workflows/scripts/coupling.py`). Against the reference: the energy error
+||P u_h - u_ref||_A / ||u_ref||_A (P the P1 interpolation onto the reference's nested
+mesh, the adaptive study's comparison), the contact force, and the nodal pressure
+against the reference's; against Hertz: the half-width a and the peak pressure p0
+(moments of the nodal forces, as the contact_solution study) and the nodal pressure's
+rms deviation over the contact zone, a discrete L2 norm of the multiplier error (the
+H^{-1/2}-type norm of the mortar theory is not measured).
+
+The optimal rate: the contact solution is in H^{5/2-eps} at best, so P1's energy error is
+O(h) at best (Hüeber, Wohlmuth, SIAM J. Numer. Anal. 43 (2005)): O(N^{-1/2}) in 2D,
+O(N^{-1/3}) in 3D on uniform meshes. The mortar rates are judged against it (within
+0.1, fitted over the finest three levels); the nodal and stabilised rates are reported
+beside it (the thesis's (7.8) is a lower bound, and Ch. 6's loss of the rate is shown
+for the Laplace problem, not for contact).
+
+| file | content |
+| --- | --- |
+| `results/<scene>/coupling.csv` | per coupling and level: N, n, N^C, status, KKT, the energy, force and pressure errors against the reference, force, a and p0 against Hertz, the pressure's rms deviation from Hertz; the reference's row |
+| `results/<scene>/coupling_claims.csv` | every solve converged; each coupling's fitted rate (mortar: within 0.1 of the optimal); a/a_H, p0/p0_H and the pressure deviation at the finest level |
+| `results/<scene>/coupling.png` | energy error against N per coupling (log-log), fitted rates in the legend, the optimal slope dotted |
+| `results/<scene>/coupling_hertz.png` | a/a_H and p0/p0_H against N per coupling, Hertz dotted at 1 |
+
+Read the energy-error figure as the difference to a finer discrete solution, not the true
+error: for nested spaces the two differ by the reference's own error, which steepens the
+finest point a little. The quick scale runs circle–square levels 0-2 against level 3
+(48 s, 0.7 GB); the full scale levels 0-3 against level 4 (6.9 min, 2.0 GB: the reference
+solve and the interpolations onto its 262k nodes dominate); both measured on a loaded
+2-core machine. Cube–sphere (3D) is not configured yet: the study takes it
+(`--problem cube_sphere`), but no run of it has been measured.
+
+Measured on circle–square, levels 0-3 (N = 1,099 to 65,926) against level 4:
+
+| coupling | energy error, levels 0-3 | rate (levels 1-3) | a/a_H, level 3 | p0/p0_H, level 3 | pressure rms / p0, level 3 |
+| --- | --- | --- | --- | --- | --- |
+| nodal | 0.232 0.136 0.074 0.039 | -0.45 | 0.989 | 1.011 | 0.051 |
+| stabilised | 0.232 0.132 0.073 0.038 | -0.45 | 0.990 | 1.010 | 0.035 |
+| mortar | 0.234 0.136 0.073 0.038 | -0.46 | 0.985 | 1.015 | 0.052 |
+| mortar_dual | 0.231 0.133 0.072 0.038 | -0.46 | 0.990 | 1.010 | 0.017 |
+
+At quick (levels 0-2 against level 3) the rates are -0.47 (nodal, stabilised) and -0.47,
+-0.47 (mortar, mortar_dual; within 0.1 of -1/2). On this scene the four couplings' energy
+errors agree to 3 %: the square's top edge is straight and the circle's chords resolve it
+at every level, so the non-matching interface costs nodal constraints no order here,
+unlike Ch. 6's Laplace example. The couplings differ in the pressure: the standard mortar
+multipliers' nodal pressure overshoots Hertz's peak by 24 % at level 0 and 4 % at level 2
+(rms deviation 0.34 to 0.16) where the dual ones stay within 4 % (rms 0.02 to 0.05).
+
+Run by hand:
+
+    contactbench study coupling --problem circle_square --levels 0 1 2 \\
+        --reference-level 3 --out results/circle_square/coupling.csv
+"""
+from problems.fem.stabilised import COUPLINGS
+from workflows.studies._base import (ConfigError, Study, ThesisItem, check_reference_levels,
+                                     scenes_of)
+
+RULE = "coupling_study"
+
+
+def coupling_args(config: dict, scene: str) -> str:
+    """A scene's settings of the coupling study as arguments of
+    ``workflows/scripts/coupling.py``."""
+    cs = config["coupling"]
+    levels = " ".join(map(str, scenes_of(config, "coupling")[scene]))
+    return (f"--levels {levels} --reference-level {cs['reference_level'][scene]} "
+            f"--couplings {' '.join(cs['couplings'])}")
+
+
+def planned_jobs(config: dict, rule: str) -> list[tuple[str, str, int]]:
+    """One job per scene, sized by its reference level (the largest solve)."""
+    return [(s, s, config["coupling"]["reference_level"][s])
+            for s in scenes_of(config, "coupling")]
+
+
+def check(config: dict, registry: dict) -> None:
+    """Scenes whose problem offers every listed coupling and ``mortar_dual`` (the
+    reference's), without a ``coupling`` of their own, each with a reference level above
+    its levels and within the problem's range."""
+    cs = config.get("coupling")
+    if not cs:
+        return
+    for scene in scenes_of(config, "coupling"):
+        spec = registry[config["scenes"][scene]["problem"]]
+        offered = next((p.choices for p in spec.parameters if p.name == "coupling"), None) or ()
+        missing = [c for c in (*cs["couplings"], "mortar_dual") if c not in offered]
+        if missing:
+            raise ConfigError(f"config 'coupling.scenes.{scene}': problem {spec.name!r} does "
+                              f"not offer the couplings {missing}; allowed: a problem offering "
+                              f"{', '.join(cs['couplings'])} and mortar_dual")
+        if "coupling" in (config["scenes"][scene].get("params") or {}):
+            raise ConfigError(f"config 'coupling.scenes.{scene}': the scene sets 'coupling'; "
+                              "allowed: a scene without it (the study sets it)")
+    check_reference_levels(config, "coupling", registry)
+
+
+STUDY = Study(
+    name="coupling",
+    summary="nodal, stabilised and mortar (standard and dual) couplings on the contact "
+            "scenes: the energy error against a common fine reference with fitted rates "
+            "beside the optimal O(h), Hertz's a and p0 and the pressure's deviation per "
+            "coupling and level",
+    thesis="Ch. 6 (nodal against stabilised against mortar), Sect. 7.5, Prop. 7.6",
+    order=85,
+    rule_file="coupling.smk",
+    scripts={"coupling": "workflows.scripts.coupling"},
+    paths={
+        "cp_study": "results/{scene}/coupling.csv",
+        "cp_claims": "results/{scene}/coupling_claims.csv",
+        "cp_figure": "results/{scene}/coupling.png",
+        "cp_hertz": "results/{scene}/coupling_hertz.png",
+    },
+    outputs=("cp_study", "cp_claims", "cp_figure", "cp_hertz"),
+    heavy_rules=(RULE,),
+    thesis_items=(
+        ThesisItem("Ch. 6 / Prop. 7.6 (2D)", "couplings on circle-square: energy-error rates "
+                   "of nodal, stabilised and mortar", "cp_figure", "circle_square"),
+        ThesisItem("Ch. 6 / Prop. 7.6 (3D)", "couplings on cube-sphere: energy-error rates "
+                   "of nodal, stabilised and mortar", "cp_figure", "cube_sphere"),
+    ),
+    check=check,
+    settings={
+        "type": "object",
+        "description": "nodal, stabilised and mortar couplings (workflows/scripts/coupling.py): "
+                       "per scene, every coupling at the listed levels against a mortar_dual "
+                       "reference at reference_level, each solved exactly",
+        "additionalProperties": False,
+        "required": ["scenes", "reference_level", "couplings"],
+        "properties": {
+            "scenes": {"$ref": "#/definitions/scene_levels", "description":
+                       "{scene: [levels]} (a scene whose problem has the 'coupling' "
+                       "parameter)"},
+            "reference_level": {"type": "object", "description": "{scene: level} of the "
+                                "mortar_dual reference, above every level of the scene",
+                                "additionalProperties": {"type": "integer", "minimum": 0}},
+            "couplings": {"type": "array", "minItems": 1, "uniqueItems": True,
+                          "items": {"enum": list(COUPLINGS)},
+                          "description": "the couplings compared (the reference's, "
+                                         "mortar_dual, is offered by every scene too)"},
+        },
+    },
+    claims=("cp_claims",),
+    planned_jobs=planned_jobs,
+    proxies={RULE: "contact_level"},     # its jobs keep their size between quick and full
+    captions="coupling.rst",
+)
