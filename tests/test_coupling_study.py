@@ -121,8 +121,8 @@ def test_bad_arguments_are_refused_naming_the_argument(argv, message, tmp_path, 
 
 
 @pytest.mark.parametrize("change, needle", [
-    (lambda c: c["coupling"]["reference_level"].update(circle_square=3),
-     "'coupling.reference_level.circle_square': 3 is not allowed; allowed: a level in 4.."),
+    (lambda c: c["coupling"]["reference_level"].update(circle_square=2),
+     "'coupling.reference_level.circle_square': 2 is not allowed; allowed: a level in 3.."),
     (lambda c: c["coupling"]["reference_level"].update(ghost=2),
      "'coupling.reference_level.ghost': not among coupling.scenes"),
     (lambda c: (c["scenes"].update(rolls={"problem": "roll_stack"}),
