@@ -27,7 +27,8 @@ FLOOR = "linear_floor"
 def cost_table(table: pd.DataFrame) -> pd.DataFrame:
     """Per solver and preset: the fitted exponents of wall time and of peak memory
     against N over the levels it solved (verified or not, but not failed or cut
-    short), and its time as a ratio to the linear floor at each level."""
+    short), and its time as a ratio to the linear floor at each level it ran (a skip's
+    time is its refusal: no ratio)."""
     floor = table[table.solver == FLOOR].set_index(["level", "preset"])["total_time"]
     runs = table[~table.solver.isin([FLOOR]) & (table.preset != "reference")]
     rows = []
@@ -38,7 +39,7 @@ def cost_table(table: pd.DataFrame) -> pd.DataFrame:
                "time_exponent": fitted_slope(ok["N"], ok["total_time"], last=len(ok)),
                "memory_exponent": fitted_slope(ok["N"], ok["peak_mem_mb"], last=len(ok))
                if "peak_mem_mb" in ok else np.nan}
-        for _, r in grp.iterrows():
+        for _, r in grp[grp.status != "skipped"].iterrows():
             key = (r["level"], preset)
             if key in floor.index and floor[key] > 0:
                 row[f"floor_ratio_L{int(r['level'])}"] = r["total_time"] / floor[key]

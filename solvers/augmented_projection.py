@@ -844,6 +844,10 @@ SOLVER = SolverSpec(
     role=Role.THESIS,
     handles_C=True,
     supports=supports,
+    friction_reason=(
+        "not built: Tresca's tangential multipliers would join p in the dual as the box "
+        "|lambda_t| <= s, still a trivial projection (Remark 8.5), but S-hat, its "
+        "Lanczos bounds and the floating coarse space are built over the normal rows only"),
 )
 
 

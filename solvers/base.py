@@ -215,6 +215,14 @@ class SolverSpec:
         The solver takes a ContactQP with friction (``qp.friction``, Tresca or Coulomb);
         every other solver refuses such a problem at once (``skipped``, with the reason)
         rather than solve it frictionless.
+    friction_reason : str
+        Why a solver without ``handles_friction`` does not take friction, added to its
+        skip message (empty: it solves the frictionless problem only, nothing more).
+    size_limit : str, optional
+        Name of an integer option in ``parameters`` that bounds the problem's unknowns
+        ``qp.n``: a larger problem is ``skipped`` at once, the option's help giving the
+        reason (a method whose cost grows too fast to finish in a study's time limit).
+        Setting the option higher runs the solver anyway.
     """
 
     name: str
@@ -227,6 +235,8 @@ class SolverSpec:
     handles_C: bool = False
     supports: Callable[[Any], tuple[bool, str]] | None = None
     handles_friction: bool = False
+    friction_reason: str = ""
+    size_limit: str | None = None
 
     def __post_init__(self):
         try:
@@ -234,17 +244,28 @@ class SolverSpec:
         except ValueError:
             raise ValueError(f"solver {self.name!r}: role {self.role!r} is not allowed; allowed: "
                              f"{', '.join(r.value for r in Role)}") from None
+        if self.size_limit is not None and self.size_limit not in {
+                getattr(p, "name", None) for p in self.parameters}:
+            raise ValueError(f"solver {self.name!r}: size_limit {self.size_limit!r} is not one "
+                             "of its parameters")
 
     def options(self, **given: Any) -> Options:
         """The resolved options: defaults overridden by ``given``, validated."""
         return resolve_parameters(self.parameters, given, f"solver '{self.name}'")
 
-    def check(self, qp) -> tuple[bool, str]:
-        """``(True, "")`` if the solver takes ``qp``, else ``(False, reason)``."""
+    def check(self, qp, opts: Options | None = None) -> tuple[bool, str]:
+        """``(True, "")`` if the solver with the options ``opts`` (default: its defaults)
+        takes ``qp``, else ``(False, reason)``."""
         friction = getattr(qp, "friction", None)
         if friction is not None and not self.handles_friction:
             return False, (f"{friction.law} friction on the contact: this solver solves the "
-                           "frictionless problem only")
+                           "frictionless problem only"
+                           + (f" ({self.friction_reason})" if self.friction_reason else ""))
+        if self.size_limit is not None:
+            cap = (opts if opts is not None else self.options())[self.size_limit]
+            if qp.n > cap:
+                why = next(p.help for p in self.parameters if p.name == self.size_limit)
+                return False, f"{qp.n} unknowns > {self.size_limit} = {cap}: {why}"
         if self.supports is None:
             return True, ""
         ok, reason = self.supports(qp)

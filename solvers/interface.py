@@ -172,7 +172,7 @@ def solve(qp: ContactQP, solver: str = "pdas", tol: float | str = "mid",
             soft = qp.C.diagonal() > 0
             u0 = np.concatenate([u0, (qp.B @ u0 - qp.g)[soft]])
     t0 = time.perf_counter()
-    ok, reason = spec.check(target)
+    ok, reason = spec.check(target, opts)
     if not ok:                                        # benchopt's skip: at once, with why
         result = SolveResult.without_answer(qp.n, qp.m, spec.name, tol, "skipped",
                                             f"skipped: {reason}", time.perf_counter() - t0)

@@ -98,6 +98,9 @@ class Library:
     parameters : tuple
         The library's own options beyond ``tol_factor`` and ``scale``.
     default_max_iter : int
+    size_limit : str, optional
+        The name of an integer option among ``parameters`` that bounds the unknowns it
+        is given (:attr:`solvers.base.SolverSpec.size_limit`).
     """
 
     name: str
@@ -110,6 +113,7 @@ class Library:
     time_limit_key: str | None = None
     parameters: tuple = ()
     default_max_iter: int = 10_000
+    size_limit: str | None = None
 
     def describe(self, tol: float) -> str:
         """What the preset ``tol`` means to this library (the report's preset table)."""
@@ -368,7 +372,13 @@ LIBRARIES = (
         statuses={"Optimal": "converged", "Iteration limit reached": "max_iter",
                   "Time limit reached": "time_limit"},
         call=_highs_call, max_iter_key="qp_iteration_limit", time_limit_key="time_limit",
-        default_max_iter=100_000),
+        default_max_iter=100_000, size_limit="max_unknowns",
+        parameters=(Parameter(
+            "max_unknowns", 2000, "HiGHS's active-set QP solver keeps a dense factor of the "
+            "reduced Hessian on the null space of the active rows (on a contact problem "
+            "nearly all n unknowns; beyond its qp_nullspace_limit of 4000 it stops with "
+            "'Solve error'), so its time grows like n^3 here: 5 s at 1,600 unknowns, 18 s at "
+            "2,104", low=1, kind=int),)),
     Library(
         "scs", "SCS (splitting conic solver, ADMM on the homogeneous embedding)", "scs",
         settings=lambda tol, o: {"eps_abs": tol, "eps_rel": 0.0, "verbose": False},
@@ -404,7 +414,7 @@ def solver_spec(lib: Library) -> SolverSpec:
             lib, qp, tol, max_iter, time_limit, u0, p0, opts),
         parameters=ADAPTER_PARAMETERS + lib.parameters,
         presets={name: lib.describe(tol) for name, tol in TOLERANCES.items()},
-        default_max_iter=lib.default_max_iter, role=Role.LIBRARY)
+        default_max_iter=lib.default_max_iter, role=Role.LIBRARY, size_limit=lib.size_limit)
 
 
 #: Every row as a registered solver (:func:`problems.spec.discover` reads ``SOLVERS``).

@@ -111,11 +111,12 @@ def test_solve_without_out_prints_its_status_and_writes_nothing(tmp_path, monkey
     """``--out`` is optional: the status line (with the failed check and the residuals)
     is the whole output, and no file appears."""
     monkeypatch.chdir(tmp_path)
-    assert main(["solve", "--problem", "circle_square", "--level", "0",
+    assert main(["solve", "--problem", "flat_blocks", "--level", "1",
                  "--solver", solver]) == 0
     line = capsys.readouterr().out.strip()
-    res = solve(problems()["circle_square"].make(0), solver, tol="mid")
-    assert line.startswith(f"circle_square level 0: {solver} {res.status}")
+    res = solve(problems()["flat_blocks"].make(1), solver, tol="mid")
+    assert res.status != "skipped"
+    assert line.startswith(f"flat_blocks level 1: {solver} {res.status}")
     assert f"kkt_max {res.kkt.max:.1e}" in line and "->" not in line
     assert (f"above tolerance: {res.failed_check}" in line) == bool(res.failed_check)
     assert list(tmp_path.iterdir()) == []
@@ -292,12 +293,13 @@ def test_a_library_prints_nothing_of_its_own_through_the_cli(tmp_path):
     """HiGHS prints its banner at the first ``Highs()`` of a process, before options
     apply: the command's output is the suite's one line, nothing of the library's."""
     out = tmp_path / "run.json"
-    cmd = [sys.executable, "-m", "workflows.cli", "solve", "--problem", "circle_square",
-           "--level", "0", "--solver", "highs", "--out", str(out)]
+    cmd = [sys.executable, "-m", "workflows.cli", "solve", "--problem", "flat_blocks",
+           "--level", "1", "--solver", "highs", "--out", str(out)]
     run = subprocess.run(cmd, capture_output=True, text=True, timeout=600, cwd=Path(__file__).resolve().parent.parent)
     assert run.returncode == 0, run.stderr
     (line,) = run.stdout.splitlines()
     data = json.loads(out.read_text())
-    assert line.startswith(f"circle_square level 0: highs {data['status']}")
+    assert data["status"] != "skipped" and data["message"].startswith("highs: ")
+    assert line.startswith(f"flat_blocks level 1: highs {data['status']}")
     assert line.endswith(f"energy_bound {data['energy_bound']:.1e} -> {out}")
     assert "HiGHS" not in run.stderr

@@ -63,6 +63,13 @@ def test_every_registered_solver_and_scene_has_its_generated_page(site):
     for p in declared:
         assert f'<span class="pre">{p.name}' in page or f"{p.name}</span>" in page, p.name
         assert p.allowed() in page, p.allowed()
+    # a size limit is on the page with its default and its reason
+    highs = plain_text_of(site / "generated" / "solvers" / "highs.html")
+    assert "max_unknowns (default 2,000) is skipped at once" in highs
+    assert "qp_nullspace_limit of 4000" in highs
+    assert "friction (Tresca or Coulomb) is skipped at once" in highs
+    thesis = plain_text_of(site / "generated" / "solvers" / "augmented_projection.html")
+    assert "frictionless problem only (not built: " in thesis
 
 
 @pytest.mark.slow

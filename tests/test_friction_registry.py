@@ -51,6 +51,10 @@ def test_tresca_exact_is_registered_for_friction():
     # a solver without friction is skipped on a frictional step at once, with the reason
     res = solve(qp, "pdas")
     assert res.status == "skipped" and "frictionless problem only" in res.message
+    # the thesis's solver says what extending it would take
+    res = solve(qp, "augmented_projection")
+    assert res.status == "skipped" and "frictionless problem only (not built: " in res.message
+    assert "Remark 8.5" in res.message
 
 
 def test_without_friction_it_is_skipped_with_the_reason():

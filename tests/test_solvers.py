@@ -10,6 +10,8 @@ the plain PDAS update cycles from a bad initial guess.
 """
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 import scipy.sparse as sp
@@ -559,7 +561,7 @@ def test_a_library_failure_keeps_its_own_words():
     from solvers.qp_libraries import LIBRARIES, run
 
     qp = PROBLEM.make(1)
-    res = solve(qp, "highs", "mid")
+    res = solve(qp, "highs", "mid", max_unknowns=qp.n)     # above its default size limit
     assert res.message.startswith("highs: ") and len(res.message) > len("highs: ")
     if res.status != "converged":
         assert res.status in ("failed", "inaccurate", "max_iter", "time_limit"), res.message
@@ -568,6 +570,29 @@ def test_a_library_failure_keeps_its_own_words():
                     g=np.array([-1.0, -1.0]), name="infeasible")
     out = run(cvxopt, bad, 1e-6, 100, None, None, None, solvers()["cvxopt"].options())
     assert out.claimed_status != "converged" and out.message.startswith("cvxopt: ")
+
+
+def test_a_size_limit_skips_at_once_and_the_option_lifts_it():
+    """A solver's ``size_limit`` option (HiGHS's ``max_unknowns``): a larger problem is
+    ``skipped`` before the library is called, the reason naming the size and the option;
+    the option set at the problem's size runs it; a bad value names the parameter."""
+    from problems.flat_blocks import PROBLEM
+
+    qp = PROBLEM.make(1)
+    spec = solvers()["highs"]
+    assert spec.size_limit == "max_unknowns" and qp.n < spec.options().max_unknowns
+    res = solve(qp, "highs", "mid", max_unknowns=qp.n - 1)
+    assert res.status == "skipped" and res.kkt is None and res.iterations == 0
+    assert res.message.startswith(f"skipped: {qp.n} unknowns > max_unknowns = {qp.n - 1}: ")
+    assert "n^3" in res.message and res.options["max_unknowns"] == qp.n - 1
+    assert spec.check(qp) == (True, "")
+    assert not spec.check(qp, spec.options(max_unknowns=qp.n - 1))[0]
+    ran = solve(qp, "highs", "mid", max_unknowns=qp.n)
+    assert ran.message == "highs: Optimal" and ran.kkt is not None    # it ran: verified
+    with pytest.raises(ParameterError, match="max_unknowns"):
+        solve(qp, "highs", "mid", max_unknowns=0)
+    with pytest.raises(ValueError, match="size_limit 'n_max' is not one of its parameters"):
+        replace(spec, size_limit="n_max")
 
 
 def test_the_preset_texts_follow_the_tolerance_table():

@@ -118,7 +118,11 @@ def test_solver_comparison_and_its_report(tmp_path):
     assert set(presets["solver"]) == set(solvers()) and presets["options"].notna().all()
     costs = pd.read_csv(outs["costs"])
     assert set(costs["solver"]) == set(solvers()) - {"pdas"}      # the reference is its own row
-    assert (costs["floor_ratio_L0"] > 0).all()
+    skipped = set(t.loc[t.status == "skipped", "solver"])
+    assert {"tresca_exact", "highs"} <= skipped    # friction only; above HiGHS's size limit
+    ran = ~costs["solver"].isin(skipped)
+    assert (costs.loc[ran, "floor_ratio_L0"] > 0).all()
+    assert costs.loc[~ran, "floor_ratio_L0"].isna().all()      # a refusal is no time
     from report.charts import page_specs, spec_problems
     times, work = page_specs(Path(outs["charts"]).read_text())
     assert spec_problems(times) == [] and spec_problems(work) == []

@@ -93,12 +93,21 @@ def solver_page(spec, builtin: bool) -> str:
     else:
         lines += ["The presets `low`, `mid`, `high` set only the verification's tolerance."]
     lines += ["", "## When it skips a problem", ""]
-    if spec.supports is None:
+    if spec.supports is None and spec.size_limit is None:
         lines += ["It takes every contact problem (no `supports` check)."]
-    else:
+    if spec.supports is not None:
         doc = inspect.getdoc(spec.supports)
         lines += [doc if doc else "It checks each problem before running (`supports`); the "
                   "run's row says `skipped` with the reason."]
+    if not spec.handles_friction:
+        lines += ["", "A problem with friction (Tresca or Coulomb) is `skipped` at once: it "
+                  "solves the frictionless problem only"
+                  + (f" ({spec.friction_reason})." if spec.friction_reason else ".")]
+    if spec.size_limit is not None:
+        limit = next(p for p in spec.parameters if p.name == spec.size_limit)
+        lines += ["", f"A problem with more unknowns than its option `{limit.name}` (default "
+                  f"{limit.default:,}) is `skipped` at once, and `--set {limit.name}=N` runs "
+                  f"it anyway. The reason: {limit.help}."]
     lines += ["", "## Description and references", "", *module_doc(module), ""]
     return "\n".join(lines)
 
