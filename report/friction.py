@@ -30,7 +30,7 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
 from report.claims import COLUMNS, Claim  # noqa: E402
-from report.figures import save_figure  # noqa: E402
+from report.figures import save_figure, solver_style  # noqa: E402
 from report.rates import fitted_slope  # noqa: E402
 from workflows.io import read_csv, write_csv  # noqa: E402
 
@@ -231,17 +231,17 @@ def cost_figure(runs: pd.DataFrame, path: str) -> None:
     scene = runs.scene.iloc[0]
     solved = runs[(runs.role == "solver") & (runs.status == "converged")]
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
-    for i, ((name, ratio), g) in enumerate(solved.groupby(["solver", "ratio"], sort=True)):
+    for (name, ratio), g in solved.groupby(["solver", "ratio"], sort=True):
         g = g.sort_values("N")
         t = g.t_setup + g.t_solve
-        style = "o-" if ratio == min(solved.ratio) else "s--"
-        k = sorted(solved.solver.unique()).index(name)
-        axes[0].semilogx(g.N, g.steps_tangential, style, color=f"C{k}",
-                         label=f"{name}, Q/(mu P) = {ratio:g}: exponent "
-                               f"{fitted_slope(g.N, g.steps_tangential, last=len(g)):.2f}")
-        axes[1].loglog(g.N, t, style, color=f"C{k}",
-                       label=f"{name}, Q/(mu P) = {ratio:g}: exponent "
-                             f"{fitted_slope(g.N, t, last=len(g)):.2f}")
+        line = "-" if ratio == min(solved.ratio) else "--"
+        style = {**solver_style(name), "ls": line}       # the suite's colour per solver
+        for ax, y in zip(axes, (g.steps_tangential, t)):
+            ax.plot(g.N, y, **style, label=f"{name}, Q/(mu P) = {ratio:g}: exponent "
+                                           f"{fitted_slope(g.N, y, last=len(g)):.2f}")
+    axes[0].set_xscale("log")
+    axes[1].set_xscale("log")
+    axes[1].set_yscale("log")
     axes[0].set_ylabel("iterations of the tangential load step")
     axes[1].set_ylabel("setup + solve time of the load path (s, this machine)")
     for ax in axes:

@@ -244,10 +244,15 @@ class SolverSpec:
         except ValueError:
             raise ValueError(f"solver {self.name!r}: role {self.role!r} is not allowed; allowed: "
                              f"{', '.join(r.value for r in Role)}") from None
-        if self.size_limit is not None and self.size_limit not in {
-                getattr(p, "name", None) for p in self.parameters}:
+        if self.size_limit is not None and self.size_parameter is None:
             raise ValueError(f"solver {self.name!r}: size_limit {self.size_limit!r} is not one "
                              "of its parameters")
+
+    @property
+    def size_parameter(self) -> Parameter | None:
+        """The option named by ``size_limit`` (its default and its help, the reason)."""
+        return next((p for p in self.parameters
+                     if getattr(p, "name", None) == self.size_limit), None)
 
     def options(self, **given: Any) -> Options:
         """The resolved options: defaults overridden by ``given``, validated."""
@@ -264,8 +269,8 @@ class SolverSpec:
         if self.size_limit is not None:
             cap = (opts if opts is not None else self.options())[self.size_limit]
             if qp.n > cap:
-                why = next(p.help for p in self.parameters if p.name == self.size_limit)
-                return False, f"{qp.n} unknowns > {self.size_limit} = {cap}: {why}"
+                return False, (f"{qp.n} unknowns > {self.size_limit} = {cap}: "
+                               f"{self.size_parameter.help}")
         if self.supports is None:
             return True, ""
         ok, reason = self.supports(qp)

@@ -104,7 +104,7 @@ def solver_page(spec, builtin: bool) -> str:
                   "solves the frictionless problem only"
                   + (f" ({spec.friction_reason})." if spec.friction_reason else ".")]
     if spec.size_limit is not None:
-        limit = next(p for p in spec.parameters if p.name == spec.size_limit)
+        limit = spec.size_parameter
         lines += ["", f"A problem with more unknowns than its option `{limit.name}` (default "
                   f"{limit.default:,}) is `skipped` at once, and `--set {limit.name}=N` runs "
                   f"it anyway. The reason: {limit.help}."]
