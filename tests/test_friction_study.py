@@ -145,8 +145,8 @@ def test_bad_arguments_are_refused_by_name(change, message, tmp_path, capsys):
 
 
 @pytest.mark.parametrize("change, needle", [
-    (lambda c: c["friction"]["scenes"].update(cube_sphere=[0]),
-     "'friction.scenes.cube_sphere': problem 'cube_sphere' takes no friction"),
+    (lambda c: c["friction"]["scenes"].update(blocks=[0]),
+     "'friction.scenes.blocks': problem 'flat_blocks' takes no friction"),
     (lambda c: (c["scenes"].update(cs_mu={"problem": "circle_square", "params": {"mu": 0.2}}),
                 c["friction"]["scenes"].update(cs_mu=[1])),
      "'friction.scenes.cs_mu': the scene sets mu"),
@@ -155,7 +155,7 @@ def test_bad_arguments_are_refused_by_name(change, message, tmp_path, capsys):
 ])
 def test_config_errors_name_the_friction_key(change, needle):
     config = load_config(ROOT / "workflows/config/quick.yaml")
-    config["scenes"] = {**config["scenes"], "cube_sphere": {"problem": "cube_sphere"}}
+    config["scenes"] = {**config["scenes"], "blocks": {"problem": "flat_blocks"}}
     change(config)
     with pytest.raises(ConfigError, match=re.escape(needle)):
         check_config(config)
