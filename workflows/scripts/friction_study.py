@@ -80,8 +80,10 @@ class ReferenceFailed(RuntimeError):
 def reference_route(qp) -> tuple[str, object]:
     """``(name, solve)`` of the reference for the frictional ``qp``: ``tresca_exact``
     (``solve`` None, the default of :func:`path_for_ratio` and :func:`friction_path`)
-    where it takes the surface, else the verified fallback, one Tresca step at a time."""
-    if qp.m <= tresca.TRESCA_EXACT_MAX_M:
+    where it takes the surface (rows and its dense ``A^-1 G'``), else the verified
+    fallback, one Tresca step at a time."""
+    if (qp.m <= tresca.TRESCA_EXACT_MAX_M
+            and tresca.dense_dual_size(qp) <= tresca.TRESCA_EXACT_MAX_ENTRIES):
         return "tresca_exact", None
 
     def fallback(step_qp):
