@@ -9,7 +9,6 @@ import pytest
 import scipy.sparse as sp
 
 from problems.kkt import energy_error, friction_residuals
-from problems.qp import Friction
 from problems.spec import problems
 from solvers import tnnmg
 from solvers._block_gs import (BOUNDED, FIXED, FREE, TRESCA, block_gauss_seidel,
@@ -261,11 +260,3 @@ def test_a_run_stopped_short_says_so():
     assert res.u.shape == (st.qp.n,) and np.all(np.abs(res.tangential) <= s)
     assert friction_residuals(st.qp, res.u, res.p, res.tangential).max > 1e-10
 
-
-def test_3d_friction_is_skipped_with_the_reason():
-    cube = problems()["cube_sphere"].make(0)
-    m = cube.m
-    fake = Friction("tresca", 0.5, cube.B, np.zeros((m, 3)), np.ones(m), np.zeros(m),
-                    np.zeros(m))
-    ok, why = tnnmg.supports(replace(cube, friction=fake))
-    assert not ok and "3D" in why
