@@ -378,15 +378,19 @@ class _TruncatedHierarchy:
                     and pivots.size else [None] * len(A_coarse))
         self.coarse_ops = [_UpdatedOperator(M, d) for M, d in zip(A_coarse, patterns)]
 
-    def _deltas(self, E: np.ndarray) -> list:
+    def _deltas(self, E: np.ndarray, curvature: sp.spmatrix | None = None) -> list:
         """The truncation's change of each coarse operator when the pivots ``E`` are
-        truncated: ``Y'A~_EE Y - Y'X - X'Y`` (module docstring) and its Galerkin products."""
+        truncated: ``Y'A~_EE Y - Y'X - X'Y`` (module docstring), plus ``P~' K P~`` for a
+        fine-level ``curvature`` ``K`` added to ``A~`` off ``E`` (:class:`_SlipCurvature`),
+        and its Galerkin products."""
         Y = self.P[E]
         A_E = self.fine.rows(E)
         X = A_E @ self.P
         Yt = Y.T.tocsr()
         YtX = Yt @ X
         delta = Yt @ (A_E[:, E] @ Y) - YtX - YtX.T.tocsr()
+        if curvature is not None:
+            delta = delta + sp.csr_matrix(self.P.T @ (curvature @ self.P))
         deltas = [delta]
         for Pl, Rl in zip(reversed(self.coarse_P), reversed(self.coarse_R)):
             deltas.append(Rl @ (deltas[-1] @ Pl))
@@ -411,10 +415,13 @@ class _TruncatedHierarchy:
         mode[fine.bounded_blocks[active[fine.box.block_row[fine.bounded_blocks]]]] = FIXED
         self.truncate(fine.box.pivot[active], mode)
 
-    def truncate(self, E: np.ndarray, mode: np.ndarray) -> None:
+    def truncate(self, E: np.ndarray, mode: np.ndarray,
+                 curvature: sp.spmatrix | None = None) -> None:
         """Truncate at the unknowns ``E``, the linear smoother's block modes ``mode`` (a
-        repeated ``E`` keeps its operators)."""
-        if self.frozen is not None and np.array_equal(E, self.frozen):
+        repeated ``E`` keeps its operators); ``curvature``: a fine-level term the fine
+        system already holds (:class:`_SlipCurvature`), passed to the coarse operators
+        too (every call then updates them)."""
+        if curvature is None and self.frozen is not None and np.array_equal(E, self.frozen):
             return
         self.updates += 1
         self.frozen = E.copy()
@@ -438,7 +445,8 @@ class _TruncatedHierarchy:
                 return out
             self.coarse_solve = solve
             return
-        deltas = (self._deltas(E) if self.truncate_coarse and E.size
+        deltas = (self._deltas(E, curvature)
+                  if self.truncate_coarse and (E.size or curvature is not None)
                   else [None] * len(self.coarse_ops))
         self.A_t = [op.set(delta) for op, delta in zip(self.coarse_ops, deltas)]
         self.coarse_solve = spla.splu(sp.csc_matrix(self.A_t[-1])).solve
@@ -869,6 +877,73 @@ def _verified(qp: ContactQP, u: np.ndarray, p: np.ndarray, tol: float, stop: str
                                         or certify(qp, u, p, tol, lam=lam).meets(tol))
 
 
+@dataclass
+class _SlipCurvature:
+    """3D Tresca: the slip term's curvature in the truncated linear correction.
+
+    Where node ``i`` slips (``z_i = v_t,i - centre_i != 0``) its term ``weight_i |z_i|`` is
+    smooth, with the Hessian ``weight_i / |z_i| (I - z_i z_i' / |z_i|^2)`` on its two
+    tangential unknowns (in 2D it is zero: the term is linear off its kink). Left out, the
+    correction overshoots across the slip direction and the line search shortens every
+    step; put into the correction's operator (the fine system ``A~ + K``: the
+    transformation's update with places for ``K`` and the constrained blocks' inverses
+    refreshed; the coarse operators by :meth:`_TruncatedHierarchy.truncate`), the step is
+    the truncated Newton step of the nonsmooth energy (Gräser-Kornhuber: the Hessian of
+    the energy where it is twice differentiable).
+    """
+
+    fine: _Fine
+    positions: np.ndarray          # (m, k, k): the places of K's entries in fine.C.data
+    base: np.ndarray               # fine.C.data without K
+    block_ptr: np.ndarray          # the constrained node blocks, for block_inverses
+    block_dofs: np.ndarray
+
+    @classmethod
+    def build(cls, fine: _Fine) -> "_SlipCurvature":
+        term, box = fine.tresca, fine.box
+        k = term.k
+        tpiv = term.pivot.reshape(-1, k)
+        rows = np.repeat(tpiv, k, axis=1).ravel()
+        cols = np.tile(tpiv, (1, k)).ravel()
+        pattern = sp.csr_matrix((np.ones(rows.size), (rows, cols)), shape=fine.C.shape)
+        pattern.sort_indices()
+        C = sp.csr_matrix(fine.C)
+        C.sum_duplicates()
+        C.sort_indices()
+        C = with_pattern(C, pattern)
+        blocks = fine.bounded_blocks
+        sizes = np.diff(box.node_ptr)[blocks]
+        block_ptr = np.r_[0, np.cumsum(sizes)].astype(np.int64)
+        block_dofs = np.concatenate([box.node_dofs[box.node_ptr[b]:box.node_ptr[b + 1]]
+                                     for b in blocks]) if blocks.size else np.zeros(0, np.int64)
+        lin = _Fine(fine.A, C, fine.f, box, fine.diag0.copy(), fine.inv_full.copy(),
+                    fine.inv_sub.copy(), blocks, fine.upper_block, tresca=term)
+        return cls(lin, _positions(C, rows, cols).reshape(-1, k, k), C.data.copy(),
+                   block_ptr, block_dofs)
+
+    def set(self, v: np.ndarray, stick: np.ndarray) -> sp.csr_matrix:
+        """Put the curvature of the iterate ``v`` (slipping nodes: not ``stick``) into the
+        fine system; returns ``K`` ``(n, n)``."""
+        fine, term = self.fine, self.fine.tresca
+        z, length = term._offsets(v)
+        slipping = ~stick & (term.weight > 0) & (length > 0)
+        zs, ls = z[slipping], length[slipping]
+        hess = (term.weight[slipping] / ls)[:, None, None] * (
+            np.eye(term.k)[None] - zs[:, :, None] * zs[:, None, :] / (ls * ls)[:, None, None])
+        fine.C.data[:] = self.base
+        fine.C.data[self.positions[slipping].ravel()] += hess.ravel()
+        fine.update_part = sp.csr_matrix(fine.C[fine.update_rows])
+        diag0, inv_full, inv_sub = block_inverses(fine.A, self.block_ptr, self.block_dofs,
+                                                  fine.C)
+        blocks = fine.bounded_blocks
+        fine.diag0[blocks], fine.inv_full[blocks], fine.inv_sub[blocks] = \
+            diag0, inv_full, inv_sub
+        tpiv = term.pivot.reshape(-1, term.k)[slipping]
+        rows = np.repeat(tpiv, term.k, axis=1).ravel()
+        cols = np.tile(tpiv, (1, term.k)).ravel()
+        return sp.csr_matrix((hess.ravel(), (rows, cols)), shape=fine.C.shape)
+
+
 def _tresca_solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
                   u0: np.ndarray | None, opts: Options, callback: Callable | None
                   ) -> SolveResult:
@@ -878,7 +953,9 @@ def _tresca_solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | 
     fine = _fine_system(qp, tresca=True)
     box, term = fine.box, fine.tresca
     piv, upper, tpiv = box.pivot, box.upper, term.pivot
-    ml = _hierarchy(qp, fine, opts.sweeps or AUTO_SWEEPS.get(qp.dim, 2),
+    curvature = _SlipCurvature.build(fine) if term.k > 1 else None
+    ml = _hierarchy(qp, fine if curvature is None else curvature.fine,
+                    opts.sweeps or AUTO_SWEEPS.get(qp.dim, 2),
                     opts.coarse == "truncated", opts.patch, np.concatenate([piv, tpiv]))
     nb = box.node_ptr.size - 1
     mode_nonlinear = np.full(nb, FREE, dtype=np.int64)
@@ -906,7 +983,7 @@ def _tresca_solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | 
         mode[block_of_row[stick]] = TANGENT_FIXED
         mode[block_of_row[active & stick]] = BOTH_FIXED
         E = np.concatenate([piv[active], tpiv.reshape(-1, term.k)[stick].ravel()])
-        ml.truncate(E, mode)
+        ml.truncate(E, mode, None if curvature is None else curvature.set(v, stick))
         t2 = time.perf_counter()
         g = r.copy()
         g[tpiv] -= term.gradient(v)
