@@ -4,10 +4,12 @@ the tangential rows as coordinates; the solver's answers on cube_sphere verified
 KKT and certificate)."""
 import numpy as np
 import pytest
+import scipy.sparse as sp
 from scipy.optimize import minimize_scalar
 
 from solvers import tnnmg
-from solvers._block_gs import disc_block_minimiser
+from solvers._block_gs import (TRESCA, block_inverses, disc_block_minimiser,
+                               tresca_block_gauss_seidel, unsigned_index)
 
 
 def _block_energy(M, r, weight, e, d):
@@ -129,3 +131,33 @@ def test_the_disc_line_search_is_the_minimiser_along_the_segment():
             assert np.allclose(z[reached] + a * dt[reached], 0.0, atol=1e-14)
         assert short == (a == longest and np.isfinite(longest) and a > 0)
     assert kinks_taken > 0
+
+
+def test_the_sweep_takes_a_3d_block_to_the_disc_minimiser():
+    """One sweep of the Tresca kernel on a single 3x3 block system is the block minimiser
+    applied to its residual (the kernel rebuilds the block from its first column and the
+    inverse of its tangential part: equal to round-off), the bound and the stick point
+    written exactly."""
+    rng = np.random.default_rng(17)
+    cases = set()
+    for _ in range(200):
+        L = rng.normal(size=(3, 3))
+        M = L @ L.T + 0.1 * np.eye(3)
+        b, x = rng.normal(size=3), rng.normal(size=3)
+        upper, weight, centre = rng.normal(), abs(rng.normal()), rng.normal(size=2)
+        A, C = sp.csr_matrix(M), sp.csr_matrix((3, 3))
+        node_ptr, node_dofs = np.array([0, 3]), np.array([0, 1, 2])
+        diag0, inv_full, inv_sub = block_inverses(A, node_ptr, node_dofs, C)
+        out = x.copy()
+        tresca_block_gauss_seidel(*(unsigned_index(a) for a in (A.indptr, A.indices)), A.data,
+                                  *(unsigned_index(a) for a in (C.indptr, C.indices)), C.data,
+                                  out, b, node_ptr, unsigned_index(node_dofs), diag0, inv_full,
+                                  inv_sub, np.array([TRESCA]), np.array([upper]),
+                                  np.array([weight]), centre.copy(), True)
+        d = np.zeros(3)
+        case = disc_block_minimiser(M, b - M @ x, upper - x[0], weight, centre - x[1:], d)
+        cases.add(case)
+        np.testing.assert_allclose(out, x + d, rtol=0, atol=1e-12 * (1 + np.abs(x + d).max()))
+        assert (out[0] == upper) == (case >= 2)
+        assert np.array_equal(out[1:], centre) == (case % 2 == 1)
+    assert cases == {0, 1, 2, 3}
