@@ -4,12 +4,11 @@ the tangential rows as coordinates; the solver's answers on cube_sphere verified
 KKT and certificate)."""
 import numpy as np
 import pytest
-import scipy.sparse as sp
 from scipy.optimize import minimize_scalar
 
 from solvers import tnnmg
-from solvers._block_gs import (TRESCA, block_inverses, disc_block_minimiser,
-                               tresca_block_gauss_seidel, unsigned_index)
+from solvers._block_gs import disc_block_minimiser
+from test_friction_tnnmg import _one_block
 
 
 def _block_energy(M, r, weight, e, d):
@@ -145,15 +144,7 @@ def test_the_sweep_takes_a_3d_block_to_the_disc_minimiser():
         M = L @ L.T + 0.1 * np.eye(3)
         b, x = rng.normal(size=3), rng.normal(size=3)
         upper, weight, centre = rng.normal(), abs(rng.normal()), rng.normal(size=2)
-        A, C = sp.csr_matrix(M), sp.csr_matrix((3, 3))
-        node_ptr, node_dofs = np.array([0, 3]), np.array([0, 1, 2])
-        diag0, inv_full, inv_sub = block_inverses(A, node_ptr, node_dofs, C)
-        out = x.copy()
-        tresca_block_gauss_seidel(*(unsigned_index(a) for a in (A.indptr, A.indices)), A.data,
-                                  *(unsigned_index(a) for a in (C.indptr, C.indices)), C.data,
-                                  out, b, node_ptr, unsigned_index(node_dofs), diag0, inv_full,
-                                  inv_sub, np.array([TRESCA]), np.array([upper]),
-                                  np.array([weight]), centre.copy(), True)
+        out = _one_block(M, b, x, upper, weight, centre)
         d = np.zeros(3)
         case = disc_block_minimiser(M, b - M @ x, upper - x[0], weight, centre - x[1:], d)
         cases.add(case)
