@@ -222,17 +222,21 @@ def _coulomb(co: pd.DataFrame, scene: str) -> dict:
                                  passed=good == len(co), scene=scene)
 
 
+def _finest(runs: pd.DataFrame, profiles: pd.DataFrame) -> tuple[bool, pd.DataFrame, list]:
+    """``(line contact?, the finest level's profiles, their ratios)`` (``profiles``
+    not empty)."""
+    top = profiles[profiles.N == profiles.N.max()]
+    return contact_kind(runs) == "line", top, sorted(top.ratio.unique())
+
+
 def traction_figure(runs: pd.DataFrame, profiles: pd.DataFrame, path: str) -> None:
     """The tangential traction at the finest level, one panel per ratio: measured nodes,
     the Cattaneo-Mindlin curve, mu p (measured and Hertz)."""
     scene = runs.scene.iloc[0]
     if not len(profiles):
         return nothing_to_draw(path, f"{scene}: tangential traction", no_reference(runs))
-    line = contact_kind(runs) == "line"
-    top = profiles[profiles.N == profiles.N.max()]
-    ratios = sorted(top.ratio.unique())
-    fig, axes = plt.subplots(1, max(len(ratios), 1), figsize=(5.5 * max(len(ratios), 1), 4.2),
-                             squeeze=False)
+    line, top, ratios = _finest(runs, profiles)
+    fig, axes = plt.subplots(1, len(ratios), figsize=(5.5 * len(ratios), 4.2), squeeze=False)
     for ax, ratio in zip(axes[0], ratios):
         g = top[top.ratio == ratio].sort_values("x_over_a")
         ref = runs[(runs.role == "reference") & (runs.ratio == ratio)
@@ -292,10 +296,8 @@ def map_figure(runs: pd.DataFrame, profiles: pd.DataFrame, path: str) -> None:
     scene = runs.scene.iloc[0]
     if not len(profiles):
         return nothing_to_draw(path, f"{scene}: stick and slip nodes", no_reference(runs))
-    line = contact_kind(runs) == "line"
-    top = profiles[profiles.N == profiles.N.max()]
-    ratios = sorted(top.ratio.unique())
-    n = max(len(ratios), 1)
+    line, top, ratios = _finest(runs, profiles)
+    n = len(ratios)
     fig, axes = plt.subplots(1, n, figsize=(5.5 * n, 3.0 if line else 5.0), squeeze=False)
     angle = np.linspace(0, 2 * np.pi, 241)
     for ax, ratio in zip(axes[0], ratios):
