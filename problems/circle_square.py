@@ -58,9 +58,10 @@ from problems.fem.mesh import (Hierarchy, nested_prolongation, netgen_disk, proj
                                structured_rectangle, uniform_hierarchy)
 from problems.fem.stabilised import COUPLING_PARAMETERS, check_coupling, couple
 from problems.fem.surface import tensor_coarsening
-from problems.fem.two_body import ELEMENT_DEGREE, Body, TwoBodyScene, assemble_two_body
-from problems.qp import FRICTION_LAWS, ContactQP, HertzSetup, LoadStep
-from problems.spec import Options, Parameter, ParameterError, ProblemSpec
+from problems.fem.two_body import (ELEMENT_DEGREE, Body, TwoBodyScene, assemble_two_body,
+                                   friction_parameters, frictional_two_body)
+from problems.qp import ContactQP, HertzSetup
+from problems.spec import Options, Parameter, ProblemSpec
 from reference.hertz import effective_modulus
 
 DISK_MAXH = 0.05
@@ -121,33 +122,14 @@ def scene(level: int, p: Options) -> TwoBodyScene:
 
 def build(level: int, p: Options) -> ContactQP:
     """The circle-square ContactQP at uniform level ``level`` (see module docstring);
-    with friction, the first step of its load path (:func:`frictional_build`)."""
+    with friction, the first step of its load path
+    (:func:`problems.fem.two_body.frictional_two_body`)."""
     check_coupling(p)
     if p.friction != "none":
-        return frictional_build(level, p)
+        return frictional_two_body(scene, level, p, "circle_square")
     return couple(assemble_two_body(scene(level, p), level, degree=p.degree,
                                     name=f"circle_square level {level}" + (" P2" if p.degree == 2 else "")),
                   p)
-
-
-def frictional_build(level: int, p: Options) -> ContactQP:
-    """The frictional circle-square ContactQP: its load path is the normal load (the held
-    arc pressed down by ``indent``, ``shift`` = 0) and then the tangential step (the held arc
-    moved along x by ``shift``); the ContactQP holds the first step's data, slip measured
-    from the unloaded state, slip bounds zero (the path's driver sets them:
-    ``s_i = mu p_i``, Coulomb)."""
-    for name, value, allowed in (("coupling", p.coupling, "nodal"), ("degree", p.degree, 1)):
-        if value != allowed:
-            raise ParameterError(f"parameter '{name}': {value!r} is not allowed with "
-                                 f"friction={p.friction!r}; allowed: {allowed!r} (the tangential "
-                                 "rows are built for the nodal P1 constraints)")
-    name = f"circle_square level {level} {p.friction} mu={p.mu:g}"
-    steps = [assemble_two_body(scene(level, Options({**p, "shift": shift})), level, name=name,
-                               tangential=True) for shift in (0.0, p.shift)]
-    qp = steps[0]
-    qp.friction.law, qp.friction.mu = p.friction, float(p.mu)
-    qp.friction.path = tuple(LoadStep(s.f, s.g, s.friction.offset) for s in steps)
-    return qp
 
 
 PROBLEM = ProblemSpec(
@@ -186,12 +168,7 @@ PROBLEM = ProblemSpec(
                   choices=("square_first", "circle_first")),
         ELEMENT_DEGREE,
         *COUPLING_PARAMETERS,
-        Parameter("friction", "none", "friction law on the contact (none: the thesis's "
-                  "frictionless problem; tresca: slip bound mu p of the normal step; coulomb: "
-                  "s = mu p by a fixed point)", choices=FRICTION_LAWS),
-        Parameter("mu", 0.0, "friction coefficient", low=0.0),
-        Parameter("shift", 0.0, "tangential load: prescribed x-displacement of the circle's held "
-                  "arc after the normal load", low=-0.2, high=0.2),
+        *friction_parameters("the circle's held arc"),
     ),
     build=build,
     thesis_tables={"augmented_projection": "table_9_1", "adaptive": "table_9_2"},

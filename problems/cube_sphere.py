@@ -63,7 +63,8 @@ from problems.fem.mesh import (Hierarchy, nested_prolongation, netgen_ball, proj
                                structured_cube, uniform_hierarchy)
 from problems.fem.stabilised import COUPLING_PARAMETERS, check_coupling, couple
 from problems.fem.surface import tensor_coarsening
-from problems.fem.two_body import ELEMENT_DEGREE, Body, TwoBodyScene, assemble_two_body
+from problems.fem.two_body import (ELEMENT_DEGREE, Body, TwoBodyScene, assemble_two_body,
+                                   friction_parameters, frictional_two_body)
 from problems.qp import ContactQP, HertzSetup
 from problems.spec import Options, Parameter, ProblemSpec
 from reference.hertz import effective_modulus
@@ -104,8 +105,8 @@ def scene(level: int, p: Options) -> TwoBodyScene:
         held = np.flatnonzero(on_sphere & (rel[:, 2] >= p.radius * np.cos(np.radians(p.held_arc))
                                            - 1e-12))
         fixed = np.concatenate([3 * bottom + k for k in range(3)] + [3 * held + k for k in range(3)])
-        values = np.concatenate([np.zeros(3 * len(bottom)), np.zeros(2 * len(held)),
-                                 np.full(len(held), -p.indent)])
+        values = np.concatenate([np.zeros(3 * len(bottom)), np.full(len(held), p.shift),
+                                 np.zeros(len(held)), np.full(len(held), -p.indent)])
         return fixed, values
 
     return TwoBodyScene(
@@ -119,8 +120,12 @@ def scene(level: int, p: Options) -> TwoBodyScene:
 
 
 def build(level: int, p: Options) -> ContactQP:
-    """The cube-sphere ContactQP at uniform level ``level`` (see module docstring)."""
+    """The cube-sphere ContactQP at uniform level ``level`` (see module docstring); with
+    friction, the first step of its load path
+    (:func:`problems.fem.two_body.frictional_two_body`)."""
     check_coupling(p)
+    if p.friction != "none":
+        return frictional_two_body(scene, level, p, "cube_sphere")
     return couple(assemble_two_body(scene(level, p), level, degree=p.degree,
                                     name=f"cube_sphere level {level}" + (" P2" if p.degree == 2 else "")),
                   p)
@@ -156,6 +161,7 @@ PROBLEM = ProblemSpec(
                   "on it)", choices=("cube_first", "ball_first")),
         ELEMENT_DEGREE,
         *COUPLING_PARAMETERS,
+        *friction_parameters("the ball's held cap"),
     ),
     build=build,
     thesis_tables={"augmented_projection": "table_9_3", "adaptive": "table_9_4"},

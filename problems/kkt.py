@@ -76,8 +76,8 @@ class FrictionResiduals(KKTResiduals):
     ``stationarity = ||Au + B'p + T'lam - f||_inf / max(||f||_inf, ||Au||_inf, ||B'p||_inf,
     ||T'lam||_inf)``; ``primal``, ``dual`` and ``complementarity`` are those of the normal
     rows (:func:`kkt_residuals`);
-    ``bound = max(|lam| - s)_+ / max(||lam||_inf, ||s||_inf)``;
-    ``slip_complementarity = sum_i |s_i |slip_i| - lam_i slip_i| / (max(||s||_1, ||lam||_1)
+    ``bound = max_i (|lam_i| - s_i)_+ / max(max_i |lam_i|, ||s||_inf)``;
+    ``slip_complementarity = sum_i |s_i |slip_i| - lam_i . slip_i| / (max(||s||_1, sum_i |lam_i|)
     max(||slip||_inf, ||Bu||_inf, ||g||_inf))`` (entrywise, as for the normal rows).
     """
 
@@ -89,7 +89,8 @@ def friction_residuals(qp: ContactQP, u: np.ndarray, p: np.ndarray,
                        lam: np.ndarray) -> FrictionResiduals:
     """Verified KKT residuals of ``(u, p, lam)`` for the Tresca step ``qp`` (its
     ``friction``): ``A u + B'p + T'lam = f``, ``|lam_i| <= s_i``,
-    ``lam_i slip_i = s_i |slip_i|`` and the normal rows' conditions."""
+    ``lam_i . slip_i = s_i |slip_i|`` and the normal rows' conditions (``|.|`` the
+    Euclidean norm of a node's tangential vector in 3D, :meth:`problems.qp.Friction.magnitude`)."""
     if qp.friction is None:
         raise ValueError("friction_residuals: this ContactQP has no friction; use kkt_residuals")
     tiny = 1e-300
@@ -99,15 +100,15 @@ def friction_residuals(qp: ContactQP, u: np.ndarray, p: np.ndarray,
     normal = kkt_residuals(qp, u, p)
     Au, Btp, Ttl = qp.A @ u, qp.B.T @ p, fr.T.T @ lam
     r_stat = inf(Au + Btp + Ttl - qp.f)
-    s, slip = fr.slip_bound, fr.slip(u)
-    r_bound = max(0.0, float(np.max(np.abs(lam) - s))) if s.size else 0.0
-    r_slip = float(np.sum(np.abs(s * np.abs(slip) - lam * slip)))
+    s, slip, size = fr.slip_bound, fr.slip(u), fr.magnitude(lam)
+    r_bound = max(0.0, float(np.max(size - s))) if s.size else 0.0
+    r_slip = float(np.sum(np.abs(s * fr.magnitude(slip) - fr.inner(lam, slip))))
     disp_scale = max(inf(slip), inf(qp.B @ u), inf(qp.g), tiny)
     return FrictionResiduals(
         stationarity=r_stat / max(inf(qp.f), inf(Au), inf(Btp), inf(Ttl), tiny),
         primal=normal.primal, dual=normal.dual, complementarity=normal.complementarity,
-        bound=r_bound / max(inf(lam), inf(s), tiny),
-        slip_complementarity=r_slip / max(float(np.sum(s)), float(np.sum(np.abs(lam))), tiny)
+        bound=r_bound / max(inf(size), inf(s), tiny),
+        slip_complementarity=r_slip / max(float(np.sum(s)), float(np.sum(size)), tiny)
         / disp_scale,
         raw={**normal.raw, "stationarity": r_stat, "bound": r_bound,
              "slip_complementarity": r_slip},
@@ -117,7 +118,8 @@ def friction_residuals(qp: ContactQP, u: np.ndarray, p: np.ndarray,
 def tresca_energy(qp: ContactQP, u: np.ndarray) -> float:
     """The Tresca step's energy ``1/2 u'Au - f'u + sum_i s_i |slip_i(u)|``."""
     fr = qp.friction
-    return qp.energy(u) + (float(fr.slip_bound @ np.abs(fr.slip(u))) if fr is not None else 0.0)
+    return qp.energy(u) + (float(fr.slip_bound @ fr.magnitude(fr.slip(u))) if fr is not None
+                           else 0.0)
 
 
 def energy_error(qp: ContactQP, u: np.ndarray, u_ref: np.ndarray) -> float:

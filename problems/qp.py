@@ -277,7 +277,7 @@ class LoadStep:
         Load vector of the step (with the step's prescribed displacements lifted).
     g : (m,) array
         Gaps of the step.
-    offset : (m_contact,) array
+    offset : (m_contact k,) array
         Tangential relative displacement of the step's prescribed values
         (``T_full @ u_fixed``): the step's relative tangential displacement is
         ``T u + offset``.
@@ -290,21 +290,25 @@ class LoadStep:
 
 @dataclass
 class Friction:
-    """Tresca or Coulomb friction on the constrained rows (2D: one tangential row each).
+    """Tresca or Coulomb friction on the constrained rows: ``k = d - 1`` tangential rows
+    per constrained node (2D: one, 3D: two).
 
-    The tangential row of constrained node ``i`` is ``t_i . (u(P) - sum_k w_k u(P_k))``,
-    the same interpolation (Alg. 7.1, (7.14)) as its normal row with the unit tangent
-    ``t_i`` orthogonal to the row's direction ``n_i``. The slip of ``u`` is measured from
-    the previous state of the load path::
+    The tangential rows of constrained node ``i`` are ``t_ij . (u(P) - sum_k w_k u(P_k))``,
+    the same interpolation (Alg. 7.1, (7.14)) as its normal row with the unit tangents
+    ``t_ij`` orthogonal to the row's direction ``n_i`` (and, in 3D, to each other). Rows
+    and every tangential vector are node-major: entry ``i k + j`` belongs to node ``i``,
+    tangent ``j``. The slip of ``u`` is measured from the previous state of the load
+    path::
 
         slip(u) = T u + offset - previous
 
-    and one step is the Tresca problem::
+    and one step is the Tresca problem (isotropic: ``|.|`` is the Euclidean norm of a
+    node's ``k``-vector, the absolute value in 2D)::
 
         minimise 1/2 u'Au - f'u + sum_i s_i |slip_i(u)|   subject to   B u <= g
 
     with KKT conditions ``A u + B'p + T'lam = f``, ``|lam_i| <= s_i``,
-    ``lam_i slip_i = s_i |slip_i|`` (and the normal ones). Coulomb friction sets
+    ``lam_i . slip_i = s_i |slip_i|`` (and the normal ones). Coulomb friction sets
     ``s_i = mu p_i`` by a fixed point over Tresca problems.
 
     Attributes
@@ -312,15 +316,15 @@ class Friction:
     law : {"tresca", "coulomb"}
     mu : float
         Friction coefficient (Coulomb; for Tresca it documents how ``slip_bound`` was made).
-    T : (m_contact, n) sparse
-        Tangential rows on the free DOFs.
-    tangent : (m_contact, d) array
-        Unit tangent ``t_i`` of each row.
+    T : (m_contact k, n) sparse
+        Tangential rows on the free DOFs (node-major).
+    tangent : (m_contact k, d) array
+        Unit tangent of each tangential row.
     slip_bound : (m_contact,) array
         ``s_i >= 0``, a force (the bound on ``|lam_i|``).
-    offset : (m_contact,) array
+    offset : (m_contact k,) array
         ``T_full @ u_fixed`` of this step's prescribed values.
-    previous : (m_contact,) array
+    previous : (m_contact k,) array
         Relative tangential displacement ``T u_prev + offset_prev`` of the previous state.
     path : tuple of LoadStep
         The scene's load path (normal load first, then the tangential step); the
@@ -336,19 +340,57 @@ class Friction:
     previous: np.ndarray
     path: tuple = ()
 
+    @property
+    def components(self) -> int:
+        """``k``: tangential rows per constrained node (``d - 1``)."""
+        return self.T.shape[0] // max(len(self.slip_bound), 1)
+
+    def blocks(self, v: np.ndarray) -> np.ndarray:
+        """The node-major vector ``v`` (``m_contact k`` entries) as ``(m_contact, k)``."""
+        return np.asarray(v, dtype=float).reshape(-1, self.components)
+
+    def magnitude(self, v: np.ndarray) -> np.ndarray:
+        """Euclidean norm of each node's ``k``-vector of ``v`` (2D: ``|v_i|``)."""
+        v = np.asarray(v, dtype=float)
+        return np.abs(v) if self.components == 1 else np.linalg.norm(self.blocks(v), axis=1)
+
+    def inner(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        """Per node ``a_i . b_i`` of two node-major vectors (2D: ``a_i b_i``)."""
+        a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+        return a * b if self.components == 1 else np.einsum("ij,ij->i", self.blocks(a),
+                                                             self.blocks(b))
+
+    def clip(self, lam: np.ndarray) -> np.ndarray:
+        """``lam`` projected onto the friction discs ``|lam_i| <= s_i`` (2D: the box
+        ``[-s_i, s_i]``; 3D: each node's vector scaled back radially)."""
+        lam, s = np.asarray(lam, dtype=float), self.slip_bound
+        if self.components == 1:
+            return np.clip(lam, -s, s)
+        size = self.magnitude(lam)
+        scale = np.where(size > s, s / np.where(size > 0, size, 1.0), 1.0)
+        return (self.blocks(lam) * scale[:, None]).ravel()
+
+    def total_force(self, lam: np.ndarray) -> float:
+        """``Q``: the size of the total tangential force of the multipliers ``lam``
+        (2D: ``|sum_i lam_i|``; 3D: ``|sum_i lam_i1 t_i1 + lam_i2 t_i2|``)."""
+        lam = np.asarray(lam, dtype=float)
+        if self.components == 1:
+            return abs(float(lam.sum()))
+        return float(np.linalg.norm((lam[:, None] * self.tangent).sum(axis=0)))
+
     def slip(self, u: np.ndarray) -> np.ndarray:
         """Tangential slip ``T u + offset - previous`` of ``u`` in this step."""
         return self.T @ np.asarray(u, dtype=float) + self.offset - self.previous
 
     def states(self, lam: np.ndarray, tol: float) -> np.ndarray:
-        """Stick/slip state of each row from its tangential multiplier ``lam``:
-        ``free`` where ``s_i = 0`` (no tangential force can act: out of contact under
-        Coulomb friction), ``stick`` where ``|lam_i|`` lies inside its bound by more
+        """Stick/slip state of each constrained node from its tangential multiplier
+        ``lam``: ``free`` where ``s_i = 0`` (no tangential force can act: out of contact
+        under Coulomb friction), ``stick`` where ``|lam_i|`` lies inside its bound by more
         than ``tol max(s)`` (the slip is then zero), ``slip`` where it is at the bound.
         """
         s = self.slip_bound
         margin = tol * (float(s.max()) if s.size else 0.0)
-        inside = s - np.abs(np.asarray(lam, dtype=float)) > margin
+        inside = s - self.magnitude(lam) > margin
         return np.where(s > 0, np.where(inside, "stick", "slip"), "free")
 
 
@@ -561,7 +603,7 @@ class ContactQP:
                                         f"got {len(s.masses[-1])}")
 
         if self.friction is not None:
-            _validate_friction(self.friction, n, self.m_contact)
+            _validate_friction(self.friction, n, self.m_contact, self.dim)
 
     def full_displacement(self, u: np.ndarray) -> np.ndarray:
         """Nodal displacement array ``(n_nodes, dim)`` including prescribed values."""
@@ -582,25 +624,30 @@ class ContactQP:
         return self.mesh.points[self.contact.nodes]
 
 
-def _validate_friction(fr: Friction, n: int, mc: int) -> None:
+def _validate_friction(fr: Friction, n: int, mc: int, dim: int) -> None:
     """Shapes and ranges of a ContactQP's friction data (the message names the field)."""
     if fr.law not in FRICTION_LAWS[1:]:
         raise QPValidationError(f"friction.law {fr.law!r} is not allowed; allowed: "
                                 f"{', '.join(FRICTION_LAWS[1:])}")
     fr.T = sp.csr_matrix(fr.T, dtype=float)
-    if fr.T.shape != (mc, n):
-        raise QPValidationError(f"friction.T must have shape ({mc}, {n}) (one tangential row "
-                                f"per constrained row), got {fr.T.shape}")
-    for name in ("slip_bound", "offset", "previous"):
+    mt = mc * (dim - 1)                     # tangential rows: d - 1 per constrained row
+    if fr.T.shape != (mt, n):
+        raise QPValidationError(f"friction.T must have shape ({mt}, {n}) ({dim - 1} tangential "
+                                f"row(s) per constrained row in {dim}D), got {fr.T.shape}")
+    for name, size in (("slip_bound", mc), ("offset", mt), ("previous", mt)):
         v = np.asarray(getattr(fr, name), dtype=float).ravel()
-        if v.shape != (mc,) or not np.all(np.isfinite(v)):
-            raise QPValidationError(f"friction.{name} must be {mc} finite values, got shape "
+        if v.shape != (size,) or not np.all(np.isfinite(v)):
+            raise QPValidationError(f"friction.{name} must be {size} finite values, got shape "
                                     f"{v.shape}")
         setattr(fr, name, v)
+    fr.tangent = np.asarray(fr.tangent, dtype=float)
+    if fr.tangent.shape != (mt, dim):
+        raise QPValidationError(f"friction.tangent must have shape ({mt}, {dim}), got "
+                                f"{fr.tangent.shape}")
     if np.any(fr.slip_bound < 0) or not fr.mu >= 0:
         raise QPValidationError("friction.slip_bound and friction.mu must be >= 0")
     for k, step in enumerate(fr.path):
-        for name, size in (("f", n), ("offset", mc)):
+        for name, size in (("f", n), ("offset", mt)):
             if np.shape(getattr(step, name)) != (size,):
                 raise QPValidationError(f"friction.path[{k}].{name} must have shape ({size},), "
                                         f"got {np.shape(getattr(step, name))}")

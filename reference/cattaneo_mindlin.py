@@ -14,6 +14,17 @@ traction does not change the normal pressure. ``mu p - |q|`` is itself an ellips
 half-width ``c`` (``mu p0 (c/a) sqrt(1 - x^2/c^2)``), so ``c`` is measured from nodal
 forces like the Hertz ``a`` (:func:`reference.hertz.moment_estimate`): no node has to be
 classified as sticking or slipping.
+
+For the sphere (Johnson, Sect. 7.2; Mindlin 1949) the contact circle of radius ``a``
+sticks inside the circle of radius ``c`` and::
+
+    c / a = (1 - Q / (mu P))^(1/3),
+    |q(r)| = mu p0 (sqrt(1 - r^2/a^2) - (c/a) sqrt(1 - r^2/c^2))   for r < c,
+
+so ``mu p - |q|`` is a Hertz (point-contact) distribution of radius ``c``. The solution
+takes the traction parallel to ``Q`` everywhere, which is exact only for ``nu = 0``;
+Johnson estimates the effect of ``nu`` > 0 as small (Sect. 7.2), and the comparison's
+bar allows for it.
 """
 from __future__ import annotations
 
@@ -21,9 +32,14 @@ import numpy as np
 
 from reference.hertz import moment_estimate
 
+#: ``c / a = (1 - Q/(mu P))^POWER[kind]``: the cylinder (line contact) and the sphere.
+POWER = {"line": 0.5, "point": 1.0 / 3.0}
 
-def stick_zone_ratio(ratio: float) -> float:
-    """``c / a = sqrt(1 - Q/(mu P))`` for the load ratio ``ratio = Q/(mu P)``.
+
+def stick_zone_ratio(ratio: float, kind: str = "line") -> float:
+    """``c / a`` for the load ratio ``ratio = Q/(mu P)``: ``sqrt(1 - Q/(mu P))`` for the
+    plane-strain cylinder (``kind="line"``, Johnson Sect. 7.1), ``(1 - Q/(mu P))^(1/3)`` for
+    the sphere (``kind="point"``, Johnson Sect. 7.2).
 
     Raises
     ------
@@ -34,7 +50,10 @@ def stick_zone_ratio(ratio: float) -> float:
     if not 0.0 <= ratio < 1.0:
         raise ValueError(f"parameter 'ratio': Q/(mu P) = {ratio!r} is not allowed; allowed: "
                          "[0, 1) (at Q >= mu P the whole contact slips: gross sliding)")
-    return float(np.sqrt(1.0 - ratio))
+    if kind not in POWER:
+        raise ValueError(f"parameter 'kind': {kind!r} is not allowed; allowed: "
+                         f"{', '.join(POWER)}")
+    return float((1.0 - ratio) ** POWER[kind])
 
 
 def tangential_traction(x: np.ndarray, a: float, c: float, mu_p0: float) -> np.ndarray:
@@ -46,14 +65,17 @@ def tangential_traction(x: np.ndarray, a: float, c: float, mu_p0: float) -> np.n
 
 
 def stick_zone_size(x: np.ndarray, normal_force: np.ndarray, tangential_force: np.ndarray,
-                    slip_bound: np.ndarray) -> tuple[float, float]:
-    """Contact half-width ``a`` and stick-zone half-width ``c`` of nodal forces.
+                    slip_bound: np.ndarray, kind: str = "line") -> tuple[float, float]:
+    """Contact size ``a`` and stick-zone size ``c`` of nodal forces (half-widths for
+    ``kind="line"``, ``x`` ``(m,)``; radii for ``kind="point"``, ``x`` ``(m, 2)`` in the
+    contact plane).
 
     ``a`` from the second moment of the normal forces, ``c`` from that of the deficit
-    ``s - |lam|`` (the slip bound ``s = mu p`` less the tangential force), both Hertz
-    ellipses (module docstring; :func:`reference.hertz.moment_estimate`).
+    ``s - |lam|`` (the slip bound ``s = mu p`` less the size of the tangential force, one
+    value per node), both Hertz distributions (module docstring;
+    :func:`reference.hertz.moment_estimate`).
     """
-    _, a, _ = moment_estimate("line", x, np.asarray(normal_force, dtype=float))
+    _, a, _ = moment_estimate(kind, x, np.asarray(normal_force, dtype=float))
     deficit = np.asarray(slip_bound, dtype=float) - np.abs(tangential_force)
-    _, c, _ = moment_estimate("line", x, np.clip(deficit, 0.0, None))
+    _, c, _ = moment_estimate(kind, x, np.clip(deficit, 0.0, None))
     return a, c

@@ -164,7 +164,8 @@ def duality_gap(qp: ContactQP, u: np.ndarray, p: np.ndarray,
     |slip_i(u)|``, ``slip(u) = T u - r`` (``r = previous - offset``). With
     ``s_i |t| = max_{|l| <= s_i} l t`` the Lagrangian is
     ``L(v, p, l) = 1/2 v'Av - f'v + p'(Bv - g) + l'(Tv - r)`` and for any dual point in
-    the box ``p~ >= 0``, ``|l~_i| <= s_i`` (``l~`` = ``lam`` clipped to ``[-s, s]``) and
+    the box ``p~ >= 0``, ``|l~_i| <= s_i`` (``l~`` = ``lam`` clipped to ``[-s, s]``; in 3D
+    each node's 2-vector scaled back radially into its disc, isotropic friction) and
     any feasible ``u_f``: ``J(u_f) >= L(u_f, p~, l~) >= q(p~, l~) = min_v L``, the
     minimiser ``x = A^{-1}(f - B'p~ - T'l~)``. The dual is the box problem of
     :mod:`solvers.tresca` (``p >= 0``, ``|lam| <= s``), so weak duality holds as
@@ -172,7 +173,7 @@ def duality_gap(qp: ContactQP, u: np.ndarray, p: np.ndarray,
     of non-negative terms::
 
         J(u_f) - q(p~, l~) = 1/2 ||u_f - x||_A^2 + p~'(g - B u_f)
-                             + sum_i (s_i |slip_i(u_f)| - l~_i slip_i(u_f))
+                             + sum_i (s_i |slip_i(u_f)| - l~_i . slip_i(u_f))
 
     ``J`` is ``A``-strongly convex (a quadratic plus a convex term) and ``u*`` minimises
     it on the convex feasible set, so ``J(u_f) - J(u*) >= 1/2 ||u_f - u*||_A^2`` as in
@@ -191,7 +192,7 @@ def duality_gap(qp: ContactQP, u: np.ndarray, p: np.ndarray,
         if qp.C is not None:
             return DualityGap(inf, inf, inf, inf, inf, inf, inf, False)
         s = fr.slip_bound
-        lam_t = np.clip(np.asarray(lam, dtype=float), -s, s)       # into the dual box
+        lam_t = fr.clip(lam)                   # into the dual box (3D: the discs)
         energy = lambda v: tresca_energy(qp, v)
     else:
         energy = qp.energy
@@ -201,8 +202,8 @@ def duality_gap(qp: ContactQP, u: np.ndarray, p: np.ndarray,
         if fr is not None:
             r = r - fr.T.T @ lam_t
             slip = fr.slip(u_f)
-            extra = float(np.sum(s * np.abs(slip) - lam_t * slip))
-            extra_noise = float((s + np.abs(lam_t)) @ np.abs(slip)) + float(
+            extra = float(np.sum(s * fr.magnitude(slip) - fr.inner(lam_t, slip)))
+            extra_noise = float((s + fr.magnitude(lam_t)) @ fr.magnitude(slip)) + float(
                 np.abs(lam_t) @ (abs(fr.T) @ np.abs(u_f) + np.abs(fr.offset - fr.previous)))
         x = solve_A(r, guess=u_f)
         e = u_f - x

@@ -285,7 +285,8 @@ def friction_path(qp: ContactQP, solve=None, tol: float = 1e-12, max_iter: int =
         last = steps[-1].qp.friction
         s, previous = last.slip_bound, last.T @ steps[-1].solution.u + last.offset
     else:
-        s, previous = fr.mu * solve(with_step(qp, 0, zero, zero)).p, zero
+        rest = np.zeros(fr.T.shape[0])                 # the unloaded state
+        s, previous = fr.mu * solve(with_step(qp, 0, zero, rest)).p, rest
     for k in range(len(steps), len(fr.path)):
         if fr.law == "coulomb":
             done = coulomb_step(qp, k, previous, s, solve, tol, max_iter)
@@ -423,9 +424,9 @@ def scaled_tangential_step(qp: ContactQP, factor: float) -> ContactQP:
 
 def tangential_ratio(steps: list[PathStep]) -> float:
     """``Q / (mu P)`` of the last step: the total tangential over ``mu`` times the total
-    normal contact force."""
-    sol, mu = steps[-1].solution, steps[-1].qp.friction.mu
-    return abs(float(np.sum(sol.lam))) / (mu * float(np.sum(sol.p)))
+    normal contact force (3D: the norm of the total tangential force)."""
+    sol, fr = steps[-1].solution, steps[-1].qp.friction
+    return fr.total_force(sol.lam) / (fr.mu * float(np.sum(sol.p)))
 
 
 def path_for_ratio(qp: ContactQP, ratio: float, rtol: float = 1e-6,

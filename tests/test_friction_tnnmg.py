@@ -262,4 +262,3 @@ def test_a_run_stopped_short_says_so():
     s = st.qp.friction.slip_bound
     assert res.u.shape == (st.qp.n,) and np.all(np.abs(res.tangential) <= s)
     assert friction_residuals(st.qp, res.u, res.p, res.tangential).max > 1e-10
-

@@ -28,6 +28,8 @@ rule friction_report:
                         category="{scene}", subcategory="friction"),
         stick=report(PATHS["fr_stick"], caption=CAPTIONS["fr_stick"],
                      category="{scene}", subcategory="friction"),
+        map=report(PATHS["fr_map"], caption=CAPTIONS["fr_map"],
+                   category="{scene}", subcategory="friction"),
         cost=report(PATHS["fr_cost"], caption=CAPTIONS["fr_cost"],
                     category="{scene}", subcategory="friction")
     log: log_path("friction_report")
@@ -36,4 +38,4 @@ rule friction_report:
     shell:
         "{params.py} -m report.friction --runs {input.runs} --profiles {input.profiles} "
         "--claims {output.claims} --traction {output.traction} --stick {output.stick} "
-        "--cost {output.cost} > {log} 2>&1"
+        "--map {output.map} --cost {output.cost} > {log} 2>&1"

@@ -666,34 +666,49 @@ def _assemble(rows, facet_nodes, w, n, n_nodes, dim) -> sp.csr_matrix:
 
 
 def tangent_directions(direction: np.ndarray) -> np.ndarray:
-    """Unit tangent ``t = (n_y, -n_x)`` of each 2D row direction ``n`` (``t`` is ``n``
-    turned clockwise: ``n = (0, 1)`` gives ``t = (1, 0)``).
+    """Unit tangents of each row direction ``n``, node-major ``(m k, d)``, ``k = d - 1``.
+
+    2D: ``t = (n_y, -n_x)`` (``n`` turned clockwise: ``n = (0, 1)`` gives ``t = (1, 0)``).
+    3D: ``t_1``, the x axis projected onto the plane orthogonal to ``n`` and normalised
+    (the y axis where ``n`` lies within 45 degrees of x), and ``t_2 = n x t_1``: an
+    orthonormal right-handed frame ``(t_1, t_2, n)``; ``n = (0, 0, 1)`` gives the x and
+    y axes.
 
     Raises
     ------
     ValueError
-        For directions that are not 2D (3D needs two tangents per row).
+        For directions that are neither 2D nor 3D.
     """
     n = np.asarray(direction, dtype=float)
-    if n.ndim != 2 or n.shape[1] != 2:
-        raise ValueError(f"direction: shape {n.shape} is not allowed; allowed: (m, 2) "
-                         "(tangential rows are built for 2D)")
-    return np.stack([n[:, 1], -n[:, 0]], axis=1)
+    if n.ndim != 2 or n.shape[1] not in (2, 3):
+        raise ValueError(f"direction: shape {n.shape} is not allowed; allowed: (m, 2) or (m, 3)")
+    if n.shape[1] == 2:
+        return np.stack([n[:, 1], -n[:, 0]], axis=1)
+    n = n / np.linalg.norm(n, axis=1, keepdims=True)
+    axis = np.where((np.abs(n[:, 0]) > np.sqrt(0.5))[:, None], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0])
+    t1 = axis - np.sum(axis * n, axis=1, keepdims=True) * n
+    t1 /= np.linalg.norm(t1, axis=1, keepdims=True)
+    t2 = np.cross(n, t1)
+    return np.stack([t1, t2], axis=1).reshape(-1, 3)
 
 
 def tangential_rows(cc: ContactConstraints, n_nodes: int) -> tuple[sp.csr_matrix, np.ndarray]:
-    """The tangential rows of the constraints ``cc`` (2D): ``t_i . (u(P) - sum_k w_k u(P_k))``.
+    """The tangential rows of the constraints ``cc``: ``t_ij . (u(P) - sum_k w_k u(P_k))``.
 
     The same interpolation (Alg. 7.1, (7.14)) as the normal rows of ``cc.B`` with the
-    unit tangent ``t_i`` (:func:`tangent_directions`) in place of ``n_i``.
+    unit tangents ``t_ij`` (:func:`tangent_directions`) in place of ``n_i``; ``d - 1``
+    rows per constrained node, node-major (row ``i (d - 1) + j``).
 
     Returns
     -------
-    T : (m, n_nodes*dim) csr_matrix
-    tangent : (m, dim) array
+    T : (m (d-1), n_nodes*dim) csr_matrix
+    tangent : (m (d-1), dim) array
     """
     t = tangent_directions(cc.direction)
-    return _assemble(cc.rows, cc.facet_nodes, cc.weights, t, n_nodes, cc.dim), t
+    k = cc.dim - 1
+    rep = lambda a: np.repeat(a, k, axis=0)
+    return _assemble(rep(cc.rows), rep(cc.facet_nodes), rep(cc.weights), t, n_nodes,
+                     cc.dim), t
 
 
 def quadratic_constraints(cc: ContactConstraints, facet_nodes: np.ndarray,

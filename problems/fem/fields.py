@@ -66,19 +66,23 @@ def friction_state(qp: ContactQP, u: np.ndarray, p: np.ndarray, lam: np.ndarray,
 
     ``traction`` is ``lam`` turned into a traction as the normal multiplier is turned
     into the pressure (:meth:`problems.qp.ContactSurface.pressure`: ``lam / mass``);
-    ``slip`` is the step's ``T u + offset - previous``; ``state`` is ``stick``, ``slip``
-    or ``free`` (:meth:`problems.qp.Friction.states` at ``tol``). ``tangential_force``
-    is ``sum_i lam_i t_i``; ``load_ratio`` is ``|sum lam| / (mu sum p)`` (Q/(mu P); nan
-    for ``mu = 0`` or no contact force).
+    ``slip`` is the step's ``T u + offset - previous``; in 3D both, like ``tangential``,
+    are node-major with two entries per node (along the row's two tangents,
+    ``friction.tangent``). ``state`` is ``stick``, ``slip`` or ``free``
+    (:meth:`problems.qp.Friction.states` at ``tol``). ``tangential_force`` is
+    ``sum_i lam_i t_i``; ``load_ratio`` is Q/(mu P) with ``Q``
+    :meth:`problems.qp.Friction.total_force` (nan for ``mu = 0`` or no contact force).
     """
     fr = qp.friction
     lam, p = np.asarray(lam, dtype=float), np.asarray(p, dtype=float)
     P = float(p.sum())
+    traction = fr.blocks(lam) / qp.contact.mass[:, None] if fr.components > 1 else \
+        qp.contact.pressure(lam)
     return {"law": fr.law, "mu": fr.mu, "tangential": lam,
-            "traction": qp.contact.pressure(lam), "slip": fr.slip(u),
+            "traction": traction.ravel(), "slip": fr.slip(u),
             "slip_bound": fr.slip_bound, "state": fr.states(lam, tol),
             "tangential_force": (lam[:, None] * fr.tangent).sum(axis=0),
-            "load_ratio": abs(float(lam.sum())) / (fr.mu * P) if fr.mu > 0 and P > 0
+            "load_ratio": fr.total_force(lam) / (fr.mu * P) if fr.mu > 0 and P > 0
             else float("nan")}
 
 

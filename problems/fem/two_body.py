@@ -40,13 +40,29 @@ from problems.fem.quadratic import (FACET_EDGES, body_force_vector_p2, edge_look
                                     midpoint_supports, quadratic_facets, quadratic_mesh,
                                     stiffness_matrix_p2, surface_mass_p2, traction_vector_p2)
 from problems.fem.surface import facet_sizes, surface_levels
-from problems.spec import Parameter
-from problems.qp import ContactQP, ContactSurface, Friction, HertzSetup, Mesh, Multilevel
+from problems.spec import Options, Parameter, ParameterError
+from problems.qp import (FRICTION_LAWS, ContactQP, ContactSurface, Friction, HertzSetup, LoadStep,
+                         Mesh, Multilevel)
 
 #: The scenes' element order (one declaration, every two-body scene lists it).
 ELEMENT_DEGREE = Parameter(
     "degree", 1, "Lagrange elements' order: 1 (P1) or 2 (P2, Remark 7.11: constraints at the "
     "vertices and edge midpoints of the constrained surface)", low=1, high=2)
+
+
+
+def friction_parameters(held: str) -> tuple[Parameter, ...]:
+    """The friction parameters of a contact scene (``friction``, ``mu``, ``shift``);
+    ``held`` names the part of the loaded body the tangential ``shift`` moves."""
+    return (
+        Parameter("friction", "none", "friction law on the contact (none: the thesis's "
+                  "frictionless problem; tresca: slip bound mu p of the normal step; coulomb: "
+                  "s = mu p by a fixed point)", choices=FRICTION_LAWS),
+        Parameter("mu", 0.0, "friction coefficient", low=0.0),
+        Parameter("shift", 0.0, f"tangential load: prescribed x-displacement of {held} after "
+                  "the normal load", low=-0.2, high=0.2),
+    )
+
 
 #: ``dirichlet(points, body_of_node) -> (fixed_dofs, values)`` on one level's stacked mesh.
 Supports = Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]
@@ -287,7 +303,7 @@ def assemble_two_body(scene: TwoBodyScene, level: int, name: str = "",
         Lagrange elements of first or second order (Remark 7.11).
     tangential : bool
         Also build the tangential rows (:func:`problems.fem.contact.tangential_rows`,
-        2D, P1) as a Tresca :class:`Friction` with zero slip bounds, which the scene
+        P1; ``d - 1`` per constrained node) as a Tresca :class:`Friction` with zero slip bounds, which the scene
         completes; ``False`` leaves the frictionless ContactQP exactly as it is.
 
     Returns
@@ -336,8 +352,8 @@ def assemble_two_body(scene: TwoBodyScene, level: int, name: str = "",
                              search=scene.search, n_nodes=n_nodes)
     if quad is not None:
         cc = quadratic_constraints(cc, quadratic_facets(quad, cc.facet_nodes), n_nodes)
-    if tangential and (quad is not None or dim != 2):
-        raise ValueError("tangential rows are built for 2D P1 elements; allowed: degree=1 in 2D")
+    if tangential and quad is not None:
+        raise ValueError("tangential rows are built for P1 elements; allowed: degree=1")
     if cc.m == 0:
         raise ValueError("no constrained node finds an opposing facet: the bodies never face "
                          "each other along the contact direction (check on_opposing)")
@@ -375,9 +391,9 @@ def assemble_two_body(scene: TwoBodyScene, level: int, name: str = "",
     friction = None
     if tangential:
         T_full, tangent = tangential_rows(cc, n_nodes)
-        zero = np.zeros(cc.m)
         friction = Friction(law="tresca", mu=0.0, T=T_full[:, free].tocsr(), tangent=tangent,
-                            slip_bound=zero, offset=T_full @ u_fixed, previous=zero.copy())
+                            slip_bound=np.zeros(cc.m), offset=T_full @ u_fixed,
+                            previous=np.zeros(T_full.shape[0]))
 
     return ContactQP(
         A=A, f=f, B=B, g=g, free_dofs=free, u_fixed=u_fixed, dim=dim, friction=friction,
@@ -392,3 +408,34 @@ def assemble_two_body(scene: TwoBodyScene, level: int, name: str = "",
                               body_of_dof=body_of_dof, surface=surface),
         hertz=scene.hertz, name=name, units=scene.units, level=level,
     )
+
+
+def frictional_two_body(scene: Callable[[int, Options], TwoBodyScene], level: int, p: Options,
+                        name: str) -> ContactQP:
+    """The frictional ContactQP of a scene with ``friction``, ``mu`` and ``shift``
+    (:func:`friction_parameters`): its load path is the normal load (``shift`` = 0) and
+    then the tangential step (the held part moved along x by ``shift``); the ContactQP
+    holds the first step's data, slip measured from the unloaded state, slip bounds zero
+    (the path's driver sets them: :func:`solvers.tresca.friction_path`).
+
+    ``scene(level, options)`` builds the scene with the held part's x-displacement set
+    to ``options.shift``; the two steps differ only in their prescribed values.
+
+    Raises
+    ------
+    ParameterError
+        For a coupling other than ``nodal`` or elements other than P1 (the tangential
+        rows are built for the nodal P1 constraints).
+    """
+    for key, value, allowed in (("coupling", p.coupling, "nodal"), ("degree", p.degree, 1)):
+        if value != allowed:
+            raise ParameterError(f"parameter '{key}': {value!r} is not allowed with "
+                                 f"friction={p.friction!r}; allowed: {allowed!r} (the tangential "
+                                 "rows are built for the nodal P1 constraints)")
+    name = f"{name} level {level} {p.friction} mu={p.mu:g}"
+    steps = [assemble_two_body(scene(level, Options({**p, "shift": shift})), level, name=name,
+                               tangential=True) for shift in (0.0, p.shift)]
+    qp = steps[0]
+    qp.friction.law, qp.friction.mu = p.friction, float(p.mu)
+    qp.friction.path = tuple(LoadStep(s.f, s.g, s.friction.offset) for s in steps)
+    return qp

@@ -134,9 +134,9 @@ COMMON = {"mu": 0.5, "ratios": [0.3, 0.7], "shift": 0.01, "coulomb_shift": 0.02,
           "solvers": ["tnnmg", "semismooth_newton"], "tol": "high", "time_limit": 120}
 
 
-def settings_at(levels: list[int]) -> dict:
-    """The study's section at a scale: circle-square at ``levels``, :data:`COMMON` else."""
-    return {"scenes": {"circle_square": levels}, **COMMON}
+def settings_at(circle_square: list[int], cube_sphere: list[int]) -> dict:
+    """The study's section at a scale: the two scenes' levels, :data:`COMMON` else."""
+    return {"scenes": {"circle_square": circle_square, "cube_sphere": cube_sphere}, **COMMON}
 
 
 STUDY = Study(
@@ -157,9 +157,11 @@ STUDY = Study(
         "fr_claims": "results/{scene}/friction_claims.csv",
         "fr_traction": "results/{scene}/friction_traction.png",
         "fr_stick": "results/{scene}/friction_stick.png",
+        "fr_map": "results/{scene}/friction_map.png",
         "fr_cost": "results/{scene}/friction_cost.png",
     },
-    outputs=("fr_runs", "fr_profiles", "fr_claims", "fr_traction", "fr_stick", "fr_cost"),
+    outputs=("fr_runs", "fr_profiles", "fr_claims", "fr_traction", "fr_stick", "fr_map",
+             "fr_cost"),
     heavy_rules=(RULE,),
     check=check,
     settings={
@@ -194,12 +196,14 @@ STUDY = Study(
     # the shared 2-core machine; full and huge estimated from quick's level 3 (its solver
     # paths cost ~4x per level: N x4, iterations flat)
     scales={
-        "tiny": AtScale(settings_at([0, 1]),                   # measured 13 s, 0.4 GB
+        "tiny": AtScale(settings_at([0, 1], [1]),             # measured 13 s, 0.4 GB
                         {RULE: {"mem_mb": 1000, "runtime": 1}}),
-        "quick": AtScale(settings_at([1, 2, 3]),               # measured 125 s, 1.4-2.3 GB
+        "quick": AtScale(settings_at([1, 2, 3], [1, 2]),      # measured 125 s, 1.4-2.3 GB
                          {RULE: {"mem_mb": 3000, "runtime": 4}}),
-        "full": AtScale(settings_at([1, 2, 3, 4]), {RULE: {"mem_mb": 8000, "runtime": 12}}),
-        "huge": AtScale(settings_at([1, 2, 3, 4, 5]), {RULE: {"mem_mb": 30000, "runtime": 50}}),
+        "full": AtScale(settings_at([1, 2, 3, 4], [1, 2, 3]),
+                        {RULE: {"mem_mb": 8000, "runtime": 12}}),
+        "huge": AtScale(settings_at([1, 2, 3, 4, 5], [1, 2, 3]),
+                        {RULE: {"mem_mb": 30000, "runtime": 50}}),
     },
     claims=("fr_claims",),
     captions="friction.rst",
