@@ -94,7 +94,7 @@ import scipy.sparse.linalg as spla
 from pyamg.relaxation.relaxation import gauss_seidel
 
 from problems.kkt import friction_residuals, kkt_residuals
-from problems.qp import ContactQP
+from problems.qp import ContactQP, Friction
 from problems.spec import Options, Parameter
 from solvers._block_gs import (BOTH_FIXED, BOUNDED, FIXED, FREE, TANGENT_FIXED, TRESCA,
                                block_gauss_seidel, block_inverses, tresca_block_gauss_seidel,
@@ -222,20 +222,17 @@ class _TrescaTerm:
             return (v[self.pivot] == self.centre) & (self.weight > 0)
         return np.all(self._nodes(v[self.pivot] == self.centre), axis=1) & (self.weight > 0)
 
-    def multipliers(self, residual_v: np.ndarray, slip_bound: np.ndarray) -> np.ndarray:
+    def multipliers(self, residual_v: np.ndarray, friction: Friction) -> np.ndarray:
         """The tangential multipliers ``lam`` (``A u + B'p + T'lam = f``) from the residual
         ``f~ - A~v`` of the transformed problem: ``R_i r[pivot_i] / theta_i`` (the
-        stationarity of the tangential unknowns), clipped into the disc ``|lam_i| <= s_i``
-        (2D: ``[-s_i, s_i]``; as ``p >= 0``: what is left over stays in the stationarity
-        residual)."""
+        stationarity of the tangential unknowns), in the friction discs ``|lam_i| <= s_i``
+        (:meth:`problems.qp.Friction.clip`; as ``p >= 0``: what is left over stays in the
+        stationarity residual)."""
         if self.k == 1:
-            return np.clip(residual_v[self.pivot] / self.theta, -slip_bound, slip_bound)
+            return friction.clip(residual_v[self.pivot] / self.theta)
         lam = np.einsum("ijl,il->ij", self.frame, self._nodes(residual_v[self.pivot])) \
             / self.theta[:, None]
-        length = np.sqrt(np.einsum("ij,ij->i", lam, lam))
-        over = length > slip_bound
-        lam[over] *= (slip_bound[over] / length[over])[:, None]
-        return lam.ravel()
+        return friction.clip(lam.ravel())
 
     def gradient(self, v: np.ndarray) -> np.ndarray:
         """Per tangential unknown, the term's derivative off the kinks (``weight
@@ -999,7 +996,7 @@ def _tresca_solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | 
         verified, kkt_max = False, np.nan
         if residual <= CHECK_FACTOR * tol or callback is not None:
             u, p = box.to_u(v), box.multipliers(r, bound)
-            lam = term.multipliers(r, qp.friction.slip_bound)
+            lam = term.multipliers(r, qp.friction)
         if residual <= CHECK_FACTOR * tol:         # the suite's verification decides
             kkt_max, verified = _verified(qp, u, p, tol, opts.stop, lam)
         end = log.close(k, (t0, t1, t2, t3), kkt_max, verified,
@@ -1012,7 +1009,7 @@ def _tresca_solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | 
         r = fine.f - fine.matvec(v)
     bound = v[piv] >= upper
     u, p = box.to_u(v), box.multipliers(r, bound)
-    lam = term.multipliers(r, qp.friction.slip_bound)
+    lam = term.multipliers(r, qp.friction)
     stick = term.stick(v)
     stats = {"friction": "tresca_step", "n_steps": k, "n_cg": 0, "n_vcycles": k,
              "presmoothing": opts.presmoothing,

@@ -2,12 +2,22 @@
 line search on the nonsmooth energy, each against an independent brute-force minimiser;
 the tangential rows as coordinates; the solver's answers on cube_sphere verified (friction
 KKT and certificate)."""
+from dataclasses import replace
+
+import clarabel
 import numpy as np
 import pytest
+import scipy.sparse as sp
 from scipy.optimize import minimize_scalar
 
+from problems.kkt import energy_error, friction_residuals
+from problems.spec import problems
 from solvers import tnnmg
 from solvers._block_gs import disc_block_minimiser
+from solvers.certificate import certify
+from solvers.contact_box import box_transformation
+from solvers.interface import solve
+from solvers.tresca import as_tresca_solution, friction_path, tangential_ratio
 from test_friction_tnnmg import _one_block
 
 
@@ -152,3 +162,146 @@ def test_the_sweep_takes_a_3d_block_to_the_disc_minimiser():
         assert (out[0] == upper) == (case >= 2)
         assert np.array_equal(out[1:], centre) == (case % 2 == 1)
     assert cases == {0, 1, 2, 3}
+
+
+# --- TNNMG on cube_sphere's Tresca steps ----------------------------------------------
+
+CUBE = problems()["cube_sphere"]
+
+#: The held cap's shift along x that gives Q/(mu P) about 0.3 and 0.7 at mu = 0.5 on levels
+#: 1 and 2 (found by solvers.tresca.path_for_ratio with TNNMG; the tests measure the ratio).
+SHIFT_FOR_RATIO = {0.3: 0.035, 0.7: 0.088}
+
+
+def _cube(level, **kw):
+    return CUBE.make(level, **{"friction": "tresca", "mu": 0.5, **kw})
+
+
+def _verified_tnnmg(step_qp, tol=1e-10, u0=None):
+    """TNNMG's answer to one Tresca step through the suite's interface (``converged`` only
+    when verified), checked again here: the friction KKT residuals and the certified
+    Tresca bound meet ``tol``."""
+    res = solve(step_qp, "tnnmg", tol=tol, u0=u0)
+    assert res.status == "converged", res.message
+    assert friction_residuals(step_qp, res.u, res.p, res.tangential).max <= tol
+    assert certify(step_qp, res.u, res.p, tol, lam=res.tangential).meets(tol)
+    return res
+
+
+def _socp_answer(step_qp):
+    """The Tresca step as a second-order cone program solved by an interior-point method
+    (Clarabel): ``min 1/2 u'Au - f'u + s't`` with ``B u <= g`` and ``|T_i u - r_i| <= t_i``
+    (one 3-dimensional cone per constrained node): an answer independent of TNNMG's
+    transformation, smoother and line search."""
+    fr = step_qp.friction
+    n, m, k = step_qp.n, step_qp.m, fr.components
+    P = sp.block_diag([sp.csc_matrix(step_qp.A), sp.csc_matrix((m, m))]).tocsc()
+    cost = np.r_[-step_qp.f, fr.slip_bound]
+    # cone rows: (t_i, T_i u + offset_i - previous_i) = b - G x
+    T = sp.csr_matrix(fr.T)
+    order = np.arange(m * (k + 1)).reshape(m, k + 1)
+    t_rows = sp.csr_matrix((-np.ones(m), (order[:, 0], n + np.arange(m))),
+                           shape=(m * (k + 1), n + m))
+    slip_rows = sp.csr_matrix(sp.csr_matrix(-T).tocoo(), copy=True).tocoo()
+    slip_rows = sp.csr_matrix((slip_rows.data, (order[:, 1:].ravel()[slip_rows.row],
+                                                slip_rows.col)), shape=(m * (k + 1), n + m))
+    G = sp.vstack([sp.hstack([step_qp.B, sp.csr_matrix((m, m))]), t_rows + slip_rows]).tocsc()
+    rhs = np.zeros(m * (k + 1))
+    rhs[order[:, 1:].ravel()] = fr.offset - fr.previous
+    cones = [clarabel.NonnegativeConeT(m)] + [clarabel.SecondOrderConeT(k + 1)] * m
+    settings = clarabel.DefaultSettings()
+    settings.verbose = False
+    settings.tol_gap_abs = settings.tol_gap_rel = settings.tol_feas = 1e-13
+    settings.max_iter = 400
+    out = clarabel.DefaultSolver(P, cost, G, np.r_[step_qp.g, rhs], cones, settings).solve()
+    assert str(out.status) == "Solved", out.status
+    return np.asarray(out.x[:n])
+
+
+def _path_by_tnnmg(qp, tol=1e-10):
+    """The load path with TNNMG's verified steps (each from its previous state)."""
+    return friction_path(qp, lambda step_qp: as_tresca_solution(
+        step_qp, _verified_tnnmg(step_qp, tol)))
+
+
+def test_cube_sphere_tangential_rows_become_coordinates_exactly():
+    """u = T v with two tangential rows per constrained node: T is invertible with the
+    inverse it claims, each normal row bounds one unknown, each node's tangential rows
+    read its two other unknowns through theta_i R_i with R_i orthogonal."""
+    qp = _cube(1, shift=0.035)
+    fr = qp.friction
+    box = box_transformation(qp, fr.T)
+    m = qp.m
+    assert abs(box.T @ box.T_inv - sp.identity(qp.n)).max() <= 1e-12
+    BT = (qp.B @ box.T).tocsr()
+    target = sp.csr_matrix((box.scale, (np.arange(m), box.pivot)), shape=BT.shape)
+    assert abs(BT - target).max() <= 1e-12 * abs(qp.B).max()
+    R, theta = box.tangential_frame, box.tangential_scale
+    assert R.shape == (m, 2, 2) and np.all(theta > 0)
+    assert np.abs(np.einsum("ijl,ihl->ijh", R, R) - np.eye(2)).max() <= 1e-12
+    pivots = box.tangential_pivot.reshape(m, 2)
+    rows = np.repeat(np.arange(2 * m), 2)
+    cols = pivots[np.repeat(np.arange(m), 2)].ravel()
+    target = sp.csr_matrix(((theta[:, None, None] * R).ravel(), (rows, cols)),
+                           shape=fr.T.shape)
+    assert abs((fr.T @ box.T).tocsr() - target).max() <= 1e-12 * abs(fr.T).max()
+    blocks = np.repeat(np.arange(box.node_ptr.size - 1), np.diff(box.node_ptr))
+    block_of = np.empty(qp.n, dtype=np.int64)
+    block_of[box.node_dofs] = blocks
+    assert np.all(block_of[pivots] == block_of[box.pivot][:, None])     # the node's own
+    u = np.random.default_rng(1).normal(size=qp.n)
+    np.testing.assert_allclose(box.to_u(box.to_v(u)), u, rtol=0, atol=1e-12 * np.abs(u).max())
+
+
+@pytest.mark.parametrize("ratio", [0.3, 0.7])
+def test_tnnmg_on_a_cube_sphere_tresca_path_level_1(ratio):
+    """Level 1 (81 constrained nodes), mu = 0.5: the normal step and the tangential step,
+    each verified (friction KKT and certificate, 1e-10) and within 1e-8 (relative energy
+    norm) of the cone program's answer; the tangential step at Q/(mu P) = ratio +- 0.03
+    with sticking and slipping nodes."""
+    steps = _path_by_tnnmg(_cube(1, shift=SHIFT_FOR_RATIO[ratio]))
+    for st in steps:
+        assert energy_error(st.qp, st.solution.u, _socp_answer(st.qp)) <= 1e-8
+    assert abs(tangential_ratio(steps) - ratio) <= 0.03
+    res = _verified_tnnmg(steps[-1].qp)
+    assert res.stats["n_stick"] > 0 and res.stats["n_slip"] > 0
+
+
+def test_mu_zero_is_the_frictionless_tnnmg_answer():
+    """Slip bounds zero: each step's answer is TNNMG's frictionless one to 1e-10."""
+    for st in friction_path(_cube(1, mu=0.0, shift=0.035),
+                            lambda q: as_tresca_solution(q, _verified_tnnmg(q, 1e-12))):
+        plain = replace(st.qp, friction=None)
+        ref = solve(plain, "tnnmg", tol=1e-12)
+        assert ref.status == "converged", ref.message
+        assert energy_error(plain, st.solution.u, ref.u) <= 1e-10
+        assert np.max(np.abs(st.solution.p - ref.p)) <= 1e-10 * np.max(ref.p)
+        assert np.array_equal(st.solution.lam, np.zeros(2 * st.qp.m))
+
+
+def test_a_3d_run_stopped_short_says_so():
+    """Two steps of a tangential step: max_iter with its message, the energy never rising,
+    the tangential multipliers inside their discs (to the radial clip's round-off)."""
+    st = _path_by_tnnmg(_cube(1, shift=0.035))[-1]
+    res = tnnmg.solve(st.qp, 1e-10, 2, None, None, None, tnnmg.SOLVER.options())
+    assert res.claimed_status == "max_iter" and "not verified after 2 steps" in res.message
+    assert res.history["energy"][1] <= res.history["energy"][0]
+    fr = st.qp.friction
+    assert np.all(fr.magnitude(res.tangential) <= fr.slip_bound * (1 + 1e-15))
+    assert friction_residuals(st.qp, res.u, res.p, res.tangential).max > 1e-10
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("ratio", [0.3, 0.7])
+def test_tnnmg_on_a_cube_sphere_tresca_path_level_2(ratio):
+    """Level 2 (289 constrained nodes): each step verified, and within 1e-8 of a second
+    TNNMG run started elsewhere (from the frictionless answer of the step) and verified
+    to 1e-12; Q/(mu P) = ratio +- 0.03 with sticking and slipping nodes."""
+    steps = _path_by_tnnmg(_cube(2, shift=SHIFT_FOR_RATIO[ratio]))
+    for st in steps:
+        start = solve(replace(st.qp, friction=None), "tnnmg", tol=1e-8).u
+        other = _verified_tnnmg(st.qp, 1e-12, u0=start)
+        assert energy_error(st.qp, st.solution.u, other.u) <= 1e-8
+    assert abs(tangential_ratio(steps) - ratio) <= 0.03
+    res = _verified_tnnmg(steps[-1].qp)
+    assert res.stats["n_stick"] > 0 and res.stats["n_slip"] > 0
