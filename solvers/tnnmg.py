@@ -69,7 +69,7 @@ norm, the isotropic disc) is separable by node blocks with the normal bound on
    unknowns (slip exactly zero); a slipping node's term enters the correction's
    right-hand side by its derivative (``weight sign(slip)``; 3D: ``weight slip/|slip|``;
    in 2D the term is linear near the iterate, in 3D its curvature across the slip
-   direction is left out of the correction, which the line search makes up for);
+   direction goes into the correction's operator, :class:`_SlipCurvature`);
 3. the line search on the nonsmooth energy: in 2D exact over its kinks
    (:func:`_tresca_step`), in 3D a safeguarded Newton search on its nondecreasing
    derivative to round-off (:func:`_disc_line_search`); conjugate gradients on a face
@@ -77,8 +77,9 @@ norm, the isotropic disc) is separable by node blocks with the normal bound on
 
 It stops when the suite's verification passes: the friction KKT residuals
 (:func:`problems.kkt.friction_residuals`) and the certified energy bound of the Tresca step
-(:func:`certify` with ``lam``) meet tol, with the tangential multipliers ``lam_i = r[v_s[1]] / theta_i`` from the
-stationarity of the tangential unknown, in ``[-s_i, s_i]`` (``SolveResult.tangential``;
+(:func:`certify` with ``lam``) meet tol, with the tangential multipliers
+``lam_i = R_i r[v_t,i] / theta_i`` from the stationarity of the tangential unknowns, in
+the disc ``|lam_i| <= s_i`` (2D: ``[-s_i, s_i]``; ``SolveResult.tangential``;
 :meth:`_TrescaTerm.multipliers`). A Coulomb problem is solved as the Tresca step of its
 given slip bound (the fixed point ``s = mu p`` over Tresca steps is the load path's).
 """
@@ -784,7 +785,7 @@ def _disc_line_search(base: float, curvature: float, z: np.ndarray, dt: np.ndarr
     # kinks: z_i + a dt_i = 0 for some a >= 0 (z_i antiparallel to dt_i, or z_i = 0)
     at = -zd / dd
     parallel = np.abs(z[:, 0] * dt[:, 1] - z[:, 1] * dt[:, 0]) <= 1e-14 * np.sqrt(zz * dd)
-    kink = np.where(parallel & (at >= 0.0), at, -1.0) if z.shape[1] == 2 else -np.ones(zz.size)
+    kink = np.where(parallel & (at >= 0.0), at, -1.0)
 
     def slope_at(a: float, side: float) -> tuple[float, float]:
         """``phi'(a)`` (one-sided at a kink: ``side`` +1 right, -1 left) and ``phi''(a)``."""
@@ -801,7 +802,8 @@ def _disc_line_search(base: float, curvature: float, z: np.ndarray, dt: np.ndarr
     if slope_at(0.0, +1.0)[0] >= 0.0:
         return 0.0, _reached(moving, kink, 0.0), False
     lo = 0.0
-    hi = longest if np.isfinite(longest) else         max((float(w @ np.sqrt(dd)) - base) / curvature, 0.0)
+    hi = (longest if np.isfinite(longest)
+          else max((float(w @ np.sqrt(dd)) - base) / curvature, 0.0))
     if np.isfinite(longest) and slope_at(longest, -1.0)[0] <= 0.0:
         return float(longest), _reached(moving, kink, longest), True
     a = lo
