@@ -10,9 +10,11 @@ reference agreeing to 1e-8 in relative energy at every level where all ran; the 
 path equal to the frictionless reference to 1e-10; every frictional solver run verified
 ``converged``; TNNMG's tangential-step iterations growing at most 15 % over the last two
 levels (judged when the finer is resolved); Coulomb's fixed point converging at every
-level, with its Tresca solves. Figures: the traction profiles at the finest level, c/a
-against Q/(mu P), the stick and slip nodes in the contact plane, and iterations and time
-against N per solver with fitted exponents.
+level, with its Tresca solves; TNNMG's time to the target energy error on the tangential
+step within :data:`TIME_BAR` times the linear multigrid solve at the finest level.
+Figures: the traction profiles at the finest level, c/a against Q/(mu P), the stick and
+slip nodes in the contact plane, and iterations and time against N per solver with fitted
+exponents.
 
 Example::
 
@@ -56,6 +58,9 @@ AGREEMENT_BAR = 1e-8
 MU_ZERO_BAR = 1e-10
 #: TNNMG's iterations over the last two levels (multigrid: bounded in h).
 STEPS_GROWTH_BAR = 1.15
+#: TNNMG's time on a Tresca step over one linear multigrid solve of the same system (the
+#: frictionless TNNMG takes about 2x; the nonsmooth tangential term may add half again).
+TIME_BAR = 3.0
 CM = "Cattaneo-Mindlin (Johnson 1985, Sects. 7.1-7.2)"
 #: c/a of Cattaneo-Mindlin by contact kind, as the figures write it.
 CM_CURVE = {"line": "sqrt(1 - Q/(mu P))", "point": "(1 - Q/(mu P))^(1/3)"}
@@ -87,6 +92,11 @@ CLAIMS = {
     "tnnmg_steps": Claim("suite bar (TNNMG, a multigrid method: iterations bounded in h)",
                          "{scene}: TNNMG tangential-step iterations, level {level} over "
                          "level {coarser} at Q/(mu P) = {ratio:g}", "<=", STEPS_GROWTH_BAR),
+    "tnnmg_time": Claim("suite bar (TNNMG on a Tresca step: within 3x one linear multigrid "
+                        "solve)", "{scene}: TNNMG's time to relative energy error {target:g} "
+                        "on the tangential step over the multigrid-PCG solve of the same "
+                        "system without contact, level {level} (N = {N}), Q/(mu P) = "
+                        "{ratio:g} (medians of the timed runs)", "<=", TIME_BAR),
     "coulomb": Claim("suite bar (the fixed point s = mu p must converge to count)",
                      "{scene}: Coulomb's fixed point converged in every load step of every "
                      "level (Tresca solves per level, normal + tangential)", "given", "all"),
@@ -98,7 +108,8 @@ CLAIMS = {
 RUN_COLUMNS = ("scene", "mu", "level", "N", "role", "solver", "status", "message", "ratio",
                "contact", "contact_nodes", "dev_c_over_a", "traction_l2", "c_over_a",
                "c_over_a_exact", "ratio_reached", "p0", "err_energy", "steps_tangential",
-               "t_setup", "t_solve", "load_step", "tresca_solves", "contraction")
+               "t_setup", "t_solve", "load_step", "tresca_solves", "contraction", "target",
+               "t_to_target")
 
 
 def complete(runs: pd.DataFrame) -> pd.DataFrame:
@@ -147,8 +158,29 @@ def claims(runs: pd.DataFrame) -> pd.DataFrame:
                                            reason="no solver ran"))
         rows += _tnnmg_growth(solved, ref.groupby("level").contact_nodes.min(), scene,
                               RESOLVED_CONTACT_NODES[kind])
+        rows += _time_ratio(t[t.role == "timing"], scene)
         rows.append(_coulomb(t[t.role == "coulomb"], scene))
     return pd.DataFrame(rows, columns=COLUMNS)
+
+
+def _time_ratio(timing: pd.DataFrame, scene: str) -> list[dict]:
+    """TNNMG's time to the target over the linear floor's at the finest timed level, per
+    ratio (a level where either did not reach the target gives its reason)."""
+    rows = []
+    for ratio, g in timing.groupby("ratio", sort=True):
+        top = g[g.N == g.N.max()]
+        tn, fl = (top[top.solver == name] for name in ("tnnmg", "linear_floor"))
+        fields = dict(scene=scene, ratio=ratio, level=int(top.level.iloc[0]),
+                      N=f"{int(top.N.iloc[0]):,}", target=float(top.target.iloc[0]))
+        if len(tn) and len(fl) and np.isfinite(float(tn.t_to_target.iloc[0])) and \
+                np.isfinite(float(fl.t_to_target.iloc[0])):
+            rows.append(CLAIMS["tnnmg_time"].row(
+                float(tn.t_to_target.iloc[0] / fl.t_to_target.iloc[0]), **fields))
+        else:
+            said = "; ".join(f"{r.solver}: {r.status}" for r in top.itertuples())
+            rows.append(CLAIMS["tnnmg_time"].row(np.nan, judged=False, reason=(
+                f"not both reached the target ({said})"), **fields))
+    return rows
 
 
 def _agreement(t: pd.DataFrame, scene: str) -> dict:

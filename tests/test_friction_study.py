@@ -49,6 +49,10 @@ def test_the_script_writes_every_declared_output(outputs):
         assert sorted(at[at.role == "reference"].ratio) == COMMON["ratios"]
         assert sorted(at[at.role == "solver"].solver.unique()) == sorted(COMMON["solvers"])
         assert len(at[at.role == "mu_zero"]) == 2 and len(at[at.role == "coulomb"]) == 2
+        timed = at[at.role == "timing"]
+        assert sorted(timed.solver) == sorted(["tnnmg", "linear_floor"] * len(COMMON["ratios"]))
+        assert (timed.n_to_target > 0).all() and np.isfinite(timed.t_to_target).all()
+        assert (timed.energy_error <= timed.target).all()
     assert (runs[runs.role != "coulomb"].status == "converged").all()
     profiles = read_csv(outputs["profiles"])
     assert set(profiles.state) <= {"stick", "slip", "free"} and (profiles.state == "stick").any()
@@ -134,7 +138,7 @@ def test_beyond_the_exact_size_the_reference_is_semismooth_newton(monkeypatch):
     traction error as with the exact reference."""
     spec = problems()["circle_square"]
     args = Namespace(mu=0.5, shift=0.01, ratios=[0.7], solvers=[], tol="high",
-                     time_limit=60.0, coulomb_shift=0.0)
+                     time_limit=60.0, coulomb_shift=0.0, target=1e-6, repeats=1)
     exact, _ = level_rows(spec, {}, 0, args)
     monkeypatch.setattr(tresca_exact, "TRESCA_EXACT_MAX_M", 0)
     fallback, _ = level_rows(spec, {}, 0, args)
@@ -152,9 +156,12 @@ def test_beyond_the_exact_size_the_reference_is_semismooth_newton(monkeypatch):
     (["--mu", "0"], "argument --mu: 0.0 is not allowed; allowed: > 0"),
     (["--set", "friction=coulomb"], "argument --set: friction is not allowed"),
     (["--solvers", "pdas"], "argument --solvers: pdas is not allowed"),
+    (["--target", "0"], "argument --target: 0.0 is not allowed; allowed: in (0, 1)"),
+    (["--repeats", "0"], "argument --repeats: 0 is not allowed; allowed: >= 1"),
 ])
 def test_bad_arguments_are_refused_by_name(change, message, tmp_path, capsys):
-    base = {"--ratios": ["0.3"], "--mu": ["0.5"], "--solvers": ["tnnmg"]}
+    base = {"--ratios": ["0.3"], "--mu": ["0.5"], "--solvers": ["tnnmg"], "--target": ["1e-6"],
+            "--repeats": ["1"]}
     for i in range(0, len(change), 2):
         base[change[i]] = [change[i + 1]]
     argv = ["--problem", "circle_square", "--levels", "0", "--shift", "0.01",

@@ -1,6 +1,6 @@
 # Study friction: Tresca partial slip against Cattaneo-Mindlin, the frictional solvers on the
-# same load paths, mu = 0 and Coulomb; one process per scene (its claims judge iterations and
-# agreement, not times, so it may run beside other jobs).
+# same load paths, TNNMG timed against the linear floor, mu = 0 and Coulomb; one process per
+# scene, alone on the machine (the study's runs_alone: its time claim compares two timings).
 from workflows.studies.friction import friction_args
 rule friction_study:
     output:

@@ -26,6 +26,10 @@ parameters, ``--problem P --set key=value``), at each of ``--levels``:
   Tresca step verified by :func:`solvers.interface.solve` at ``--tol``): status, the
   solver's iterations in the normal and in the tangential step, its setup and solve
   time, and the relative energy-norm distance of its last step to the reference's;
+* **timing** -- TNNMG on the reference's last Tresca step from zero, its time (setup
+  included) to the relative energy error ``--target`` against the reference, beside the
+  linear floor: geometric-multigrid PCG for the same system without contact to the same
+  accuracy; each the median of ``--repeats`` runs (:func:`timing_rows`);
 * **mu = 0** -- the reference's path with ``mu = 0`` against ``pdas`` on each load step's
   frictionless problem, both load steps;
 * **Coulomb** (Coulomb's law, the tangential step at ``--coulomb-shift``) -- the
@@ -33,7 +37,7 @@ parameters, ``--problem P --set key=value``), at each of ``--levels``:
   contraction per load step (the frictionless solve that starts the path not counted).
 
 ``--out`` gets one row per (level, ratio, role): ``role`` is ``reference``, ``solver``,
-``mu_zero`` or ``coulomb`` (a level no reference takes: one ``reference`` row,
+``timing`` (``solver`` ``tnnmg`` or ``linear_floor``), ``mu_zero`` or ``coulomb`` (a level no reference takes: one ``reference`` row,
 ``skipped``, with the reasons); ``--profiles`` one row per constrained node of each
 reference's last step (distance from the contact's centre over ``a``, signed in 2D, and
 the position in the contact plane; measured and analytic traction, ``mu`` times the
@@ -44,7 +48,7 @@ Example::
     python -m workflows.scripts.friction_study --problem circle_square --levels 1 2 3 \\
         --mu 0.5 --ratios 0.3 0.7 --shift 0.01 --coulomb-shift 0.02 \\
         --solvers tnnmg semismooth_newton --tol high --time-limit 120 \\
-        --out results/circle_square/friction.csv \\
+        --target 1e-6 --repeats 3 --out results/circle_square/friction.csv \\
         --profiles results/circle_square/friction_profiles.csv
 """
 from __future__ import annotations
@@ -66,6 +70,7 @@ from solvers.interface import parse_tolerance, run_load_path, solve, solvers
 from solvers.tresca import (as_tresca_solution, friction_path, path_for_ratio,
                             scaled_tangential_step, tangential_ratio)
 from workflows.io import write_csv
+from workflows.measure import amg_pcg_floor, linear_solution, median_run, tnnmg_run
 from workflows.progress import study_progress
 from workflows.scene_args import add_scene_arguments, check_levels, parse_sets, scene_from_args
 
@@ -185,6 +190,23 @@ def solver_row(path_qp, name: str, tol: str, time_limit: float, ref_step) -> dic
     return row
 
 
+def timing_rows(step_qp, u_ref, target: float, repeats: int, time_limit: float) -> list[dict]:
+    """TNNMG on the Tresca step ``step_qp`` from zero against the linear floor, each the
+    median of ``repeats`` timed runs (:func:`workflows.measure.median_run`): TNNMG's steps
+    and time (setup included) until its energy-norm distance to the reference's ``u_ref``
+    reaches ``target`` (:func:`workflows.measure.tnnmg_run`), then on to its verified stop;
+    the floor, geometric-multigrid PCG for ``A u = f`` of the same system without contact
+    to the same energy accuracy (:func:`workflows.measure.amg_pcg_floor`)."""
+    keep = ("status", "message", "n_to_target", "t_to_target", "t_to_target_min",
+            "t_to_target_max", "timing_repeats", "energy_error", "kkt_max")
+    tn = median_run(lambda: tnnmg_run(step_qp, u_ref, target, time_limit), repeats)
+    u_lin = linear_solution(step_qp)
+    floor = median_run(lambda: amg_pcg_floor(step_qp, "gmg", target, u_lin), repeats)
+    return [{"role": "timing", "solver": name, "target": target,
+             **{k: run[k] for k in keep if k in run}}
+            for name, run in (("tnnmg", tn), ("linear_floor", floor))]
+
+
 def mu_zero_rows(qp, ref_solve) -> list[dict]:
     """The reference's path of ``qp`` with ``mu = 0`` against ``pdas`` on each load step's
     frictionless problem (the step's ``f`` and ``g`` without friction: the scene built
@@ -244,6 +266,9 @@ def level_rows(spec, params: dict, level: int, args) -> tuple[list[dict], list[p
         for name in args.solvers:
             rows.append({**size, "ratio": ratio, "role": "solver",
                          **solver_row(ref.qp, name, args.tol, args.time_limit, ref)})
+        rows += [{**size, "ratio": ratio, **r} for r in
+                 timing_rows(ref.qp, ref.solution.u, args.target, args.repeats,
+                             args.time_limit)]
     try:
         rows += [{**size, "role": "mu_zero", "solver": ref_name, **r}
                  for r in mu_zero_rows(qp, ref_solve)]
@@ -273,6 +298,10 @@ def main(argv=None) -> None:
                         help="the solvers' verified tolerance")
     parser.add_argument("--time-limit", type=float, required=True,
                         help="seconds per Tresca solve (> 0)")
+    parser.add_argument("--target", type=float, required=True,
+                        help="relative energy error of the timed runs, in (0, 1)")
+    parser.add_argument("--repeats", type=int, required=True,
+                        help="timed runs of TNNMG and of the floor (the median is kept; >= 1)")
     parser.add_argument("--out", required=True, help="the runs table (CSV)")
     parser.add_argument("--profiles", required=True, help="the traction profiles (CSV)")
     args = parser.parse_args(argv)
@@ -295,6 +324,10 @@ def main(argv=None) -> None:
                          "(at Q >= mu P the whole contact slips: gross sliding)")
     if args.shift == 0:
         parser.error("argument --shift: 0 is not allowed; allowed: a nonzero shift")
+    if not 0 < args.target < 1:
+        parser.error(f"argument --target: {args.target} is not allowed; allowed: in (0, 1)")
+    if args.repeats < 1:
+        parser.error(f"argument --repeats: {args.repeats} is not allowed; allowed: >= 1")
     if args.time_limit <= 0:
         parser.error(f"argument --time-limit: {args.time_limit} is not allowed; allowed: > 0")
     registered = solvers()

@@ -96,7 +96,8 @@ def friction_args(config: dict, scene: str) -> str:
     solvers = " ".join(fr["solvers"])
     return (f"--levels {levels} --mu {fr['mu']:g} --ratios {ratios} --shift {fr['shift']:g} "
             f"--coulomb-shift {fr['coulomb_shift']:g} --solvers {solvers} --tol {fr['tol']} "
-            f"--time-limit {fr['time_limit']:g}")
+            f"--time-limit {fr['time_limit']:g} --target {fr['target']:g} "
+            f"--repeats {fr['repeats']}")
 
 
 def check(config: dict, registry: dict) -> None:
@@ -129,9 +130,12 @@ def check(config: dict, registry: dict) -> None:
 
 #: The study's settings at every scale but the levels: mu, the load ratios Q/(mu P), the
 #: shift the ratio search scales, Coulomb's shift (Q/(mu P) ~ 0.5 at mu = 0.5), the solvers
-#: and their verified tolerance (the agreement claim's 1e-8 needs 'high'), the time limit.
+#: and their verified tolerance (the agreement claim's 1e-8 needs 'high'), the time limit,
+#: the energy error TNNMG and the linear floor are timed to, and their timed runs (the
+#: median of three: a single run flips with the machine's noise).
 COMMON = {"mu": 0.5, "ratios": [0.3, 0.7], "shift": 0.01, "coulomb_shift": 0.02,
-          "solvers": ["tnnmg", "semismooth_newton"], "tol": "high", "time_limit": 120}
+          "solvers": ["tnnmg", "semismooth_newton"], "tol": "high", "time_limit": 120,
+          "target": 1e-6, "repeats": 3}
 
 
 def settings_at(circle_square: list[int], cube_sphere: list[int]) -> dict:
@@ -163,6 +167,7 @@ STUDY = Study(
     outputs=("fr_runs", "fr_profiles", "fr_claims", "fr_traction", "fr_stick", "fr_map",
              "fr_cost"),
     heavy_rules=(RULE,),
+    runs_alone=(RULE,),
     check=check,
     settings={
         "type": "object",
@@ -190,6 +195,11 @@ STUDY = Study(
             "tol": {"enum": ["low", "mid", "high"],
                     "description": "the solvers' verified tolerance"},
             "time_limit": {"$ref": "#/definitions/time_limit"},
+            "target": {"type": "number", "exclusiveMinimum": 0, "exclusiveMaximum": 1,
+                       "description": "relative energy error TNNMG and the linear floor are "
+                                      "timed to"},
+            "repeats": {"type": "integer", "minimum": 1,
+                        "description": "timed runs of each (the median is kept)"},
         },
     },
     # circle-square levels; resources: the largest job, measured alone at tiny and quick on
