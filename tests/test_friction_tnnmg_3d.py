@@ -305,3 +305,16 @@ def test_tnnmg_on_a_cube_sphere_tresca_path_level_2(ratio):
     assert abs(tangential_ratio(steps) - ratio) <= 0.03
     res = _verified_tnnmg(steps[-1].qp)
     assert res.stats["n_stick"] > 0 and res.stats["n_slip"] > 0
+
+
+def test_a_huge_mu_sticks_everywhere_in_3d():
+    """mu = 1000: in the tangential step every node in contact sticks, its slip (both
+    components) exactly zero in TNNMG's coordinates, to round-off in u's."""
+    st = _path_by_tnnmg(_cube(1, mu=1e3, shift=0.035))[-1]
+    res = _verified_tnnmg(st.qp)
+    fr = st.qp.friction
+    contact = fr.slip_bound > 0
+    assert contact.sum() >= 10 and res.stats["n_stick"] == contact.sum()
+    assert res.stats["n_slip"] == 0
+    slip = fr.magnitude(fr.slip(res.u))
+    assert np.max(slip[contact]) <= 1e-12 * np.max(np.abs(fr.T @ res.u))
