@@ -36,6 +36,13 @@ uniformly with its new boundary nodes projected onto the circle, so the circle's
 boundary nodes lie on the circle at every level. Total nodes: 1099, 4237, 16636,
 65926, 262,8xx, ~1.05M for L = 0..5 (thesis: 4226, 16642, 66050, 263170).
 
+Friction (``friction``, ``mu``, ``shift``; beyond the thesis, which is frictionless): each
+constrained node gets a tangential row, the same interpolation (Alg. 7.1) as its normal
+row along its unit tangent ((1, 0) for n = (0, 1)), and Tresca or Coulomb friction on it
+(:class:`problems.qp.Friction`). The load path is the normal load (the press) and then the
+tangential step, the held arc moved along x by ``shift``
+(:func:`problems.fem.two_body.frictional_two_body`); nodal P1 rows only.
+
 Couplings (``coupling``, :data:`problems.fem.stabilised.COUPLINGS`): the nodal
 constraints of Alg. 7.1 on the square's top edge (the thesis's one pass, the default);
 ``stabilised``, the penalised reverse rows of Sect. 7.5; ``two_pass``, the same reverse

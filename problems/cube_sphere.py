@@ -40,6 +40,15 @@ Left out: the scene has two symmetry planes (x = 1/2, y = 1/2), and a quarter
 model would cost a quarter; it is kept whole so that N and N^C are those of
 Table 9.3 and every solver sees the thesis's problem.
 
+Friction (``friction``, ``mu``, ``shift``; beyond the thesis, which is frictionless): each
+constrained node gets two tangential rows, the same interpolation (Alg. 7.1) as its normal
+row along an orthonormal frame with the normal (the x and y axes for n = (0, 0, 1)), and
+isotropic Tresca or Coulomb friction on them (:class:`problems.qp.Friction`). The load
+path is the normal load (the press) and then the tangential step, the held cap moved
+along x by ``shift`` (:func:`problems.fem.two_body.frictional_two_body`); nodal P1 rows
+only. A tangential load along x keeps the plane y = 1/2 a symmetry plane (a half model
+would do), but not x = 1/2; the scene stays whole, as above.
+
 Couplings (``coupling``, :data:`problems.fem.stabilised.COUPLINGS`): the nodal
 constraints of Alg. 7.1 on the cube's top face (the thesis's one pass, the default);
 ``stabilised``, the penalised reverse rows of Sect. 7.5; ``two_pass``, the same reverse

@@ -9,7 +9,9 @@ most three unknowns; their inverses come from :func:`block_inverses`. A second k
 :func:`tresca_block_gauss_seidel`, adds 2D Tresca friction: the exact block minimiser with
 the normal bound and the term ``s |x_t - c|`` (:func:`_tresca_block`) and the linear
 smoother with a sticking node's tangential unknown held; both kernels share the block
-residual and the bounded block update.
+residual and the bounded block update. In 3D the same kernel takes the term ``s |x_t - c|``
+with ``x_t`` the node's two tangential unknowns and the Euclidean norm: the exact
+disc-constrained block minimiser :func:`disc_block_minimiser`.
 
 Compiled with numba (``cache=True``: compiled once per machine, then read from
 numba's cache beside this file); no Python loop over nodes runs in a sweep.
@@ -193,17 +195,22 @@ def tresca_block_gauss_seidel(indptr, indices, data, c_indptr, c_indices, c_data
                               node_ptr, node_dofs, diag0, inv_full, inv_sub, mode, upper,
                               weight, centre, forward):   # pragma: no cover (compiled)
     """One sweep of node-block Gauss-Seidel for the energy ``1/2 x'(A + C)x - b'x +
-    sum_k weight[k] |x[second_k] - centre[k]|`` (2D blocks), in place on ``x``.
+    sum_k weight[k] |x_t,k - centre_k|`` (``x_t,k`` block ``k``'s unknowns after its first:
+    one in 2D, two in 3D with the Euclidean norm), in place on ``x``; ``centre`` node-major,
+    ``w - 1`` entries per block (``w = diag0.shape[1]``, the widest block).
 
     ``mode[k]``: as :func:`block_gauss_seidel`, and TRESCA (the exact minimiser over the
-    block with ``x[first] <= upper[k]`` and the term ``weight[k] |x[second] -
-    centre[k]|``: :func:`_tresca_block`), TANGENT_FIXED (the second unknown kept, the
+    block with ``x[first] <= upper[k]`` and the term: :func:`_tresca_block` in 2D,
+    :func:`disc_block_minimiser` in 3D), TANGENT_FIXED (the tangential unknowns kept, the
     first solved), BOTH_FIXED (the block kept). With ``weight`` zero and the modes of
     :func:`block_gauss_seidel` it is that sweep.
     """
     nb = node_ptr.size - 1
     r = np.zeros(3)
     dx = np.zeros(3)
+    M = np.zeros((3, 3))
+    e = np.zeros(2)
+    nt = diag0.shape[1] - 1
     start, stop, stride = (0, nb, 1) if forward else (nb - 1, -1, -1)
     for blk in range(start, stop, stride):
         md = mode[blk]
@@ -213,7 +220,10 @@ def tresca_block_gauss_seidel(indptr, indices, data, c_indptr, c_indices, c_data
         k = node_ptr[blk + 1] - s
         _block_residual(indptr, indices, data, c_indptr, c_indices, c_data, x, b, node_dofs,
                         s, k, r)
-        if md == TRESCA:
+        if md == TRESCA and k == 3:
+            _disc_block(x, r, dx, M, e, blk, s, node_dofs, diag0, inv_sub, upper[blk],
+                        weight[blk], centre, nt)
+        elif md == TRESCA:
             _tresca_block(x, r, node_dofs[s], node_dofs[s + 1], diag0[blk, 0],
                           diag0[blk, 1], 1.0 / inv_sub[blk, 1, 1], inv_full[blk],
                           upper[blk], weight[blk], centre[blk])
@@ -262,6 +272,129 @@ def _tresca_block(x, r, i0, i1, m00, m01, m11, inv, upper, weight,
             best, best0, best1, at_bound, stick = energy, d0, d1, normal_bound, side == 0
     x[i0] = upper if at_bound else x[i0] + best0
     x[i1] = centre if stick else x[i1] + best1
+
+
+@njit(cache=True, nogil=True)
+def _disc_block(x, r, d, M, e, blk, s, node_dofs, diag0, inv_sub, upper, weight, centre,
+                nt):   # pragma: no cover (compiled)
+    """One 3D block of :func:`tresca_block_gauss_seidel` in mode TRESCA: the block matrix
+    from its first column and the inverse of its tangential part, the exact minimiser
+    (:func:`disc_block_minimiser`), the bound and the stick point written exactly."""
+    i0 = node_dofs[s]
+    a11, a12, a22 = inv_sub[blk, 1, 1], inv_sub[blk, 1, 2], inv_sub[blk, 2, 2]
+    det = a11 * a22 - a12 * a12
+    M[0, 0], M[1, 0], M[2, 0] = diag0[blk, 0], diag0[blk, 1], diag0[blk, 2]
+    M[0, 1], M[0, 2] = diag0[blk, 1], diag0[blk, 2]
+    M[1, 1], M[1, 2], M[2, 1], M[2, 2] = a22 / det, -a12 / det, -a12 / det, a11 / det
+    for j in range(2):
+        e[j] = centre[blk * nt + j] - x[node_dofs[s + 1 + j]]
+    case = disc_block_minimiser(M, r, upper - x[i0], weight, e, d)
+    x[i0] = upper if case >= 2 else x[i0] + d[0]
+    for j in range(2):
+        i = node_dofs[s + 1 + j]
+        x[i] = centre[blk * nt + j] if case % 2 == 1 else x[i] + d[1 + j]
+
+
+@njit(cache=True, nogil=True)
+def disc_block_minimiser(M, r, h, weight, e, d):   # pragma: no cover (compiled)
+    """The exact minimiser ``d`` of one 3D block's energy::
+
+        1/2 d'Md - r'd + weight |d_t - e|   subject to   d_0 <= h
+
+    (``M`` 3 x 3 SPD, ``d_t = d[1:3]``, ``|.|`` Euclidean): the node block of a Tresca step
+    after the box transformation (:mod:`solvers.contact_box`), written into ``d``. Returns
+    the case: ``2 * at_bound + stick`` (``d_0 = h`` exactly; ``d_t = e`` exactly).
+
+    The normal unknown free: eliminated, the tangential part minimises
+    ``1/2 z'Sz - g'z + weight |z|`` (``z = d_t - e``, ``S`` the Schur complement
+    ``M_tt - M_t0 M_0t / M_00``; :func:`_disc_prox`); if that point keeps ``d_0 <= h`` it is
+    the minimiser (the problem is convex). Otherwise ``d_0 = h`` and the same with
+    ``S = M_tt``. Stick (``z = 0``) where ``|g| <= weight``.
+    """
+    m00 = M[0, 0]
+    S = np.empty((2, 2))
+    g = np.empty(2)
+    z = np.empty(2)
+    for a in range(2):
+        for c in range(2):
+            S[a, c] = M[1 + a, 1 + c] - M[1 + a, 0] * M[0, 1 + c] / m00
+    for a in range(2):
+        g[a] = (r[1 + a] - M[1 + a, 0] * r[0] / m00) - (S[a, 0] * e[0] + S[a, 1] * e[1])
+    stick = _disc_prox(S, g, weight, z)
+    d[1], d[2] = e[0] + z[0], e[1] + z[1]
+    d[0] = (r[0] - M[0, 1] * d[1] - M[0, 2] * d[2]) / m00
+    if d[0] <= h:
+        return 1 if stick else 0
+    d[0] = h
+    for a in range(2):
+        for c in range(2):
+            S[a, c] = M[1 + a, 1 + c]
+    for a in range(2):
+        g[a] = r[1 + a] - M[1 + a, 0] * h - (S[a, 0] * e[0] + S[a, 1] * e[1])
+    stick = _disc_prox(S, g, weight, z)
+    d[1], d[2] = e[0] + z[0], e[1] + z[1]
+    return 3 if stick else 2
+
+
+@njit(cache=True, nogil=True)
+def _disc_prox(S, g, weight, z):   # pragma: no cover (compiled)
+    """``z = argmin 1/2 z'Sz - g'z + weight |z|`` (``S`` 2 x 2 SPD), written into ``z``;
+    True where ``z = 0`` (``|g| <= weight``).
+
+    Else ``(S + weight / rho I) z = g`` with ``rho = |z|``: in the eigenbasis ``S = Q
+    diag(l) Q'`` (``gq = Q'g``) ``rho`` is the root of the secular equation
+    ``psi(rho) = 1 / phi(rho) - 1``, ``phi(rho) = (sum_k gq_k^2 / (l_k rho + weight)^2)^(1/2)``
+    (``|z| / rho``), increasing (linear for one eigenvalue), between ``(|g| - weight) / l_max``
+    and ``(|g| - weight) / l_min``; Newton's method on it, safeguarded by bisection of that
+    bracket, to round-off.
+    """
+    norm_g = np.sqrt(g[0] * g[0] + g[1] * g[1])
+    if norm_g <= weight:
+        z[0], z[1] = 0.0, 0.0
+        return True
+    a, b, c = S[0, 0], S[0, 1], S[1, 1]
+    half = 0.5 * (a - c)
+    rad = np.sqrt(half * half + b * b)
+    l1 = 0.5 * (a + c) + rad                      # the larger eigenvalue
+    l2 = (a * c - b * b) / l1
+    if rad == 0.0:
+        q0, q1 = 1.0, 0.0
+    elif half >= 0.0:                             # eigenvector of l1, the stabler form
+        q0, q1 = half + rad, b
+    else:
+        q0, q1 = b, rad - half
+    qn = np.sqrt(q0 * q0 + q1 * q1)
+    q0, q1 = q0 / qn, q1 / qn
+    g1 = q0 * g[0] + q1 * g[1]                    # components along (q0, q1), (-q1, q0)
+    g2 = -q1 * g[0] + q0 * g[1]
+    lo = (norm_g - weight) / l1
+    hi = (norm_g - weight) / l2
+    rho = lo
+    for _ in range(200):
+        s1, s2 = l1 * rho + weight, l2 * rho + weight
+        t1, t2 = g1 / s1, g2 / s2
+        phi = np.sqrt(t1 * t1 + t2 * t2)
+        psi = 1.0 / phi - 1.0
+        if psi == 0.0:
+            break
+        if psi < 0.0:
+            lo = rho
+        else:
+            hi = rho
+        if hi - lo <= 4e-16 * hi:
+            break
+        dphi = -(t1 * t1 * l1 / s1 + t2 * t2 * l2 / s2) / phi
+        nxt = rho + psi * phi * phi / dphi        # rho - psi / psi', psi' = -dphi / phi^2
+        if not (lo < nxt < hi):
+            nxt = 0.5 * (lo + hi)
+        if abs(nxt - rho) <= 2e-16 * rho:
+            break
+        rho = nxt
+    w1 = rho * g1 / (l1 * rho + weight)
+    w2 = rho * g2 / (l2 * rho + weight)
+    z[0] = q0 * w1 - q1 * w2
+    z[1] = q1 * w1 + q0 * w2
+    return False
 
 
 def with_pattern(A: sp.csr_matrix, pattern: sp.csr_matrix) -> sp.csr_matrix:

@@ -44,6 +44,19 @@ v_j) / beta_i - tau_i (sum_j T_ij v_j) / gamma_i^2``. The tangential slip is the
 function of one unknown, and Tresca's term ``s_i |T_i u - r_i|`` is
 ``s_i gamma_i |v_s[1] - r_i / theta_i|``: separable by node blocks, as truncated
 nonsmooth Newton multigrid needs (:mod:`solvers.tnnmg`).
+
+In 3D each constrained node has two tangential rows (node-major), ``tau_i1, tau_i2``
+orthogonal to ``n_i``, to each other and of one length ``gamma_i``; the Householder frame's
+columns ``H_i e_2, H_i e_3`` span the same plane, so ``Theta_i = [tau_i1; tau_i2] [H_i e_2,
+H_i e_3] = gamma_i R_i`` with ``R_i`` orthogonal (2D: ``R_i = 1``, ``gamma_i`` signed:
+``theta_i``). With the rows' opposing parts ``t_i = (sum_j T_i1,j u_j, sum_j T_i2,j u_j)``::
+
+    v_s = H_i u_s + e_1 (sum_j B_ij u_j) / beta_i + [e_2, e_3] Theta_i^{-1} t_i
+
+gives ``T_i u = Theta_i v_s[1:3]``, and the inverse is ``u_s = H_i v_s - n_i (sum_j B_ij
+v_j) / beta_i - [H_i e_2, H_i e_3] Theta_i^{-1} t_i``. As ``R_i`` keeps lengths, Tresca's
+isotropic term ``s_i |T_i u - r_i|`` is ``s_i gamma_i |v_s[1:3] - R_i' r_i / gamma_i|``:
+the Euclidean norm of the node's own two unknowns, again separable by node blocks.
 """
 from __future__ import annotations
 
@@ -83,11 +96,15 @@ class BoxTransformation:
     changed : int array
         The constrained nodes' unknowns (sorted): the only rows where ``T`` and ``T_inv``
         differ from the identity (:meth:`operator`, :meth:`prolongation`).
-    tangential_pivot : (m,) int array
-        With tangential rows (:func:`box_transformation`): the unknown of ``v`` that row
-        ``i``'s tangential row reads (second unknown of its node block); empty without.
+    tangential_pivot : (m * k,) int array
+        With tangential rows (:func:`box_transformation`; ``k = dim - 1`` per row, node-major):
+        the unknowns of ``v`` that row ``i``'s tangential rows read (the second and, in 3D,
+        third unknowns of its node block); empty without.
     tangential_scale : (m,) array
-        ``theta_i``: ``T_i u = theta_i v[tangential_pivot_i]`` (signed); empty without.
+        ``theta_i``: ``T_i u = theta_i R_i v[tangential_pivot_i]`` (2D: signed, ``R_i = 1``;
+        3D: ``gamma_i > 0``); empty without.
+    tangential_frame : (m, k, k) array
+        ``R_i``, orthogonal (the module docstring's ``Theta_i = theta_i R_i``); empty without.
     """
 
     D: sp.csr_matrix
@@ -101,6 +118,7 @@ class BoxTransformation:
     changed: np.ndarray
     tangential_pivot: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     tangential_scale: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    tangential_frame: np.ndarray = field(default_factory=lambda: np.zeros((0, 1, 1)))
 
     def operator_update(self, A: sp.spmatrix) -> sp.csr_matrix:
         """``T' A T - A`` for a symmetric ``A`` (sorted CSR), without a product of two
@@ -262,9 +280,10 @@ def box_transformation(qp: ContactQP, tangential: sp.spmatrix | None = None
     Parameters
     ----------
     qp : ContactQP
-    tangential : (m, n) sparse, optional
-        Tangential rows (2D: ``qp.friction.T``), one per row of ``B``, made coordinates
-        too (the module docstring's second unknown at each constrained node).
+    tangential : (m * (dim - 1), n) sparse, optional
+        Tangential rows (``qp.friction.T``), ``dim - 1`` per row of ``B`` (node-major), made
+        coordinates too (the module docstring's tangential unknowns at each constrained
+        node).
 
     Raises
     ------
@@ -329,18 +348,24 @@ def box_transformation(qp: ContactQP, tangential: sp.spmatrix | None = None
     rows_i.append(local[slave[r_o, 0]])
     cols_i.append(c_o)
     vals_i.append(val_o)
-    t_pivot, t_scale = np.zeros(0, np.int64), np.zeros(0)
+    t_pivot, t_scale, t_frame = np.zeros(0, np.int64), np.zeros(0), np.zeros((0, 1, 1))
     if tangential is not None:
-        theta, (r_t, c_t, val_t) = _tangential_frames(tangential, slave, normal, H, is_slave)
-        for a in range(d):
-            has = slave[r_t, a] >= 0
-            rows_t.append(local[slave[r_t[has], a]])
-            cols_t.append(c_t[has])
-            vals_t.append(-H[r_t[has], a, 1] * val_t[has] / theta[r_t[has]])
-        rows_i.append(local[slave[r_t, 1]])
-        cols_i.append(c_t)
-        vals_i.append(val_t / theta[r_t])
-        t_pivot, t_scale = slave[:, 1], theta
+        theta, frame, (r_t, c_t, val_t) = _tangential_frames(tangential, slave, normal, H,
+                                                             is_slave)
+        k = d - 1
+        node, comp = r_t // k, r_t % k
+        for lt in range(k):           # (Theta^-1)[lt, comp] = R[comp, lt] / theta
+            rot = frame[node, comp, lt]
+            for a in range(d):
+                has = slave[node, a] >= 0
+                rows_t.append(local[slave[node[has], a]])
+                cols_t.append(c_t[has])
+                vals_t.append(-H[node[has], a, 1 + lt] * rot[has] * val_t[has]
+                              / theta[node[has]])
+            rows_i.append(local[slave[node, 1 + lt]])
+            cols_i.append(c_t)
+            vals_i.append(rot * val_t / theta[node])
+        t_pivot, t_scale, t_frame = slave[:, 1:].ravel(), theta, frame
     shape = (changed.size, n)
     D = sp.csr_matrix((np.concatenate(vals_t), (np.concatenate(rows_t), np.concatenate(cols_t))),
                       shape=shape)
@@ -350,38 +375,54 @@ def box_transformation(qp: ContactQP, tangential: sp.spmatrix | None = None
         M.eliminate_zeros()
         M.sort_indices()
     return BoxTransformation(D, D_inv, slave[:, 0], beta, qp.g / beta, node_ptr, node_dofs,
-                             block_row, changed, t_pivot, t_scale)
+                             block_row, changed, t_pivot, t_scale, t_frame)
 
 
 def _tangential_frames(tangential: sp.spmatrix, slave: np.ndarray, normal: np.ndarray,
                        H: np.ndarray, is_slave: np.ndarray):
-    """``theta`` (``T_i u = theta_i v_s[1]``, module docstring) and the tangential rows'
-    entries off the constrained nodes ``(row, col, value)``; checks the structure."""
+    """``(theta, R, entries)``: ``Theta_i = theta_i R_i`` (module docstring; 2D: ``R_i = 1``
+    and ``theta_i`` signed) and the tangential rows' entries off the constrained nodes
+    ``(row, col, value)``; checks the structure."""
     m, d = slave.shape
+    k = d - 1
     Tt = sp.csr_matrix(tangential)
-    if Tt.shape != (m, is_slave.size):
-        raise TransformationError(f"tangential rows of shape {Tt.shape}; allowed: ({m}, "
-                                  f"{is_slave.size}) (one per row of B)")
-    if d != 2 or np.any(slave < 0):
-        raise TransformationError("tangential coordinates are built for 2D constrained nodes "
-                                  "with both unknowns free")
-    tau = np.stack([np.asarray(Tt[np.arange(m), slave[:, a]]).ravel() for a in range(d)],
-                   axis=1)
-    gamma = np.linalg.norm(tau, axis=1)
-    if np.any(gamma <= 0.0):
-        raise TransformationError(f"{int(np.sum(gamma <= 0))} tangential rows do not move "
+    if Tt.shape != (m * k, is_slave.size):
+        raise TransformationError(f"tangential rows of shape {Tt.shape}; allowed: ({m * k}, "
+                                  f"{is_slave.size}) ({k} per row of B, node-major)")
+    if np.any(slave < 0):
+        raise TransformationError("tangential coordinates are built for constrained nodes "
+                                  "with all their unknowns free")
+    node_rows = np.arange(m * k).reshape(m, k)
+    tau = np.stack([np.asarray(Tt[node_rows.ravel(), np.repeat(slave[:, a], k)]).ravel()
+                    for a in range(d)], axis=1).reshape(m, k, d)
+    length = np.linalg.norm(tau, axis=2)
+    if np.any(length <= 0.0):
+        raise TransformationError(f"{int(np.sum(length <= 0))} tangential rows do not move "
                                   "their constrained node")
-    if np.any(np.abs(np.einsum("ij,ij->i", tau, normal)) > 1e-12 * gamma):
+    if np.any(np.abs(np.einsum("ijc,ic->ij", tau, normal)) > 1e-12 * length):
         raise TransformationError("a tangential row's tangent is not orthogonal to its "
                                   "normal row's direction")
-    theta = np.sign(np.einsum("ij,ij->i", H[:, :, 1], tau)) * gamma
+    if k == 1:
+        gamma = length[:, 0]
+        theta = np.sign(np.einsum("ij,ij->i", H[:, :, 1], tau[:, 0])) * gamma
+        frame = np.ones((m, 1, 1))
+    else:
+        gamma = np.sqrt(np.mean(length ** 2, axis=1))
+        Theta = np.einsum("ijc,icl->ijl", tau, H[:, :, 1:])
+        frame = Theta / gamma[:, None, None]
+        gram = np.einsum("ijl,ihl->ijh", frame, frame) - np.eye(k)[None]
+        if np.any(np.abs(gram) > 1e-12):
+            raise TransformationError("a node's tangential rows are not orthogonal with one "
+                                      "length (the isotropic Tresca disc would not stay a "
+                                      "disc in the new unknowns)")
+        theta = gamma
     coo = Tt.tocoo()
     other = ~is_slave[coo.col]
     own = np.zeros(coo.row.size, dtype=bool)
     for a in range(d):
-        own |= coo.col == slave[coo.row, a]
+        own |= coo.col == slave[coo.row // k, a]
     if np.any(~other & ~own & (coo.data != 0.0)):
         raise TransformationError("a tangential row reaches another row's constrained node "
                                   "(the tangential rows must share their normal rows' "
                                   "structure)")
-    return theta, (coo.row[other], coo.col[other], coo.data[other])
+    return theta, frame, (coo.row[other], coo.col[other], coo.data[other])

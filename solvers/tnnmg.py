@@ -53,28 +53,35 @@ so are mortar rows with standard multipliers (a non-diagonal ``D``), while morta
 with dual multipliers (``D`` diagonal, :mod:`problems.fem.mortar`) are one row per
 constrained node and are taken.
 
-Tresca friction (one 2D step of a load path, :class:`problems.qp.Friction`; Gräser and
+Tresca friction (one step of a load path, :class:`problems.qp.Friction`; Gräser and
 Kornhuber's setting of a block-separable nonsmooth energy). The tangential rows become
-coordinates too (:mod:`solvers.contact_box`: ``T_i u = theta_i v_s[1]``), so the energy
-``J~(v) + sum_i weight_i |v_s[1] - centre_i|`` (:class:`_TrescaTerm`) is separable by node
-blocks with the normal bound on ``v_s[0]``. The step is the one above with:
+coordinates too (:mod:`solvers.contact_box`: ``T_i u = theta_i R_i v_t,i``, ``v_t,i`` the
+node's one (2D) or two (3D) unknowns after ``v_s[0]``, ``R_i`` orthogonal), so the energy
+``J~(v) + sum_i weight_i |v_t,i - centre_i|`` (:class:`_TrescaTerm`; in 3D the Euclidean
+norm, the isotropic disc) is separable by node blocks with the normal bound on
+``v_s[0]``. The step is the one above with:
 
-1. the node block's exact minimiser of the normal bound and the term (stick, or slip
-   either way, times the normal unknown free or at its bound;
-   :func:`solvers._block_gs._tresca_block`);
-2. the truncation of the normal-active pivots and of the sticking rows' tangential
-   unknowns (slip exactly zero); a slipping row's term is linear near the iterate, its
-   derivative ``weight sign(slip)`` part of the correction's right-hand side;
-3. the line search on the nonsmooth energy, exact over its kinks (:func:`_tresca_step`);
-   conjugate gradients on a face (step 4) are not used.
+1. the node block's exact minimiser of the normal bound and the term (the normal unknown
+   free or at its bound, times stick or slip; 2D: :func:`solvers._block_gs._tresca_block`,
+   3D: :func:`solvers._block_gs.disc_block_minimiser`, a secular equation solved to
+   round-off);
+2. the truncation of the normal-active pivots and of the sticking nodes' tangential
+   unknowns (slip exactly zero); a slipping node's term enters the correction's
+   right-hand side by its derivative (``weight sign(slip)``; 3D: ``weight slip/|slip|``;
+   in 2D the term is linear near the iterate, in 3D its curvature across the slip
+   direction goes into the correction's operator, :class:`_SlipCurvature`);
+3. the line search on the nonsmooth energy: in 2D exact over its kinks
+   (:func:`_tresca_step`), in 3D a safeguarded Newton search on its nondecreasing
+   derivative to round-off (:func:`_disc_line_search`); conjugate gradients on a face
+   (step 4) are not used.
 
 It stops when the suite's verification passes: the friction KKT residuals
 (:func:`problems.kkt.friction_residuals`) and the certified energy bound of the Tresca step
-(:func:`certify` with ``lam``) meet tol, with the tangential multipliers ``lam_i = r[v_s[1]] / theta_i`` from the
-stationarity of the tangential unknown, in ``[-s_i, s_i]`` (``SolveResult.tangential``;
+(:func:`certify` with ``lam``) meet tol, with the tangential multipliers
+``lam_i = R_i r[v_t,i] / theta_i`` from the stationarity of the tangential unknowns, in
+the disc ``|lam_i| <= s_i`` (2D: ``[-s_i, s_i]``; ``SolveResult.tangential``;
 :meth:`_TrescaTerm.multipliers`). A Coulomb problem is solved as the Tresca step of its
-given slip bound (the fixed point ``s = mu p`` over Tresca steps is the load path's); 3D
-(a disc of tangential slips per node) is ``skipped`` with the reason.
+given slip bound (the fixed point ``s = mu p`` over Tresca steps is the load path's).
 """
 from __future__ import annotations
 
@@ -88,7 +95,7 @@ import scipy.sparse.linalg as spla
 from pyamg.relaxation.relaxation import gauss_seidel
 
 from problems.kkt import friction_residuals, kkt_residuals
-from problems.qp import ContactQP
+from problems.qp import ContactQP, Friction
 from problems.spec import Options, Parameter
 from solvers._block_gs import (BOTH_FIXED, BOUNDED, FIXED, FREE, TANGENT_FIXED, TRESCA,
                                block_gauss_seidel, block_inverses, tresca_block_gauss_seidel,
@@ -172,52 +179,93 @@ class _Fine:
 
 @dataclass
 class _TrescaTerm:
-    """Tresca's term of a 2D step in the transformed unknowns (:mod:`solvers.contact_box`:
-    ``T_i u = theta_i v[pivot_i]``)::
+    """Tresca's term of a step in the transformed unknowns (:mod:`solvers.contact_box`:
+    ``T_i u = theta_i R_i v_t,i``, ``v_t,i`` the ``k = dim - 1`` tangential unknowns of
+    constrained node ``i``, ``R_i`` orthogonal; 2D: ``R_i = 1``)::
 
-        sum_i s_i |T_i u + offset_i - previous_i| = sum_i weight_i |v[pivot_i] - centre_i|
+        sum_i s_i |T_i u + offset_i - previous_i| = sum_i weight_i |v_t,i - centre_i|
 
-    with ``weight = s |theta|`` and ``centre = (previous - offset) / theta``; per row, and
-    per node block for the compiled sweep (zero weight off the constrained nodes).
+    with ``weight = s |theta|`` and ``centre_i = R_i' (previous_i - offset_i) / theta_i``
+    (``|.|`` Euclidean in 3D); per node (``pivot``, ``centre`` node-major, ``k`` per node),
+    and per node block for the compiled sweep (zero weight off the constrained nodes).
     """
 
     pivot: np.ndarray
     theta: np.ndarray
+    frame: np.ndarray
     weight: np.ndarray
     centre: np.ndarray
     weight_block: np.ndarray
     centre_block: np.ndarray
 
+    @property
+    def k(self) -> int:
+        """Tangential unknowns per node."""
+        return self.frame.shape[1]
+
+    def _nodes(self, a: np.ndarray) -> np.ndarray:
+        """A node-major vector as ``(m, k)``."""
+        return a.reshape(-1, self.k)
+
+    def _offsets(self, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Per node ``v_t,i - centre_i`` ``(m, k)`` and its length."""
+        z = self._nodes(v[self.pivot] - self.centre)
+        return z, np.sqrt(np.einsum("ij,ij->i", z, z))
+
     def value(self, v: np.ndarray) -> float:
-        return float(self.weight @ np.abs(v[self.pivot] - self.centre))
+        if self.k == 1:
+            return float(self.weight @ np.abs(v[self.pivot] - self.centre))
+        return float(self.weight @ self._offsets(v)[1])
 
     def stick(self, v: np.ndarray) -> np.ndarray:
-        """Rows whose slip is exactly zero (with a positive slip bound)."""
-        return (v[self.pivot] == self.centre) & (self.weight > 0)
+        """Nodes whose slip is exactly zero (with a positive slip bound)."""
+        if self.k == 1:
+            return (v[self.pivot] == self.centre) & (self.weight > 0)
+        return np.all(self._nodes(v[self.pivot] == self.centre), axis=1) & (self.weight > 0)
 
-    def multipliers(self, residual_v: np.ndarray, slip_bound: np.ndarray) -> np.ndarray:
+    def multipliers(self, residual_v: np.ndarray, friction: Friction) -> np.ndarray:
         """The tangential multipliers ``lam`` (``A u + B'p + T'lam = f``) from the residual
-        ``f~ - A~v`` of the transformed problem: ``r[pivot_i] / theta_i`` (the stationarity
-        of the tangential unknown), in ``[-s_i, s_i]`` (as ``p >= 0``: what is left over
-        stays in the stationarity residual)."""
-        return np.clip(residual_v[self.pivot] / self.theta, -slip_bound, slip_bound)
+        ``f~ - A~v`` of the transformed problem: ``R_i r[pivot_i] / theta_i`` (the
+        stationarity of the tangential unknowns), in the friction discs ``|lam_i| <= s_i``
+        (:meth:`problems.qp.Friction.clip`; as ``p >= 0``: what is left over stays in the
+        stationarity residual)."""
+        if self.k == 1:
+            return friction.clip(residual_v[self.pivot] / self.theta)
+        lam = np.einsum("ijl,il->ij", self.frame, self._nodes(residual_v[self.pivot])) \
+            / self.theta[:, None]
+        return friction.clip(lam.ravel())
 
     def gradient(self, v: np.ndarray) -> np.ndarray:
-        """Per row, the term's derivative off the kinks (``weight sign(slip)``; 0 there)."""
-        return self.weight * np.sign(v[self.pivot] - self.centre)
+        """Per tangential unknown, the term's derivative off the kinks (``weight
+        sign(slip)``; 3D: ``weight z / |z|``, ``z = v_t - centre``; 0 at a kink)."""
+        if self.k == 1:
+            return self.weight * np.sign(v[self.pivot] - self.centre)
+        z, length = self._offsets(v)
+        moving = length > 0
+        out = np.zeros_like(z)
+        out[moving] = z[moving] * (self.weight[moving] / length[moving])[:, None]
+        return out.ravel()
 
 
 def _tresca_term(qp: ContactQP, box: BoxTransformation) -> _TrescaTerm:
     fr = qp.friction
-    theta = box.tangential_scale
+    theta, frame = box.tangential_scale, box.tangential_frame
+    k = frame.shape[1]
     weight = np.asarray(fr.slip_bound, dtype=float) * np.abs(theta)
-    centre = (np.asarray(fr.previous, dtype=float) - fr.offset) / theta
+    shift = np.asarray(fr.previous, dtype=float) - fr.offset
+    if k == 1:
+        centre = shift / theta
+    else:
+        centre = (np.einsum("ijl,ij->il", frame, shift.reshape(-1, k))
+                  / theta[:, None]).ravel()
     nb = box.node_ptr.size - 1
-    weight_block, centre_block = np.zeros(nb), np.zeros(nb)
+    weight_block, centre_block = np.zeros(nb), np.zeros((nb, k))
     rows = box.block_row
     bounded = rows >= 0
-    weight_block[bounded], centre_block[bounded] = weight[rows[bounded]], centre[rows[bounded]]
-    return _TrescaTerm(box.tangential_pivot, theta, weight, centre, weight_block, centre_block)
+    weight_block[bounded] = weight[rows[bounded]]
+    centre_block[bounded] = centre.reshape(-1, k)[rows[bounded]]
+    return _TrescaTerm(box.tangential_pivot, theta, frame, weight, centre, weight_block,
+                       centre_block.ravel())
 
 
 def _fine_system(qp: ContactQP, tresca: bool = False) -> _Fine:
@@ -328,15 +376,19 @@ class _TruncatedHierarchy:
                     and pivots.size else [None] * len(A_coarse))
         self.coarse_ops = [_UpdatedOperator(M, d) for M, d in zip(A_coarse, patterns)]
 
-    def _deltas(self, E: np.ndarray) -> list:
+    def _deltas(self, E: np.ndarray, curvature: sp.spmatrix | None = None) -> list:
         """The truncation's change of each coarse operator when the pivots ``E`` are
-        truncated: ``Y'A~_EE Y - Y'X - X'Y`` (module docstring) and its Galerkin products."""
+        truncated: ``Y'A~_EE Y - Y'X - X'Y`` (module docstring), plus ``P~' K P~`` for a
+        fine-level ``curvature`` ``K`` added to ``A~`` off ``E`` (:class:`_SlipCurvature`),
+        and its Galerkin products."""
         Y = self.P[E]
         A_E = self.fine.rows(E)
         X = A_E @ self.P
         Yt = Y.T.tocsr()
         YtX = Yt @ X
         delta = Yt @ (A_E[:, E] @ Y) - YtX - YtX.T.tocsr()
+        if curvature is not None:
+            delta = delta + sp.csr_matrix(self.P.T @ (curvature @ self.P))
         deltas = [delta]
         for Pl, Rl in zip(reversed(self.coarse_P), reversed(self.coarse_R)):
             deltas.append(Rl @ (deltas[-1] @ Pl))
@@ -361,10 +413,13 @@ class _TruncatedHierarchy:
         mode[fine.bounded_blocks[active[fine.box.block_row[fine.bounded_blocks]]]] = FIXED
         self.truncate(fine.box.pivot[active], mode)
 
-    def truncate(self, E: np.ndarray, mode: np.ndarray) -> None:
+    def truncate(self, E: np.ndarray, mode: np.ndarray,
+                 curvature: sp.spmatrix | None = None) -> None:
         """Truncate at the unknowns ``E``, the linear smoother's block modes ``mode`` (a
-        repeated ``E`` keeps its operators)."""
-        if self.frozen is not None and np.array_equal(E, self.frozen):
+        repeated ``E`` keeps its operators); ``curvature``: a fine-level term the fine
+        system already holds (:class:`_SlipCurvature`), passed to the coarse operators
+        too (every call then updates them)."""
+        if curvature is None and self.frozen is not None and np.array_equal(E, self.frozen):
             return
         self.updates += 1
         self.frozen = E.copy()
@@ -388,7 +443,8 @@ class _TruncatedHierarchy:
                 return out
             self.coarse_solve = solve
             return
-        deltas = (self._deltas(E) if self.truncate_coarse and E.size
+        deltas = (self._deltas(E, curvature)
+                  if self.truncate_coarse and (E.size or curvature is not None)
                   else [None] * len(self.coarse_ops))
         self.A_t = [op.set(delta) for op, delta in zip(self.coarse_ops, deltas)]
         self.coarse_solve = spla.splu(sp.csc_matrix(self.A_t[-1])).solve
@@ -655,6 +711,8 @@ def _tresca_step(fine: _Fine, v: np.ndarray, r: np.ndarray, c: np.ndarray, piv: 
     d[piv] = np.minimum(d[piv], slack)
     Ad = fine.matvec(d)
     curvature, slope = float(d @ Ad), float(r @ d)
+    if term.k > 1:
+        return _disc_step(fine, v, r, c, d, Ad, curvature, slope, piv, upper, slack)
     step, cut = 0.0, True
     if curvature > 0:
         rising = d[piv] > 0
@@ -680,6 +738,108 @@ def _tresca_step(fine: _Fine, v: np.ndarray, r: np.ndarray, c: np.ndarray, piv: 
     return _arc_or_line(fine, _tresca_energy, v, c, piv, upper, v_line, r_line, step, cut)
 
 
+def _disc_step(fine: _Fine, v: np.ndarray, r: np.ndarray, c: np.ndarray, d: np.ndarray,
+               Ad: np.ndarray, curvature: float, slope: float, piv: np.ndarray,
+               upper: np.ndarray, slack: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+    """:func:`_tresca_step` in 3D: along the projected correction ``d`` the energy is convex
+    and smooth but where a node's tangential offset ``z_i + a d_i`` passes through zero;
+    its minimiser over the feasible segment by :func:`_disc_line_search`. A kink reached is
+    written exactly (the node then sticks); where the normal bounds cut the segment short,
+    the projection arc as in :func:`_step`."""
+    term = fine.tresca
+    step, cut, reached = 0.0, True, np.zeros(term.weight.size, dtype=bool)
+    if curvature > 0:
+        rising = d[piv] > 0
+        longest = float(np.min(slack[rising] / d[piv][rising])) if rising.any() else np.inf
+        z = term._nodes(v[term.pivot] - term.centre)
+        dt = term._nodes(d[term.pivot])
+        step, reached, ends_short = _disc_line_search(-slope, curvature, z, dt, term.weight,
+                                                      longest)
+        cut = step == 0.0 or ends_short
+    v_line, r_line = v + step * d, r - step * Ad
+    if reached.any():
+        nodes = term._nodes(term.pivot)[reached].ravel()
+        v_line[nodes] = term._nodes(term.centre)[reached].ravel()
+    return _arc_or_line(fine, _tresca_energy, v, c, piv, upper, v_line, r_line, step, cut)
+
+
+def _disc_line_search(base: float, curvature: float, z: np.ndarray, dt: np.ndarray,
+                      weight: np.ndarray, longest: float
+                      ) -> tuple[float, np.ndarray, bool]:
+    """The minimiser over ``[0, longest]`` of the convex ``phi(a) = base a + curvature a^2 / 2
+    + sum_i weight_i |z_i + a dt_i|`` (``z, dt`` of shape ``(m, k)``, ``curvature > 0``):
+    ``(a, reached, short)``, ``reached`` the nodes whose offset is zero at ``a`` (a kink
+    taken: only where ``z_i`` and ``dt_i`` are parallel), ``short`` if ``phi`` still falls
+    at ``a = longest``.
+
+    ``phi'`` is nondecreasing (it jumps up at the kinks); its sign change is bracketed
+    (from ``[0, longest]``, or ``phi' >= base - sum weight |dt| + a curvature`` where the
+    segment is unbounded) and found by Newton's method on ``phi'`` safeguarded by
+    bisection, to round-off; a kink inside the last bracket is the minimiser.
+    """
+    moving = (weight > 0) & np.any(dt != 0, axis=1)
+    z, dt, w = z[moving], dt[moving], weight[moving]
+    dd = np.einsum("ij,ij->i", dt, dt)
+    zd = np.einsum("ij,ij->i", z, dt)
+    zz = np.einsum("ij,ij->i", z, z)
+    # kinks: z_i + a dt_i = 0 for some a >= 0 (z_i antiparallel to dt_i, or z_i = 0)
+    at = -zd / dd
+    parallel = np.abs(z[:, 0] * dt[:, 1] - z[:, 1] * dt[:, 0]) <= 1e-14 * np.sqrt(zz * dd)
+    kink = np.where(parallel & (at >= 0.0), at, -1.0)
+
+    def slope_at(a: float, side: float) -> tuple[float, float]:
+        """``phi'(a)`` (one-sided at a kink: ``side`` +1 right, -1 left) and ``phi''(a)``."""
+        y = z + a * dt                    # not |z|^2 + 2a z.dt + ...: it cancels at a kink
+        yy = np.einsum("ij,ij->i", y, y)
+        yd = np.einsum("ij,ij->i", y, dt)
+        length = np.sqrt(yy)
+        on = (length <= 1e-15 * np.sqrt(dd) * (a + 1.0)) | (kink == a)
+        inner = np.where(on, side * np.sqrt(dd), yd / np.where(on, 1.0, length))
+        second = np.where(on, 0.0, (dd * yy - yd * yd) / np.where(on, 1.0, length ** 3))
+        return (base + a * curvature + float(w @ inner),
+                curvature + float(w @ np.maximum(second, 0.0)))
+
+    if slope_at(0.0, +1.0)[0] >= 0.0:
+        return 0.0, _reached(moving, kink, 0.0), False
+    lo = 0.0
+    hi = (longest if np.isfinite(longest)
+          else max((float(w @ np.sqrt(dd)) - base) / curvature, 0.0))
+    if np.isfinite(longest) and slope_at(longest, -1.0)[0] <= 0.0:
+        return float(longest), _reached(moving, kink, longest), True
+    a = lo
+    for _ in range(200):
+        slope_a, second = slope_at(a, +1.0)
+        if slope_a < 0.0:
+            lo = a
+        elif a > lo and slope_at(a, -1.0)[0] > 0.0:
+            hi = a
+        elif a > lo:                      # phi'(a-) <= 0 <= phi'(a+): a kink holds it
+            return a, _reached(moving, kink, a), False
+        if hi - lo <= 4e-16 * hi:
+            break
+        nxt = a - slope_a / second
+        if not lo < nxt < hi:
+            nxt = 0.5 * (lo + hi)
+        if nxt == a:
+            break
+        a = nxt
+    inside = (kink >= lo) & (kink <= hi)
+    if inside.any():                      # the bracket closed on a kink
+        a = float(kink[inside][0])
+        return a, _reached(moving, kink, a), False
+    phi = lambda t: base * t + 0.5 * curvature * t * t + float(
+        w @ np.sqrt(np.einsum("ij,ij->i", z + t * dt, z + t * dt)))
+    a = lo if phi(lo) <= phi(hi) else hi
+    return a, _reached(moving, kink, a), False
+
+
+def _reached(moving: np.ndarray, kink: np.ndarray, a: float) -> np.ndarray:
+    """Per node (all nodes), whether its kink is at ``a``."""
+    out = np.zeros(moving.size, dtype=bool)
+    out[np.flatnonzero(moving)[kink == a]] = True
+    return out
+
+
 def _tresca_stationarity(fine: _Fine, r: np.ndarray, bound: np.ndarray, v: np.ndarray
                          ) -> float:
     """:func:`_stationarity` with Tresca's term: at a tangential unknown ``r`` minus the
@@ -689,9 +849,18 @@ def _tresca_stationarity(fine: _Fine, r: np.ndarray, bound: np.ndarray, v: np.nd
     res = r.copy()
     res[bound] = np.minimum(res[bound], 0.0)
     rt = r[term.pivot]
-    stick = v[term.pivot] == term.centre
-    res[term.pivot] = np.where(stick, np.sign(rt) * np.maximum(np.abs(rt) - term.weight, 0.0),
-                               rt - term.gradient(v))
+    if term.k == 1:
+        stick = v[term.pivot] == term.centre
+        res[term.pivot] = np.where(stick, np.sign(rt) * np.maximum(np.abs(rt) - term.weight,
+                                                                   0.0),
+                                   rt - term.gradient(v))
+    else:
+        stick = np.repeat(np.all(term._nodes(v[term.pivot] == term.centre), axis=1), term.k)
+        rn = term._nodes(rt)
+        length = np.sqrt(np.einsum("ij,ij->i", rn, rn))
+        excess = np.maximum(length - term.weight, 0.0) / np.where(length > 0, length, 1.0)
+        res[term.pivot] = np.where(stick, (rn * excess[:, None]).ravel(),
+                                   rt - term.gradient(v))
     scale = max(float(np.abs(fine.f).max()), float(np.abs(fine.f - r).max()), 1e-300)
     return float(np.abs(res).max()) / scale
 
@@ -707,15 +876,85 @@ def _verified(qp: ContactQP, u: np.ndarray, p: np.ndarray, tol: float, stop: str
                                         or certify(qp, u, p, tol, lam=lam).meets(tol))
 
 
+@dataclass
+class _SlipCurvature:
+    """3D Tresca: the slip term's curvature in the truncated linear correction.
+
+    Where node ``i`` slips (``z_i = v_t,i - centre_i != 0``) its term ``weight_i |z_i|`` is
+    smooth, with the Hessian ``weight_i / |z_i| (I - z_i z_i' / |z_i|^2)`` on its two
+    tangential unknowns (in 2D it is zero: the term is linear off its kink). Left out, the
+    correction overshoots across the slip direction and the line search shortens every
+    step; put into the correction's operator (the fine system ``A~ + K``: the
+    transformation's update with places for ``K`` and the constrained blocks' inverses
+    refreshed; the coarse operators by :meth:`_TruncatedHierarchy.truncate`), the step is
+    the truncated Newton step of the nonsmooth energy (Gräser-Kornhuber: the Hessian of
+    the energy where it is twice differentiable).
+    """
+
+    fine: _Fine
+    positions: np.ndarray          # (m, k, k): the places of K's entries in fine.C.data
+    base: np.ndarray               # fine.C.data without K
+    block_ptr: np.ndarray          # the constrained node blocks, for block_inverses
+    block_dofs: np.ndarray
+
+    @classmethod
+    def build(cls, fine: _Fine) -> "_SlipCurvature":
+        term, box = fine.tresca, fine.box
+        k = term.k
+        tpiv = term.pivot.reshape(-1, k)
+        rows = np.repeat(tpiv, k, axis=1).ravel()
+        cols = np.tile(tpiv, (1, k)).ravel()
+        pattern = sp.csr_matrix((np.ones(rows.size), (rows, cols)), shape=fine.C.shape)
+        pattern.sort_indices()
+        C = sp.csr_matrix(fine.C)
+        C.sum_duplicates()
+        C.sort_indices()
+        C = with_pattern(C, pattern)
+        blocks = fine.bounded_blocks
+        sizes = np.diff(box.node_ptr)[blocks]
+        block_ptr = np.r_[0, np.cumsum(sizes)].astype(np.int64)
+        block_dofs = np.concatenate([box.node_dofs[box.node_ptr[b]:box.node_ptr[b + 1]]
+                                     for b in blocks]) if blocks.size else np.zeros(0, np.int64)
+        lin = _Fine(fine.A, C, fine.f, box, fine.diag0.copy(), fine.inv_full.copy(),
+                    fine.inv_sub.copy(), blocks, fine.upper_block, tresca=term)
+        return cls(lin, _positions(C, rows, cols).reshape(-1, k, k), C.data.copy(),
+                   block_ptr, block_dofs)
+
+    def set(self, v: np.ndarray, stick: np.ndarray) -> sp.csr_matrix:
+        """Put the curvature of the iterate ``v`` (slipping nodes: not ``stick``) into the
+        fine system; returns ``K`` ``(n, n)``."""
+        fine, term = self.fine, self.fine.tresca
+        z, length = term._offsets(v)
+        slipping = ~stick & (term.weight > 0) & (length > 0)
+        zs, ls = z[slipping], length[slipping]
+        hess = (term.weight[slipping] / ls)[:, None, None] * (
+            np.eye(term.k)[None] - zs[:, :, None] * zs[:, None, :] / (ls * ls)[:, None, None])
+        fine.C.data[:] = self.base
+        fine.C.data[self.positions[slipping].ravel()] += hess.ravel()
+        fine.update_part = sp.csr_matrix(fine.C[fine.update_rows])
+        diag0, inv_full, inv_sub = block_inverses(fine.A, self.block_ptr, self.block_dofs,
+                                                  fine.C)
+        blocks = fine.bounded_blocks
+        fine.diag0[blocks], fine.inv_full[blocks], fine.inv_sub[blocks] = \
+            diag0, inv_full, inv_sub
+        tpiv = term.pivot.reshape(-1, term.k)[slipping]
+        rows = np.repeat(tpiv, term.k, axis=1).ravel()
+        cols = np.tile(tpiv, (1, term.k)).ravel()
+        return sp.csr_matrix((hess.ravel(), (rows, cols)), shape=fine.C.shape)
+
+
 def _tresca_solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
                   u0: np.ndarray | None, opts: Options, callback: Callable | None
                   ) -> SolveResult:
-    """One 2D Tresca step (``qp.friction``) by TNNMG (module docstring, Tresca friction)."""
+    """One Tresca step (``qp.friction``, 2D or 3D) by TNNMG (module docstring, Tresca
+    friction)."""
     t_start = time.perf_counter()
     fine = _fine_system(qp, tresca=True)
     box, term = fine.box, fine.tresca
     piv, upper, tpiv = box.pivot, box.upper, term.pivot
-    ml = _hierarchy(qp, fine, opts.sweeps or AUTO_SWEEPS.get(qp.dim, 2),
+    curvature = _SlipCurvature.build(fine) if term.k > 1 else None
+    ml = _hierarchy(qp, fine if curvature is None else curvature.fine,
+                    opts.sweeps or AUTO_SWEEPS.get(qp.dim, 2),
                     opts.coarse == "truncated", opts.patch, np.concatenate([piv, tpiv]))
     nb = box.node_ptr.size - 1
     mode_nonlinear = np.full(nb, FREE, dtype=np.int64)
@@ -742,8 +981,8 @@ def _tresca_solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | 
         mode[block_of_row[active]] = FIXED
         mode[block_of_row[stick]] = TANGENT_FIXED
         mode[block_of_row[active & stick]] = BOTH_FIXED
-        E = np.concatenate([piv[active], tpiv[stick]])
-        ml.truncate(E, mode)
+        E = np.concatenate([piv[active], tpiv.reshape(-1, term.k)[stick].ravel()])
+        ml.truncate(E, mode, None if curvature is None else curvature.set(v, stick))
         t2 = time.perf_counter()
         g = r.copy()
         g[tpiv] -= term.gradient(v)
@@ -759,7 +998,7 @@ def _tresca_solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | 
         verified, kkt_max = False, np.nan
         if residual <= CHECK_FACTOR * tol or callback is not None:
             u, p = box.to_u(v), box.multipliers(r, bound)
-            lam = term.multipliers(r, qp.friction.slip_bound)
+            lam = term.multipliers(r, qp.friction)
         if residual <= CHECK_FACTOR * tol:         # the suite's verification decides
             kkt_max, verified = _verified(qp, u, p, tol, opts.stop, lam)
         end = log.close(k, (t0, t1, t2, t3), kkt_max, verified,
@@ -772,7 +1011,7 @@ def _tresca_solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | 
         r = fine.f - fine.matvec(v)
     bound = v[piv] >= upper
     u, p = box.to_u(v), box.multipliers(r, bound)
-    lam = term.multipliers(r, qp.friction.slip_bound)
+    lam = term.multipliers(r, qp.friction)
     stick = term.stick(v)
     stats = {"friction": "tresca_step", "n_steps": k, "n_cg": 0, "n_vcycles": k,
              "presmoothing": opts.presmoothing,
@@ -787,14 +1026,11 @@ def _tresca_solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | 
 
 def supports(qp: ContactQP) -> tuple[bool, str]:
     """Nodal constraints with one row per constrained node (:mod:`solvers.contact_box`);
-    with friction, one 2D Tresca step whose tangential rows become coordinates too (a
-    Coulomb problem's step at its given slip bound: the fixed point ``s = mu p`` is the
+    with friction, one Tresca step (2D or 3D) whose tangential rows become coordinates too
+    (a Coulomb problem's step at its given slip bound: the fixed point ``s = mu p`` is the
     load path's)."""
     fr = qp.friction
     if fr is not None:
-        if qp.dim != 2:
-            return False, ("Tresca friction in 3D: the node block's exact minimiser with a "
-                           "disc of tangential slips is not built (2D only)")
         try:
             box_transformation(qp, fr.T)
         except TransformationError as err:

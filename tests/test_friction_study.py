@@ -15,7 +15,7 @@ import pytest
 from problems.spec import problems
 from report.friction import CLAIMS, claims
 from report.friction import main as report_main
-from solvers import tresca
+from solvers import tresca_exact
 from workflows.io import read_csv
 from workflows.scripts.friction_study import level_rows
 from workflows.scripts.friction_study import main as script
@@ -24,14 +24,15 @@ from workflows.studies.friction import COMMON, friction_args
 
 ROOT = Path(__file__).resolve().parents[1]
 TINY = STUDIES["friction"].scales["tiny"].settings
+FIGURES = ("traction", "stick", "map", "cost")
 
 
 @pytest.fixture(scope="module")
 def outputs(tmp_path_factory):
     """The study's script and report at the tiny scale's settings, on circle-square."""
     d = tmp_path_factory.mktemp("friction")
-    files = {k: d / f"{k}.{'png' if k in ('traction', 'stick', 'cost') else 'csv'}"
-             for k in ("runs", "profiles", "claims", "traction", "stick", "cost")}
+    files = {k: d / f"{k}.{'png' if k in FIGURES else 'csv'}"
+             for k in ("runs", "profiles", "claims", *FIGURES)}
     config = {"friction": TINY, "scenes": {"circle_square": {"problem": "circle_square"}}}
     script(["--problem", "circle_square", *shlex.split(friction_args(config, "circle_square")),
             "--out", str(files["runs"]), "--profiles", str(files["profiles"])])
@@ -48,10 +49,14 @@ def test_the_script_writes_every_declared_output(outputs):
         assert sorted(at[at.role == "reference"].ratio) == COMMON["ratios"]
         assert sorted(at[at.role == "solver"].solver.unique()) == sorted(COMMON["solvers"])
         assert len(at[at.role == "mu_zero"]) == 2 and len(at[at.role == "coulomb"]) == 2
+        timed = at[at.role == "timing"]
+        assert sorted(timed.solver) == sorted(["tnnmg", "linear_floor"] * len(COMMON["ratios"]))
+        assert (timed.n_to_target > 0).all() and np.isfinite(timed.t_to_target).all()
+        assert (timed.energy_error <= timed.target).all()
     assert (runs[runs.role != "coulomb"].status == "converged").all()
     profiles = read_csv(outputs["profiles"])
     assert set(profiles.state) <= {"stick", "slip", "free"} and (profiles.state == "stick").any()
-    for key in ("traction", "stick", "cost"):
+    for key in FIGURES:
         image = matplotlib.image.imread(outputs[key])
         assert image.ndim == 3 and min(image.shape[:2]) > 200, key
 
@@ -104,15 +109,38 @@ def test_the_claims_judge_a_resolved_level():
     assert claims(pd.DataFrame(rows)).iloc[0]["pass"] is False
 
 
+def test_the_claims_take_the_sphere_bars():
+    """A point contact (3D) is judged by its own bars: c/a within 10 % where at least 150
+    nodes are in contact; its traction profile is reported, not judged."""
+    import pandas as pd
+
+    rows = [{"scene": "s", "role": "reference", "solver": "tresca_exact", "contact": "point",
+             "status": "converged", "ratio": 0.3, "level": lv, "N": n, "contact_nodes": k,
+             "dev_c_over_a": dev, "traction_l2": 0.05}
+            for lv, n, k, dev in ((2, 100, 58, -0.2), (3, 800, 230, -0.08))]
+    table = claims(pd.DataFrame(rows))
+    stick = table[table.claim.str.contains("stick-zone")].iloc[0]
+    assert stick["pass"] is True and "(1 - Q/(mu P))^(1/3)" in stick.claim
+    assert "0.1" in str(stick.bar)
+    traction = table[table.claim.str.contains("tangential traction")].iloc[0]
+    assert traction["pass"] is None or pd.isna(traction["pass"])
+    assert "parallel to Q" in traction.reason
+    rows[-1]["dev_c_over_a"] = -0.12
+    assert claims(pd.DataFrame(rows)).iloc[0]["pass"] is False
+    rows[-1]["contact_nodes"] = 100                     # not resolved: a reason, no verdict
+    again = claims(pd.DataFrame(rows)).iloc[0]
+    assert pd.isna(again["pass"]) and "150" in again.reason
+
+
 def test_beyond_the_exact_size_the_reference_is_semismooth_newton(monkeypatch):
     """With tresca_exact's size limit below the surface, the study's reference is
     semismooth_newton at 'high' (the table says so) and finds the same path: c/a and the
     traction error as with the exact reference."""
     spec = problems()["circle_square"]
     args = Namespace(mu=0.5, shift=0.01, ratios=[0.7], solvers=[], tol="high",
-                     time_limit=60.0, coulomb_shift=0.0)
+                     time_limit=60.0, coulomb_shift=0.0, target=1e-6, repeats=1)
     exact, _ = level_rows(spec, {}, 0, args)
-    monkeypatch.setattr(tresca, "TRESCA_EXACT_MAX_M", 0)
+    monkeypatch.setattr(tresca_exact, "TRESCA_EXACT_MAX_M", 0)
     fallback, _ = level_rows(spec, {}, 0, args)
     (e,), (f,) = ([r for r in rows if r["role"] == "reference"] for rows in (exact, fallback))
     assert e["reference"] == "tresca_exact" and f["reference"] == "semismooth_newton"
@@ -128,9 +156,12 @@ def test_beyond_the_exact_size_the_reference_is_semismooth_newton(monkeypatch):
     (["--mu", "0"], "argument --mu: 0.0 is not allowed; allowed: > 0"),
     (["--set", "friction=coulomb"], "argument --set: friction is not allowed"),
     (["--solvers", "pdas"], "argument --solvers: pdas is not allowed"),
+    (["--target", "0"], "argument --target: 0.0 is not allowed; allowed: in (0, 1)"),
+    (["--repeats", "0"], "argument --repeats: 0 is not allowed; allowed: >= 1"),
 ])
 def test_bad_arguments_are_refused_by_name(change, message, tmp_path, capsys):
-    base = {"--ratios": ["0.3"], "--mu": ["0.5"], "--solvers": ["tnnmg"]}
+    base = {"--ratios": ["0.3"], "--mu": ["0.5"], "--solvers": ["tnnmg"], "--target": ["1e-6"],
+            "--repeats": ["1"]}
     for i in range(0, len(change), 2):
         base[change[i]] = [change[i + 1]]
     argv = ["--problem", "circle_square", "--levels", "0", "--shift", "0.01",

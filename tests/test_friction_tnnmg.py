@@ -61,17 +61,20 @@ def test_tangential_rows_become_coordinates_exactly():
 
 
 def _one_block(M, b, x, upper, weight, centre, mode=TRESCA):
-    """One sweep of the Tresca kernel on a single 2x2 block system ``M``."""
+    """One sweep of the Tresca kernel on a single block system ``M`` (2x2, or 3x3 with
+    ``centre`` a 2-vector)."""
     A = sp.csr_matrix(M)
-    C = sp.csr_matrix((2, 2))
-    node_ptr, node_dofs = np.array([0, 2]), np.array([0, 1])
+    w = M.shape[0]
+    C = sp.csr_matrix((w, w))
+    node_ptr, node_dofs = np.array([0, w]), np.arange(w)
     diag0, inv_full, inv_sub = block_inverses(A, node_ptr, node_dofs, C)
     x = x.copy()
     tresca_block_gauss_seidel(*(unsigned_index(a) for a in (A.indptr, A.indices)), A.data,
                               *(unsigned_index(a) for a in (C.indptr, C.indices)), C.data,
                               x, b, node_ptr, unsigned_index(node_dofs), diag0, inv_full,
                               inv_sub, np.array([mode]), np.array([upper]),
-                              np.array([weight]), np.array([centre]), True)
+                              np.array([weight]), np.atleast_1d(np.asarray(centre, float)),
+                              True)
     return x
 
 
@@ -259,10 +262,3 @@ def test_a_run_stopped_short_says_so():
     s = st.qp.friction.slip_bound
     assert res.u.shape == (st.qp.n,) and np.all(np.abs(res.tangential) <= s)
     assert friction_residuals(st.qp, res.u, res.p, res.tangential).max > 1e-10
-
-
-def test_3d_friction_is_skipped_with_the_reason():
-    cube = problems()["cube_sphere"].make(0, friction="tresca", mu=0.5, shift=0.01)
-    assert cube.friction.T.shape[0] == 2 * cube.m
-    ok, why = tnnmg.supports(cube)
-    assert not ok and "3D" in why

@@ -1,6 +1,6 @@
 # Study friction: Tresca partial slip against Cattaneo-Mindlin, the frictional solvers on the
-# same load paths, mu = 0 and Coulomb; one process per scene (its claims judge iterations and
-# agreement, not times, so it may run beside other jobs).
+# same load paths, TNNMG timed against the linear floor, mu = 0 and Coulomb; one process per
+# scene, alone on the machine (the study's runs_alone: its time claim compares two timings).
 from workflows.studies.friction import friction_args
 rule friction_study:
     output:
@@ -28,6 +28,8 @@ rule friction_report:
                         category="{scene}", subcategory="friction"),
         stick=report(PATHS["fr_stick"], caption=CAPTIONS["fr_stick"],
                      category="{scene}", subcategory="friction"),
+        map=report(PATHS["fr_map"], caption=CAPTIONS["fr_map"],
+                   category="{scene}", subcategory="friction"),
         cost=report(PATHS["fr_cost"], caption=CAPTIONS["fr_cost"],
                     category="{scene}", subcategory="friction")
     log: log_path("friction_report")
@@ -36,4 +38,4 @@ rule friction_report:
     shell:
         "{params.py} -m report.friction --runs {input.runs} --profiles {input.profiles} "
         "--claims {output.claims} --traction {output.traction} --stick {output.stick} "
-        "--cost {output.cost} > {log} 2>&1"
+        "--map {output.map} --cost {output.cost} > {log} 2>&1"

@@ -1,6 +1,6 @@
-"""Friction on a 2D contact scene: Tresca partial slip against Cattaneo-Mindlin, the
-frictional solvers on the same load paths, mu = 0 against the frictionless reference, and
-Coulomb's fixed point.
+"""Friction on a contact scene (2D or 3D): Tresca partial slip against Cattaneo-Mindlin,
+the frictional solvers on the same load paths, mu = 0 against the frictionless reference,
+and Coulomb's fixed point.
 
 For one scene (a registered problem with the ``friction``, ``mu`` and ``shift``
 parameters, ``--problem P --set key=value``), at each of ``--levels``:
@@ -8,22 +8,28 @@ parameters, ``--problem P --set key=value``), at each of ``--levels``:
 * **the reference path per load ratio** -- Tresca friction with ``mu``; the tangential
   step (the held part moved by ``--shift``) is scaled until ``Q/(mu P)`` of the last step
   is each of ``--ratios`` (:func:`solvers.tresca.path_for_ratio`). The reference is
-  :func:`solvers.tresca.tresca_exact` (exact to round-off) where it takes the surface
-  (at most :data:`solvers.tresca.TRESCA_EXACT_MAX_M` rows), else ``semismooth_newton``
-  at the ``high`` tolerance through :func:`solvers.interface.solve` (the ``reference``
+  ``tresca_exact`` (exact to round-off) where it takes the problem (its dual is dense:
+  rows times unknowns), else the first of :data:`FALLBACK_REFERENCES` that takes it, at
+  the ``high`` tolerance through :func:`solvers.interface.solve` (the ``reference``
   column names it);
-* **Cattaneo-Mindlin** on the reference's last step -- the contact half-width ``a`` and
-  the stick-zone half-width ``c`` as second moments of the nodal normal forces and of
-  the deficit ``s - |lam|`` (:func:`reference.cattaneo_mindlin.stick_zone_size`), against
-  ``c/a = sqrt(1 - Q/(mu P))``; the tangential traction ``lam / mass`` against
-  :func:`reference.cattaneo_mindlin.tangential_traction` with the measured ``a`` and peak
-  pressure ``p0`` and the analytic ``c``, its relative L2 error over the contact nodes
-  (the lumped surface mass the quadrature weights);
+* **Cattaneo-Mindlin** on the reference's last step -- the contact size ``a`` and the
+  stick-zone size ``c`` (half-widths in 2D, radii in 3D) as second moments of the nodal
+  normal forces and of the deficit ``s - |lam|``
+  (:func:`reference.cattaneo_mindlin.stick_zone_size`), against
+  ``c/a = sqrt(1 - Q/(mu P))`` (cylinder) or ``(1 - Q/(mu P))^(1/3)`` (sphere); the
+  tangential traction (2D: ``lam / mass``; 3D: its component along the total tangential
+  force) against :func:`reference.cattaneo_mindlin.tangential_traction` with the
+  measured ``a`` and peak pressure ``p0`` and the analytic ``c``, its relative L2 error
+  over the contact nodes (the lumped surface mass the quadrature weights);
 * **the solvers** (``--solvers``, each ``handles_friction``) -- the same scaled load path
   run as ``contactbench solve`` runs it (:func:`solvers.interface.run_load_path`, every
   Tresca step verified by :func:`solvers.interface.solve` at ``--tol``): status, the
   solver's iterations in the normal and in the tangential step, its setup and solve
   time, and the relative energy-norm distance of its last step to the reference's;
+* **timing** -- TNNMG on the reference's last Tresca step from zero, its time (setup
+  included) to the relative energy error ``--target`` against the reference, beside the
+  linear floor: geometric-multigrid PCG for the same system without contact to the same
+  accuracy; each the median of ``--repeats`` runs (:func:`timing_rows`);
 * **mu = 0** -- the reference's path with ``mu = 0`` against ``pdas`` on each load step's
   frictionless problem, both load steps;
 * **Coulomb** (Coulomb's law, the tangential step at ``--coulomb-shift``) -- the
@@ -31,16 +37,18 @@ parameters, ``--problem P --set key=value``), at each of ``--levels``:
   contraction per load step (the frictionless solve that starts the path not counted).
 
 ``--out`` gets one row per (level, ratio, role): ``role`` is ``reference``, ``solver``,
-``mu_zero`` or ``coulomb``; ``--profiles`` one row per constrained node of each
-reference's last step (position over ``a``, measured and analytic traction, ``mu`` times
-the measured and the Hertz pressure, stick/slip state).
+``timing`` (``solver`` ``tnnmg`` or ``linear_floor``), ``mu_zero`` or ``coulomb`` (a level no reference takes: one ``reference`` row,
+``skipped``, with the reasons); ``--profiles`` one row per constrained node of each
+reference's last step (distance from the contact's centre over ``a``, signed in 2D, and
+the position in the contact plane; measured and analytic traction, ``mu`` times the
+measured and the Hertz pressure, stick/slip state).
 
 Example::
 
     python -m workflows.scripts.friction_study --problem circle_square --levels 1 2 3 \\
         --mu 0.5 --ratios 0.3 0.7 --shift 0.01 --coulomb-shift 0.02 \\
         --solvers tnnmg semismooth_newton --tol high --time-limit 120 \\
-        --out results/circle_square/friction.csv \\
+        --target 1e-6 --repeats 3 --out results/circle_square/friction.csv \\
         --profiles results/circle_square/friction_profiles.csv
 """
 from __future__ import annotations
@@ -62,13 +70,15 @@ from solvers.interface import parse_tolerance, run_load_path, solve, solvers
 from solvers.tresca import (as_tresca_solution, friction_path, path_for_ratio,
                             scaled_tangential_step, tangential_ratio)
 from workflows.io import write_csv
+from workflows.measure import amg_pcg_floor, linear_solution, median_run, tnnmg_run
 from workflows.progress import study_progress
 from workflows.scene_args import add_scene_arguments, check_levels, parse_sets, scene_from_args
 
 #: The parameters the study sets on the scene itself.
 FRICTION_PARAMETERS = ("friction", "mu", "shift")
-#: The fallback reference beyond tresca_exact's surface size, and its tolerance.
-FALLBACK_REFERENCE, FALLBACK_TOL = "semismooth_newton", "high"
+#: The fallback references where tresca_exact does not take the problem (its dense dual
+#: grows as rows x unknowns), in order of preference, and their verified tolerance.
+FALLBACK_REFERENCES, FALLBACK_TOL = ("semismooth_newton", "tnnmg"), "high"
 #: Tolerance of the frictionless pdas reference of the mu = 0 check.
 PDAS_TOL = 1e-12
 
@@ -80,48 +90,70 @@ class ReferenceFailed(RuntimeError):
 def reference_route(qp) -> tuple[str, object]:
     """``(name, solve)`` of the reference for the frictional ``qp``: ``tresca_exact``
     (``solve`` None, the default of :func:`path_for_ratio` and :func:`friction_path`)
-    where it takes the surface (rows and its dense ``A^-1 G'``), else the verified
-    fallback, one Tresca step at a time."""
-    if (qp.m <= tresca.TRESCA_EXACT_MAX_M
-            and tresca.dense_dual_size(qp) <= tresca.TRESCA_EXACT_MAX_ENTRIES):
+    where it takes the problem, else the first of :data:`FALLBACK_REFERENCES` that takes
+    it, verified at :data:`FALLBACK_TOL`, one Tresca step at a time."""
+    registered = solvers()
+    if registered["tresca_exact"].supports(qp)[0]:
         return "tresca_exact", None
+    name = next((n for n in FALLBACK_REFERENCES if registered[n].supports(qp)[0]), None)
+    if name is None:
+        reasons = "; ".join(f"{n}: {registered[n].supports(qp)[1]}"
+                            for n in ("tresca_exact", *FALLBACK_REFERENCES))
+        raise ReferenceFailed(f"no reference takes {qp.name}: {reasons}")
 
     def fallback(step_qp):
-        res = solve(step_qp, FALLBACK_REFERENCE, FALLBACK_TOL)
+        res = solve(step_qp, name, FALLBACK_TOL)
         if res.status != "converged":
-            raise ReferenceFailed(f"{FALLBACK_REFERENCE}: {res.status} ({res.message})")
+            raise ReferenceFailed(f"{name}: {res.status} ({res.message})")
         return as_tresca_solution(step_qp, res)
 
-    return FALLBACK_REFERENCE, fallback
+    return name, fallback
 
 
 def partial_slip(step, ratio: float) -> tuple[dict, pd.DataFrame]:
     """Cattaneo-Mindlin measures of a reference's last step (a
     :class:`solvers.tresca.PathStep`; module docstring): the row's fields and the
-    per-node profile."""
+    per-node profile.
+
+    2D (line contact): positions along the contact line, the traction ``lam / mass``
+    signed along the load. 3D (point contact): radial distances from the contact's
+    centre, the traction the component of ``lam_i`` (a vector in the contact plane)
+    along the total tangential force, over the node's mass; the profile keeps each
+    node's position in the plane too (``px_over_a``, ``py_over_a``)."""
     step_qp, sol = step.qp, step.solution
     fr = step_qp.friction
-    x = in_plane(step_qp)[:, 0]
-    xbar, a, p0 = moment_estimate("line", x, sol.p)
-    _, c = stick_zone_size(x, sol.p, sol.lam, fr.slip_bound)
-    c_exact = stick_zone_ratio(ratio)
-    direction = 1.0 if sol.lam.sum() >= 0 else -1.0
-    traction = direction * step_qp.contact.pressure(sol.lam)
+    kind = step_qp.hertz.kind
+    plane = in_plane(step_qp)
+    x = plane[:, 0] if kind == "line" else plane
+    xbar, a, p0 = moment_estimate(kind, x, sol.p)
+    _, c = stick_zone_size(x, sol.p, fr.magnitude(sol.lam), fr.slip_bound, kind=kind)
+    c_exact = stick_zone_ratio(ratio, kind)
     pressure = step_qp.contact.pressure(sol.p)
-    r = x - float(xbar[0])
+    w = step_qp.contact.mass
+    if kind == "line":
+        direction = 1.0 if sol.lam.sum() >= 0 else -1.0
+        traction = direction * step_qp.contact.pressure(sol.lam)
+        r = x - float(xbar[0])
+        centred = np.stack([r, np.zeros_like(r)], axis=1)
+    else:
+        force = (sol.lam[:, None] * fr.tangent).sum(axis=0)
+        along = fr.tangent @ (force / np.linalg.norm(force))       # each row's share
+        traction = fr.blocks(sol.lam * along).sum(axis=1) / w
+        centred = plane - xbar
+        r = np.linalg.norm(centred, axis=1)
     exact = tangential_traction(r, a, a * c_exact, fr.mu * p0)
     zone = sol.p > 0
-    w = step_qp.contact.mass
     l2 = float(np.sqrt(np.sum(w[zone] * (traction[zone] - exact[zone]) ** 2)
                        / np.sum(w[zone] * exact[zone] ** 2)))
     state = np.where(fr.slip_bound > 0, np.where(sol.stick, "stick", "slip"), "free")
     profile = pd.DataFrame({
-        "x_over_a": r / a, "traction": traction, "traction_exact": exact,
+        "x_over_a": r / a, "px_over_a": centred[:, 0] / a, "py_over_a": centred[:, 1] / a,
+        "traction": traction, "traction_exact": exact,
         "mu_pressure": fr.mu * pressure,
         "mu_pressure_exact": fr.mu * p0 * np.sqrt(np.clip(1 - (r / a) ** 2, 0, None)),
         "state": state})
-    fields = {"ratio_reached": tangential_ratio([step]), "a": a, "p0": p0, "c": c,
-              "c_over_a": c / a, "c_over_a_exact": c_exact,
+    fields = {"contact": kind, "ratio_reached": tangential_ratio([step]), "a": a, "p0": p0,
+              "c": c, "c_over_a": c / a, "c_over_a_exact": c_exact,
               "dev_c_over_a": (c / a) / c_exact - 1.0, "traction_l2": l2,
               "contact_nodes": int(zone.sum()), "stick_nodes": int(sol.stick.sum())}
     return fields, profile
@@ -158,6 +190,23 @@ def solver_row(path_qp, name: str, tol: str, time_limit: float, ref_step) -> dic
     return row
 
 
+def timing_rows(step_qp, u_ref, target: float, repeats: int, time_limit: float) -> list[dict]:
+    """TNNMG on the Tresca step ``step_qp`` from zero against the linear floor, each the
+    median of ``repeats`` timed runs (:func:`workflows.measure.median_run`): TNNMG's steps
+    and time (setup included) until its energy-norm distance to the reference's ``u_ref``
+    reaches ``target`` (:func:`workflows.measure.tnnmg_run`), then on to its verified stop;
+    the floor, geometric-multigrid PCG for ``A u = f`` of the same system without contact
+    to the same energy accuracy (:func:`workflows.measure.amg_pcg_floor`)."""
+    keep = ("status", "message", "n_to_target", "t_to_target", "t_to_target_min",
+            "t_to_target_max", "timing_repeats", "energy_error", "kkt_max")
+    tn = median_run(lambda: tnnmg_run(step_qp, u_ref, target, time_limit), repeats)
+    u_lin = linear_solution(step_qp)
+    floor = median_run(lambda: amg_pcg_floor(step_qp, "gmg", target, u_lin), repeats)
+    return [{"role": "timing", "solver": name, "target": target,
+             **{k: run[k] for k in keep if k in run}}
+            for name, run in (("tnnmg", tn), ("linear_floor", floor))]
+
+
 def mu_zero_rows(qp, ref_solve) -> list[dict]:
     """The reference's path of ``qp`` with ``mu = 0`` against ``pdas`` on each load step's
     frictionless problem (the step's ``f`` and ``g`` without friction: the scene built
@@ -191,9 +240,12 @@ def level_rows(spec, params: dict, level: int, args) -> tuple[list[dict], list[p
     t0 = time.perf_counter()
     qp = spec.make(level, **params, friction="tresca", mu=args.mu, shift=args.shift)
     t_build = time.perf_counter() - t0
-    ref_name, ref_solve = reference_route(qp)
-    size = {"level": level, "N": qp.n_nodes, "n": qp.n, "NC": qp.m, "reference": ref_name,
-            "t_build": t_build}
+    size = {"level": level, "N": qp.n_nodes, "n": qp.n, "NC": qp.m, "t_build": t_build}
+    try:
+        ref_name, ref_solve = reference_route(qp)
+    except ReferenceFailed as err:
+        return [{**size, "role": "reference", "status": "skipped", "message": str(err)}], []
+    size["reference"] = ref_name
     rows, profiles = [], []
     for ratio in args.ratios:
         t0 = time.perf_counter()
@@ -214,6 +266,9 @@ def level_rows(spec, params: dict, level: int, args) -> tuple[list[dict], list[p
         for name in args.solvers:
             rows.append({**size, "ratio": ratio, "role": "solver",
                          **solver_row(ref.qp, name, args.tol, args.time_limit, ref)})
+        rows += [{**size, "ratio": ratio, **r} for r in
+                 timing_rows(ref.qp, ref.solution.u, args.target, args.repeats,
+                             args.time_limit)]
     try:
         rows += [{**size, "role": "mu_zero", "solver": ref_name, **r}
                  for r in mu_zero_rows(qp, ref_solve)]
@@ -243,6 +298,10 @@ def main(argv=None) -> None:
                         help="the solvers' verified tolerance")
     parser.add_argument("--time-limit", type=float, required=True,
                         help="seconds per Tresca solve (> 0)")
+    parser.add_argument("--target", type=float, required=True,
+                        help="relative energy error of the timed runs, in (0, 1)")
+    parser.add_argument("--repeats", type=int, required=True,
+                        help="timed runs of TNNMG and of the floor (the median is kept; >= 1)")
     parser.add_argument("--out", required=True, help="the runs table (CSV)")
     parser.add_argument("--profiles", required=True, help="the traction profiles (CSV)")
     args = parser.parse_args(argv)
@@ -265,6 +324,10 @@ def main(argv=None) -> None:
                          "(at Q >= mu P the whole contact slips: gross sliding)")
     if args.shift == 0:
         parser.error("argument --shift: 0 is not allowed; allowed: a nonzero shift")
+    if not 0 < args.target < 1:
+        parser.error(f"argument --target: {args.target} is not allowed; allowed: in (0, 1)")
+    if args.repeats < 1:
+        parser.error(f"argument --repeats: {args.repeats} is not allowed; allowed: >= 1")
     if args.time_limit <= 0:
         parser.error(f"argument --time-limit: {args.time_limit} is not allowed; allowed: > 0")
     registered = solvers()

@@ -96,7 +96,8 @@ def friction_args(config: dict, scene: str) -> str:
     solvers = " ".join(fr["solvers"])
     return (f"--levels {levels} --mu {fr['mu']:g} --ratios {ratios} --shift {fr['shift']:g} "
             f"--coulomb-shift {fr['coulomb_shift']:g} --solvers {solvers} --tol {fr['tol']} "
-            f"--time-limit {fr['time_limit']:g}")
+            f"--time-limit {fr['time_limit']:g} --target {fr['target']:g} "
+            f"--repeats {fr['repeats']}")
 
 
 def check(config: dict, registry: dict) -> None:
@@ -129,14 +130,17 @@ def check(config: dict, registry: dict) -> None:
 
 #: The study's settings at every scale but the levels: mu, the load ratios Q/(mu P), the
 #: shift the ratio search scales, Coulomb's shift (Q/(mu P) ~ 0.5 at mu = 0.5), the solvers
-#: and their verified tolerance (the agreement claim's 1e-8 needs 'high'), the time limit.
+#: and their verified tolerance (the agreement claim's 1e-8 needs 'high'), the time limit,
+#: the energy error TNNMG and the linear floor are timed to, and their timed runs (the
+#: median of three: a single run flips with the machine's noise).
 COMMON = {"mu": 0.5, "ratios": [0.3, 0.7], "shift": 0.01, "coulomb_shift": 0.02,
-          "solvers": ["tnnmg", "semismooth_newton"], "tol": "high", "time_limit": 120}
+          "solvers": ["tnnmg", "semismooth_newton"], "tol": "high", "time_limit": 120,
+          "target": 1e-6, "repeats": 3}
 
 
-def settings_at(levels: list[int]) -> dict:
-    """The study's section at a scale: circle-square at ``levels``, :data:`COMMON` else."""
-    return {"scenes": {"circle_square": levels}, **COMMON}
+def settings_at(circle_square: list[int], cube_sphere: list[int]) -> dict:
+    """The study's section at a scale: the two scenes' levels, :data:`COMMON` else."""
+    return {"scenes": {"circle_square": circle_square, "cube_sphere": cube_sphere}, **COMMON}
 
 
 STUDY = Study(
@@ -157,10 +161,13 @@ STUDY = Study(
         "fr_claims": "results/{scene}/friction_claims.csv",
         "fr_traction": "results/{scene}/friction_traction.png",
         "fr_stick": "results/{scene}/friction_stick.png",
+        "fr_map": "results/{scene}/friction_map.png",
         "fr_cost": "results/{scene}/friction_cost.png",
     },
-    outputs=("fr_runs", "fr_profiles", "fr_claims", "fr_traction", "fr_stick", "fr_cost"),
+    outputs=("fr_runs", "fr_profiles", "fr_claims", "fr_traction", "fr_stick", "fr_map",
+             "fr_cost"),
     heavy_rules=(RULE,),
+    runs_alone=(RULE,),
     check=check,
     settings={
         "type": "object",
@@ -188,18 +195,25 @@ STUDY = Study(
             "tol": {"enum": ["low", "mid", "high"],
                     "description": "the solvers' verified tolerance"},
             "time_limit": {"$ref": "#/definitions/time_limit"},
+            "target": {"type": "number", "exclusiveMinimum": 0, "exclusiveMaximum": 1,
+                       "description": "relative energy error TNNMG and the linear floor are "
+                                      "timed to"},
+            "repeats": {"type": "integer", "minimum": 1,
+                        "description": "timed runs of each (the median is kept)"},
         },
     },
     # circle-square levels; resources: the largest job, measured alone at tiny and quick on
     # the shared 2-core machine; full and huge estimated from quick's level 3 (its solver
     # paths cost ~4x per level: N x4, iterations flat)
     scales={
-        "tiny": AtScale(settings_at([0, 1]),                   # measured 13 s, 0.4 GB
+        "tiny": AtScale(settings_at([0, 1], [1]),             # measured 13 s, 0.4 GB
                         {RULE: {"mem_mb": 1000, "runtime": 1}}),
-        "quick": AtScale(settings_at([1, 2, 3]),               # measured 125 s, 1.4-2.3 GB
+        "quick": AtScale(settings_at([1, 2, 3], [1, 2]),      # measured 125 s, 1.4-2.3 GB
                          {RULE: {"mem_mb": 3000, "runtime": 4}}),
-        "full": AtScale(settings_at([1, 2, 3, 4]), {RULE: {"mem_mb": 8000, "runtime": 12}}),
-        "huge": AtScale(settings_at([1, 2, 3, 4, 5]), {RULE: {"mem_mb": 30000, "runtime": 50}}),
+        "full": AtScale(settings_at([1, 2, 3, 4], [1, 2, 3]),
+                        {RULE: {"mem_mb": 8000, "runtime": 12}}),
+        "huge": AtScale(settings_at([1, 2, 3, 4, 5], [1, 2, 3]),
+                        {RULE: {"mem_mb": 30000, "runtime": 50}}),
     },
     claims=("fr_claims",),
     captions="friction.rst",
