@@ -237,3 +237,17 @@ def test_a_dense_dual_beyond_its_size_is_refused_with_the_reason(monkeypatch):
     monkeypatch.setattr(tresca, "TRESCA_EXACT_MAX_ENTRIES", size - 1)
     with pytest.raises(ValueError, match="not allowed; allowed: at most"):
         tresca.dual_operators(qp)
+
+
+@pytest.mark.parametrize("level", [1, pytest.param(2, marks=pytest.mark.slow)])
+def test_tnnmg_agrees_with_the_exact_reference(level):
+    """The third frictional solver on the same Tresca load path: verified, and within
+    1e-8 of tresca_exact in the energy norm and the relative Tresca energy (measured at
+    level 1: 1.7e-10 and 4e-16, 13 TNNMG steps per load step)."""
+    qp = _frictional(level)
+    exact, multigrid = (_registered_path(qp, name) for name in ("tresca_exact", "tnnmg"))
+    assert multigrid.result.status == "converged", multigrid.result.message
+    for a, b in zip(exact.steps, multigrid.steps, strict=True):
+        assert energy_error(a.qp, b.solution.u, a.solution.u) <= 1e-8
+        energy = tresca_energy(a.qp, a.solution.u)
+        assert abs(tresca_energy(a.qp, b.solution.u) - energy) <= 1e-8 * abs(energy)
