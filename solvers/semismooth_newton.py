@@ -506,7 +506,11 @@ class ContactSchur:
 
 
 def contact_schur(qp: ContactQP, factorization: str = "auto") -> ContactSchur:
-    """:class:`ContactSchur` of the frictional ``qp``."""
+    """:class:`ContactSchur` of the frictional ``qp``, computed once per problem and kept
+    in ``qp.cache.contact_schur`` (the steps of a load path share ``A``, ``B`` and ``T``)."""
+    kept = qp.cache.contact_schur.get(factorization)
+    if kept is not None:
+        return kept
     G = sp.vstack([qp.B, qp.friction.T]).tocsr()
     chol = factorize(qp.A, factorization, components=G.indices)
     k = G.shape[0]
@@ -515,7 +519,9 @@ def contact_schur(qp: ContactQP, factorization: str = "auto") -> ContactSchur:
     for start in range(0, k, SCHUR_BLOCK):
         cols = Gt[:, start:start + SCHUR_BLOCK]
         S[:, start:start + cols.shape[1]] = G @ chol.solve(cols, partial=True)
-    return ContactSchur(chol, sp.csr_matrix(qp.A), G, 0.5 * (S + S.T))
+    ops = ContactSchur(chol, sp.csr_matrix(qp.A), G, 0.5 * (S + S.T))
+    qp.cache.contact_schur[factorization] = ops
+    return ops
 
 
 def tangential_update(state: np.ndarray, v: np.ndarray, bound: np.ndarray,

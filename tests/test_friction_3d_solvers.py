@@ -16,7 +16,7 @@ from solvers import tresca_exact as tresca_exact_solver
 from solvers.interface import run_load_path, solve
 from solvers.tresca import (DISC_EDGE, DISC_INSIDE, DISC_ZERO, TrescaSolution,
                             box_qp_active_set, disc_qp_newton, friction_path, path_for_ratio,
-                            project_dual, tangential_ratio)
+                            project_dual, tangential_ratio, with_step)
 
 
 def _random_dual(seed: int, m: int, k: int):
@@ -252,3 +252,13 @@ def test_tnnmg_agrees_with_the_exact_reference(level):
         assert energy_error(a.qp, b.solution.u, a.solution.u) <= 1e-8
         energy = tresca_energy(a.qp, a.solution.u)
         assert abs(tresca_energy(a.qp, b.solution.u) - energy) <= 1e-8 * abs(energy)
+
+
+def test_the_steps_of_a_load_path_share_one_schur_complement():
+    """semismooth_newton forms A's factor and S once per problem: the load path's steps
+    (ContactQPs made from it) find it in the shared cache."""
+    qp = _frictional(0)
+    first = semismooth_newton.contact_schur(qp)
+    step = with_step(qp, 1, np.zeros(qp.m), np.zeros(qp.friction.T.shape[0]))
+    assert semismooth_newton.contact_schur(step) is first
+    assert first.S.shape == (3 * qp.m, 3 * qp.m)
