@@ -13,6 +13,7 @@ from problems.spec import problems
 from solvers import tnnmg
 from solvers._block_gs import (BOUNDED, FIXED, FREE, TRESCA, block_gauss_seidel,
                                block_inverses, tresca_block_gauss_seidel, unsigned_index)
+from solvers.certificate import certify
 from solvers.contact_box import box_transformation
 from solvers.interface import solve
 from solvers.tresca import TrescaSolution, friction_path, path_for_ratio
@@ -196,6 +197,47 @@ def test_tnnmg_agrees_with_the_exact_tresca_reference_level_3():
     """Level 3 (129 rows) at the larger slip zone (levels 2-4 at both ratios are measured
     in the friction guide)."""
     _agrees_with_the_exact_reference(3, 0.7)
+
+
+@pytest.mark.parametrize("ratio", [0.3, 0.7])
+def test_cg_on_a_tresca_face_keeps_the_answer_and_saves_steps(ratio):
+    """Level 2's tangential step to tol 1e-10: with CG on the face (the default) the run has
+    CG steps, its energy never rises, and its answer is the exact one as TNNMG steps alone
+    give it (``krylov="none"``: no CG step); it needs at most 3/4 of their steps (measured:
+    13 and 14 against 21 and 20)."""
+    st = path_for_ratio(_frictional(2), ratio)[-1]
+    with_cg, without = _tnnmg(st.qp), _tnnmg(st.qp, krylov="none")
+    assert with_cg.stats["n_cg"] > 0 and "cg" in with_cg.history["phase"]
+    assert without.stats["n_cg"] == 0 and set(without.history["phase"]) == {"tnnmg"}
+    J = np.asarray(with_cg.history["energy"])
+    assert np.all(np.diff(J) <= 1e-12 * np.abs(J).max())
+    for res in (with_cg, without):
+        assert friction_residuals(st.qp, res.u, res.p, res.tangential).max <= 1e-10
+        assert energy_error(st.qp, res.u, st.solution.u) <= 1e-8
+    assert res.stats["n_stick"] == with_cg.stats["n_stick"] == np.count_nonzero(
+        st.solution.stick)
+    assert with_cg.iterations <= 0.75 * without.iterations, (with_cg.iterations,
+                                                             without.iterations)
+
+
+@pytest.mark.parametrize("ratio", [0.3, 0.7])
+def test_the_certified_bound_of_a_tresca_answer_is_near_its_error(ratio):
+    """The slipping rows' multipliers are ``s_i sign(slip_i)``, so the certificate at the
+    stop weighs the iterate's error in second order: at tol 1e-6 (level 2's tangential
+    step) the certified bound is at least the true energy error against the exact answer
+    and at most twice it (measured: 1.1-1.4 times; with the clipped residual as the
+    multipliers, over ten times)."""
+    st = path_for_ratio(_frictional(2), ratio)[-1]
+    res = _tnnmg(st.qp, tol=1e-6)
+    fr = st.qp.friction
+    slip = fr.slip(res.u)
+    slipping = (fr.slip_bound > 0) & (np.abs(slip) > 1e-8 * np.abs(slip).max())
+    assert slipping.any()
+    np.testing.assert_array_equal(res.tangential[slipping],
+                                  fr.slip_bound[slipping] * np.sign(slip[slipping]))
+    err = energy_error(st.qp, res.u, st.solution.u)
+    bound = certify(st.qp, res.u, res.p, None, lam=res.tangential).relative_energy_bound
+    assert 1e-9 < err <= bound <= min(2.0 * err, 1e-6), (err, bound)
 
 
 def test_mu_zero_is_the_frictionless_answer():
