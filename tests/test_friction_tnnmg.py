@@ -2,6 +2,7 @@
 block's nonsmooth minimiser is exact, and the solver's answers satisfy the friction KKT
 conditions and agree with the exact reference (:func:`solvers.tresca.tresca_exact`) on
 circle_square; its frictionless path is the one it was."""
+import functools
 from dataclasses import replace
 
 import numpy as np
@@ -23,6 +24,13 @@ SCENE = problems()["circle_square"]
 
 def _frictional(level, **kw):
     return SCENE.make(level, **{"friction": "tresca", "mu": 0.5, "shift": 0.01, **kw})
+
+
+@functools.lru_cache(maxsize=None)
+def _exact_path(level, ratio):
+    """The exact path at ``Q/(mu P) = ratio`` (its steps and answers), built once per
+    module: several tests read level 2's."""
+    return tuple(path_for_ratio(_frictional(level), ratio))
 
 
 def _tnnmg(qp, tol=1e-10, **opts):
@@ -175,7 +183,7 @@ def _agrees_with_the_exact_reference(level, ratio):
     bound, then the tangential one): friction KKT <= 1e-10 and the energy-norm distance to
     the exact answer <= 1e-8; the tangential step has stick and slip rows, and TNNMG's
     stick rows (slip exactly zero) are as many as the exact ones."""
-    for st in path_for_ratio(_frictional(level), ratio):
+    for st in _exact_path(level, ratio):
         step_qp, exact = st.qp, st.solution
         res = _tnnmg(step_qp)
         kkt = friction_residuals(step_qp, res.u, res.p, res.tangential)
@@ -205,7 +213,7 @@ def test_cg_on_a_tresca_face_keeps_the_answer_and_saves_steps(ratio):
     CG steps, its energy never rises, and its answer is the exact one as TNNMG steps alone
     give it (``krylov="none"``: no CG step); it needs at most 3/4 of their steps (measured:
     13 and 14 against 21 and 20)."""
-    st = path_for_ratio(_frictional(2), ratio)[-1]
+    st = _exact_path(2, ratio)[-1]
     with_cg, without = _tnnmg(st.qp), _tnnmg(st.qp, krylov="none")
     assert with_cg.stats["n_cg"] > 0 and "cg" in with_cg.history["phase"]
     assert without.stats["n_cg"] == 0 and set(without.history["phase"]) == {"tnnmg"}
@@ -227,7 +235,7 @@ def test_the_certified_bound_of_a_tresca_answer_is_near_its_error(ratio):
     step) the certified bound is at least the true energy error against the exact answer
     and at most twice it (measured: 1.1-1.4 times; with the clipped residual as the
     multipliers, over ten times)."""
-    st = path_for_ratio(_frictional(2), ratio)[-1]
+    st = _exact_path(2, ratio)[-1]
     res = _tnnmg(st.qp, tol=1e-6)
     fr = st.qp.friction
     slip = fr.slip(res.u)
