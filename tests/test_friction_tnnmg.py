@@ -228,6 +228,42 @@ def test_cg_on_a_tresca_face_keeps_the_answer_and_saves_steps(ratio):
                                                              without.iterations)
 
 
+def test_a_face_cg_step_stops_at_a_kink_and_writes_it_exactly():
+    """A CG step on a 2D Tresca face does not carry a slipping row past its kink: at the
+    exact answer of level 1's tangential step, one sticking row moved off its centre by
+    ``eps`` slips on the face; along the direction back to it (the preconditioner replaced
+    by that direction) the face's quadratic would step past the centre, so the step is cut
+    there (length ``eps``), the row is written at its centre exactly, the face is left, and
+    the energy falls."""
+    st = _exact_path(1, 0.7)[-1]
+    fine = tnnmg._fine_system(st.qp, tresca=True)
+    box, term = fine.box, fine.tresca
+    v = box.to_v(st.solution.u)
+    j = int(np.flatnonzero(st.solution.stick)[0])
+    eps = 1e-3 * np.abs(term.centre).max()
+    v[term.pivot] = np.where(st.solution.stick, term.centre, v[term.pivot])
+    v[term.pivot[j]] = term.centre[j] + eps
+    face = tnnmg._TrescaFace.of(fine, v)
+    assert face.sign[j] == 1
+    E = np.concatenate([box.pivot[face.active],
+                        term.pivot[(face.sign == 0) & (term.weight > 0)]])
+    back = np.zeros(st.qp.n)
+    back[term.pivot[j]] = -1.0
+
+    class Direction:                 # the preconditioner, replaced by the direction back
+        def vcycle(self, g, sweeps=None):
+            return back.copy()
+    r = fine.f - fine.matvec(v)
+    cg = tnnmg._TrescaFaceCG(E, sweeps=2, face=face)
+    v2, r2, alpha, leave = cg.step(fine, Direction(), v, r, box.pivot, box.upper, face.active)
+    assert cg.rz / float(back @ fine.matvec(back)) > 1.5 * eps     # uncut: past the kink
+    assert leave and alpha == pytest.approx(eps, rel=1e-12)
+    assert v2[term.pivot[j]] == term.centre[j]
+    assert tnnmg._tresca_energy(fine, v2, r2) < tnnmg._tresca_energy(fine, v, r)
+    np.testing.assert_allclose(r2, fine.f - fine.matvec(v2), rtol=0,
+                               atol=1e-12 * np.abs(fine.f).max())
+
+
 @pytest.mark.parametrize("ratio", [0.3, 0.7])
 def test_the_certified_bound_of_a_tresca_answer_is_near_its_error(ratio):
     """The slipping rows' multipliers are ``s_i sign(slip_i)``, so the certificate at the
