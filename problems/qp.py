@@ -417,6 +417,11 @@ class SharedWork:
         ``{frictional: DualOperators}`` (:func:`solvers.tresca.dual_operators`): ``A``
         factorised and the dense dual Hessian, shared by the steps of a load path (with
         and without the tangential rows).
+    contact_schur : dict
+        ``{factorization: ContactSchur}`` (:func:`solvers.semismooth_newton.contact_schur`):
+        ``A`` factorised and the dense Schur complement of the normal and tangential rows,
+        shared by the Tresca solves of a load path (at cube-sphere level 3 forming it
+        costs minutes).
     """
 
     floating_modes: dict = field(default_factory=dict)
@@ -424,6 +429,7 @@ class SharedWork:
     linear_solver: Callable | None = None
     certificate: tuple | None = None
     dual_operators: dict = field(default_factory=dict)
+    contact_schur: dict = field(default_factory=dict)
 
 
 @dataclass

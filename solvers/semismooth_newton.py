@@ -43,10 +43,11 @@ instead, and ``patience=0`` runs the monotone method from the start.
 It stops when the suite's verification passes (KKT residuals and the certified
 energy bound, :func:`solvers.interface.verify`), so its claims are never refuted.
 
-Friction (2D, a ContactQP with ``qp.friction``; :func:`solve_friction`): the primal-dual
-active set method of Hüeber, Stadler and Wohlmuth (SIAM J. Sci. Comput. 30, 2008) with
-the normal active set, the sticking rows (``slip = 0``) and the slipping rows
-(``lam = s sign``) as its sets. Each step is solved exactly: ``A`` factorised once and
+Friction (2D or 3D, a ContactQP with ``qp.friction``; :func:`solve_friction`): the
+primal-dual active set method of Hüeber, Stadler and Wohlmuth (SIAM J. Sci. Comput. 30,
+2008) with the normal active set, the sticking nodes (``slip = 0``) and the slipping
+nodes (2D: ``lam = s sign``; 3D: the linearised complementarity function
+``max(s, |lam + c slip|) lam - s (lam + c slip) = 0``) as its sets. Each step is solved exactly: ``A`` factorised once and
 the dense Schur complement of the normal and tangential rows, as the ``schur`` route of
 :mod:`solvers.pdas` (the inner options ``ahat``, ``inner``, ``face``, ``forcing``,
 ``tighten``, ``patience`` and ``fallback`` do not apply). It takes one Tresca step, the
@@ -438,7 +439,7 @@ def _monotone(run: _Run, u: np.ndarray, active: np.ndarray, budget: int,
 
 
 # ---------------------------------------------------------------------------------------
-# Friction: the primal-dual active set method of Hüeber, Stadler and Wohlmuth (2D)
+# Friction: the primal-dual active set method of Hüeber, Stadler and Wohlmuth (2D, 3D)
 # ---------------------------------------------------------------------------------------
 
 #: Tangential state of a row whose tangential multiplier is free (stick: ``slip = 0``);
@@ -448,25 +449,31 @@ STICK = 2
 #: Iterative refinement steps after each solve with the factorised ``A``.
 FRICTION_REFINE = 3
 
+#: 3D: the friction KKT residual at which the Newton steps on fixed sets stop; they also
+#: stop after :data:`FRICTION_STALL` such steps in a row that do not halve the best
+#: residual on these sets (round-off). 2D ends on the fixed sets themselves.
+FRICTION_ROUNDOFF = 1e-14
+FRICTION_STALL = 3
+
 #: Largest number of constrained rows of a frictional solve: the Schur complement of the
-#: ``2 m`` normal and tangential rows is dense.
+#: ``dim * m`` normal and tangential rows is dense.
 FRICTION_MAX_M = 2500
 
 
 def supports(qp: ContactQP) -> tuple[bool, str]:
-    """Every frictionless problem; a frictional one in 2D with nodal rows and at most
+    """Every frictionless problem; a frictional one with nodal rows (2D or 3D) and at most
     :data:`FRICTION_MAX_M` of them (the dense Schur complement of the friction branch)."""
     fr = qp.friction
     if fr is None:
         return True, ""
     if qp.C is not None or qp.stabilisation is not None:
         return False, "friction is solved for nodal rows only (no reverse or stabilised rows)"
-    if fr.T.shape[0] != qp.m:
-        return False, (f"friction is solved in 2D (one tangential row per constrained row); "
-                       f"this problem has {fr.T.shape[0]} tangential rows for {qp.m}")
+    if fr.T.shape[0] != qp.m * (qp.dim - 1):
+        return False, (f"friction is solved with dim - 1 tangential rows per constrained "
+                       f"row; this problem has {fr.T.shape[0]} tangential rows for {qp.m}")
     if qp.m > FRICTION_MAX_M:
         return False, (f"{qp.m} constrained rows: the friction branch forms the dense Schur "
-                       f"complement of 2 m rows, for at most {FRICTION_MAX_M} rows")
+                       f"complement of dim * m rows, for at most {FRICTION_MAX_M} rows")
     return True, ""
 
 
@@ -480,8 +487,9 @@ class ContactSchur:
     ----------
     chol : solvers.cholesky.Cholesky
     A : sparse
-    G : (2m, n) sparse
-    S : (2m, 2m) array
+    G : ((1 + k) m, n) sparse
+        ``k = dim - 1`` tangential rows per constrained node.
+    S : ((1 + k) m, (1 + k) m) array
     """
 
     chol: object
@@ -498,7 +506,11 @@ class ContactSchur:
 
 
 def contact_schur(qp: ContactQP, factorization: str = "auto") -> ContactSchur:
-    """:class:`ContactSchur` of the frictional ``qp``."""
+    """:class:`ContactSchur` of the frictional ``qp``, computed once per problem and kept
+    in ``qp.cache.contact_schur`` (the steps of a load path share ``A``, ``B`` and ``T``)."""
+    kept = qp.cache.contact_schur.get(factorization)
+    if kept is not None:
+        return kept
     G = sp.vstack([qp.B, qp.friction.T]).tocsr()
     chol = factorize(qp.A, factorization, components=G.indices)
     k = G.shape[0]
@@ -507,7 +519,9 @@ def contact_schur(qp: ContactQP, factorization: str = "auto") -> ContactSchur:
     for start in range(0, k, SCHUR_BLOCK):
         cols = Gt[:, start:start + SCHUR_BLOCK]
         S[:, start:start + cols.shape[1]] = G @ chol.solve(cols, partial=True)
-    return ContactSchur(chol, sp.csr_matrix(qp.A), G, 0.5 * (S + S.T))
+    ops = ContactSchur(chol, sp.csr_matrix(qp.A), G, 0.5 * (S + S.T))
+    qp.cache.contact_schur[factorization] = ops
+    return ops
 
 
 def tangential_update(state: np.ndarray, v: np.ndarray, bound: np.ndarray,
@@ -520,6 +534,9 @@ def tangential_update(state: np.ndarray, v: np.ndarray, bound: np.ndarray,
     while ``|v_i| <= s_i + eps``, a slipping one keeps its sign while
     ``sign_i v_i >= s_i - eps``, so that a row on the stick/slip boundary (a weakly
     slipping node) cannot flip forever on rounding.
+
+    3D: called with the per-node norm ``|v_i|`` (:meth:`problems.qp.Friction.magnitude`)
+    as ``v``; a slipping node is then ``+1``.
     """
     new = np.where(np.abs(v) <= bound, STICK, np.sign(v)).astype(int)
     new = np.where((state == STICK) & (np.abs(v) <= bound + eps), STICK, new)
@@ -600,26 +617,88 @@ def _friction_step(ops: ContactSchur, rhs: np.ndarray, h: np.ndarray, m: int,
     return y, 0
 
 
+def _friction_step_discs(ops: ContactSchur, rhs: np.ndarray, m: int, normal: np.ndarray,
+                         state: np.ndarray, s: np.ndarray, lam: np.ndarray, v: np.ndarray,
+                         c: float, mu: float | None) -> np.ndarray:
+    """The 3D Newton step of the sets (Hüeber, Stadler and Wohlmuth 2008): ``y = (p, lam)``
+    with ``B_i u = g_i`` on the normal active rows (``p_i = 0`` off them), ``slip_i = 0``
+    on the sticking nodes, ``lam_i = 0`` where no friction force acts, and on the slipping
+    nodes the linearisation at ``(lam, v = lam + c slip)`` of the complementarity function
+
+        C_i = max(s_i, |v_i|) lam_i - s_i v_i = 0,
+
+    whose generalised derivative where ``|v_i| > s_i`` gives, with ``n_i = v_i / |v_i|``
+    and ``lam_i`` replaced by its projection ``l_i = s_i lam_i / max(s_i, |lam_i|)`` onto
+    the disc (their globalising modification)::
+
+        ((|v_i| - s_i) I + l_i n_i') lam_i+ + c (l_i n_i' - s_i I) slip_i+ = |v_i| l_i.
+
+    ``u = A^-1 (f - G'y)`` is eliminated (``slip+ = rhs_T - (S y+)_T``, ``rhs = G A^-1 f
+    - h``), leaving the rows' block of ``S`` with the slipping nodes' rows replaced: one
+    dense LU (the block is not symmetric). Coulomb (``mu``; ``s = mu p`` of the iterate):
+    ``s_i`` varies with ``p_i``, adding ``-mu v_i p_i+`` on the left and ``-s_i v_i`` on
+    the right.
+    """
+    k = lam.size // m
+    nodes_rows = lambda nodes: (m + k * nodes[:, None] + np.arange(k)).ravel()
+    J_p = np.flatnonzero(normal)
+    stick, slip = np.flatnonzero(state == STICK), np.flatnonzero(state == 1)
+    rows = np.concatenate([J_p, nodes_rows(stick), nodes_rows(slip)])
+    y = np.zeros(m + lam.size)
+    if not rows.size:
+        return y
+    K, b = ops.S[np.ix_(rows, rows)].copy(), rhs[rows].copy()
+    first = J_p.size + k * stick.size
+    V, s_q = v.reshape(m, k)[slip], s[slip]
+    size = np.sqrt(np.sum(V * V, axis=1))
+    n = V / np.maximum(size, 1e-300)[:, None]
+    held = lam.reshape(m, k)[slip]
+    held_size = np.sqrt(np.sum(held * held, axis=1))
+    l = held * (s_q / np.maximum(np.maximum(s_q, held_size), 1e-300))[:, None]
+    outer = l[:, :, None] * n[:, None, :]
+    eye = np.eye(k)[None]
+    M = (size - s_q)[:, None, None] * eye + outer
+    N = outer - s_q[:, None, None] * eye
+    block = -c * np.einsum("qij,qjr->qir", N, K[first:].reshape(slip.size, k, rows.size))
+    right = size[:, None] * l - c * np.einsum("qij,qj->qi", N, b[first:].reshape(slip.size, k))
+    for q in range(slip.size):
+        block[q, :, first + k * q:first + k * (q + 1)] += M[q]
+    if mu is not None:
+        block[np.arange(slip.size), :, np.searchsorted(J_p, slip)] -= mu * V
+        right -= s_q[:, None] * V
+    K[first:], b[first:] = block.reshape(-1, rows.size), right.ravel()
+    try:
+        y[rows] = sla.lu_solve(sla.lu_factor(K, check_finite=True), b)
+    except (sla.LinAlgError, ValueError) as err:
+        raise RuntimeError(f"singular 3D friction step system: {err}") from None
+    return y
+
+
 def solve_friction(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
                    u0: np.ndarray | None, p0: np.ndarray | None,
                    opts: Options) -> SolveResult:
-    """A 2D Tresca step (or, with ``coulomb="monolithic"``, a Coulomb step) by the
+    """A Tresca step (or, with ``coulomb="monolithic"``, a Coulomb step) by the
     primal-dual active set method of Hüeber, Stadler and Wohlmuth (SIAM J. Sci. Comput.
     30, 2008; in 2D Kunisch and Stadler, M2AN 39, 2005, where it is the semismooth
     Newton method of the max/sign formulation).
 
     The sets, from ``(u, p, lam)`` and ``c`` (relative to the stiffness scale):
     normal active ``N = {p_i + c (B_i u - g_i) > 0}`` (:func:`solvers.active_set.pdas_update`);
-    stick ``{|lam_i + c slip_i| <= s_i}``, slip elsewhere (:func:`tangential_update`).
-    Each step solves the sets' linear system exactly (:func:`_friction_step`: ``A``
-    factorised once, the dense Schur complement of the normal and tangential rows,
-    :func:`contact_schur`). It stops when the sets repeat; the answer is then exact to
-    round-off and judged by :func:`problems.kkt.friction_residuals`.
+    stick ``{|lam_i + c slip_i| <= s_i}`` (3D: the norm of the node's 2-vector), slip
+    elsewhere (:func:`tangential_update`). Each step solves the sets' linear system
+    exactly (2D :func:`_friction_step`, 3D :func:`_friction_step_discs`: ``A`` factorised
+    once, the dense Schur complement of the normal and tangential rows,
+    :func:`contact_schur`). 2D: it stops when the sets repeat; the answer is then exact to
+    round-off. 3D: the slipping nodes' condition is not linear (the disc's edge is
+    curved), so on repeated sets the Newton steps go on until the friction KKT residual is
+    at :data:`FRICTION_ROUNDOFF` or stalls (:data:`FRICTION_STALL`). The answer is judged by
+    :func:`problems.kkt.friction_residuals`.
 
     Tresca: ``s = qp.friction.slip_bound``. Coulomb, monolithic (the quasi-variational
     inequality, ``s = mu p`` of the iterate): the stick/slip sets use the bound
     ``mu (p_i + c (B_i u - g_i))_+`` on the normal active rows and the slipping rows
-    carry ``lam_i = mu sign_i p_i`` in the step. Its convergence is shown for small
+    carry ``lam_i = mu sign_i p_i`` in the step (3D: the linearisation in ``p_i`` too,
+    :func:`_friction_step_discs`). Its convergence is shown for small
     ``mu`` only; a run that does not converge says so.
 
     A set pair that recurs is damped: only the ``k`` largest changes apply (``k`` halved
@@ -646,7 +725,8 @@ def solve_friction(qp: ContactQP, tol: float, max_iter: int, time_limit: float |
     t_solve = time.perf_counter()
     u = np.zeros(qp.n) if u0 is None else np.array(u0, dtype=float)
     p = np.zeros(m) if p0 is None else np.maximum(np.asarray(p0, dtype=float), 0.0)
-    lam = np.zeros(m)
+    discs = fr.components > 1
+    lam = np.zeros(fr.T.shape[0])
     normal = initial_active_set(qp, u0, p0, c_eff)
 
     def bound_of(normal, u, p):
@@ -659,19 +739,26 @@ def solve_friction(qp: ContactQP, tol: float, max_iter: int, time_limit: float |
         v = lam + c_slip * (fr.T @ u - r)
         eps = opts.flip_tol * max(float(np.max(np.abs(v), initial=0.0)),
                                   float(np.max(s_hat, initial=0.0)), 1e-300)
-        return tangential_update(state, v, s_hat, eps), v, s_hat
+        return tangential_update(state, fr.magnitude(v) if discs else v, s_hat, eps), v, s_hat
 
-    state, _, _ = sets_of(np.zeros(m, dtype=int), normal, u, p, lam)
+    state, v, s_hat = sets_of(np.zeros(m, dtype=int), normal, u, p, lam)
     history = {"n_active": [], "n_stick": [], "n_slip": [], "kkt_max": [], "time": []}
     seen = {normal.tobytes() + state.tobytes()}
     limit: int | None = None
     best = None
     status, message = "max_iter", f"the sets did not repeat within {max_iter} steps"
     n_dependent, k = 0, 0
+    fixed_best, stalled = np.inf, 0                  # 3D: the Newton steps on fixed sets
     law = "Coulomb (monolithic)" if monolithic else "Tresca"
     for k in range(1, max_iter + 1):
         try:
-            y, n_dependent = _friction_step(ops, rhs, h, m, normal, state, fr.slip_bound, mu)
+            if discs:
+                y = _friction_step_discs(ops, rhs, m, normal, state,
+                                         fr.slip_bound if mu is None else s_hat, lam, v,
+                                         c_slip, mu)
+            else:
+                y, n_dependent = _friction_step(ops, rhs, h, m, normal, state, fr.slip_bound,
+                                                mu)
         except InfeasibleError as err:
             status, message = "failed", f"{law} step {k}: {err}"
             break
@@ -693,32 +780,41 @@ def solve_friction(qp: ContactQP, tol: float, max_iter: int, time_limit: float |
         new_normal, new_state = proposed_normal, proposed_state
         if limit is not None:
             new_normal, new_state = _damped_sets(qp, (normal, state), (proposed_normal,
-                                                 proposed_state), u, p, v, s_hat, limit, mu)
+                                                 proposed_state), u, p, fr.magnitude(v),
+                                                 s_hat, limit, mu)
         if np.array_equal(new_normal, normal) and np.array_equal(new_state, state):
-            if kkt <= tol:
-                status, message = "converged", (f"{law}: sets fixed after {k} steps, friction "
-                                                f"KKT max {kkt:.1e}")
-            else:
-                status, message = "inaccurate", (f"{law}: sets fixed after {k} steps but "
-                                                 f"friction KKT max {kkt:.1e} > tol {tol:.0e}")
-            break
-        key = new_normal.tobytes() + new_state.tobytes()
-        if key in seen:                                     # cycling: damp the updates
-            if limit == 1:
-                kkt, u, p, lam, normal, state = best
-                status = "converged" if kkt <= tol else "failed"
-                message = (f"{law}: the sets cycle under single changes at step {k}; best "
-                           f"step has friction KKT max {kkt:.1e}")
+            stalled = stalled + 1 if kkt > 0.5 * fixed_best else 0
+            fixed_best = min(fixed_best, kkt)
+            if not discs or kkt <= FRICTION_ROUNDOFF or stalled >= FRICTION_STALL:
+                if kkt <= tol:
+                    status, message = "converged", (f"{law}: sets fixed after {k} steps, "
+                                                    f"friction KKT max {kkt:.1e}")
+                else:
+                    status, message = "inaccurate", (f"{law}: sets fixed after {k} steps but "
+                                                     f"friction KKT max {kkt:.1e} > tol "
+                                                     f"{tol:.0e}")
                 break
-            n_changes = int(np.count_nonzero(proposed_normal != normal)
-                            + np.count_nonzero(proposed_state != state))
-            limit = max(1, n_changes // 2) if limit is None else max(1, limit // 2)
-            seen = set()
-            new_normal, new_state = _damped_sets(qp, (normal, state), (proposed_normal,
-                                                 proposed_state), u, p, v, s_hat, limit, mu)
+            # 3D: the same sets, the Newton steps go on to round-off
+        else:
+            fixed_best, stalled = np.inf, 0
             key = new_normal.tobytes() + new_state.tobytes()
-        seen.add(key)
-        normal, state = new_normal, new_state
+            if key in seen:                                     # cycling: damp the updates
+                if limit == 1:
+                    kkt, u, p, lam, normal, state = best
+                    status = "converged" if kkt <= tol else "failed"
+                    message = (f"{law}: the sets cycle under single changes at step {k}; best "
+                               f"step has friction KKT max {kkt:.1e}")
+                    break
+                n_changes = int(np.count_nonzero(proposed_normal != normal)
+                                + np.count_nonzero(proposed_state != state))
+                limit = max(1, n_changes // 2) if limit is None else max(1, limit // 2)
+                seen = set()
+                new_normal, new_state = _damped_sets(qp, (normal, state), (proposed_normal,
+                                                     proposed_state), u, p, fr.magnitude(v),
+                                                     s_hat, limit, mu)
+                key = new_normal.tobytes() + new_state.tobytes()
+            seen.add(key)
+            normal, state = new_normal, new_state
         if time_limit is not None and time.perf_counter() - t_start > time_limit:
             status, message = "time_limit", f"time limit {time_limit:g} s reached at step {k}"
             break

@@ -1,21 +1,30 @@
-"""Friction: the exact reference of a 2D Tresca step, the load path and Coulomb's fixed point.
+"""Friction: the exact reference of a Tresca step, the load path and Coulomb's fixed point.
 
 One Tresca step (:class:`problems.qp.Friction`)::
 
     minimise 1/2 u'Au - f'u + sum_i s_i |T_i u - r_i|   subject to   B u <= g,
 
-``r = previous - offset`` (the slip is measured from the previous state). Splitting the
-slip into two nonnegative parts, ``T_i u - r_i = a_i - b_i`` with ``a, b >= 0``, makes it
-a QP whose dual is the box-constrained problem in ``y = (p, lam)``::
+``r = previous - offset`` (the slip is measured from the previous state; in 3D ``T_i``
+has two rows and ``|.|`` is the Euclidean norm). Its dual is a problem in
+``y = (p, lam)``::
 
-    minimise 1/2 y'Sy - y'(G A^-1 f - h)   subject to   p >= 0,  -s <= lam <= s,
+    minimise 1/2 y'Sy - y'(G A^-1 f - h)   subject to   p >= 0,  |lam_i| <= s_i,
 
-``G = [B; T]``, ``S = G A^-1 G'``, ``h = (g, r)``; the slip parts are the multipliers of
-the two bounds on ``lam``, and ``u = A^-1 (f - G'y)``. :func:`tresca_exact` factorises
-``A`` once, forms ``S`` densely (``2 m`` columns: the reference is for small surfaces)
-and solves the box problem by a primal active-set method, which ends after finitely many
-steps on the exact active sets; the answer is then exact to round-off, and
-:func:`problems.kkt.friction_residuals` verifies it.
+``G = [B; T]``, ``S = G A^-1 G'``, ``h = (g, r)``, and ``u = A^-1 (f - G'y)``.
+:func:`tresca_exact` factorises ``A`` once and forms ``S`` densely (``(1 + k) m``
+columns for ``k`` tangential rows per node: the reference is for small surfaces).
+
+* 2D: ``|lam_i| <= s_i`` is a box. Splitting the slip into two nonnegative parts,
+  ``T_i u - r_i = a_i - b_i`` with ``a, b >= 0``, makes the step a QP whose dual is this
+  box problem (the slip parts are the multipliers of the two bounds on ``lam``); a primal
+  active-set method (:func:`box_qp_active_set`) ends after finitely many steps on the
+  exact active sets.
+* 3D: ``|lam_i| <= s_i`` is a disc. A semismooth Newton method on the projection
+  equation ``y = P_K(y - rho (S y - c))`` (:func:`disc_qp_newton`), globalised by the dual
+  objective, is driven to round-off on fixed sets.
+
+The answer is then exact to round-off, and :func:`problems.kkt.friction_residuals`
+verifies it.
 
 :func:`friction_path` runs a scene's load path (normal load, then the tangential step,
 each step's slip measured from the previous step's state); for Coulomb friction each step
@@ -27,6 +36,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field, replace
 
 import numpy as np
+import scipy.linalg as sla
 import scipy.sparse as sp
 
 from problems.kkt import FrictionResiduals, friction_residuals, kkt_residuals
@@ -35,8 +45,20 @@ from problems.spec import ParameterError
 from solvers.base import SolveResult
 from solvers.cholesky import factorize
 
-#: Largest constrained surface (rows) :func:`tresca_exact` takes: ``S`` is dense, ``2m`` square.
+#: Largest constrained surface (rows) :func:`tresca_exact` takes: ``S`` is dense,
+#: ``(1 + k) m`` square for ``k`` tangential rows per node.
 TRESCA_EXACT_MAX_M = 2000
+
+#: Largest ``A^-1 G'`` (entries, ``n`` times the dual unknowns) :func:`dual_operators`
+#: forms densely: 3.2 GB, and as much again for ``G'`` while it is solved for (cube_sphere
+#: level 2 with friction: 4.8e7 entries; level 3: 1.4e9, beyond it).
+TRESCA_EXACT_MAX_ENTRIES = 4 * 10**8
+
+
+def dense_dual_size(qp: ContactQP) -> int:
+    """Entries of the dense ``A^-1 G'`` of ``qp`` (:func:`dual_operators`)."""
+    fr = qp.friction
+    return qp.n * (qp.m + (0 if fr is None else fr.T.shape[0]))
 
 
 @dataclass
@@ -59,8 +81,12 @@ class TrescaSolution:
     kkt : FrictionResiduals
         (:class:`problems.kkt.KKTResiduals` on a frictionless problem)
     active : (2m,) int array
-        The dual active set of ``(p, lam)``: ``-1`` at the lower bound, ``+1`` at the upper,
-        ``0`` free (a warm start for a neighbouring problem).
+        2D: the dual active set of ``(p, lam)``: ``-1`` at the lower bound, ``+1`` at the
+        upper, ``0`` free (a warm start for a neighbouring problem). 3D: ``(2m,)``, ``-1``
+        where ``p_i = 0`` is held and ``0`` where ``p_i`` is free, then the node's disc
+        (:data:`DISC_ZERO`, :data:`DISC_INSIDE`, :data:`DISC_EDGE`).
+    dual : array
+        The dual point ``y = (p, lam)`` (3D: a warm start for a neighbouring problem).
     """
 
     u: np.ndarray
@@ -71,6 +97,7 @@ class TrescaSolution:
     iterations: int
     kkt: FrictionResiduals
     active: np.ndarray | None = None
+    dual: np.ndarray | None = None
 
 
 def box_qp_active_set(S: np.ndarray, c: np.ndarray, lo: np.ndarray, hi: np.ndarray,
@@ -131,6 +158,135 @@ def box_qp_active_set(S: np.ndarray, c: np.ndarray, lo: np.ndarray, hi: np.ndarr
     return y, at, max_iter, False
 
 
+def project_dual(z: np.ndarray, m: int, bound: np.ndarray) -> np.ndarray:
+    """``P_K(z)`` onto ``K = {p >= 0, |lam_i| <= s_i}`` of a 3D Tresca step's dual,
+    ``z = (p, lam)`` with ``lam`` node-major in blocks of ``k``: ``p`` clipped at zero,
+    each ``lam_i`` moved radially onto its disc (onto ``0`` where ``s_i = 0``)."""
+    lam = z[m:].reshape(len(bound), -1)
+    norm = np.sqrt(np.sum(lam * lam, axis=1))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        scale = np.where(norm > bound, bound / norm, 1.0)
+    return np.concatenate([np.maximum(z[:m], 0.0), (lam * scale[:, None]).ravel()])
+
+
+#: Dual sets of :func:`disc_qp_newton` per constrained node: the disc of ``lam_i`` is
+#: ``DISC_ZERO`` (``s_i = 0``: ``lam_i = 0``), ``DISC_INSIDE`` (free: ``lam_i`` strictly
+#: inside, the node sticks) or ``DISC_EDGE`` (on the circle ``|lam_i| = s_i``: it slips).
+DISC_ZERO, DISC_INSIDE, DISC_EDGE = 0, 1, 2
+
+#: Round-off level of the projection residual ``y - P_K(y - rho (S y - c))`` relative
+#: to the size of ``y``: below it :func:`disc_qp_newton` has nothing left to gain.
+DISC_ROUNDOFF = 1e3 * np.finfo(float).eps
+
+
+def _dual_sets(z: np.ndarray, m: int, bound: np.ndarray, before: tuple | None,
+               eps: float) -> tuple[np.ndarray, np.ndarray]:
+    """The sets of ``z = y - rho (S y - c)``: ``p_i`` free where ``z_i > 0`` and each
+    node's disc (:data:`DISC_EDGE` where ``|z_lam,i| > s_i``). Round-off hysteresis: a
+    component within ``eps`` of its boundary keeps its set of ``before``."""
+    norm = np.sqrt(np.sum(z[m:].reshape(len(bound), -1) ** 2, axis=1))
+    free = z[:m] > 0
+    disc = np.where(bound <= 0, DISC_ZERO, np.where(norm > bound, DISC_EDGE, DISC_INSIDE))
+    if before is not None:
+        free = np.where(np.abs(z[:m]) <= eps, before[0], free)
+        near = (bound > 0) & (np.abs(norm - bound) <= eps) & (before[1] != DISC_ZERO)
+        disc = np.where(near, before[1], disc)
+    return free, disc
+
+
+def _projection_jacobian(z: np.ndarray, m: int, bound: np.ndarray, sets: tuple) -> sp.csr_matrix:
+    """An element ``D`` of the generalised Jacobian of :func:`project_dual` at ``z`` on
+    the given sets: ``1``/``0`` on ``p``; per node ``I`` inside the disc, ``0`` with
+    ``s_i = 0`` and ``(s_i / |z_i|) (I - n n')``, ``n = z_i / |z_i|``, on its edge."""
+    free, disc = sets
+    lam = z[m:].reshape(len(bound), -1)
+    k = lam.shape[1]
+    norm = np.sqrt(np.sum(lam * lam, axis=1))
+    edge = disc == DISC_EDGE
+    n = np.zeros_like(lam)
+    n[edge] = lam[edge] / norm[edge, None]
+    alpha = np.where(edge, bound / np.where(edge, norm, 1.0), (disc == DISC_INSIDE) * 1.0)
+    blocks = alpha[:, None, None] * (np.eye(k)[None] - n[:, :, None] * n[:, None, :])
+    return sp.block_diag([sp.diags(free * 1.0), sp.block_diag(list(blocks))], format="csr")
+
+
+def disc_qp_newton(S: np.ndarray, c: np.ndarray, m: int, bound: np.ndarray,
+                   max_iter: int | None = None,
+                   start: np.ndarray | None = None) -> tuple[np.ndarray, tuple, int, bool]:
+    """``min 1/2 y'Sy - c'y`` s.t. ``y = (p, lam)``, ``p >= 0``, ``|lam_i| <= s_i``
+    (``lam`` node-major in blocks of ``k``, ``S`` symmetric positive definite): the dual
+    of a 3D Tresca step, by a semismooth Newton method on the projection equation
+
+        F(y) = y - P_K(y - rho (S y - c)) = 0,   rho = 1 / ||S||_inf
+
+    (:func:`project_dual`). Its Newton matrix ``I - D + rho D S`` (``D``:
+    :func:`_projection_jacobian`, block diagonal) is exact; the components with
+    ``D = 0`` are eliminated (they are set to their projection) and the rest is one
+    dense LU. Globalised on the dual objective ``theta``: the Newton point projected
+    onto ``K``, halved towards ``y`` until ``theta`` does not rise (round-off allowed),
+    and kept where it is no worse than the projected gradient step
+    ``P_K(y - rho (S y - c))`` (taken otherwise), which lowers ``theta`` since
+    ``rho <= 1 / lambda_max(S)``: ``theta`` never rises by more than round-off. It ends when the sets of
+    ``y - rho (S y - c)`` (:func:`_dual_sets`, with round-off hysteresis) are those of
+    the previous step and ``||F||_inf`` is at :data:`DISC_ROUNDOFF` of ``||y||_inf``.
+
+    ``start``: a dual point of a neighbouring problem (projected onto ``K``).
+
+    Returns
+    -------
+    y : array
+    sets : (free, disc)
+        ``free``: ``(m,)`` bool, ``p_i`` off its bound; ``disc``: ``(m,)`` int, the
+        node's :data:`DISC_ZERO`, :data:`DISC_INSIDE` or :data:`DISC_EDGE`.
+    iterations : int
+    converged : bool
+    """
+    size = len(c)
+    max_iter = 10 * len(bound) + 50 if max_iter is None else max_iter
+    rho = 1.0 / max(float(np.max(np.sum(np.abs(S), axis=1), initial=0.0)), 1e-300)
+    theta = lambda y: 0.5 * float(y @ (S @ y)) - float(c @ y)
+    y = project_dual(np.zeros(size) if start is None or np.shape(start) != (size,)
+                     else np.asarray(start, float), m, bound)
+    sets = before = None
+    for it in range(1, max_iter + 1):
+        y_old = y
+        z = y - rho * (S @ y - c)
+        gradient_step = project_dual(z, m, bound)
+        F = y - gradient_step
+        scale = max(float(np.max(np.abs(y), initial=0.0)),
+                    float(np.max(np.abs(gradient_step), initial=0.0)), 1e-300)
+        sets = _dual_sets(z, m, bound, before, DISC_ROUNDOFF * scale)
+        if (before is not None and all(np.array_equal(a, b) for a, b in zip(sets, before))
+                and float(np.max(np.abs(F), initial=0.0)) <= DISC_ROUNDOFF * scale):
+            return y, sets, it, True
+        before = sets
+        D = _projection_jacobian(z, m, bound, sets)
+        fixed = np.asarray(abs(D).sum(axis=1)).ravel() == 0      # D = 0: y_j -> P_K(z)_j
+        d = np.where(fixed, -F, 0.0)
+        rest = np.flatnonzero(~fixed)
+        if rest.size:
+            D_rr = D[rest][:, rest]
+            J = rho * (D_rr @ S[np.ix_(rest, rest)]) - D_rr.toarray()
+            J[np.diag_indices_from(J)] += 1.0
+            b = -F[rest] - rho * (D_rr @ (S[np.ix_(rest, np.flatnonzero(fixed))]
+                                          @ d[fixed]))
+            try:
+                d[rest] = sla.lu_solve(sla.lu_factor(J, check_finite=True), b)
+            except (sla.LinAlgError, ValueError):      # no Newton point: the gradient step
+                y = gradient_step
+                continue
+        value = theta(y)
+        slack = 10 * np.finfo(float).eps * (abs(value) + 1e-300)
+        y = gradient_step
+        for halvings in range(30):
+            trial = project_dual(y_old + 0.5 ** halvings * d, m, bound)
+            if theta(trial) <= value + slack:
+                if theta(trial) <= theta(gradient_step) + slack:
+                    y = trial
+                break
+    return y, sets, max_iter, False
+
+
 @dataclass
 class DualOperators:
     """What every step of one ContactQP's load path shares: ``A`` factorised,
@@ -143,7 +299,7 @@ class DualOperators:
 
 
 def dual_operators(qp: ContactQP) -> DualOperators:
-    """:class:`DualOperators` of ``qp``: frictional (2D, nodal rows; ``G = [B; T]``) or
+    """:class:`DualOperators` of ``qp``: frictional (nodal rows; ``G = [B; T]``) or
     frictionless (``G = B``, the same dual box problem without ``lam``: the exact QP
     route). Computed once per problem and kept in ``qp.cache.dual_operators`` (the steps
     of a load path share ``A``, ``B`` and ``T``).
@@ -151,8 +307,8 @@ def dual_operators(qp: ContactQP) -> DualOperators:
     Raises
     ------
     ValueError
-        With a stabilisation block ``C``, with friction on reverse rows, or beyond
-        :data:`TRESCA_EXACT_MAX_M` rows.
+        With a stabilisation block ``C``, with friction on reverse rows, beyond
+        :data:`TRESCA_EXACT_MAX_M` rows or :data:`TRESCA_EXACT_MAX_ENTRIES`.
     """
     fr = qp.friction
     if qp.C is not None or (fr is not None and qp.stabilisation is not None):
@@ -161,6 +317,10 @@ def dual_operators(qp: ContactQP) -> DualOperators:
     if qp.m > TRESCA_EXACT_MAX_M:
         raise ValueError(f"tresca_exact: {qp.m} rows is not allowed; allowed: at most "
                          f"{TRESCA_EXACT_MAX_M} (S is dense)")
+    if dense_dual_size(qp) > TRESCA_EXACT_MAX_ENTRIES:
+        raise ValueError(f"tresca_exact: A^-1 G' of {dense_dual_size(qp):.2e} entries is not "
+                         f"allowed; allowed: at most {TRESCA_EXACT_MAX_ENTRIES:.0e} (it is "
+                         f"dense)")
     kept = qp.cache.dual_operators.get(fr is not None)
     if kept is not None:
         return kept
@@ -175,14 +335,20 @@ def dual_operators(qp: ContactQP) -> DualOperators:
 
 def tresca_exact(qp: ContactQP, ops: DualOperators | None = None,
                  start: np.ndarray | None = None,
-                 max_iter: int | None = None) -> TrescaSolution:
-    """The exact solution of the Tresca step ``qp`` (module docstring; 2D, nodal rows).
+                 max_iter: int | None = None,
+                 dual_start: np.ndarray | None = None) -> TrescaSolution:
+    """The exact solution of the Tresca step ``qp`` (module docstring; nodal rows).
+
+    2D: the dual box problem by the primal active-set method (:func:`box_qp_active_set`).
+    3D (two tangential rows per node, ``|lam_i| <= s_i`` a disc): the dual by the
+    semismooth Newton method :func:`disc_qp_newton`, driven to round-off on fixed sets.
 
     ``ops``: :func:`dual_operators` of a ContactQP with the same ``A``, ``B`` and ``T``
-    (the other steps of its load path), computed here if not given. ``start``: the dual
-    active set of a neighbouring problem (:attr:`TrescaSolution.active`), a warm start.
-    ``max_iter``: the active-set method's cap (default ``10 k + 50`` for ``k`` dual
-    unknowns). Without friction (``qp.friction`` None) the same route solves the
+    (the other steps of its load path), computed here if not given. ``start`` (2D): the
+    dual active set of a neighbouring problem (:attr:`TrescaSolution.active`), a warm
+    start; ``dual_start`` (3D): its dual point (:attr:`TrescaSolution.dual`).
+    ``max_iter``: the cap on the active-set steps (default ``10 k + 50`` for ``k`` dual
+    unknowns) or the Newton steps (default ``10 m + 50``). Without friction (``qp.friction`` None) the same route solves the
     frictionless QP (``y = p``; ``lam`` empty, the residuals :func:`kkt_residuals`).
     """
     fr = qp.friction
@@ -196,18 +362,26 @@ def tresca_exact(qp: ContactQP, ops: DualOperators | None = None,
         h = np.concatenate([qp.g, fr.previous - fr.offset])
         lo = np.concatenate([np.zeros(m), -fr.slip_bound])
         hi = np.concatenate([np.full(m, np.inf), fr.slip_bound])
-    y, at, iterations, ok = box_qp_active_set(ops.S, G @ Ainv_f - h, lo, hi,
-                                              max_iter=max_iter, start=start)
+    if fr is not None and fr.components > 1:
+        y, (free, disc), iterations, ok = disc_qp_newton(ops.S, G @ Ainv_f - h, m,
+                                                         fr.slip_bound, max_iter=max_iter,
+                                                         start=dual_start)
+        at = np.concatenate([np.where(free, 0, -1), disc])
+        stick = disc == DISC_INSIDE
+    else:
+        y, at, iterations, ok = box_qp_active_set(ops.S, G @ Ainv_f - h, lo, hi,
+                                                  max_iter=max_iter, start=start)
+        stick = None if fr is None else (fr.slip_bound > 0) & (at[m:] == 0)
     u = Ainv_f - W @ y
     p, lam = np.maximum(y[:m], 0.0), y[m:]
     if fr is None:
         return TrescaSolution(u=u, p=p, lam=lam, stick=np.zeros(0, dtype=bool),
                               status="converged" if ok else "max_iter",
-                              iterations=iterations, kkt=kkt_residuals(qp, u, p), active=at)
-    stick = (fr.slip_bound > 0) & (at[m:] == 0)
+                              iterations=iterations, kkt=kkt_residuals(qp, u, p), active=at,
+                              dual=y)
     return TrescaSolution(u=u, p=p, lam=lam, stick=stick,
                           status="converged" if ok else "max_iter", iterations=iterations,
-                          kkt=friction_residuals(qp, u, p, lam), active=at)
+                          kkt=friction_residuals(qp, u, p, lam), active=at, dual=y)
 
 
 @dataclass
@@ -457,11 +631,12 @@ def path_for_ratio(qp: ContactQP, ratio: float, rtol: float = 1e-6,
         exact = solve
     normal = friction_path(replace(qp, friction=replace(qp.friction, path=qp.friction.path[:1])),
                            exact)                  # the normal step: the same for every scale
-    warm = {"active": normal[-1].solution.active}
+    warm = {"solution": normal[-1].solution}
 
     def warm_exact(step_qp):                     # warm-started from the last scale's answer
-        sol = tresca_exact(step_qp, ops, start=warm["active"])
-        warm["active"] = sol.active
+        last = warm["solution"]
+        sol = tresca_exact(step_qp, ops, start=last.active, dual_start=last.dual)
+        warm["solution"] = sol
         return sol
 
     tangential = warm_exact if solve is None else solve
