@@ -72,16 +72,27 @@ norm, the isotropic disc) is separable by node blocks with the normal bound on
    direction goes into the correction's operator, :class:`_SlipCurvature`);
 3. the line search on the nonsmooth energy: in 2D exact over its kinks
    (:func:`_tresca_step`), in 3D a safeguarded Newton search on its nondecreasing
-   derivative to round-off (:func:`_disc_line_search`); conjugate gradients on a face
-   (step 4) are not used.
+   derivative to round-off (:func:`_disc_line_search`);
+4. in 2D, conjugate gradients on a face (option ``krylov="cg"``, :class:`_TrescaFaceCG`):
+   once a step leaves the normal active set, the stick set and the slip signs as the
+   previous one left them (:class:`_TrescaFace`), the energy is quadratic there (each
+   slipping row's ``weight_i |v_t,i - centre_i|`` is linear with its sign fixed), and CG
+   preconditioned by the truncated V-cycle (V(2,2), :data:`TRESCA_FACE_SWEEPS`) runs on it
+   until a free pivot meets its bound, a slipping row reaches its kink, or the negative
+   normal multipliers and the sticking rows' excess ``|r| - weight`` outweigh the free
+   gradient; then TNNMG steps again. In 3D each step is a TNNMG step: with slipping
+   nodes the energy on a face is not quadratic (``|z|`` of a 2-vector is curved across
+   the slip direction), so CG's conjugacy does not hold there.
 
 It stops when the suite's verification passes: the friction KKT residuals
 (:func:`problems.kkt.friction_residuals`) and the certified energy bound of the Tresca step
 (:func:`certify` with ``lam``) meet tol, with the tangential multipliers
 ``lam_i = R_i r[v_t,i] / theta_i`` from the stationarity of the tangential unknowns, in
-the disc ``|lam_i| <= s_i`` (2D: ``[-s_i, s_i]``; ``SolveResult.tangential``;
-:meth:`_TrescaTerm.multipliers`). A Coulomb problem is solved as the Tresca step of its
-given slip bound (the fixed point ``s = mu p`` over Tresca steps is the load path's).
+the disc ``|lam_i| <= s_i`` (2D: ``[-s_i, s_i]``, and ``s_i sign(slip_i)`` where the row
+slips, so that the certified bound follows the energy error closely;
+``SolveResult.tangential``; :meth:`_TrescaTerm.multipliers`). A Coulomb problem is solved
+as the Tresca step of its given slip bound (the fixed point ``s = mu p`` over Tresca steps
+is the load path's).
 """
 from __future__ import annotations
 
@@ -118,6 +129,13 @@ CHECK_FACTOR = 10.0
 #: in 3D one node-block sweep a side smooths too little for that (11 -> 13 steps per level,
 #: +18%), V(2,2) keeps it (8 -> 9) at the same time to the target.
 AUTO_SWEEPS = {2: 1, 3: 2}
+
+#: V-cycle sweeps of the preconditioner of CG on a face of a 2D Tresca step (option
+#: ``sweeps=0``): two a side, as the linear floor's V-cycle smooths (a symmetric
+#: Gauss-Seidel sweep, forward and back, before and after). Measured on circle-square
+#: level 3 (Q/(mu P) 0.7): to energy error 1e-6 CG with one a side takes 12 steps, as
+#: TNNMG steps alone do; with two, 11.
+TRESCA_FACE_SWEEPS = 2
 
 #: The projection arc's backtracking: step factor and smallest step (:func:`_step`).
 ARC_FACTOR = 0.25
@@ -223,14 +241,28 @@ class _TrescaTerm:
             return (v[self.pivot] == self.centre) & (self.weight > 0)
         return np.all(self._nodes(v[self.pivot] == self.centre), axis=1) & (self.weight > 0)
 
-    def multipliers(self, residual_v: np.ndarray, friction: Friction) -> np.ndarray:
+    def multipliers(self, residual_v: np.ndarray, friction: Friction, v: np.ndarray
+                    ) -> np.ndarray:
         """The tangential multipliers ``lam`` (``A u + B'p + T'lam = f``) from the residual
         ``f~ - A~v`` of the transformed problem: ``R_i r[pivot_i] / theta_i`` (the
         stationarity of the tangential unknowns), in the friction discs ``|lam_i| <= s_i``
         (:meth:`problems.qp.Friction.clip`; as ``p >= 0``: what is left over stays in the
-        stationarity residual)."""
+        stationarity residual).
+
+        In 2D a slipping row's multiplier is the one its slip demands, ``s_i sign(slip_i)``
+        (``sign(theta_i (v_t,i - centre_i))``): then ``lam_i slip_i = s_i |slip_i|``
+        exactly, and the iterate's error stays in the stationarity residual, which the
+        certified bound weighs by ``A^-1`` (second order), instead of in the slip
+        complementarity, which enters the duality gap linearly (:func:`certify`: with
+        the clipped residual the bound lags the energy error by two orders at energy
+        error 1e-7 on circle-square level 3). Any multiplier in ``[-s_i, s_i]`` gives a
+        certified bound."""
         if self.k == 1:
-            return friction.clip(residual_v[self.pivot] / self.theta)
+            lam = friction.clip(residual_v[self.pivot] / self.theta)
+            slip = np.sign(self.theta) * np.sign(v[self.pivot] - self.centre)
+            slipping = (slip != 0) & (self.weight > 0)
+            lam[slipping] = friction.slip_bound[slipping] * slip[slipping]
+            return lam
         lam = np.einsum("ijl,il->ij", self.frame, self._nodes(residual_v[self.pivot])) \
             / self.theta[:, None]
         return friction.clip(lam.ravel())
@@ -449,38 +481,40 @@ class _TruncatedHierarchy:
         self.A_t = [op.set(delta) for op, delta in zip(self.coarse_ops, deltas)]
         self.coarse_solve = spla.splu(sp.csc_matrix(self.A_t[-1])).solve
 
-    def vcycle(self, r: np.ndarray) -> np.ndarray:
+    def vcycle(self, r: np.ndarray, sweeps: int | None = None) -> np.ndarray:
         """One V(sweeps, sweeps)-cycle for the truncated system, zero start; ``r`` is zero
-        on the active pivots and so is the result."""
+        on the active pivots and so is the result (``sweeps``: the hierarchy's unless
+        given)."""
         if self.P is None:
             return self.coarse_solve(r)
+        sweeps = self.sweeps if sweeps is None else sweeps
         fine = self.fine
         E = self.frozen
         c = np.zeros_like(r)
-        for _ in range(self.sweeps):
+        for _ in range(sweeps):
             fine.sweep(c, r, self.mode, True)
         if self.patch_solve is not None:
             self._patch_step(c, r)
         res = r - fine.matvec(c)
         res[E] = 0.0
-        corr = self.P @ self._coarse(0, self.P.T @ res)
+        corr = self.P @ self._coarse(0, self.P.T @ res, sweeps)
         corr[E] = 0.0
         c += corr
         if self.patch_solve is not None:
             self._patch_step(c, r)
-        for _ in range(self.sweeps):
+        for _ in range(sweeps):
             fine.sweep(c, r, self.mode, False)
         return c
 
-    def _coarse(self, lvl: int, b: np.ndarray) -> np.ndarray:
+    def _coarse(self, lvl: int, b: np.ndarray, sweeps: int) -> np.ndarray:
         if lvl == len(self.A_t) - 1:
             return self.coarse_solve(b)
         A = self.A_t[lvl]
         x = np.zeros_like(b)
-        gauss_seidel(A, x, b, iterations=self.sweeps, sweep="symmetric")
-        x += self.coarse_P[-(lvl + 1)] @ self._coarse(lvl + 1,
-                                                      self.coarse_R[-(lvl + 1)] @ (b - A @ x))
-        gauss_seidel(A, x, b, iterations=self.sweeps, sweep="symmetric")
+        gauss_seidel(A, x, b, iterations=sweeps, sweep="symmetric")
+        x += self.coarse_P[-(lvl + 1)] @ self._coarse(
+            lvl + 1, self.coarse_R[-(lvl + 1)] @ (b - A @ x), sweeps)
+        gauss_seidel(A, x, b, iterations=sweeps, sweep="symmetric")
         return x
 
 
@@ -634,6 +668,23 @@ class _FaceCG:
     E: np.ndarray
     p: np.ndarray | None = None
     rz: float = 0.0
+    sweeps: int | None = None          # the preconditioner's V(sweeps, sweeps); None: the
+                                       # hierarchy's (the TNNMG steps')
+
+    def _direction(self, fine: _Fine, ml: "_TruncatedHierarchy", g: np.ndarray
+                   ) -> tuple[np.ndarray, float] | None:
+        """The next conjugate direction ``self.p`` from the face's negative gradient ``g``
+        (zero on ``E``): ``(A~ p, the step to the face's minimum along p)``, or None where
+        ``p`` is no descent direction."""
+        z = ml.vcycle(g, self.sweeps)
+        rz = float(g @ z)
+        self.p = z if self.p is None else z + (rz / self.rz) * self.p
+        self.rz = rz
+        q = fine.matvec(self.p)
+        curvature = float(self.p @ q)
+        if not (curvature > 0.0 and rz > 0.0):
+            return None
+        return q, rz / curvature
 
     def step(self, fine: _Fine, ml: "_TruncatedHierarchy", v: np.ndarray, r: np.ndarray,
              piv: np.ndarray, upper: np.ndarray, active: np.ndarray
@@ -641,15 +692,10 @@ class _FaceCG:
         """One CG step from ``v`` (residual ``r``): ``(v, r, alpha, leave)``."""
         r_t = r.copy()
         r_t[self.E] = 0.0
-        z = ml.vcycle(r_t)
-        rz = float(r_t @ z)
-        self.p = z if self.p is None else z + (rz / self.rz) * self.p
-        self.rz = rz
-        q = fine.matvec(self.p)
-        curvature = float(self.p @ q)
-        if not (curvature > 0.0 and rz > 0.0):
+        found = self._direction(fine, ml, r_t)
+        if found is None:
             return v, r, 0.0, True
-        alpha = rz / curvature
+        q, alpha = found
         d = self.p[piv]
         rising = (d > 0) & ~active
         leave = False
@@ -663,6 +709,87 @@ class _FaceCG:
         chopped = np.minimum(r[self.E], 0.0)
         free = r.copy()
         free[self.E] = 0.0
+        if float(chopped @ chopped) > float(free @ free):
+            leave = True
+        return v, r, alpha, leave
+
+
+@dataclass
+class _TrescaFace:
+    """The face of a 2D Tresca step an iterate lies on: the normal pivots at their bounds
+    (``active``) and each tangential row's slip sign (``sign``: +1, -1, or 0 where the row
+    sticks or has no slip bound). On a face the energy is quadratic: ``J~(v)`` plus
+    ``weight_i sign_i (v_t,i - centre_i)``, linear in the slipping rows."""
+
+    active: np.ndarray
+    sign: np.ndarray
+
+    @classmethod
+    def of(cls, fine: _Fine, v: np.ndarray) -> "_TrescaFace":
+        term = fine.tresca
+        sign = np.sign(v[term.pivot] - term.centre) * (term.weight > 0)
+        return cls(v[fine.box.pivot] >= fine.box.upper, sign.astype(np.int64))
+
+    def __eq__(self, other: object) -> bool:
+        return (isinstance(other, _TrescaFace) and np.array_equal(self.active, other.active)
+                and np.array_equal(self.sign, other.sign))
+
+
+@dataclass
+class _TrescaFaceCG(_FaceCG):
+    """:class:`_FaceCG` on a face of a 2D Tresca step (:class:`_TrescaFace`; ``E``: its
+    active normal pivots and sticking tangential unknowns, as the truncation holds them).
+    The face's negative gradient is ``r`` minus ``weight sign`` at the slipping rows. A
+    step is cut (expansion: the face is left) where a free normal pivot meets its bound or
+    a slipping row reaches its kink (its slip would change sign; the row is written at its
+    centre and sticks); the face is left too when the chopped gradient outweighs the free
+    one (proportioning): the negative multipliers of the active pivots and, at the
+    sticking rows, the excess of ``|r|`` over the weight (a multiplier leaving
+    ``[-s_i, s_i]``). The energy never rises; the next TNNMG step's smoother releases
+    what proportioning found.
+    """
+
+    face: _TrescaFace | None = None
+
+    def _gradient(self, fine: _Fine, r: np.ndarray) -> np.ndarray:
+        g = r.copy()
+        g[fine.tresca.pivot] -= fine.tresca.weight * self.face.sign
+        g[self.E] = 0.0
+        return g
+
+    def step(self, fine: _Fine, ml: "_TruncatedHierarchy", v: np.ndarray, r: np.ndarray,
+             piv: np.ndarray, upper: np.ndarray, active: np.ndarray
+             ) -> tuple[np.ndarray, np.ndarray, float, bool]:
+        """One CG step from ``v`` (residual ``r``): ``(v, r, alpha, leave)``."""
+        term, sign = fine.tresca, self.face.sign
+        found = self._direction(fine, ml, self._gradient(fine, r))
+        if found is None:
+            return v, r, 0.0, True
+        q, alpha = found
+        dn, dt = self.p[piv], self.p[term.pivot]
+        rising = (dn > 0) & ~self.face.active
+        toward = sign * dt < 0                  # a slipping row moving towards its kink
+        room_n = (upper[rising] - v[piv][rising]) / dn[rising]
+        room_t = (term.centre[toward] - v[term.pivot][toward]) / dt[toward]
+        room = min(float(room_n.min(initial=np.inf)), float(room_t.min(initial=np.inf)))
+        leave = room < alpha
+        if leave:
+            alpha = max(room, 0.0)
+        v = v + alpha * self.p
+        r = r - alpha * q
+        v[piv] = np.minimum(v[piv], upper)
+        if leave:                               # what the cut step reached, exactly
+            hit = np.flatnonzero(rising)[room_n <= alpha]
+            v[piv[hit]] = upper[hit]
+        # a kink reached (or passed by round-off) is written exactly: the row sticks
+        kink = np.flatnonzero((sign != 0) & (sign * (v[term.pivot] - term.centre) <= 0))
+        v[term.pivot[kink]] = term.centre[kink]
+        leave = leave or kink.size > 0
+        stick = (sign == 0) & (term.weight > 0)
+        rt = r[term.pivot[stick]]
+        chopped = np.concatenate([np.minimum(r[piv[self.face.active]], 0.0),
+                                  np.maximum(np.abs(rt) - term.weight[stick], 0.0)])
+        free = self._gradient(fine, r)
         if float(chopped @ chopped) > float(free @ free):
             leave = True
         return v, r, alpha, leave
@@ -943,6 +1070,16 @@ class _SlipCurvature:
         return sp.csr_matrix((hess.ravel(), (rows, cols)), shape=fine.C.shape)
 
 
+def _presmooth(fine: _Fine, v: np.ndarray, mode: np.ndarray, forward: bool, sweeps: int
+               ) -> bool:
+    """Step 1 (module docstring): ``sweeps`` nonlinear node-block Gauss-Seidel sweeps on
+    ``v`` in place, alternating direction from ``forward``; returns the next direction."""
+    for _ in range(sweeps):
+        fine.sweep(v, fine.f, mode, forward)
+        forward = not forward
+    return forward
+
+
 def _tresca_solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
                   u0: np.ndarray | None, opts: Options, callback: Callable | None
                   ) -> SolveResult:
@@ -969,40 +1106,55 @@ def _tresca_solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | 
     log = _StepLog(time.perf_counter(), deadline)
     status, message, k = "max_iter", f"not verified after {max_iter} steps", 0
     forward = True
+    face_cg = opts.krylov == "cg" and term.k == 1   # 3D: TNNMG steps only (docstring)
+    cg, n_cg, previous = None, 0, None
     for k in range(1, max_iter + 1):
-        t0 = time.perf_counter()
-        for _ in range(opts.presmoothing):
-            fine.sweep(v, fine.f, mode_nonlinear, forward)
-            forward = not forward
-        t1 = time.perf_counter()
-        r = fine.f - fine.matvec(v)
-        active, stick = v[piv] >= upper, term.stick(v)
-        mode = np.full(nb, FREE, dtype=np.int64)
-        mode[block_of_row[active]] = FIXED
-        mode[block_of_row[stick]] = TANGENT_FIXED
-        mode[block_of_row[active & stick]] = BOTH_FIXED
-        E = np.concatenate([piv[active], tpiv.reshape(-1, term.k)[stick].ravel()])
-        ml.truncate(E, mode, None if curvature is None else curvature.set(v, stick))
-        t2 = time.perf_counter()
-        g = r.copy()
-        g[tpiv] -= term.gradient(v)
-        g[E] = 0.0
-        c = ml.vcycle(g)
-        v, r, step = _tresca_step(fine, v, r, c, piv, upper)
+        t0 = t1 = time.perf_counter()
+        if cg is None:                            # a TNNMG step
+            forward = _presmooth(fine, v, mode_nonlinear, forward, opts.presmoothing)
+            t1 = time.perf_counter()
+            face = _TrescaFace.of(fine, v) if face_cg else None
+            r = fine.f - fine.matvec(v)
+            active, stick = v[piv] >= upper, term.stick(v)
+            mode = np.full(nb, FREE, dtype=np.int64)
+            mode[block_of_row[active]] = FIXED
+            mode[block_of_row[stick]] = TANGENT_FIXED
+            mode[block_of_row[active & stick]] = BOTH_FIXED
+            E = np.concatenate([piv[active], tpiv.reshape(-1, term.k)[stick].ravel()])
+            ml.truncate(E, mode, None if curvature is None else curvature.set(v, stick))
+            t2 = time.perf_counter()
+            g = r.copy()
+            g[tpiv] -= term.gradient(v)
+            g[E] = 0.0
+            c = ml.vcycle(g)
+            v, r, step = _tresca_step(fine, v, r, c, piv, upper)
+            if face_cg:                           # the face is stable: CG on it
+                if previous == face and _TrescaFace.of(fine, v) == face:
+                    cg = _TrescaFaceCG(E, sweeps=opts.sweeps or TRESCA_FACE_SWEEPS, face=face)
+                previous = face
+            phase = "tnnmg"
+        else:                                     # a CG step on the face (_TrescaFaceCG)
+            t2 = t1
+            v, r, step, leave = cg.step(fine, ml, v, r, piv, upper, cg.face.active)
+            n_cg += 1
+            phase = "cg"
+            if leave:
+                cg = None
         t3 = time.perf_counter()
         bound = v[piv] >= upper
         residual = _tresca_stationarity(fine, r, piv[bound], v)
         log.record(energy=_tresca_energy(fine, v, r), residual=residual,
-                   n_active=int(np.count_nonzero(bound)), step=step, phase="tnnmg",
+                   n_active=int(np.count_nonzero(bound)), step=step, phase=phase,
                    n_stick=int(np.count_nonzero(term.stick(v))))
         verified, kkt_max = False, np.nan
         if residual <= CHECK_FACTOR * tol or callback is not None:
             u, p = box.to_u(v), box.multipliers(r, bound)
-            lam = term.multipliers(r, qp.friction)
+            lam = term.multipliers(r, qp.friction, v)
         if residual <= CHECK_FACTOR * tol:         # the suite's verification decides
             kkt_max, verified = _verified(qp, u, p, tol, opts.stop, lam)
         end = log.close(k, (t0, t1, t2, t3), kkt_max, verified,
-                        f"verified after {k} steps",
+                        f"verified after {k} steps" + (f" ({n_cg} of them CG)" if face_cg
+                                                       else ""),
                         lambda: callback is not None and callback(u, p))
         if end is not None:
             status, message = end
@@ -1011,9 +1163,9 @@ def _tresca_solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | 
         r = fine.f - fine.matvec(v)
     bound = v[piv] >= upper
     u, p = box.to_u(v), box.multipliers(r, bound)
-    lam = term.multipliers(r, qp.friction)
+    lam = term.multipliers(r, qp.friction, v)
     stick = term.stick(v)
-    stats = {"friction": "tresca_step", "n_steps": k, "n_cg": 0, "n_vcycles": k,
+    stats = {"friction": "tresca_step", "n_steps": k, "n_cg": n_cg, "n_vcycles": k,
              "presmoothing": opts.presmoothing,
              "truncation_updates": ml.updates, "n_active": int(np.count_nonzero(p > 0)),
              "n_stick": int(np.count_nonzero(stick)),
@@ -1071,9 +1223,7 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
     for k in range(1, max_iter + 1):
         t0 = t1 = time.perf_counter()
         if cg is None:                            # a TNNMG step
-            for _ in range(opts.presmoothing):
-                fine.sweep(v, fine.f, mode_nonlinear, forward)
-                forward = not forward
+            forward = _presmooth(fine, v, mode_nonlinear, forward, opts.presmoothing)
             t1 = time.perf_counter()
             r = fine.f - fine.matvec(v)
             active = v[piv] >= upper
@@ -1133,7 +1283,8 @@ SOLVER = SolverSpec(
         Parameter("presmoothing", 1, "nonlinear node-block Gauss-Seidel sweeps per step "
                   "(alternating direction)", low=1, high=10, kind=int),
         Parameter("sweeps", 0, "smoothing sweeps of the linear V-cycle: V(sweeps, sweeps); "
-                  "0: by dimension (AUTO_SWEEPS: 1 in 2D, 2 in 3D)", low=0, high=10, kind=int),
+                  "0: by dimension (AUTO_SWEEPS: 1 in 2D, 2 in 3D; CG on a 2D Tresca step's "
+                  "face: 2, TRESCA_FACE_SWEEPS)", low=0, high=10, kind=int),
         Parameter("patch", 0, "graph layers of the contact patch around the constraint "
                   "rows' unknowns, solved exactly in each V-cycle after pre- and before "
                   "post-smoothing (0: none; each change of the active set refactorises it, "
@@ -1146,7 +1297,9 @@ SOLVER = SolverSpec(
         Parameter("krylov", "cg", "cg: once a TNNMG step leaves the active set as it found "
                   "it (twice in a row), conjugate gradients on that face, preconditioned by "
                   "the truncated V-cycle, until a bound or a negative multiplier ends it "
-                  "(MPRGP's expansion and proportioning); none: TNNMG steps only",
+                  "(MPRGP's expansion and proportioning; a 2D Tresca step's face also fixes "
+                  "the stick set and the slip signs, and a kink ends it too; 3D Tresca "
+                  "steps: TNNMG steps only); none: TNNMG steps only",
                   choices=("cg", "none")),
         Parameter("coarse", "truncated", "coarse operators: Galerkin products of the truncated "
                   "space (truncated) or the untruncated ones (untruncated; still monotone by "

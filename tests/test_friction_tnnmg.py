@@ -2,6 +2,7 @@
 block's nonsmooth minimiser is exact, and the solver's answers satisfy the friction KKT
 conditions and agree with the exact reference (:func:`solvers.tresca.tresca_exact`) on
 circle_square; its frictionless path is the one it was."""
+import functools
 from dataclasses import replace
 
 import numpy as np
@@ -13,6 +14,7 @@ from problems.spec import problems
 from solvers import tnnmg
 from solvers._block_gs import (BOUNDED, FIXED, FREE, TRESCA, block_gauss_seidel,
                                block_inverses, tresca_block_gauss_seidel, unsigned_index)
+from solvers.certificate import certify
 from solvers.contact_box import box_transformation
 from solvers.interface import solve
 from solvers.tresca import TrescaSolution, friction_path, path_for_ratio
@@ -22,6 +24,13 @@ SCENE = problems()["circle_square"]
 
 def _frictional(level, **kw):
     return SCENE.make(level, **{"friction": "tresca", "mu": 0.5, "shift": 0.01, **kw})
+
+
+@functools.lru_cache(maxsize=None)
+def _exact_path(level, ratio):
+    """The exact path at ``Q/(mu P) = ratio`` (its steps and answers), built once per
+    module: several tests read level 2's."""
+    return tuple(path_for_ratio(_frictional(level), ratio))
 
 
 def _tnnmg(qp, tol=1e-10, **opts):
@@ -174,7 +183,7 @@ def _agrees_with_the_exact_reference(level, ratio):
     bound, then the tangential one): friction KKT <= 1e-10 and the energy-norm distance to
     the exact answer <= 1e-8; the tangential step has stick and slip rows, and TNNMG's
     stick rows (slip exactly zero) are as many as the exact ones."""
-    for st in path_for_ratio(_frictional(level), ratio):
+    for st in _exact_path(level, ratio):
         step_qp, exact = st.qp, st.solution
         res = _tnnmg(step_qp)
         kkt = friction_residuals(step_qp, res.u, res.p, res.tangential)
@@ -196,6 +205,83 @@ def test_tnnmg_agrees_with_the_exact_tresca_reference_level_3():
     """Level 3 (129 rows) at the larger slip zone (levels 2-4 at both ratios are measured
     in the friction guide)."""
     _agrees_with_the_exact_reference(3, 0.7)
+
+
+@pytest.mark.parametrize("ratio", [0.3, 0.7])
+def test_cg_on_a_tresca_face_keeps_the_answer_and_saves_steps(ratio):
+    """Level 2's tangential step to tol 1e-10: with CG on the face (the default) the run has
+    CG steps, its energy never rises, and its answer is the exact one as TNNMG steps alone
+    give it (``krylov="none"``: no CG step); it needs at most 3/4 of their steps (measured:
+    13 and 14 against 21 and 20)."""
+    st = _exact_path(2, ratio)[-1]
+    with_cg, without = _tnnmg(st.qp), _tnnmg(st.qp, krylov="none")
+    assert with_cg.stats["n_cg"] > 0 and "cg" in with_cg.history["phase"]
+    assert without.stats["n_cg"] == 0 and set(without.history["phase"]) == {"tnnmg"}
+    J = np.asarray(with_cg.history["energy"])
+    assert np.all(np.diff(J) <= 1e-12 * np.abs(J).max())
+    for res in (with_cg, without):
+        assert friction_residuals(st.qp, res.u, res.p, res.tangential).max <= 1e-10
+        assert energy_error(st.qp, res.u, st.solution.u) <= 1e-8
+    assert res.stats["n_stick"] == with_cg.stats["n_stick"] == np.count_nonzero(
+        st.solution.stick)
+    assert with_cg.iterations <= 0.75 * without.iterations, (with_cg.iterations,
+                                                             without.iterations)
+
+
+def test_a_face_cg_step_stops_at_a_kink_and_writes_it_exactly():
+    """A CG step on a 2D Tresca face does not carry a slipping row past its kink: at the
+    exact answer of level 1's tangential step, one sticking row moved off its centre by
+    ``eps`` slips on the face; along the direction back to it (the preconditioner replaced
+    by that direction) the face's quadratic would step past the centre, so the step is cut
+    there (length ``eps``), the row is written at its centre exactly, the face is left, and
+    the energy falls."""
+    st = _exact_path(1, 0.7)[-1]
+    fine = tnnmg._fine_system(st.qp, tresca=True)
+    box, term = fine.box, fine.tresca
+    v = box.to_v(st.solution.u)
+    j = int(np.flatnonzero(st.solution.stick)[0])
+    eps = 1e-3 * np.abs(term.centre).max()
+    v[term.pivot] = np.where(st.solution.stick, term.centre, v[term.pivot])
+    v[term.pivot[j]] = term.centre[j] + eps
+    face = tnnmg._TrescaFace.of(fine, v)
+    assert face.sign[j] == 1
+    E = np.concatenate([box.pivot[face.active],
+                        term.pivot[(face.sign == 0) & (term.weight > 0)]])
+    back = np.zeros(st.qp.n)
+    back[term.pivot[j]] = -1.0
+
+    class Direction:                 # the preconditioner, replaced by the direction back
+        def vcycle(self, g, sweeps=None):
+            return back.copy()
+    r = fine.f - fine.matvec(v)
+    cg = tnnmg._TrescaFaceCG(E, sweeps=2, face=face)
+    v2, r2, alpha, leave = cg.step(fine, Direction(), v, r, box.pivot, box.upper, face.active)
+    assert cg.rz / float(back @ fine.matvec(back)) > 1.5 * eps     # uncut: past the kink
+    assert leave and alpha == pytest.approx(eps, rel=1e-12)
+    assert v2[term.pivot[j]] == term.centre[j]
+    assert tnnmg._tresca_energy(fine, v2, r2) < tnnmg._tresca_energy(fine, v, r)
+    np.testing.assert_allclose(r2, fine.f - fine.matvec(v2), rtol=0,
+                               atol=1e-12 * np.abs(fine.f).max())
+
+
+@pytest.mark.parametrize("ratio", [0.3, 0.7])
+def test_the_certified_bound_of_a_tresca_answer_is_near_its_error(ratio):
+    """The slipping rows' multipliers are ``s_i sign(slip_i)``, so the certificate at the
+    stop weighs the iterate's error in second order: at tol 1e-6 (level 2's tangential
+    step) the certified bound is at least the true energy error against the exact answer
+    and at most twice it (measured: 1.1-1.4 times; with the clipped residual as the
+    multipliers, over ten times)."""
+    st = _exact_path(2, ratio)[-1]
+    res = _tnnmg(st.qp, tol=1e-6)
+    fr = st.qp.friction
+    slip = fr.slip(res.u)
+    slipping = (fr.slip_bound > 0) & (np.abs(slip) > 1e-8 * np.abs(slip).max())
+    assert slipping.any()
+    np.testing.assert_array_equal(res.tangential[slipping],
+                                  fr.slip_bound[slipping] * np.sign(slip[slipping]))
+    err = energy_error(st.qp, res.u, st.solution.u)
+    bound = certify(st.qp, res.u, res.p, None, lam=res.tangential).relative_energy_bound
+    assert 1e-9 < err <= bound <= min(2.0 * err, 1e-6), (err, bound)
 
 
 def test_mu_zero_is_the_frictionless_answer():

@@ -183,6 +183,7 @@ def _verified_tnnmg(step_qp, tol=1e-10, u0=None):
     Tresca bound meet ``tol``."""
     res = solve(step_qp, "tnnmg", tol=tol, u0=u0)
     assert res.status == "converged", res.message
+    assert res.stats["n_cg"] == 0          # 3D: TNNMG steps only (no CG on a face)
     assert friction_residuals(step_qp, res.u, res.p, res.tangential).max <= tol
     assert certify(step_qp, res.u, res.p, tol, lam=res.tangential).meets(tol)
     return res
