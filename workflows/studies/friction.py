@@ -1,27 +1,34 @@
 """Friction: Tresca partial slip against Cattaneo-Mindlin, and the frictional solvers
 
 The thesis's problem is frictionless; the suite adds Tresca and Coulomb friction on the
-same ContactQP ({doc}`/guide/friction`). This study measures the 2D model on a contact
-scene with the `friction`, `mu` and `shift` parameters (circle–square; a scene of
-another dimension joins by config once its problem takes friction). Per scene and level
-(`workflows/scripts/friction_study.py`):
+same ContactQP ({doc}`/guide/friction`). This study measures it on the contact scenes with
+the `friction`, `mu` and `shift` parameters: circle–square (2D) and cube–sphere (3D). Per
+scene and level (`workflows/scripts/friction_study.py`):
 
 - **Reference paths.** Tresca friction with `mu` (0.5), the normal load first, then the
-  held arc moved along x; the tangential step is scaled until Q/(μP) of the last step is
-  0.3 and 0.7 (`solvers.tresca.path_for_ratio`). The reference is `tresca_exact` (exact
-  to round-off) up to 2000 constrained rows; beyond, `semismooth_newton` at `high`, and
-  the table's `reference` column says which.
-- **Cattaneo–Mindlin** (Johnson, *Contact Mechanics*, 1985, Sect. 7.1). The contact
-  half-width a and the stick-zone half-width c are second moments of the nodal normal
-  forces and of the deficit s − |λ|, so no node has to be classified. c/a is compared
-  with √(1 − Q/(μP)). The nodal tangential traction λ/mass is compared with
-  q(x) = μp0(√(1 − x²/a²) − (c/a)√(1 − x²/c²)), with the measured a and p0 and the
-  analytic c, as a relative L2 error over the contact nodes.
+  held arc (cap) moved along x; the tangential step is scaled until Q/(μP) of the last step
+  is 0.3 and 0.7 (`solvers.tresca.path_for_ratio`). The reference is `tresca_exact` (exact
+  to round-off) where it takes the problem: up to 2000 constrained rows and 4e8 entries
+  of its dense A⁻¹G' (cube–sphere level 3 has 1.3e9); beyond, the first of
+  `semismooth_newton` and `tnnmg` that takes it, verified at `high`, and the table's
+  `reference` column says which.
+- **Cattaneo–Mindlin** (Johnson, *Contact Mechanics*, 1985, Sects. 7.1–7.2). The contact
+  size a and the stick-zone size c (half-widths on the cylinder, radii on the sphere) are
+  second moments of the nodal normal forces and of the deficit s − |λ|, so no node has to
+  be classified. c/a is compared with √(1 − Q/(μP)) (cylinder) or (1 − Q/(μP))^(1/3)
+  (sphere). The tangential traction (2D: λ/mass; 3D: each node's component along the
+  total tangential force) is compared with
+  q = μp0(√(1 − x²/a²) − (c/a)√(1 − x²/c²)), with the measured a and p0 and the analytic
+  c, as a relative L2 error over the contact nodes.
 - **The solvers.** `tnnmg` and `semismooth_newton` run the same scaled load path as
   `contactbench solve` runs it (`solvers.interface.run_load_path`), every Tresca step
   verified at `high`. The table records status, iterations in the normal and the
   tangential step, setup and solve time, and the relative energy-norm distance of the
   last step to the reference's.
+- **Timing.** TNNMG on the reference's last Tresca step from zero, its time (setup
+  included) to relative energy error 1e-6 against the reference, beside one linear solve of
+  the same system without contact (geometric-multigrid PCG to the same accuracy); the
+  median of three runs each, the job alone on the machine.
 - **μ = 0.** The reference's path with μ = 0 is compared with `pdas` on the
   frictionless scene, both load steps.
 - **Coulomb** (`friction=coulomb`, shift 0.02): the fixed point s = μp over the
@@ -29,33 +36,41 @@ another dimension joins by config once its problem takes friction). Per scene an
 
 | file | content |
 | --- | --- |
-| `results/<scene>/friction.csv` | one row per level, ratio and role (`reference`, `solver`, `mu_zero`, `coulomb`): N, rows, status, iterations per load step, times, the energy distance to the reference, a, c, c/a against theory, the traction's L2 error, Coulomb's solves and contraction |
-| `results/<scene>/friction_profiles.csv` | per level, ratio and constrained node of the reference's last step: x/a, the measured and analytic traction, μ times the measured and Hertz pressure, the stick/slip state |
+| `results/<scene>/friction.csv` | one row per level, ratio and role (`reference`, `solver`, `timing`, `mu_zero`, `coulomb`): N, rows, status, iterations per load step, times, the energy distance to the reference, a, c, c/a against theory, the traction's L2 error, TNNMG's and the linear floor's time to the target, Coulomb's solves and contraction |
+| `results/<scene>/friction_profiles.csv` | per level, ratio and constrained node of the reference's last step: the distance from the contact's centre over a (signed in 2D) and the position in the contact plane, the measured and analytic traction, μ times the measured and Hertz pressure, the stick/slip state |
 | `results/<scene>/friction_claims.csv` | the claims below, each judged or with the reason it is not |
-| `results/<scene>/friction_traction.png` | the traction profiles at the finest level, both ratios, with the Cattaneo–Mindlin curve and μp(x) |
+| `results/<scene>/friction_traction.png` | the traction profiles at the finest level, both ratios, with the Cattaneo–Mindlin curve and μp |
 | `results/<scene>/friction_stick.png` | c/a against Q/(μP): measured points per level, the analytic curve |
+| `results/<scene>/friction_map.png` | the stick and slip nodes in the contact plane at the finest level, with the measured contact boundary and the analytic stick zone |
 | `results/<scene>/friction_cost.png` | iterations of the tangential step and solve time against N per solver, with fitted exponents |
 
 How to read the figures: in the traction profiles, the measured nodal traction (markers)
-should follow the analytic curve (line): inside the stick zone (|x| < c) it lies below
-μp(x), and in the slip annulus it lies on μp(x). In the stick-zone figure, the points of
-each level should approach √(1 − Q/(μP)) as the level rises. In the cost figure, an
-exponent near 0 for the iterations means the solver's steps do not grow with N.
+should follow the analytic curve (line): inside the stick zone (distance below c) it lies
+below μp, and in the slip annulus it lies on μp. In the stick-zone figure, the points of
+each level should approach the analytic curve as the level rises. In the map, the sticking
+nodes should fill the analytic stick zone and the slipping ones the annulus around it. In
+the cost figure, an exponent near 0 for the iterations means the solver's steps do not
+grow with N.
 
 The claims (`report/friction.py`):
 
-- c/a within 5 % at the finest level, for both ratios;
-- the traction profile within 10 % in L2 at the finest level;
+- c/a within 5 % (circle–square) or 10 % (cube–sphere) at the finest level, for both
+  ratios;
+- the 2D traction profile within 10 % in L2 at the finest level (the sphere's is reported:
+  Mindlin's solution takes the traction parallel to Q, exact only for ν = 0);
 - TNNMG, semismooth Newton and the reference agree to 1e-8 in relative energy at every
   level where they all ran;
 - the μ = 0 path equals `pdas` to 1e-10;
 - every frictional solve is verified `converged`;
 - TNNMG's tangential-step iterations grow at most 15 % over the last two levels;
+- TNNMG's time to 1e-6 on the tangential step is at most 3 linear solves at the finest
+  level;
 - Coulomb's fixed point converges at every level.
 
 The rates of the c/a error and the traction error against N are fitted and reported.
 The accuracy bars and TNNMG's growth are judged only where the contact zone has at least
-25 nodes (circle–square level 3); the tiny scale's coarse levels give that reason instead.
+25 nodes on circle–square (level 3) or 150 on cube–sphere (level 3, about 240); the coarser
+levels give that reason instead.
 
 Measured at the quick levels (`contactbench study friction --problem circle_square
 --levels 1 2 3 --mu 0.5 --ratios 0.3 0.7 --shift 0.01 --coulomb-shift 0.02 --solvers
@@ -202,18 +217,20 @@ STUDY = Study(
                         "description": "timed runs of each (the median is kept)"},
         },
     },
-    # circle-square levels; resources: the largest job, measured alone at tiny and quick on
-    # the shared 2-core machine; full and huge estimated from quick's level 3 (its solver
-    # paths cost ~4x per level: N x4, iterations flat)
+    # resources: the largest job (one scene), measured alone at tiny and quick on the shared
+    # 2-core machine (quick: circle-square 125 s before the timing rows, cube-sphere 190 s
+    # and 2.1 GB); full and huge estimated: circle-square's paths cost ~4x per level (N x4,
+    # iterations flat), cube-sphere level 3 goes to semismooth Newton (S of 3,267 columns
+    # formed once per problem, 5.7 GB peak, minutes)
     scales={
-        "tiny": AtScale(settings_at([0, 1], [1]),             # measured 13 s, 0.4 GB
+        "tiny": AtScale(settings_at([0, 1], [1]),             # measured 13 s, 0.4 GB (2D)
                         {RULE: {"mem_mb": 1000, "runtime": 1}}),
-        "quick": AtScale(settings_at([1, 2, 3], [1, 2]),      # measured 125 s, 1.4-2.3 GB
-                         {RULE: {"mem_mb": 3000, "runtime": 4}}),
+        "quick": AtScale(settings_at([1, 2, 3], [1, 2]),
+                         {RULE: {"mem_mb": 3000, "runtime": 5}}),
         "full": AtScale(settings_at([1, 2, 3, 4], [1, 2, 3]),
-                        {RULE: {"mem_mb": 8000, "runtime": 12}}),
+                        {RULE: {"mem_mb": 8000, "runtime": 40}}),
         "huge": AtScale(settings_at([1, 2, 3, 4, 5], [1, 2, 3]),
-                        {RULE: {"mem_mb": 30000, "runtime": 50}}),
+                        {RULE: {"mem_mb": 30000, "runtime": 60}}),
     },
     claims=("fr_claims",),
     captions="friction.rst",
