@@ -72,28 +72,36 @@ The accuracy bars and TNNMG's growth are judged only where the contact zone has 
 25 nodes on circle–square (level 3) or 150 on cube–sphere (level 3, about 240); the coarser
 levels give that reason instead.
 
-Measured at the quick levels (`contactbench study friction --problem circle_square
---levels 1 2 3 --mu 0.5 --ratios 0.3 0.7 --shift 0.01 --coulomb-shift 0.02 --solvers
-tnnmg semismooth_newton --tol high --time-limit 120 --out F --profiles G`, 125 s and
-2.3 GB on the shared 2-core machine; most of it is the two solvers' paths at level 3):
+Measured at the quick levels, each scene's job alone on the shared 2-core machine
+(`contactbench study friction --problem P --levels L --mu 0.5 --ratios 0.3 0.7 --shift 0.01
+--coulomb-shift 0.02 --solvers tnnmg semismooth_newton --tol high --time-limit 120 --target
+1e-6 --repeats 3 --out F --profiles G`; circle–square levels 1–3 in 70 s and 1.6 GB,
+cube–sphere levels 1–2 in 99 s and 2.1 GB). Iterations are those of the tangential step;
+the time ratio is TNNMG's time to 1e-6 over the linear solve's (medians of three):
 
-| level | N | contact nodes | c/a deviation (0.3 / 0.7) | traction L2 error (0.3 / 0.7) | TNNMG iterations, tangential step | SSN iterations, tangential step | Coulomb: Tresca solves (contraction) |
-| --- | --- | --- | --- | --- | --- | --- | --- |
-| 1 | 4,237 | 7 | −2.9 % / −11.0 % | 13.7 % / 12.6 % | 17 / 19 | 4 / 4 | 2 + 9 (0.045) |
-| 2 | 16,636 | 13 | −1.6 % / −4.1 % | 38.5 % / 14.8 % | 18 / 18 | 6 / 6 | 9 + 10 (0.055) |
-| 3 | 65,926 | 25 | −0.6 % / −1.2 % | 23.2 % / 9.8 % | 18 / 18 | 7 / 7 | 2 + 10 (0.069) |
+| scene, level | N | contact nodes | c/a deviation (0.3 / 0.7) | traction L2 error (0.3 / 0.7) | TNNMG iterations | SSN iterations | TNNMG time / linear solve | Coulomb: Tresca solves (contraction) |
+| --- | --- | --- | --- | --- | --- | --- | --- | --- |
+| circle–square 1 | 4,237 | 7 | −2.9 % / −11.0 % | 13.7 % / 12.6 % | 11 / 13 | 4 / 4 | 4.2 / 5.2 | 2 + 9 (0.045) |
+| circle–square 2 | 16,636 | 13 | −1.6 % / −4.1 % | 38.5 % / 14.8 % | 12 / 13 | 6 / 6 | 3.1 / 2.4 | 9 + 10 (0.055) |
+| circle–square 3 | 65,926 | 25 | −0.6 % / −1.2 % | 23.2 % / 9.8 % | 14 / 15 | 7 / 7 | 3.0 / 2.8 | 2 + 10 (0.069) |
+| cube–sphere 1 | 2,691 | 15 | −0.8 % / −0.9 % | 60.2 % / 20.4 % | 12 / 15 | 7 / 7 | 5.2 / 5.9 | 8 + 8 (0.046) |
+| cube–sphere 2 | 18,360 | 61 | −1.9 % / −6.3 % | 41.9 % / 18.4 % | 14 / 16 | 8 / 9 | 3.6 / 4.4 | 9 + 10 (0.059) |
 
-c/a meets its 5 % bar at level 3 for both ratios, and its error falls with N (fitted
-rates −0.60 and −0.82). The traction meets its 10 % bar at Q/(μP) = 0.7 and fails it at
-0.3 (23 %). The nodal traction λ/mass carries the nodal pressure's scatter: at level 3,
-the measured μp deviates from the Hertz ellipse by up to 11 % at single nodes (the crosses
-in the traction figure). At 0.3, q inside the stick zone is a sixth of μp0, so the same
-scatter is a large relative error. Its rate is not yet visible (fitted +0.19 and −0.09).
-TNNMG, semismooth Newton and the exact reference agree to 5e-10 in relative energy at
-every level; the μ = 0 path equals `pdas` to 2e-14; all 12 solver paths are verified
-`converged`. TNNMG's tangential step takes 18 iterations at levels 2 and 3 (ratio 1.0)
-and semismooth Newton's 6 and 7. Coulomb's fixed point converges at every level in 9–10
-Tresca solves of the tangential step, with a contraction ratio of 0.05–0.07.
+On circle–square, c/a meets its 5 % bar at level 3 for both ratios, and its error falls
+with N. The traction meets its 10 % bar at Q/(μP) = 0.7 and fails it at 0.3 (23 %): the
+nodal traction λ/mass carries the nodal pressure's scatter (at level 3 the measured μp
+deviates from the Hertz ellipse by up to 11 % at single nodes, the crosses in the traction
+figure), and at 0.3 q inside the stick zone is a sixth of μp0, so the same scatter is a
+large relative error. On cube–sphere c/a lies within 7 % of (1 − Q/(μP))^(1/3) at levels 1
+and 2; the bar is judged at level 3 (full scale; measured once by semismooth Newton,
+{doc}`/guide/friction`: −1.1 % and −3.1 %). TNNMG, semismooth Newton and the exact
+reference agree to 8e-10 in relative energy at every level of both scenes; the μ = 0 path
+equals `pdas` to 2e-14; all 20 solver paths are verified `converged`. TNNMG's tangential
+step (CG on the face in 2D) grows from 12–13 to 14–15 iterations between circle–square
+levels 2 and 3, 15–17 %, at its 15 % bar; at the quick levels its time to 1e-6 is 2.8–3.0
+linear solves at circle–square level 3 and 3.6–4.4 at cube–sphere level 2. Coulomb's fixed
+point converges at every level in 8–10 Tresca solves of the tangential step, with a
+contraction ratio of 0.04–0.07.
 """
 from workflows.studies._base import AtScale, ConfigError, Study, scenes_of
 
@@ -218,8 +226,8 @@ STUDY = Study(
         },
     },
     # resources: the largest job (one scene), measured alone at tiny and quick on the shared
-    # 2-core machine (quick: circle-square 125 s before the timing rows, cube-sphere 190 s
-    # and 2.1 GB); full and huge estimated: circle-square's paths cost ~4x per level (N x4,
+    # 2-core machine (quick: circle-square 70 s and 1.6 GB, cube-sphere 99 s and 2.1 GB);
+    # full and huge estimated: circle-square's paths cost ~4x per level (N x4,
     # iterations flat), cube-sphere level 3 goes to semismooth Newton (S of 3,267 columns
     # formed once per problem, 5.7 GB peak, minutes)
     scales={
