@@ -370,13 +370,17 @@ class Friction:
         scale = np.where(size > s, s / np.where(size > 0, size, 1.0), 1.0)
         return (self.blocks(lam) * scale[:, None]).ravel()
 
+    def tangential_force(self, lam: np.ndarray) -> np.ndarray:
+        """The total tangential force ``sum_ij lam_ij t_ij`` (``(d,)``) of the multipliers
+        ``lam``."""
+        return (np.asarray(lam, dtype=float)[:, None] * self.tangent).sum(axis=0)
+
     def total_force(self, lam: np.ndarray) -> float:
         """``Q``: the size of the total tangential force of the multipliers ``lam``
-        (2D: ``|sum_i lam_i|``; 3D: ``|sum_i lam_i1 t_i1 + lam_i2 t_i2|``)."""
-        lam = np.asarray(lam, dtype=float)
+        (2D: ``|sum_i lam_i|``; 3D: the norm of :meth:`tangential_force`)."""
         if self.components == 1:
-            return abs(float(lam.sum()))
-        return float(np.linalg.norm((lam[:, None] * self.tangent).sum(axis=0)))
+            return abs(float(np.asarray(lam, dtype=float).sum()))
+        return float(np.linalg.norm(self.tangential_force(lam)))
 
     def slip(self, u: np.ndarray) -> np.ndarray:
         """Tangential slip ``T u + offset - previous`` of ``u`` in this step."""

@@ -69,6 +69,13 @@ def test_tangential_rows_become_coordinates_exactly():
     assert abs((qp.B @ plain.T) - BT).max() <= 1e-12 * abs(qp.B).max()
 
 
+def _random_block_system(rng, k: int, shift: float):
+    """A random ``k x k`` SPD block ``M`` (smallest eigenvalue at least ``shift``), a right
+    hand side ``b`` and a start ``x``."""
+    L = rng.normal(size=(k, k))
+    return L @ L.T + shift * np.eye(k), rng.normal(size=k), rng.normal(size=k)
+
+
 def _one_block(M, b, x, upper, weight, centre, mode=TRESCA):
     """One sweep of the Tresca kernel on a single block system ``M`` (2x2, or 3x3 with
     ``centre`` a 2-vector)."""
@@ -93,9 +100,7 @@ def test_the_block_minimiser_meets_the_blocks_optimality_conditions():
     rng = np.random.default_rng(7)
     seen = set()
     for _ in range(400):
-        L = rng.normal(size=(2, 2))
-        M = L @ L.T + 0.2 * np.eye(2)
-        b, x = rng.normal(size=2), rng.normal(size=2)
+        M, b, x = _random_block_system(rng, 2, 0.2)
         upper, weight, centre = rng.normal(), abs(rng.normal()) * rng.choice([0.1, 1, 3]), \
             rng.normal()
         out = _one_block(M, b, x, upper, weight, centre)

@@ -18,7 +18,7 @@ from solvers.certificate import certify
 from solvers.contact_box import box_transformation
 from solvers.interface import solve
 from solvers.tresca import as_tresca_solution, friction_path, tangential_ratio
-from test_friction_tnnmg import _one_block
+from test_friction_tnnmg import _one_block, _random_block_system
 
 
 def _block_energy(M, r, weight, e, d):
@@ -150,9 +150,7 @@ def test_the_sweep_takes_a_3d_block_to_the_disc_minimiser():
     rng = np.random.default_rng(17)
     cases = set()
     for _ in range(200):
-        L = rng.normal(size=(3, 3))
-        M = L @ L.T + 0.1 * np.eye(3)
-        b, x = rng.normal(size=3), rng.normal(size=3)
+        M, b, x = _random_block_system(rng, 3, 0.1)
         upper, weight, centre = rng.normal(), abs(rng.normal()), rng.normal(size=2)
         out = _one_block(M, b, x, upper, weight, centre)
         d = np.zeros(3)

@@ -81,7 +81,7 @@ def friction_state(qp: ContactQP, u: np.ndarray, p: np.ndarray, lam: np.ndarray,
     return {"law": fr.law, "mu": fr.mu, "tangential": lam,
             "traction": traction.ravel(), "slip": fr.slip(u),
             "slip_bound": fr.slip_bound, "state": fr.states(lam, tol),
-            "tangential_force": (lam[:, None] * fr.tangent).sum(axis=0),
+            "tangential_force": fr.tangential_force(lam),
             "load_ratio": fr.total_force(lam) / (fr.mu * P) if fr.mu > 0 and P > 0
             else float("nan")}
 

@@ -136,7 +136,7 @@ def partial_slip(step, ratio: float) -> tuple[dict, pd.DataFrame]:
         r = x - float(xbar[0])
         centred = np.stack([r, np.zeros_like(r)], axis=1)
     else:
-        force = (sol.lam[:, None] * fr.tangent).sum(axis=0)
+        force = fr.tangential_force(sol.lam)
         along = fr.tangent @ (force / np.linalg.norm(force))       # each row's share
         traction = fr.blocks(sol.lam * along).sum(axis=1) / w
         centred = plane - xbar
