@@ -183,8 +183,17 @@ def test_the_3d_interpolation_is_exact_for_linear_fields_per_body(cube_sphere):
     # the linear extension is exercised: fine ball nodes lie outside the coarse ball
     ball = 1
     cells0 = m0.cells[m0.body_of_node[m0.cells[:, 0]] == ball]
-    _, lam = acc.locate(m0.points, cells0, m1.points[m1.body_of_node == ball])
-    assert lam.min(axis=1).min() < -1e-3
+    x = m1.points[m1.body_of_node == ball]
+    _, lam = acc.locate(m0.points, cells0, x)
+    outside = lam.min(axis=1) < -1e-9
+    assert outside.sum() > 100 and lam.min() < -1e-3
+    # ... each in the cell of all the ball's cells whose smallest barycentric coordinate
+    # is largest (settled among its nearest cells, checked here against every cell)
+    grads, _ = acc.barycentric_gradients(m0.points, cells0)
+    every = np.einsum("cad,ncd->nca", grads, x[outside][:, None] - m0.points[cells0[:, 0]])
+    every[..., 0] += 1.0
+    np.testing.assert_allclose(lam[outside].min(axis=1), every.min(axis=2).max(axis=1),
+                               rtol=0, atol=1e-14)
     # nested cube: energy of a random coarse field on the cube, coarse and interpolated
     rng = np.random.default_rng(3)
     V0 = rng.standard_normal(m0.points.shape) * (m0.body_of_node == 0)[:, None]
