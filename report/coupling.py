@@ -20,9 +20,9 @@ Claims, per scene: every solve (the reference and every compared one) verified
 converged; the fitted energy-error rate against N of each coupling (least squares in
 log-log over the finest three levels), the mortar ones (standard and dual) within 0.1 of
 the optimal rate, the nodal and stabilised ones reported; at the finest level of each
-coupling the contact half-width and peak pressure against Hertz's, and the nodal
-pressure's discrete L2 deviation from Hertz's over the contact zone (reported: the
-``H^{-1/2}``-type norm of the mortar theory is not measured).
+coupling the contact half-width (2D) or radius (3D) and peak pressure against Hertz's,
+and the nodal pressure's discrete L2 deviation from Hertz's over the contact zone
+(reported: the ``H^{-1/2}``-type norm of the mortar theory is not measured).
 
 Figures: the energy error against N per coupling with the fitted slopes and the optimal
 slope; ``a / a_H`` and ``p0 / p0_H`` against N per coupling.
@@ -166,6 +166,7 @@ def hertz_figure(t: pd.DataFrame, path: str) -> None:
     fig, ax = plt.subplots(len(scenes), 2, figsize=(11, 4.2 * len(scenes)), squeeze=False)
     for row, scene in zip(ax, scenes):
         c = compared(t[t.scene == scene])
+        size = "contact radius" if (t[t.scene == scene].dim == 3).all() else "half-width"
         for coupling, g in c.groupby("coupling", sort=False):
             if "a_hertz" not in g or not np.isfinite(g.a_hertz).any():
                 continue
@@ -173,7 +174,7 @@ def hertz_figure(t: pd.DataFrame, path: str) -> None:
             style, color = STYLE.get(coupling, ("x-", "k"))
             row[0].semilogx(g.N, g.a_moment / g.a_hertz, style, color=color, label=coupling)
             row[1].semilogx(g.N, g.p0_moment / g.p0_hertz, style, color=color, label=coupling)
-        for a, what in zip(row, ("half-width a / a_H", "peak pressure p0 / p0_H")):
+        for a, what in zip(row, (f"{size} a / a_H", "peak pressure p0 / p0_H")):
             a.axhline(1.0, color="gray", ls=":", label="Hertz")
             a.set_title(f"{scene}: {what}", fontsize=9)
             a.set_xlabel("nodes N")
