@@ -111,8 +111,8 @@ def claims(t: pd.DataFrame) -> pd.DataFrame:
             if coupling in MORTAR:
                 rows.append(CLAIMS["rate_mortar"].row(
                     r - optimal, judged=bool(np.isfinite(r)), scene=scene, coupling=coupling,
-                    optimal=optimal, dim=int(s.dim.iloc[0]), reason=f"needs {FIT_LEVELS} levels; this run has "
-                    f"{len(g)}"))
+                    optimal=optimal, dim=int(s.dim.iloc[0]),
+                    reason=f"needs {FIT_LEVELS} levels; this run has {len(g)}"))
             else:
                 rows.append(CLAIMS["rate"].row(r, scene=scene, coupling=coupling))
             top = g.sort_values("N").iloc[-1]
