@@ -1,5 +1,6 @@
-"""The coupling study at tiny levels: the script and the report builder end to end, the
-claims table, the measured errors, the figures, and the script's argument checks."""
+"""The coupling study at tiny levels on circle-square and cube-sphere: the script and the
+report builder end to end, the claims table, the measured errors, the figures, the
+script's argument checks, and the 3D P1 interpolation onto the reference."""
 from __future__ import annotations
 
 import math
