@@ -114,6 +114,7 @@ def moment_estimate(kind: str, x: np.ndarray, p: np.ndarray) -> tuple[np.ndarray
     ``x`` is ``(m,)`` (positions along a line) or ``(m, k)`` (points in the contact
     plane). With ``P = sum p`` and ``<r^2> = sum p |x - xbar|^2 / P`` the Hertz
     distribution has ``a^2 = MOMENT[kind] <r^2>``; then ``p0`` by :func:`peak_pressure`.
+    The whole force on one node (``a = 0``: no zone to measure) gives ``p0`` NaN.
     """
     _check(kind)
     x = np.asarray(x, dtype=float).reshape(len(p), -1)
@@ -124,7 +125,7 @@ def moment_estimate(kind: str, x: np.ndarray, p: np.ndarray) -> tuple[np.ndarray
     xbar = (p[:, None] * x).sum(axis=0) / P
     r2 = np.sum((x - xbar) ** 2, axis=1)
     a = float(np.sqrt(MOMENT[kind] * (p * r2).sum() / P))
-    return xbar, a, peak_pressure(kind, P, a)
+    return xbar, a, peak_pressure(kind, P, a) if a > 0 else float("nan")
 
 
 def fit_ellipse(r: np.ndarray, pressure_values: np.ndarray) -> tuple[float, float]:
