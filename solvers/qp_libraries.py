@@ -68,9 +68,9 @@ class Outcome:
     """What one call of a library returned, in the library's own words.
 
     ``x``, ``z``: its primal and inequality-dual (cone-dual) solution of the rescaled
-    problem (None if it returned none); ``status``: its own status string; ``iterations``; ``stats``:
-    its own residuals or timings worth a column; ``used_guess``: whether it started from
-    the guess it was given."""
+    problem (None if it returned none); ``status``: its own status string;
+    ``iterations``; ``stats``: its own residuals or timings worth a column;
+    ``used_guess``: whether it started from the guess it was given."""
 
     x: np.ndarray | None
     z: np.ndarray | None
