@@ -90,8 +90,15 @@ CLAIMS = {
                       "{scene}: frictional solver runs verified converged (friction KKT "
                       "and the Tresca certificate, every load step)", "given", "all"),
     "tnnmg_steps": Claim("suite bar (TNNMG, a multigrid method: iterations bounded in h)",
-                         "{scene}: TNNMG tangential-step iterations, level {level} over "
-                         "level {coarser} at Q/(mu P) = {ratio:g}", "<=", STEPS_GROWTH_BAR),
+                         "{scene}: TNNMG tangential-step iterations from the normal step's "
+                         "answer, level {level} over level {coarser} at Q/(mu P) = "
+                         "{ratio:g}", "<=", STEPS_GROWTH_BAR),
+    "tnnmg_steps_cold": Claim("suite figure (the tangential step solved as a problem of its "
+                              "own)", "{scene}: TNNMG tangential-step iterations from zero, "
+                              "level {level} over level {coarser} at Q/(mu P) = {ratio:g}",
+                              unjudged="information: the load path starts each step from "
+                              "the last answer, as a quasi-static computation does; the bar "
+                              "is judged there"),
     "tnnmg_time": Claim("suite bar (TNNMG on a Tresca step: within 3x one linear multigrid "
                         "solve)", "{scene}: TNNMG's time to relative energy error {target:g} "
                         "on the tangential step over the multigrid-PCG solve of the same "
@@ -105,7 +112,8 @@ CLAIMS = {
 
 #: The runs table's columns the claims and figures read (a scene whose levels no
 #: reference took has only a few of them).
-RUN_COLUMNS = ("scene", "mu", "level", "N", "role", "solver", "status", "message", "ratio",
+RUN_COLUMNS = ("scene", "mu", "level", "N", "role", "solver", "start", "status", "message",
+               "ratio",
                "contact", "contact_nodes", "dev_c_over_a", "traction_l2", "c_over_a",
                "c_over_a_exact", "ratio_reached", "p0", "err_energy", "steps_tangential",
                "t_setup", "t_solve", "load_step", "tresca_solves", "contraction", "target",
@@ -156,8 +164,11 @@ def claims(runs: pd.DataFrame) -> pd.DataFrame:
         rows.append(CLAIMS["verified"].row(f"{good} of {len(solved)}", passed=good == len(solved),
                                            judged=len(solved) > 0, scene=scene,
                                            reason="no solver ran"))
-        rows += _tnnmg_growth(solved, ref.groupby("level").contact_nodes.min(), scene,
+        nodes = ref.groupby("level").contact_nodes.min()
+        rows += _tnnmg_growth(solved[solved.start != "cold"], nodes, scene,
                               RESOLVED_CONTACT_NODES[kind])
+        rows += _tnnmg_growth(solved[solved.start == "cold"], nodes, scene,
+                              RESOLVED_CONTACT_NODES[kind], claim="tnnmg_steps_cold")
         rows += _time_ratio(t[t.role == "timing"], scene)
         rows.append(_coulomb(t[t.role == "coulomb"], scene))
     return pd.DataFrame(rows, columns=COLUMNS)
@@ -188,7 +199,7 @@ def _agreement(t: pd.DataFrame, scene: str) -> dict:
     every solver ran verified."""
     solved = t[t.role == "solver"]
     names = sorted(solved.solver.dropna().unique())
-    both = [g for _, g in solved.groupby(["level", "ratio"])
+    both = [g for _, g in solved.groupby(["level", "ratio", "start"], dropna=False)
             if len(g) == len(names) and (g.status == "converged").all()]
     levels = sorted({int(g.level.iloc[0]) for g in both})
     worst = max((float(g.err_energy.max()) for g in both), default=np.nan)
@@ -215,22 +226,23 @@ def contact_kind(runs: pd.DataFrame) -> str:
 
 
 def _tnnmg_growth(solved: pd.DataFrame, contact_nodes: pd.Series, scene: str,
-                  resolved_nodes: int) -> list[dict]:
+                  resolved_nodes: int, claim: str = "tnnmg_steps") -> list[dict]:
     """TNNMG's tangential-step iterations over the last two levels, per ratio
-    (``contact_nodes``: per level, from the reference rows; ``resolved_nodes``: the
-    fewest the finer level needs for the bar to be judged)."""
+    (``solved``: the solver rows of one start; ``contact_nodes``: per level, from the
+    reference rows; ``resolved_nodes``: the fewest the finer level needs for the bar to
+    be judged; ``claim``: the key in :data:`CLAIMS`)."""
     tn = solved[(solved.solver == "tnnmg") & (solved.status == "converged")]
     rows = []
     for ratio, g in tn.groupby("ratio", sort=True):
         g = g.sort_values("N")
         if len(g) < 2:
-            rows.append(CLAIMS["tnnmg_steps"].row(np.nan, judged=False, scene=scene,
-                                                  ratio=ratio, level="-", coarser="-",
-                                                  reason="needs two levels"))
+            rows.append(CLAIMS[claim].row(np.nan, judged=False, scene=scene,
+                                          ratio=ratio, level="-", coarser="-",
+                                          reason="needs two levels"))
             continue
         fine, coarse = g.iloc[-1], g.iloc[-2]
         resolved = contact_nodes.get(fine.level, 0) >= resolved_nodes
-        rows.append(CLAIMS["tnnmg_steps"].row(
+        rows.append(CLAIMS[claim].row(
             float(fine.steps_tangential / coarse.steps_tangential), judged=resolved,
             scene=scene, ratio=ratio, level=int(fine.level), coarser=int(coarse.level),
             reason=f"level {int(fine.level)} has fewer than {resolved_nodes} "
@@ -372,18 +384,22 @@ def cost_figure(runs: pd.DataFrame, path: str) -> None:
         return nothing_to_draw(path, f"{scene}: the solvers' cost",
                                "no solver run was verified converged")
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
-    for (name, ratio), g in solved.groupby(["solver", "ratio"], sort=True):
+    starts = solved.start.fillna("warm")
+    for (name, ratio, start), g in solved.groupby(["solver", "ratio", starts], sort=True):
         g = g.sort_values("N")
         t = g.t_setup + g.t_solve
         line = "-" if ratio == min(solved.ratio) else "--"
         style = {**solver_style(name), "ls": line}       # the suite's colour per solver
+        if start == "cold":                              # from zero: hollow, lighter
+            style.update(mfc="none", alpha=0.55)
         for ax, y in zip(axes, (g.steps_tangential, t)):
-            ax.plot(g.N, y, **style, label=f"{name}, Q/(mu P) = {ratio:g}: exponent "
-                                           f"{fitted_slope(g.N, y, last=len(g)):.2f}")
+            ax.plot(g.N, y, **style, label=f"{name} ({start}), Q/(mu P) = {ratio:g}: "
+                                           f"exponent {fitted_slope(g.N, y, last=len(g)):.2f}")
     axes[0].set_xscale("log")
     axes[1].set_xscale("log")
     axes[1].set_yscale("log")
-    axes[0].set_ylabel("iterations of the tangential load step")
+    axes[0].set_ylabel("iterations of the tangential load step\n(warm: from the normal "
+                       "step's answer; cold: from zero)")
     axes[1].set_ylabel("setup + solve time of the load path (s, this machine)")
     for ax in axes:
         ax.set_xlabel("nodes N")

@@ -249,9 +249,11 @@ class _TrescaTerm:
         (:meth:`problems.qp.Friction.clip`; as ``p >= 0``: what is left over stays in the
         stationarity residual).
 
-        In 2D a slipping row's multiplier is the one its slip demands, ``s_i sign(slip_i)``
-        (``sign(theta_i (v_t,i - centre_i))``): then ``lam_i slip_i = s_i |slip_i|``
-        exactly, and the iterate's error stays in the stationarity residual, which the
+        A slipping node's multiplier is the one its slip demands, ``s_i sign(slip_i)``
+        (``sign(theta_i (v_t,i - centre_i))``; 3D: ``s_i slip_i / |slip_i|`` with
+        ``slip_i = theta_i R_i z_i``, ``z_i = v_t,i - centre_i``): then
+        ``lam_i . slip_i = s_i |slip_i|`` exactly, and the iterate's error stays in the
+        stationarity residual, which the
         certified bound weighs by ``A^-1`` (second order), instead of in the slip
         complementarity, which enters the duality gap linearly (:func:`certify`: with
         the clipped residual the bound lags the energy error by two orders at energy
@@ -263,9 +265,15 @@ class _TrescaTerm:
             slipping = (slip != 0) & (self.weight > 0)
             lam[slipping] = friction.slip_bound[slipping] * slip[slipping]
             return lam
-        lam = np.einsum("ijl,il->ij", self.frame, self._nodes(residual_v[self.pivot])) \
-            / self.theta[:, None]
-        return friction.clip(lam.ravel())
+        lam = self._nodes(friction.clip((np.einsum(
+            "ijl,il->ij", self.frame, self._nodes(residual_v[self.pivot]))
+            / self.theta[:, None]).ravel()))
+        z, length = self._offsets(v)
+        slipping = (length > 0) & (self.weight > 0)
+        direction = np.einsum("ijl,il->ij", self.frame[slipping], z[slipping]) \
+            * (np.sign(self.theta[slipping]) / length[slipping])[:, None]
+        lam[slipping] = friction.slip_bound[slipping, None] * direction
+        return lam.ravel()
 
     def gradient(self, v: np.ndarray) -> np.ndarray:
         """Per tangential unknown, the term's derivative off the kinks (``weight

@@ -494,8 +494,9 @@ class LoadPathRun:
         ``tresca_solves`` (the solver's runs in the step: Coulomb's fixed point
         iterations, and for the first step of Tresca friction also the frictionless
         normal solve that gives ``s = mu p``), ``contraction`` (Coulomb: the fixed
-        point's last ratio of changes, :class:`PathStep`; else ``nan``) and ``status``
-        (the step's verified status; ``max_iter`` where the fixed point did not converge).
+        point's last ratio of changes, :class:`PathStep`; else ``nan``), ``warm_start``
+        (whether its solves started from the path's last answer) and ``status`` (the
+        step's verified status; ``max_iter`` where the fixed point did not converge).
     """
 
     steps: list
@@ -518,10 +519,25 @@ class _Stopped(Exception):
     """A Tresca solve of the path did not verify: the path ends with its answer."""
 
 
-def run_load_path(qp: ContactQP, solve_step, tol: float, max_iter: int = 50) -> LoadPathRun:
+def warm_start(start: SolveResult | None) -> dict:
+    """The initial guess of a load path's next Tresca solve as keyword arguments of
+    :func:`solvers.interface.solve`: ``u0`` and ``p0`` of the path's last verified answer
+    ``start`` (``{}`` for none: the solver starts from zero)."""
+    return {} if start is None else {"u0": start.u, "p0": start.p}
+
+
+def run_load_path(qp: ContactQP, solve_step, tol: float, max_iter: int = 50,
+                  warm: bool = True) -> LoadPathRun:
     """Run the load path of the frictional ``qp`` (:func:`friction_path`) with
-    ``solve_step(step_qp) -> SolveResult``, one verified Tresca solve of a registered
-    solver (:func:`solvers.interface.solve`), whose ``tangential`` are the multipliers.
+    ``solve_step(step_qp, start) -> SolveResult``, one verified Tresca solve of a
+    registered solver (:func:`solvers.interface.solve`), whose ``tangential`` are the
+    multipliers, started from ``start`` (:func:`warm_start`).
+
+    ``warm``: each solve starts from the path's last verified answer, as a quasi-static
+    computation does (the previous load step's, or the previous Tresca solve of a
+    Coulomb fixed point; the first solve from zero); ``False``: every solve starts from
+    zero. The records say which (``warm_start``); a solver that takes no initial guess
+    says so in its message.
 
     The path stops at the first solve that is not verified ``converged`` (a solver that
     cannot take friction: ``skipped`` at once). Coulomb's fixed point ``s = mu p`` runs
@@ -540,7 +556,7 @@ def run_load_path(qp: ContactQP, solve_step, tol: float, max_iter: int = 50) -> 
     last, solves = {}, []
 
     def step(step_qp):
-        res = solve_step(step_qp)
+        res = solve_step(step_qp, last.get("result") if warm else None)
         last.update(qp=step_qp, result=res)
         solves[-1] += 1
         if res.status != "converged":
@@ -551,7 +567,8 @@ def run_load_path(qp: ContactQP, solve_step, tol: float, max_iter: int = 50) -> 
     for k in range(n):
         head = replace(qp, friction=replace(fr, path=fr.path[:k + 1]))
         solves.append(0)
-        record = {"step": k + 1, "load": "normal" if k == 0 else "tangential"}
+        record = {"step": k + 1, "load": "normal" if k == 0 else "tangential",
+                  "warm_start": warm}
         try:
             steps = friction_path(head, step, tol=tol, max_iter=max_iter, done=tuple(steps))
         except _Stopped:

@@ -213,6 +213,9 @@ BAD_INPUTS = [
     (["--problem", "laplace_nonmatching", "--solver", "osqp"], "'--solver' does not apply to the linear problem"),
     (["--problem", "laplace_nonmatching", "--tol", "low"], "'--tol' does not apply to the linear problem"),
     (["--problem", "laplace_nonmatching", "--set", "ratio=0:3"], "'ratio': '0:3' is not allowed"),
+    (["--problem", "laplace_nonmatching", "--cold"], "option '--cold' does not apply"),
+    (["--problem", "circle_square", "--cold"],
+     "option '--cold' is not allowed on a frictionless problem"),
 ]
 
 

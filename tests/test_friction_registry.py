@@ -17,7 +17,7 @@ from solvers.base import CONTRACT, SolveResult, contract_violation
 from solvers.certificate import verify
 from solvers.cholesky import FactorizationError
 from solvers.interface import run_load_path, solve, solvers
-from solvers.tresca import friction_path
+from solvers.tresca import friction_path, warm_start
 from workflows.cli import main
 from workflows.io import read_json
 
@@ -30,7 +30,7 @@ def _scene(level, law, mu=0.5, shift=0.02):
 
 
 def _registered_path(qp, tol=TIGHT):
-    return run_load_path(qp, lambda step: solve(step, "tresca_exact", tol=tol), tol)
+    return run_load_path(qp, lambda step, start: solve(step, "tresca_exact", tol=tol), tol)
 
 
 def _a_norm(qp, v):
@@ -141,11 +141,35 @@ def test_every_frictional_solver_verifies_along_the_path_and_agrees(name, law):
     assert "tresca_exact" in FRICTIONAL and len(FRICTIONAL) >= 2
     qp = _scene(1, law)
     ref = _registered_path(qp)
-    run = run_load_path(qp, lambda step: solve(step, name, tol="high"), 1e-9)
+    run = run_load_path(qp, lambda step, start: solve(step, name, tol="high", **warm_start(start)),
+                        1e-9)
     assert run.result.status == "converged", run.result.message
     assert [r["status"] for r in run.records] == ["converged", "converged"]
     for mine, exact in zip(run.steps, ref.steps, strict=True):
         assert energy_error(qp, mine.solution.u, exact.solution.u) <= 1e-8, name
+
+
+def test_warm_started_load_path_agrees_with_the_cold_one_in_fewer_steps():
+    """Started from the path's last answer (the default, as a quasi-static computation
+    runs), TNNMG's Coulomb path reaches the same verified answer as from zero, in well
+    under the steps: each fixed-point solve starts next to its answer."""
+    qp = _scene(1, "coulomb")
+    ref = _registered_path(qp)
+    runs = {}
+    for warm in (True, False):
+        steps = []
+
+        def tnnmg(step, start):
+            res = solve(step, "tnnmg", tol="high", **warm_start(start))
+            steps.append(res.iterations)
+            return res
+
+        run = run_load_path(qp, tnnmg, 1e-9, warm=warm)
+        assert run.result.status == "converged", run.result.message
+        assert [r["warm_start"] for r in run.records] == [warm, warm]
+        assert energy_error(qp, run.result.u, ref.result.u) <= 1e-8
+        runs[warm] = sum(steps)
+    assert runs[True] <= 0.7 * runs[False], runs
 
 
 def test_a_coulomb_step_solved_monolithically_is_judged_on_its_own_bound():
@@ -155,8 +179,8 @@ def test_a_coulomb_step_solved_monolithically_is_judged_on_its_own_bound():
     second solve (s = mu p holds at once)."""
     qp = _scene(1, "coulomb")
     ref = _registered_path(qp)
-    run = run_load_path(qp, lambda step: solve(step, "semismooth_newton", tol="high",
-                                               coulomb="monolithic"), 1e-9)
+    run = run_load_path(qp, lambda step, start: solve(step, "semismooth_newton", tol="high",
+                                                      coulomb="monolithic"), 1e-9)
     assert run.result.status == "converged", run.result.message
     assert run.result.stats["friction"] == "coulomb_monolithic"
     assert [r["tresca_solves"] for r in run.records] == [2, 2]
@@ -238,10 +262,10 @@ def test_the_certified_bound_holds_and_is_small_at_the_solution(tresca_run, size
 
 
 # ---------------------------------------------------------------- the command line
-def _cli(tmp_path, *sets, solver="tresca_exact", level=1, tol="1e-10"):
+def _cli(tmp_path, *sets, solver="tresca_exact", level=1, tol="1e-10", extra=()):
     out = tmp_path / "run.json"
     argv = ["solve", "--problem", "circle_square", "--level", str(level), "--solver", solver,
-            "--tol", tol, "--out", str(out), "--force"]
+            "--tol", tol, "--out", str(out), "--force", *extra]
     for s in sets:
         argv += ["--set", s]
     assert main(argv) == 0
@@ -272,6 +296,18 @@ def test_cli_runs_the_load_path_and_writes_the_frictional_state(tmp_path):
     np.testing.assert_allclose(np.abs(lam[state == "slip"]), s[state == "slip"], rtol=1e-12)
     assert fr["tangential_force"][0] == pytest.approx(lam.sum(), rel=1e-12)
     assert 0.3 < fr["load_ratio"] < 0.8
+
+
+def test_cli_cold_starts_every_load_step_from_zero(tmp_path):
+    warm = _cli(tmp_path, "friction=tresca", "mu=0.5", "shift=0.02", solver="tnnmg",
+                tol="high")
+    cold = _cli(tmp_path, "friction=tresca", "mu=0.5", "shift=0.02", solver="tnnmg",
+                tol="high", extra=["--cold"])
+    assert warm["status"] == cold["status"] == "converged"
+    assert [r["warm_start"] for r in warm["friction"]["load_path"]] == [True, True]
+    assert [r["warm_start"] for r in cold["friction"]["load_path"]] == [False, False]
+    np.testing.assert_allclose(warm["friction"]["tangential"], cold["friction"]["tangential"],
+                               rtol=0, atol=1e-6 * np.abs(cold["friction"]["tangential"]).max())
 
 
 def test_cli_coulomb_reports_the_fixed_point(tmp_path):

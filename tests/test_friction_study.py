@@ -47,7 +47,9 @@ def test_the_script_writes_every_declared_output(outputs):
     for level in levels:
         at = runs[runs.level == level]
         assert sorted(at[at.role == "reference"].ratio) == COMMON["ratios"]
-        assert sorted(at[at.role == "solver"].solver.unique()) == sorted(COMMON["solvers"])
+        solved = at[at.role == "solver"]
+        assert sorted(solved.solver.unique()) == sorted(COMMON["solvers"])
+        assert (solved.start == "cold").sum() == (solved.start == "warm").sum() > 0
         assert len(at[at.role == "mu_zero"]) == 2 and len(at[at.role == "coulomb"]) == 2
         timed = at[at.role == "timing"]
         assert sorted(timed.solver) == sorted(["tnnmg", "linear_floor"] * len(COMMON["ratios"]))
@@ -86,7 +88,7 @@ def test_every_claim_has_a_verdict_or_a_reason(outputs):
     mu0 = table[table.claim.str.contains("mu = 0 path")].iloc[0]
     assert float(mu0.measured) <= 1e-10 and str(mu0["pass"]) == "True"
     verified = table[table.claim.str.contains("verified converged")].iloc[0]
-    assert verified.measured == "8 of 8"                     # 2 levels x 2 ratios x 2 solvers
+    assert verified.measured == "16 of 16"     # 2 levels x 2 ratios x 2 solvers x 2 starts
     # the tiny levels do not resolve the contact zone: the accuracy bars give their reason
     stick = table[table.claim.str.contains("stick-zone c/a")]
     assert len(stick) == 2 and stick["pass"].isna().all()

@@ -102,7 +102,7 @@ def _solve_linear(spec, level: int, params: dict, args: argparse.Namespace) -> d
     for option, value, default in (("--solver", args.solver, None), ("--tol", args.tol, None),
                                    ("--max-iter", args.max_iter, None),
                                    ("--time-limit", args.time_limit, None),
-                                   ("--vtu", args.vtu, None)):
+                                   ("--cold", args.cold, False), ("--vtu", args.vtu, None)):
         if value != default:
             raise ParameterError(f"option '{option}' does not apply to the linear problem "
                                  f"{spec.name!r} (it is solved directly, without contact); "
@@ -142,6 +142,7 @@ def split_sets(params: dict, scene, solver) -> tuple[dict, dict]:
 def _solve_contact(spec, level: int, params: dict, args: argparse.Namespace) -> dict[str, Any]:
     from problems.fem.fields import contact_fields, contact_state, friction_state
     from solvers.interface import check_limits, run_load_path, solve, solvers
+    from solvers.tresca import warm_start
     from workflows.isolation import solve_isolated
 
     solver = lookup(solvers(), args.solver or "pdas", "solver")
@@ -154,18 +155,23 @@ def _solve_contact(spec, level: int, params: dict, args: argparse.Namespace) -> 
     qp = spec.build(level, scene_opts)
     t_build = time.perf_counter() - t0
 
-    def solve_one(problem):
+    def solve_one(problem, start=None):
+        guess = warm_start(start)
         if time_limit is None:
-            return solve(problem, solver.name, tol, max_iter, **solver_opts)
+            return solve(problem, solver.name, tol, max_iter, **guess, **solver_opts)
         # in a child process: one that crashes or hangs past the hard limit is a row
         return solve_isolated(problem, solver.name, tol, time_limit, max_iter=max_iter,
-                              **solver_opts)
+                              **guess, **solver_opts)
 
     friction = None
     if qp.friction is None:
+        if args.cold:
+            raise ParameterError("option '--cold' is not allowed on a frictionless problem; "
+                                 "allowed: a frictional scene (--set friction=tresca or "
+                                 "coulomb), whose load steps it starts from zero")
         result = solve_one(qp)
     else:   # the whole load path, each Tresca step by the solver (solvers.tresca)
-        run = run_load_path(qp, solve_one, tol)
+        run = run_load_path(qp, solve_one, tol, warm=not args.cold)
         qp, result = run.qp, run.result
         friction = {"load_path": run.records}
     answer = result.kkt is not None
@@ -256,6 +262,10 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--out", default=None,
                    help="JSON file to write (atomically); without it the run's status line "
                         "is printed and nothing is written")
+    s.add_argument("--cold", action="store_true",
+                   help="on a frictional scene, start every Tresca solve of the load path "
+                        "from zero (default: from the path's last answer, as a "
+                        "quasi-static computation does)")
     s.add_argument("--vtu", default=None, help="also write fields as VTU (contact problems)")
     s.add_argument("--force", action="store_true", help="replace existing output files")
     s.set_defaults(func=cmd_solve)

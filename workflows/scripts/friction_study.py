@@ -23,7 +23,9 @@ parameters, ``--problem P --set key=value``), at each of ``--levels``:
   over the contact nodes (the lumped surface mass the quadrature weights);
 * **the solvers** (``--solvers``, each ``handles_friction``) -- the same scaled load path
   run as ``contactbench solve`` runs it (:func:`solvers.interface.run_load_path`, every
-  Tresca step verified by :func:`solvers.interface.solve` at ``--tol``): status, the
+  Tresca step verified by :func:`solvers.interface.solve` at ``--tol``), twice: each
+  solve started from the path's last answer (``start`` ``warm``, the default of
+  ``contactbench solve``) and from zero (``cold``, its ``--cold``): status, the
   solver's iterations in the normal and in the tangential step, its setup and solve
   time, and the relative energy-norm distance of its last step to the reference's;
 * **timing** -- TNNMG on the reference's last Tresca step from zero, its time (setup
@@ -68,7 +70,7 @@ from reference.hertz import moment_estimate
 from solvers import tresca
 from solvers.interface import parse_tolerance, run_load_path, solve, solvers
 from solvers.tresca import (as_tresca_solution, friction_path, path_for_ratio,
-                            scaled_tangential_step, tangential_ratio)
+                            scaled_tangential_step, tangential_ratio, warm_start)
 from workflows.io import write_csv
 from workflows.measure import amg_pcg_floor, linear_solution, median_run, tnnmg_run
 from workflows.progress import study_progress
@@ -159,24 +161,27 @@ def partial_slip(step, ratio: float) -> tuple[dict, pd.DataFrame]:
     return fields, profile
 
 
-def solver_row(path_qp, name: str, tol: str, time_limit: float, ref_step) -> dict:
-    """The load path ``path_qp`` run by the registered solver ``name`` (as
-    ``contactbench solve`` runs it) against the reference's last step ``ref_step``."""
+def solver_row(path_qp, name: str, tol: str, time_limit: float, ref_step,
+               warm: bool = True) -> dict:
+    """The load path ``path_qp`` run by the registered solver ``name`` against the
+    reference's last step ``ref_step``: each solve started from the path's last answer
+    (``warm``, as ``contactbench solve`` runs it) or from zero (``--cold``)."""
     calls = []
 
-    def step(step_qp):
-        res = solve(step_qp, name, tol, time_limit=time_limit)
+    def step(step_qp, start):
+        res = solve(step_qp, name, tol, time_limit=time_limit, **warm_start(start))
         calls.append(res)
         return res
 
-    run = run_load_path(path_qp, step, tol=parse_tolerance(tol))
+    run = run_load_path(path_qp, step, tol=parse_tolerance(tol), warm=warm)
     res = run.result
     per_step, k = [], 0
     for record in run.records:
         per_step.append(calls[k:k + record["tresca_solves"]])
         k += record["tresca_solves"]
     steps = [sum(r.iterations for r in rs) for rs in per_step] + [np.nan, np.nan]
-    row = {"solver": name, "status": res.status, "failed_check": res.failed_check or "",
+    row = {"solver": name, "start": "warm" if warm else "cold", "status": res.status,
+           "failed_check": res.failed_check or "",
            "message": res.message if res.status != "converged" else "",
            "steps_normal": steps[0], "steps_tangential": steps[1],
            "solves": len(calls), "t_setup": sum(r.setup_time for r in calls),
@@ -264,8 +269,9 @@ def level_rows(spec, params: dict, level: int, args) -> tuple[list[dict], list[p
                      "t_solve": time.perf_counter() - t0, **fields})
         profiles.append(profile.assign(level=level, N=qp.n_nodes, ratio=ratio))
         for name in args.solvers:
-            rows.append({**size, "ratio": ratio, "role": "solver",
-                         **solver_row(ref.qp, name, args.tol, args.time_limit, ref)})
+            rows += [{**size, "ratio": ratio, "role": "solver",
+                      **solver_row(ref.qp, name, args.tol, args.time_limit, ref, warm)}
+                     for warm in (True, False)]
         rows += [{**size, "ratio": ratio, **r} for r in
                  timing_rows(ref.qp, ref.solution.u, args.target, args.repeats,
                              args.time_limit)]

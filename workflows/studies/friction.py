@@ -22,9 +22,11 @@ scene and level (`workflows/scripts/friction_study.py`):
   c, as a relative L2 error over the contact nodes.
 - **The solvers.** `tnnmg` and `semismooth_newton` run the same scaled load path as
   `contactbench solve` runs it (`solvers.interface.run_load_path`), every Tresca step
-  verified at `high`. The table records status, iterations in the normal and the
-  tangential step, setup and solve time, and the relative energy-norm distance of the
-  last step to the reference's.
+  verified at `high`, twice: each solve started from the path's last answer (`warm`, as
+  a quasi-static computation and `contactbench solve` run it) and from zero (`cold`,
+  `--cold`). The table records status, iterations in the normal and the tangential
+  step, setup and solve time, and the relative energy-norm distance of the last step to
+  the reference's.
 - **Timing.** TNNMG on the reference's last Tresca step from zero, its time (setup
   included) to relative energy error 1e-6 against the reference, beside one linear solve of
   the same system without contact (geometric-multigrid PCG to the same accuracy); the
@@ -62,7 +64,8 @@ The claims (`report/friction.py`):
   level where they all ran;
 - the μ = 0 path equals `pdas` to 1e-10;
 - every frictional solve is verified `converged`;
-- TNNMG's tangential-step iterations grow at most 15 % over the last two levels;
+- TNNMG's tangential-step iterations, started from the normal step's answer, grow at
+  most 15 % over the last two levels (from zero: reported);
 - TNNMG's time to 1e-6 on the tangential step is at most 3 linear solves at the finest
   level;
 - Coulomb's fixed point converges at every level.
@@ -79,7 +82,7 @@ Measured at the quick levels, each scene's job alone on the shared 2-core machin
 cube–sphere levels 1–2 in 99 s and 2.1 GB). Iterations are those of the tangential step;
 the time ratio is TNNMG's time to 1e-6 over the linear solve's (medians of three):
 
-| scene, level | N | contact nodes | c/a deviation (0.3 / 0.7) | traction L2 error (0.3 / 0.7) | TNNMG iterations | SSN iterations | TNNMG time / linear solve | Coulomb: Tresca solves (contraction) |
+| scene, level | N | contact nodes | c/a deviation (0.3 / 0.7) | traction L2 error (0.3 / 0.7) | TNNMG iterations (from zero) | SSN iterations (from zero) | TNNMG time / linear solve | Coulomb: Tresca solves (contraction) |
 | --- | --- | --- | --- | --- | --- | --- | --- | --- |
 | circle–square 1 | 4,237 | 7 | −2.9 % / −11.0 % | 13.7 % / 12.6 % | 11 / 13 | 4 / 4 | 4.2 / 5.2 | 2 + 9 (0.045) |
 | circle–square 2 | 16,636 | 13 | −1.6 % / −4.1 % | 38.5 % / 14.8 % | 12 / 13 | 6 / 6 | 3.1 / 2.4 | 9 + 10 (0.055) |
