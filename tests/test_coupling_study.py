@@ -1,5 +1,6 @@
-"""The coupling study at tiny levels: the script and the report builder end to end, the
-claims table, the measured errors, the figures, and the script's argument checks."""
+"""The coupling study at tiny levels on circle-square and cube-sphere: the script and the
+report builder end to end, the claims table, the measured errors, the figures, the
+script's argument checks, and the 3D P1 interpolation onto the reference."""
 from __future__ import annotations
 
 import math
@@ -78,13 +79,15 @@ def test_the_claims_table_has_every_claim_with_a_status_or_a_reason(run):
     assert {"nodal", "stabilised"} <= {w for c in claims.claim for w in c.replace(":", " ").split()}
 
 
-def test_the_mortar_rate_is_judged_against_the_optimal_rate():
-    """Three levels of a made-up table: the fitted slope against the optimal -1/2 in 2D."""
+@pytest.mark.parametrize("dim, optimal", [(2, -1 / 2), (3, -1 / 3)])
+def test_the_mortar_rate_is_judged_against_the_optimal_rate(dim, optimal):
+    """Three levels of a made-up table: the fitted slope against the optimal O(h), i.e.
+    -1/2 in 2D and -1/3 in 3D."""
     N = np.array([1000.0, 4000.0, 16000.0])
     rows = [{"scene": "s", "role": "reference", "coupling": "mortar_dual", "level": 5,
-             "dim": 2, "N": 64000, "status": "converged"}]
-    for k, r in (("mortar_dual", -0.55), ("mortar", -0.3), ("nodal", -0.25)):
-        rows += [{"scene": "s", "role": "compared", "coupling": k, "level": lv, "dim": 2,
+             "dim": dim, "N": 64000, "status": "converged"}]
+    for k, r in (("mortar_dual", optimal - 0.05), ("mortar", optimal + 0.2), ("nodal", -0.25)):
+        rows += [{"scene": "s", "role": "compared", "coupling": k, "level": lv, "dim": dim,
                   "N": n, "status": "converged", "err_energy": n ** r}
                  for lv, n in enumerate(N)]
     claims = report.claims(pd.DataFrame(rows)).set_index("claim")
@@ -140,3 +143,126 @@ def test_config_errors_name_the_key(change, needle):
     change(config)
     with pytest.raises(ConfigError, match=re.escape(needle)):
         check_config(config)
+
+
+# --------------------------------------------------------------------------- 3D (cube-sphere)
+@pytest.fixture(scope="module")
+def cube_sphere():
+    """cube_sphere levels 0 and 1 (mortar_dual) and the level-1 solution as a reference."""
+    from problems.spec import problems
+    from workflows.scripts.adaptive_study import Reference
+
+    spec = problems()["cube_sphere"]
+    qp0, qp1 = (spec.make(level, coupling="mortar_dual") for level in (0, 1))
+    res, _ = script.exact(qp1)
+    assert res.status == "converged"
+    ref = Reference(qp1, res.u, res.p, {"solver": res.solver, "status": res.status,
+                                         "t_solve": 0.0})
+    return qp0, qp1, res, ref
+
+
+def _affine_3d(x, shift):
+    M = np.array([[1.0, -2.0, 0.5], [0.3, 1.5, -1.0], [2.0, 0.25, -0.75]])
+    return shift + x @ M.T
+
+
+def test_the_3d_interpolation_is_exact_for_linear_fields_per_body(cube_sphere):
+    """P1 interpolation from level 0 to level 1 per body: a field affine on each body (a
+    different one on each, so a node where the bodies touch would show a mix) comes out
+    exact at every fine node, the sphere's projected boundary nodes outside the coarse
+    ball (linear extension) included; on the cube (Freudenthal refinement: nested) the
+    interpolated field has exactly the coarse field's energy."""
+    from problems.fem import accuracy as acc
+
+    qp0, qp1, _, ref = cube_sphere
+    P = ref.prolongation(qp0)
+    m0, m1 = qp0.mesh, qp1.mesh
+    shifts = np.array([[0.1, 0.2, 0.3], [-5.0, 4.0, 7.0]])     # per body
+    U0 = np.array([_affine_3d(x, shifts[b]) for x, b in zip(m0.points, m0.body_of_node)])
+    U1 = np.array([_affine_3d(x, shifts[b]) for x, b in zip(m1.points, m1.body_of_node)])
+    np.testing.assert_allclose(P @ U0, U1, atol=1e-11)
+    # the linear extension is exercised: fine ball nodes lie outside the coarse ball
+    ball = 1
+    cells0 = m0.cells[m0.body_of_node[m0.cells[:, 0]] == ball]
+    x = m1.points[m1.body_of_node == ball]
+    _, lam = acc.locate(m0.points, cells0, x)
+    outside = lam.min(axis=1) < -1e-9
+    assert outside.sum() > 100 and lam.min() < -1e-3
+    # ... each in the cell of all the ball's cells whose smallest barycentric coordinate
+    # is largest (settled among its nearest cells, checked here against every cell)
+    grads, _ = acc.barycentric_gradients(m0.points, cells0)
+    every = np.einsum("cad,ncd->nca", grads, x[outside][:, None] - m0.points[cells0[:, 0]])
+    every[..., 0] += 1.0
+    np.testing.assert_allclose(lam[outside].min(axis=1), every.min(axis=2).max(axis=1),
+                               rtol=0, atol=1e-14)
+    # nested cube: energy of a random coarse field on the cube, coarse and interpolated
+    rng = np.random.default_rng(3)
+    V0 = rng.standard_normal(m0.points.shape) * (m0.body_of_node == 0)[:, None]
+    cube0 = m0.body_of_node[m0.cells[:, 0]] == 0
+    cube1 = m1.body_of_node[m1.cells[:, 0]] == 0
+    e0 = acc.energy_norm_by_cell(m0.points, m0.cells, V0, m0.E_cell, m0.nu_cell)[cube0].sum()
+    e1 = acc.energy_norm_by_cell(m1.points, m1.cells, P @ V0, m1.E_cell, m1.nu_cell)[cube1].sum()
+    assert e0 > 0 and abs(e1 / e0 - 1) < 1e-10
+
+
+def test_the_3d_comparison_of_a_level_with_itself_is_zero(cube_sphere):
+    """The reference against itself: every error 0; a coarser level: the energy error
+    equals ``||P U_0 - U_1||_A / ||U_1||_A`` with the reference's assembled stiffness."""
+    qp0, qp1, res, ref = cube_sphere
+    same = ref.compare(qp1, res.u, res.p)
+    assert same["err_energy"] < 1e-12 and same["err_force"] < 1e-14
+    assert same["err_pressure"] < 1e-12
+    res0, _ = script.exact(qp0)
+    row = ref.compare(qp0, res0.u, res0.p)
+    E = (ref.prolongation(qp0) @ qp0.full_displacement(res0.u) - ref.U).ravel()
+    direct = np.sqrt(E @ (ref.A @ E)) / ref.norm
+    assert 0.1 < row["err_energy"] < 1 and abs(row["err_energy"] / direct - 1) < 1e-10
+
+
+@pytest.fixture(scope="module")
+def run_3d(run, tmp_path_factory):
+    """cube_sphere level 0 against a mortar_dual reference at level 1, and the report on
+    both scenes' tables."""
+    d = tmp_path_factory.mktemp("coupling_3d")
+    table = d / "results" / "cube_sphere" / "coupling.csv"
+    script.main(["--problem", "cube_sphere", "--levels", "0", "--reference-level", "1",
+                 "--out", str(table)])
+    t2, out2 = run
+    out = {"claims": d / "claims.csv", "figure": d / "coupling.png",
+           "hertz": d / "coupling_hertz.png"}
+    both = d / "both.csv"
+    pd.concat([t2, read_csv(table)]).to_csv(both, index=False)
+    report.main(["--tables", str(both), "--claims", str(out["claims"]),
+                 "--figure", str(out["figure"]), "--hertz-figure", str(out["hertz"])])
+    return read_csv(table), out
+
+
+def test_the_3d_study_solves_every_coupling_exactly_and_measures_its_errors(run_3d):
+    t, _ = run_3d
+    assert (t.dim == 3).all() and (t.status == "converged").all() and (t.kkt_max < 1e-8).all()
+    ref = t[t.role == "reference"]
+    assert ref.level.tolist() == [1] and ref.N.tolist() == [2691] and ref.NC.tolist() == [81]
+    c = t[t.role == "compared"].set_index("coupling")
+    assert sorted(c.index) == sorted(COUPLINGS) and (c.N == 450).all()
+    # level 0 (h = 1/4 on the cube, a ~ 0.28) against level 1: every coupling's energy
+    # difference is large but below the solution's norm, its force within 15 %
+    assert ((0.1 < c.err_energy) & (c.err_energy < 1)).all(), c.err_energy
+    assert ((0 < c.err_force) & (c.err_force < 0.15)).all(), c.err_force
+    # the error budget's regions partition the energy error
+    shares = c[["err_share_contact", "err_share_singular", "err_share_rest"]].sum(axis=1)
+    np.testing.assert_allclose(shares, 1.0, rtol=1e-12)
+
+
+def test_the_3d_claims_judge_against_the_3d_optimal_rate(run_3d):
+    t, out = run_3d
+    claims = read_csv(out["claims"])
+    cs = claims[claims.claim.str.startswith("cube_sphere")]
+    first = cs.iloc[0]
+    assert "converged" in first.claim and first.measured == "5 of 5" and first["pass"] == True  # noqa: E712
+    mortar = cs[cs.claim.str.contains("mortar") & cs.claim.str.contains("rate")]
+    assert len(mortar) == 2 and mortar.claim.str.contains("-0.333").all()
+    assert mortar.reason.str.contains("needs 3 levels; this run has 1").all()
+    for key in ("figure", "hertz"):
+        with Image.open(out[key]) as im:
+            im.load()
+            assert im.size[1] > 600                     # one row of panels per scene

@@ -54,7 +54,12 @@ def locate(points: np.ndarray, cells: np.ndarray, targets: np.ndarray, k: int = 
     ``8 k`` and then to all cells for targets still unplaced; among the candidates
     the cell whose smallest barycentric coordinate is largest wins. A target
     outside the mesh (a node moved onto a curved boundary) gets its best cell and
-    barycentric coordinates slightly below zero: the linear extension.
+    barycentric coordinates slightly below zero: the linear extension. Such a target
+    is settled once widening the candidates to ``8 k`` finds no better cell than the
+    ``k`` nearest did (the cells next to a curved boundary are among its nearest); only
+    a target whose best cell still improves goes on to the scan of all cells. (On a
+    sphere refined uniformly a quarter of the fine surface nodes lie outside the coarse
+    mesh, thousands at 18k nodes: one scan of all cells each would dominate the study.)
 
     Returns
     -------
@@ -91,9 +96,10 @@ def locate(points: np.ndarray, cells: np.ndarray, targets: np.ndarray, k: int = 
         score = bary(cand.ravel(), np.repeat(x[todo], kk, axis=0)).min(axis=1)
         score = score.reshape(len(todo), kk)
         j = np.argmax(score, axis=1)
+        before = best[todo]
         cell[todo] = cand[np.arange(len(todo)), j]
         best[todo] = score[np.arange(len(todo)), j]
-        todo = todo[best[todo] < -tol]
+        todo = todo[(best[todo] < -tol) & (best[todo] > before + tol)]
         if not todo.size:
             break
     return cell, bary(cell, x)
