@@ -16,6 +16,16 @@ when ``p >= 0``: the unscaled pair solves the original problem. The verified
 residuals (:func:`problems.kkt.kkt_residuals`) are always computed on the
 original problem, so whatever the scaling does not repair still shows.
 
+A Tresca step (``qp.friction``: ``sum_i s_i |T_i u - r_i|``, ``r = previous - offset``)
+is rescaled the same way, with one factor ``rho_i`` per node for its ``k`` tangential
+rows (one factor, so that the Euclidean norm of the node's slip only changes by it)::
+
+    T~ = rho T D,   r~ = rho r / sigma,   s~ = s / (sigma rho),   lam = sigma rho lam~,
+
+``rho_i = sqrt(k) / ||(T D)_i||_F`` (the node's rows of ``T D`` unit on average). Divided
+by ``sigma^2``, the step's energy in ``u~`` is the step of ``(A~, f~, B~, g~, T~, r~,
+s~)``, and ``|lam~_i| <= s~_i`` holds exactly when ``|lam_i| <= s_i`` does.
+
 This module is private (leading underscore): the solver registry skips it.
 """
 from __future__ import annotations
@@ -25,6 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
+from problems.friction_forms import TrescaStep
 from problems.spec import Parameter
 
 #: Options every QP library of :mod:`solvers.qp_libraries` shares.
@@ -52,6 +63,11 @@ class ScaledQP:
         Row scaling ``R`` (ones when scaling is off).
     sigma : float
         Magnitude scaling (1 when scaling is off).
+    T, slip_reference, slip_bound : optional
+        A Tresca step's scaled ``T~``, ``r~`` and ``s~`` (module docstring); ``None``
+        without friction.
+    rho : (m_t,) array, optional
+        The nodes' tangential scaling (ones when scaling is off).
     """
 
     A: sp.csc_matrix
@@ -61,6 +77,20 @@ class ScaledQP:
     d: np.ndarray
     r: np.ndarray
     sigma: float
+    T: sp.csr_matrix | None = None
+    slip_reference: np.ndarray | None = None
+    slip_bound: np.ndarray | None = None
+    rho: np.ndarray | None = None
+
+    def step(self) -> TrescaStep:
+        """The scaled problem (a Tresca step if it has friction) in plain arrays."""
+        return TrescaStep(self.A, self.f, self.B, self.g, self.T, self.slip_reference,
+                          self.slip_bound)
+
+    def unscale_tangential(self, lam_s: np.ndarray) -> np.ndarray:
+        """The tangential multipliers ``lam = sigma rho lam~`` of the original step."""
+        k = self.T.shape[0] // max(len(self.rho), 1)
+        return self.sigma * np.repeat(self.rho, k) * np.asarray(lam_s, dtype=float)
 
     def unscale(self, u_s: np.ndarray, p_s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Map a solution of the scaled problem back: ``(u, p)`` of the original."""
@@ -96,8 +126,9 @@ def scale_qp(qp, enabled: bool = True) -> ScaledQP:
     """
     n, m = qp.n, qp.m
     if not enabled:
-        return ScaledQP(A=sp.csc_matrix(qp.A), f=qp.f.copy(), B=sp.csc_matrix(qp.B),
-                        g=qp.g.copy(), d=np.ones(n), r=np.ones(m), sigma=1.0)
+        return _with_friction(ScaledQP(A=sp.csc_matrix(qp.A), f=qp.f.copy(),
+                                       B=sp.csc_matrix(qp.B), g=qp.g.copy(), d=np.ones(n),
+                                       r=np.ones(m), sigma=1.0), qp.friction)
     diag = qp.A.diagonal()
     if np.any(diag <= 0):
         bad = np.flatnonzero(diag <= 0)
@@ -114,7 +145,29 @@ def scale_qp(qp, enabled: bool = True) -> ScaledQP:
     A_s = sp.csc_matrix(Dm @ qp.A @ Dm)
     A_s = sp.csc_matrix(0.5 * (A_s + A_s.T))  # symmetric to the last bit
     B_s = sp.csc_matrix(sp.diags(r) @ BD) if m else sp.csc_matrix((0, n))
-    return ScaledQP(A=A_s, f=f_d / sigma, B=B_s, g=g_r / sigma, d=d, r=r, sigma=sigma)
+    return _with_friction(ScaledQP(A=A_s, f=f_d / sigma, B=B_s, g=g_r / sigma, d=d, r=r,
+                                   sigma=sigma), qp.friction, enabled=True)
+
+
+def _with_friction(data: ScaledQP, fr, enabled: bool = False) -> ScaledQP:
+    """``data`` with the Tresca step of the friction ``fr`` scaled alike (module
+    docstring; ``rho = 1`` when scaling is off)."""
+    if fr is None:
+        return data
+    mt = len(fr.slip_bound)
+    k = fr.T.shape[0] // max(mt, 1)
+    TD = sp.csr_matrix(fr.T @ sp.diags(data.d))
+    if enabled and mt:
+        norms = np.asarray(TD.multiply(TD).sum(axis=1)).ravel().reshape(mt, k).sum(axis=1)
+        rho = np.sqrt(k / np.where(norms > 0, norms, k))
+    else:
+        rho = np.ones(mt)
+    rows_rho = np.repeat(rho, k)
+    data.T = sp.csr_matrix(sp.diags(rows_rho) @ TD)
+    data.slip_reference = rows_rho * (fr.previous - fr.offset) / data.sigma
+    data.slip_bound = fr.slip_bound / (data.sigma * rho)
+    data.rho = rho
+    return data
 
 
 def _magnitude(f_d: np.ndarray, g_r: np.ndarray) -> float:

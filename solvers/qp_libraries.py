@@ -9,6 +9,17 @@ mapping of the library's own status onto the suite's, the note on an initial gue
 library ignores, and the result. A row (:class:`Library`) says only what differs: how
 a preset maps onto the library's options, its status strings, and how it is called.
 
+Friction (one Tresca step, :mod:`problems.friction_forms`; the load path and Coulomb's
+fixed point run around it, :func:`solvers.tresca.run_load_path`): a 2D step is handed to
+every library as a QP in ``(u, t)``, the slip split into two nonnegative parts
+(:func:`problems.friction_forms.split_program`); a 3D step, isotropic, as a second-order
+cone program (:func:`problems.friction_forms.cone_program`) to the libraries whose own API
+takes such cones, Clarabel (``SecondOrderConeT``) and SCS (the cone sizes ``q``, called
+directly: qpsolvers passes no cones); the QP-only libraries skip it. The step is rescaled
+like the frictionless problem, the tangential rows by one factor per node
+(:mod:`solvers._scaling`), and the library's multipliers map back to ``p`` and the
+tangential multipliers ``lam`` (``SolveResult.tangential``).
+
 Presets: ``low/mid/high`` = ``tol`` 1e-3/1e-6/1e-9 set as the library's absolute
 tolerances, as qpbenchmark maps them (its ``test_set.define_solver_settings``), with the
 relative ones at ``tol`` too where a library's absolute test alone would be
@@ -44,9 +55,11 @@ from typing import Any, Callable
 import numpy as np
 import scipy.sparse as sp
 
+from problems.friction_forms import (ConeProgram, lift, standard_program,
+                                     step_multipliers)
 from problems.qp import ContactQP
 from problems.spec import Options, Parameter, resolve_parameters
-from solvers._scaling import ADAPTER_PARAMETERS, ScaledQP, scale_qp, upper_triangle
+from solvers._scaling import ADAPTER_PARAMETERS, scale_qp, upper_triangle
 from solvers.base import TOLERANCES, Role, SolveResult, SolverSpec
 
 
@@ -54,10 +67,10 @@ from solvers.base import TOLERANCES, Role, SolveResult, SolverSpec
 class Outcome:
     """What one call of a library returned, in the library's own words.
 
-    ``x``, ``z``: its primal and inequality-dual solution of the rescaled problem (None
-    if it returned none); ``status``: its own status string; ``iterations``; ``stats``:
-    its own residuals or timings worth a column; ``used_guess``: whether it started from
-    the guess it was given."""
+    ``x``, ``z``: its primal and inequality-dual (cone-dual) solution of the rescaled
+    problem (None if it returned none); ``status``: its own status string;
+    ``iterations``; ``stats``: its own residuals or timings worth a column;
+    ``used_guess``: whether it started from the guess it was given."""
 
     x: np.ndarray | None
     z: np.ndarray | None
@@ -72,7 +85,7 @@ class Outcome:
 FOUND = "solved by qpsolvers itself (no constraints)"
 NOT_FOUND = "not solved by qpsolvers itself (no constraints)"
 
-Call = Callable[[ScaledQP, dict, "np.ndarray | None", "np.ndarray | None"], Outcome]
+Call = Callable[[ConeProgram, dict, "np.ndarray | None", "np.ndarray | None"], Outcome]
 
 
 @dataclass(frozen=True)
@@ -91,7 +104,11 @@ class Library:
     statuses : dict
         The library's status strings -> the suite's (unknown ones are ``failed``).
     call : callable
-        ``call(data, settings, x0, z0) -> Outcome`` on the rescaled problem.
+        ``call(program, settings, x0, z0) -> Outcome`` on the rescaled problem
+        (:class:`problems.friction_forms.ConeProgram` with a nonnegative cone only).
+    cone_call : callable or None
+        The same with second-order cones (a 3D Tresca step), through the library's own
+        cone API; ``None``: a QP library, which skips such a step.
     max_iter_key, time_limit_key : str or None
         The library's names of the two limits (None: it has none; the time limit is
         then checked after the run, and a late run is ``time_limit``).
@@ -109,6 +126,7 @@ class Library:
     settings: Callable[[float, Options], dict]
     statuses: dict
     call: Call
+    cone_call: Call | None = None
     max_iter_key: str | None = "max_iter"
     time_limit_key: str | None = None
     parameters: tuple = ()
@@ -132,22 +150,31 @@ def run(lib: Library, qp: ContactQP, tol: float, max_iter: int, time_limit: floa
                          "stabilisation block C (Sect. 7.5)")
     t0 = time.perf_counter()
     data = scale_qp(qp, enabled=opts.scale)
+    step = data.step()
+    program = standard_program(step)
+    call = lib.cone_call if program.cones else lib.call
+    if call is None:
+        raise ValueError(f"{lib.name} takes no second-order cones (a QP library)")
     settings = lib.settings(tol * opts.tol_factor, opts)
     if lib.max_iter_key:
         settings[lib.max_iter_key] = int(max_iter)
     if lib.time_limit_key and time_limit is not None:
         settings[lib.time_limit_key] = float(time_limit)
     x0, z0 = data.scale_guess(u0, p0)
+    x0 = None if x0 is None else lift(step, program, x0)
+    z0 = z0 if program.kind == "contact" else None        # no guess of lam is taken
     setup_time = time.perf_counter() - t0
     t1 = time.perf_counter()
     try:
-        out = lib.call(data, settings, x0, z0)
+        out = call(program, settings, x0, z0)
     except Exception as err:          # whatever the library raises is its failure, a row
         out = Outcome(None, None, f"raised {type(err).__name__}: {err}", 0)
     solve_time = time.perf_counter() - t1
-    x = np.full(qp.n, np.nan) if out.x is None else np.asarray(out.x, dtype=float)
-    z = np.full(qp.m, np.nan) if out.z is None else np.asarray(out.z, dtype=float)
-    u, p = data.unscale(x, z)
+    x = (np.full(program.P.shape[0], np.nan) if out.x is None
+         else np.asarray(out.x, dtype=float))
+    z = np.full(program.G.shape[0], np.nan) if out.z is None else np.asarray(out.z, dtype=float)
+    p_s, lam_s = step_multipliers(step, program, z)
+    u, p = data.unscale(x[:program.n], p_s)
     status = {FOUND: "converged", **lib.statuses}.get(out.status, "failed")
     if status == "inaccurate" and out.iterations >= max_iter:
         status = "max_iter"                  # "solved inaccurate" at the iteration limit
@@ -158,9 +185,13 @@ def run(lib: Library, qp: ContactQP, tol: float, max_iter: int, time_limit: floa
                     f"({lib.name} cannot be interrupted)")
     if (u0 is not None or p0 is not None) and not out.used_guess:
         message += "; initial guess not used by the library"
+    stats = {**out.stats, "scaled": bool(opts.scale)}
+    if lam_s is not None:
+        stats["form"] = program.kind
     return SolveResult(u=u, p=p, claimed_status=status, message=message,
                        iterations=int(out.iterations), setup_time=setup_time,
-                       solve_time=solve_time, stats={**out.stats, "scaled": bool(opts.scale)})
+                       solve_time=solve_time, stats=stats,
+                       tangential=None if lam_s is None else data.unscale_tangential(lam_s))
 
 
 # ----------------------------------------------------------------------------- the calls
@@ -172,13 +203,13 @@ def via_qpsolvers(solver: str, status_of: Callable[[dict], str],
     """A call through ``qpsolvers.solve_problem`` (the layer qpbenchmark runs);
     ``prepare`` turns option values into the library's own types."""
 
-    def call(data: ScaledQP, settings: dict, x0, z0) -> Outcome:
+    def call(program: ConeProgram, settings: dict, x0, z0) -> Outcome:
         import qpsolvers
 
         settings = prepare(dict(settings))
-        m = data.B.shape[0]
-        problem = qpsolvers.Problem(sp.csc_matrix(data.A), -data.f,
-                                    sp.csc_matrix(data.B) if m else None, data.g if m else None)
+        m = program.G.shape[0]
+        problem = qpsolvers.Problem(program.P, program.q, program.G if m else None,
+                                    program.h if m else None)
         with warnings.catch_warnings():       # its "exited with status ...": ours says it
             warnings.simplefilter("ignore", UserWarning)
             warnings.simplefilter("ignore", PendingDeprecationWarning)   # osqp's raise_error
@@ -205,21 +236,50 @@ def _enum_name(value) -> str:
     return str(value).rsplit(".", 1)[-1]
 
 
-def _clarabel_call(data: ScaledQP, settings: dict, x0, z0) -> Outcome:
-    """Direct: qpsolvers does not pass Clarabel's iteration count."""
+def clarabel_call(program: ConeProgram, settings: dict, x0, z0) -> Outcome:
+    """Direct: qpsolvers does not pass Clarabel's iteration count, nor cones. The
+    nonnegative rows, then a ``SecondOrderConeT`` per cone of the program."""
     import clarabel
 
     s = clarabel.DefaultSettings()
     for key, value in settings.items():
         setattr(s, key, value)
-    m = data.B.shape[0]
-    cones = [clarabel.NonnegativeConeT(m)] if m else []
-    sol = clarabel.DefaultSolver(upper_triangle(data.A), -data.f, sp.csc_matrix(data.B),
-                                 data.g, cones, s).solve()
+    m = program.nonnegative
+    cones = (([clarabel.NonnegativeConeT(m)] if m else [])
+             + [clarabel.SecondOrderConeT(size) for size in program.cones])
+    sol = clarabel.DefaultSolver(upper_triangle(program.P), program.q, program.G, program.h,
+                                 cones, s).solve()
     return Outcome(x=np.asarray(sol.x), z=np.asarray(sol.z), status=str(sol.status),
                    iterations=int(sol.iterations),
                    stats={"clarabel_r_prim": float(sol.r_prim),
                           "clarabel_r_dual": float(sol.r_dual)})
+
+
+def _scs_status(info: dict) -> str:
+    return str(info.get("status", "no status"))
+
+
+def _scs_iterations(info: dict) -> int:
+    return int(info.get("iter", 0))
+
+
+def _scs_stats(info: dict) -> dict:
+    return {"scs_res_pri": float(info.get("res_pri", np.nan)),
+            "scs_res_dual": float(info.get("res_dual", np.nan))}
+
+
+def _scs_cone_call(program: ConeProgram, settings: dict, x0, z0) -> Outcome:
+    """Direct (``scs.SCS``), with the cone sizes: ``l`` nonnegative rows, then the
+    second-order cones ``q``; its ``y`` are the cone multipliers (``Px + c + A'y = 0``)."""
+    import scs
+
+    data = {"P": upper_triangle(program.P), "A": program.G, "b": program.h, "c": program.q}
+    cone = {"l": program.nonnegative, "q": list(program.cones)}
+    result = scs.SCS(data, cone, **settings).solve(warm_start=x0 is not None, x=x0)
+    info = result["info"]
+    return Outcome(x=np.asarray(result["x"]), z=np.asarray(result["y"]),
+                   status=_scs_status(info), iterations=_scs_iterations(info),
+                   stats=_scs_stats(info), used_guess=x0 is not None)
 
 
 @contextlib.contextmanager
@@ -239,7 +299,7 @@ def _banner_silenced():
         os.close(saved)
 
 
-def _highs_call(data: ScaledQP, settings: dict, x0, z0) -> Outcome:
+def _highs_call(program: ConeProgram, settings: dict, x0, z0) -> Outcome:
     """Direct: qpsolvers returns none of HiGHS's status (``extras`` is empty), which would
     turn its own "Solve error" into a bare failure. ``min 1/2 x'Px + q'x`` with the rows
     ``-inf <= Gx <= h``; HiGHS's row duals are ``-z`` (minimisation, upper bounds)."""
@@ -249,17 +309,17 @@ def _highs_call(data: ScaledQP, settings: dict, x0, z0) -> Outcome:
         h = highspy.Highs()
     for key, value in settings.items():
         h.setOptionValue(key, value)
-    n, m = data.A.shape[0], data.B.shape[0]
+    n, m = program.P.shape[0], program.G.shape[0]
     inf = highspy.kHighsInf
     lp = highspy.HighsLp()
     lp.num_col_, lp.num_row_ = n, m
-    lp.col_cost_ = -data.f
+    lp.col_cost_ = program.q
     lp.col_lower_, lp.col_upper_ = np.full(n, -inf), np.full(n, inf)
-    lp.row_lower_, lp.row_upper_ = np.full(m, -inf), data.g
-    G = sp.csc_matrix(data.B)
+    lp.row_lower_, lp.row_upper_ = np.full(m, -inf), program.h
+    G = sp.csc_matrix(program.G)
     lp.a_matrix_.format_ = highspy.MatrixFormat.kColwise
     lp.a_matrix_.start_, lp.a_matrix_.index_, lp.a_matrix_.value_ = G.indptr, G.indices, G.data
-    lower = sp.csc_matrix(sp.tril(data.A))            # HiGHS takes the lower triangle
+    lower = sp.csc_matrix(sp.tril(program.P))         # HiGHS takes the lower triangle
     model = highspy.HighsModel()
     model.lp_ = lp
     model.hessian_.dim_ = n
@@ -328,7 +388,8 @@ LIBRARIES = (
                                  "equilibrate_enable": bool(o.equilibrate), "verbose": False},
         statuses={"Solved": "converged", "AlmostSolved": "inaccurate",
                   "MaxIterations": "max_iter", "MaxTime": "time_limit"},
-        call=_clarabel_call, time_limit_key="time_limit", default_max_iter=200,
+        call=clarabel_call, cone_call=clarabel_call, time_limit_key="time_limit",
+        default_max_iter=200,
         parameters=(Parameter("equilibrate", True, "Clarabel's Ruiz equilibration"),)),
     Library(
         "piqp", "PIQP (proximal interior point), sparse KKT backend", "piqp",
@@ -384,10 +445,8 @@ LIBRARIES = (
         settings=lambda tol, o: {"eps_abs": tol, "eps_rel": 0.0, "verbose": False},
         statuses={"solved": "converged", "solved (inaccurate - reached max_iters)": "max_iter",
                   "solved (inaccurate - reached time_limit_secs)": "time_limit"},
-        call=via_qpsolvers("scs", lambda e: str(e.get("status", "no status")),
-                           lambda e: int(e.get("iter", 0)),
-                           lambda e: {"scs_res_pri": float(e.get("res_pri", np.nan)),
-                                      "scs_res_dual": float(e.get("res_dual", np.nan))}),
+        call=via_qpsolvers("scs", _scs_status, _scs_iterations, _scs_stats),
+        cone_call=_scs_cone_call,
         max_iter_key="max_iters", time_limit_key="time_limit_secs", default_max_iter=100_000),
 )
 
@@ -406,6 +465,23 @@ def _piqp_kkt(name: str):
     return getattr(piqp.KKTSolver, name)
 
 
+def cone_support(lib: Library) -> Callable[[ContactQP], tuple[bool, str]]:
+    """``supports(qp)`` of a row: a QP library (no ``cone_call``) skips a 3D Tresca step."""
+
+    def supports(qp: ContactQP) -> tuple[bool, str]:
+        """A 2D Tresca step is handed over as a QP (the slip split into two nonnegative
+        parts), a 3D one, isotropic, as a second-order cone program; a library without
+        second-order cones skips a 3D Tresca step (or Coulomb, run as Tresca steps)."""
+        fr = qp.friction
+        if lib.cone_call is None and fr is not None and fr.components > 1:
+            return False, (f"{fr.law} friction in {qp.dim}D: isotropic friction is a "
+                           f"second-order cone program, and {lib.name} is a QP solver (no "
+                           "second-order cones)")
+        return True, ""
+
+    return supports
+
+
 def solver_spec(lib: Library) -> SolverSpec:
     """The registry entry of a row."""
     return SolverSpec(
@@ -414,7 +490,8 @@ def solver_spec(lib: Library) -> SolverSpec:
             lib, qp, tol, max_iter, time_limit, u0, p0, opts),
         parameters=ADAPTER_PARAMETERS + lib.parameters,
         presets={name: lib.describe(tol) for name, tol in TOLERANCES.items()},
-        default_max_iter=lib.default_max_iter, role=Role.LIBRARY, size_limit=lib.size_limit)
+        default_max_iter=lib.default_max_iter, role=Role.LIBRARY, size_limit=lib.size_limit,
+        supports=cone_support(lib), handles_friction=True)
 
 
 #: Every row as a registered solver (:func:`problems.spec.discover` reads ``SOLVERS``).

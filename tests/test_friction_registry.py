@@ -125,8 +125,11 @@ def test_the_tangential_rules_of_the_contract(tangential, rule):
     assert contract_violation(ok, 4, 2, 2) is None
 
 
-#: every registered solver that takes friction (each Tresca step through the registry)
-FRICTIONAL = sorted(name for name, spec in solvers().items() if spec.handles_friction)
+#: every registered contact solver that takes friction (each Tresca step through the
+#: registry); the general QP libraries stop at their own tolerances and may honestly fall
+#: short of the verification, which tests/test_friction_libraries.py checks instead
+FRICTIONAL = sorted(name for name, spec in solvers().items()
+                    if spec.handles_friction and spec.role != "library")
 
 
 @pytest.mark.parametrize("law", ["tresca", "coulomb"])

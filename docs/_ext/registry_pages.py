@@ -82,6 +82,10 @@ def solver_page(spec, builtin: bool) -> str:
              f"- default iteration cap: {spec.default_max_iter}",
              "- stabilisation block `C` (Sect. 7.5): "
              + ("taken as it is" if spec.handles_C else "handed over in its slack form"),
+             "- friction (Tresca, Coulomb): "
+             + ("one Tresca step per solve, the load path run around it "
+                "({doc}`/guide/friction`)" if spec.handles_friction
+                else "skipped (below)"),
              "", "## Options", "",
              f"Set with `contactbench solve --solver {spec.name} --set NAME=VALUE`, or from "
              "Python as `solve(qp, ...)` keywords.", "",

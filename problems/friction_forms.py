@@ -1,0 +1,227 @@
+"""One Tresca step in the standard forms of the general QP and conic libraries.
+
+A Tresca step (:class:`problems.qp.Friction`, its slip bound given) is::
+
+    minimise 1/2 u'Au - f'u + sum_i s_i |T_i u - r_i|   subject to   B u <= g,
+
+``r = previous - offset`` (the slip ``T u + offset - previous`` measured from the previous
+state). An unknown ``t_i >= |T_i u - r_i|`` per node with ``s_i > 0`` moves the nonsmooth
+term into the constraints, ``x = (u, t)``::
+
+    minimise 1/2 u'Au - f'u + sum_i s_i t_i   subject to   B u <= g,   |T_i u - r_i| <= t_i.
+
+Every form here is one :class:`ConeProgram`, ``min 1/2 x'Px + q'x`` s.t. ``Gx + z = h``,
+``z`` in a nonnegative cone followed by second-order cones, the standard form Clarabel
+and SCS take directly (the QP libraries take ``Gx <= h``: a nonnegative cone only). Its
+multipliers ``y`` (``Px + q + G'y = 0``, ``y`` in the dual cone, which is the cone
+itself) map back to the suite's ``(p, lam)`` (``A u + B'p + T'lam = f``,
+``|lam_i| <= s_i``, ``lam_i . slip_i = s_i |slip_i|``):
+
+* :func:`contact_program`: no friction, ``P = A``, ``q = -f``, ``G = B``, ``h = g``,
+  ``y = p``.
+* :func:`split_program` (2D, one tangential row per node): the slip split into two
+  nonnegative parts, the rows ``T_i u - t_i <= r_i`` and ``-T_i u - t_i <= -r_i``: a QP.
+  Stationarity in ``t_i`` gives ``a_i + b_i = s_i`` for the two rows' multipliers, in ``u``
+  ``lam_i = a_i - b_i``; with ``a, b >= 0`` that is ``|lam_i| <= s_i``, and complementarity
+  puts ``lam_i = s_i sign(slip_i)`` where the node slips. The dual of this QP is
+  the box problem of :func:`solvers.tresca.tresca_exact`.
+* :func:`cone_program` (2D and 3D, isotropic): one second-order cone
+  ``z_i = (t_i, T_i u - r_i)``, ``|z_i[1:]| <= z_i[0]``, per node with ``s_i > 0``.
+  Stationarity in ``t_i`` gives ``y_i[0] = s_i``, the dual cone ``|y_i[1:]| <= s_i``, and
+  in ``u`` ``lam_i = -y_i[1:]``; complementarity ``z_i . y_i = 0`` is
+  ``s_i t_i = lam_i . slip_i``, the slip complementarity.
+
+A node with ``s_i = 0`` gets no ``t_i`` and no row (its ``t_i`` would cost nothing and
+be unbounded above, which interior-point methods do not take); its ``lam_i`` is zero.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+from problems.qp import ContactQP
+
+
+@dataclass(frozen=True)
+class TrescaStep:
+    """One Tresca step (or, without ``T``, the frictionless problem) in plain arrays.
+
+    Attributes
+    ----------
+    A, f, B, g
+        The contact problem ``min 1/2 u'Au - f'u`` s.t. ``Bu <= g``.
+    T : (m_t k, n) sparse or None
+        Tangential rows, node-major (``k`` per node); ``None``: frictionless.
+    r : (m_t k,) array or None
+        The slip's reference: the slip of ``u`` is ``T u - r``.
+    s : (m_t,) array or None
+        Slip bounds ``s_i >= 0``.
+    """
+
+    A: sp.spmatrix
+    f: np.ndarray
+    B: sp.spmatrix
+    g: np.ndarray
+    T: sp.spmatrix | None = None
+    r: np.ndarray | None = None
+    s: np.ndarray | None = None
+
+    @property
+    def components(self) -> int:
+        """``k``: tangential rows per node (0 without friction)."""
+        return 0 if self.T is None else self.T.shape[0] // max(len(self.s), 1)
+
+    @property
+    def bounded(self) -> np.ndarray:
+        """The nodes with ``s_i > 0`` (the only ones with a ``t_i`` in the forms)."""
+        return np.zeros(0, dtype=int) if self.s is None else np.flatnonzero(self.s > 0)
+
+    def rows(self, nodes: np.ndarray) -> np.ndarray:
+        """The tangential rows of ``nodes`` (node-major: ``i k + j``)."""
+        k = self.components
+        return (np.asarray(nodes)[:, None] * k + np.arange(k)).ravel()
+
+
+def tresca_step(qp: ContactQP) -> TrescaStep:
+    """The step ``qp`` in plain arrays (``r = previous - offset``)."""
+    fr = qp.friction
+    if fr is None:
+        return TrescaStep(qp.A, qp.f, qp.B, qp.g)
+    return TrescaStep(qp.A, qp.f, qp.B, qp.g, sp.csr_matrix(fr.T), fr.previous - fr.offset,
+                      fr.slip_bound)
+
+
+@dataclass(frozen=True)
+class ConeProgram:
+    """``min 1/2 x'Px + q'x`` s.t. ``Gx + z = h``, ``z`` in ``K``: the first
+    ``nonnegative`` rows a nonnegative cone, then one second-order cone
+    (``|z[1:]| <= z[0]``) of each size in ``cones``, in order.
+
+    ``kind``: ``"contact"``, ``"split"`` or ``"cone"`` (which form, for the map of the
+    multipliers); ``n``: the unknowns ``u`` (``x[:n]``); ``bounded``: the nodes with a
+    ``t_i`` (``x[n:]``, in this order).
+    """
+
+    P: sp.csc_matrix
+    q: np.ndarray
+    G: sp.csc_matrix
+    h: np.ndarray
+    nonnegative: int
+    cones: tuple
+    kind: str
+    n: int
+    bounded: np.ndarray
+
+
+def contact_program(step: TrescaStep) -> ConeProgram:
+    """The frictionless problem as it is: ``P = A``, ``q = -f``, ``G = B``, ``h = g``."""
+    return ConeProgram(P=sp.csc_matrix(step.A), q=-step.f, G=sp.csc_matrix(step.B), h=step.g,
+                       nonnegative=step.B.shape[0], cones=(), kind="contact", n=step.A.shape[0],
+                       bounded=np.zeros(0, dtype=int))
+
+
+def _with_t(step: TrescaStep) -> tuple[sp.csc_matrix, np.ndarray, np.ndarray]:
+    """``P = diag(A, 0)``, ``q = (-f, s_b)`` and the bounded nodes ``b``."""
+    b = step.bounded
+    P = sp.block_diag([sp.csc_matrix(step.A), sp.csc_matrix((b.size, b.size))], format="csc")
+    return P, np.concatenate([-step.f, step.s[b]]), b
+
+
+def split_program(step: TrescaStep) -> ConeProgram:
+    """2D: the slip split into nonnegative parts (module docstring): a QP in ``(u, t)``
+    with the rows ``B u <= g``, ``T_b u - t <= r_b``, ``-T_b u - t <= -r_b``.
+
+    Raises
+    ------
+    ValueError
+        With more than one tangential row per node (isotropic friction in 3D is no QP:
+        :func:`cone_program`).
+    """
+    if step.components != 1:
+        raise ValueError(f"split_program: {step.components} tangential rows per node; "
+                         "allowed: 1 (2D); isotropic 3D friction is a cone program")
+    P, q, b = _with_t(step)
+    Tb, rb, eye = step.T[b], step.r[b], sp.identity(b.size, format="csr")
+    m = step.B.shape[0]
+    G = sp.bmat([[step.B, sp.csr_matrix((m, b.size))], [Tb, -eye], [-Tb, -eye]], format="csc")
+    return ConeProgram(P=P, q=q, G=G, h=np.concatenate([step.g, rb, -rb]), nonnegative=G.shape[0],
+                       cones=(), kind="split", n=step.A.shape[0], bounded=b)
+
+
+def cone_program(step: TrescaStep) -> ConeProgram:
+    """Isotropic Tresca (2D or 3D) as a second-order cone program in ``(u, t)``: the
+    rows ``B u <= g`` (nonnegative cone), then per bounded node ``i`` the cone
+    ``(t_i, T_i u - r_i)`` written ``G x + z = h`` as the rows ``(0, -e_i)`` and
+    ``(-T_i, 0)`` with ``h = (0, -r_i)``."""
+    P, q, b = _with_t(step)
+    k, m, n = step.components, step.B.shape[0], step.A.shape[0]
+    width = k + 1
+    head = np.arange(b.size) * width                     # each cone's first row
+    t_rows = sp.csr_matrix((-np.ones(b.size), (head, n + np.arange(b.size))),
+                           shape=(b.size * width, n + b.size))
+    slip_at = (head[:, None] + 1 + np.arange(k)).ravel()   # the cones' other rows
+    Tb = sp.coo_matrix(step.T[step.rows(b)])
+    slip_rows = sp.csr_matrix((-Tb.data, (slip_at[Tb.row], Tb.col)),
+                              shape=(b.size * width, n + b.size))
+    h_cones = np.zeros(b.size * width)
+    h_cones[slip_at] = -step.r[step.rows(b)]
+    G = sp.vstack([sp.hstack([step.B, sp.csr_matrix((m, b.size))]), t_rows + slip_rows],
+                  format="csc")
+    return ConeProgram(P=P, q=q, G=G, h=np.concatenate([step.g, h_cones]), nonnegative=m,
+                       cones=(width,) * b.size, kind="cone", n=n, bounded=b)
+
+
+def standard_program(step: TrescaStep) -> ConeProgram:
+    """The form a library is handed: the frictionless problem as it is, a 2D Tresca step
+    split (a QP every library takes), a 3D one as a cone program (second-order cones)."""
+    if step.T is None:
+        return contact_program(step)
+    return split_program(step) if step.components == 1 else cone_program(step)
+
+
+def lift(step: TrescaStep, program: ConeProgram, u: np.ndarray) -> np.ndarray:
+    """The point ``x = (u, t)`` of ``program`` with ``t_i = |T_i u - r_i|`` (the least
+    feasible ``t``): its objective is the step's energy (a guess, or a check)."""
+    u = np.asarray(u, dtype=float)
+    if program.kind == "contact":
+        return u
+    rows = step.rows(program.bounded)
+    slip = (step.T[rows] @ u - step.r[rows]).reshape(program.bounded.size, -1)
+    return np.concatenate([u, np.linalg.norm(slip, axis=1)])
+
+
+def program_multipliers(step: TrescaStep, program: ConeProgram,
+                        p: np.ndarray, lam: np.ndarray | None) -> np.ndarray:
+    """The multipliers ``y`` of ``program`` that map back to ``(p, lam)`` (the inverse of
+    :func:`step_multipliers`; with ``|lam_i| <= s_i`` in the dual cone): split,
+    ``a = (s + lam) / 2``, ``b = (s - lam) / 2``; cone, ``y_i = (s_i, -lam_i)``."""
+    p = np.asarray(p, dtype=float)
+    if program.kind == "contact":
+        return p
+    b, k = program.bounded, step.components
+    lam_b = np.asarray(lam, dtype=float)[step.rows(b)]
+    if program.kind == "split":
+        s = step.s[b]
+        return np.concatenate([p, (s + lam_b) / 2, (s - lam_b) / 2])
+    cones = np.concatenate([step.s[b][:, None], -lam_b.reshape(b.size, k)], axis=1)
+    return np.concatenate([p, cones.ravel()])
+
+
+def step_multipliers(step: TrescaStep, program: ConeProgram,
+                     y: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+    """``(p, lam)`` of the program's multipliers ``y`` (module docstring): ``p`` the
+    normal rows' ``y``; split, ``lam_i = a_i - b_i``; cone, ``lam_i = -y_i[1:]``;
+    ``lam_i = 0`` at the nodes without a ``t_i``. ``lam`` is ``None`` without friction."""
+    y = np.asarray(y, dtype=float)
+    m = step.B.shape[0]
+    if program.kind == "contact":
+        return y[:m], None
+    b, k = program.bounded, step.components
+    lam = np.zeros(step.T.shape[0])
+    if program.kind == "split":
+        lam[step.rows(b)] = y[m:m + b.size] - y[m + b.size:m + 2 * b.size]
+    else:
+        lam[step.rows(b)] = -y[m:].reshape(b.size, k + 1)[:, 1:].ravel()
+    return y[:m], lam
