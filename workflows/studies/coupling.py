@@ -44,10 +44,10 @@ error: for nested spaces the two differ by the reference's own error, which stee
 finest point a little. The quick scale runs circle–square levels 0-2 against level 3
 (48 s, 0.7 GB); the full scale levels 0-3 against level 4 (6.9 min, 2.0 GB: the reference
 solve and the interpolations onto its 262k nodes dominate). Cube–sphere runs levels 0-2
-against level 3 (135,102 nodes) at every scale from quick: 8.6 min and 5.5 GB, of which
-the reference's PDAS solve takes 4.9 min; level 4 (1.08M nodes) is beyond a direct
-factorisation (its fill grows about as N^{4/3}: an estimated 16x the memory). All measured
-on a loaded 2-core machine (`/usr/bin/time -v`, each job alone). The interpolation onto
+against level 3 (135,102 nodes) at every scale from quick: 2.1 min and 2.5 GB, of which
+the reference's solve (TNNMG, `solvers.reference.reference_solve` beyond a factorisation)
+takes 11 s; a level-4 reference (1.08M nodes) has not been measured. Measured on a
+2-core machine shared with other work (`/usr/bin/time -v`, each job alone). The interpolation onto
 the reference locates each fine node in the coarse mesh of its body; on the ball a
 quarter of the fine surface nodes lie outside the coarse ball (projected onto the
 sphere) and get the linear extension of their nearest cell.
