@@ -52,7 +52,9 @@ def test_the_script_writes_every_declared_output(outputs):
         assert (solved.start == "cold").sum() == (solved.start == "warm").sum() > 0
         assert len(at[at.role == "mu_zero"]) == 2 and len(at[at.role == "coulomb"]) == 2
         timed = at[at.role == "timing"]
-        assert sorted(timed.solver) == sorted(["tnnmg", "linear_floor"] * len(COMMON["ratios"]))
+        assert sorted(zip(timed.solver, timed.start)) == sorted(
+            [("tnnmg", "cold"), ("tnnmg", "warm"), ("linear_floor", "cold")]
+            * len(COMMON["ratios"]))
         assert (timed.n_to_target > 0).all() and np.isfinite(timed.t_to_target).all()
         assert (timed.energy_error <= timed.target).all()
     assert (runs[runs.role != "coulomb"].status == "converged").all()

@@ -181,7 +181,7 @@ def multiplier_errors(qp, p, p_ref, u_ref) -> dict:
             else abs(float(np.sum(p)))}
 
 
-def tnnmg_run(qp, u_ref, target: float, time_limit: float, coarse=()) -> dict:
+def tnnmg_run(qp, u_ref, target: float, time_limit: float, coarse=(), start=None) -> dict:
     """Truncated nonsmooth Newton multigrid (:mod:`solvers.tnnmg`), the contact community's
     fastest method: steps and time (setup included) until the energy-norm error reaches
     ``target``, read by a callback whose own cost is subtracted, then on to its verified stop.
@@ -189,13 +189,14 @@ def tnnmg_run(qp, u_ref, target: float, time_limit: float, coarse=()) -> dict:
     ``coarse``: the scene's coarser problems, coarsest first, for nested iteration from
     the coarsest level: each solved by TNNMG until its KKT residuals meet
     :data:`NESTED_TOL` (no certificate: it only gives the next level's start) and
-    prolongated (``u0 = P u_coarse``); their time is ``t_coarse_levels``.
+    prolongated (``u0 = P u_coarse``); their time is ``t_coarse_levels``. ``start``: the
+    initial guess without ``coarse`` (a load path's previous answer; default zero).
     """
     ok, reason = tnnmg.supports(qp)
     if not ok:          # a row that says why, at once (the stabilised rows, Sect. 7.5)
         return {"status": "skipped", "message": reason}
     t0 = time.perf_counter()
-    u0 = None
+    u0 = start
     chain = list(coarse) + [qp]
     coarse_opts = tnnmg.SOLVER.options(stop="kkt")       # no certificate on a coarse level
     for q_c, q_f in zip(chain[:-1], chain[1:]):

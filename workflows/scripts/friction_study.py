@@ -28,10 +28,11 @@ parameters, ``--problem P --set key=value``), at each of ``--levels``:
   ``contactbench solve``) and from zero (``cold``, its ``--cold``): status, the
   solver's iterations in the normal and in the tangential step, its setup and solve
   time, and the relative energy-norm distance of its last step to the reference's;
-* **timing** -- TNNMG on the reference's last Tresca step from zero, its time (setup
-  included) to the relative energy error ``--target`` against the reference, beside the
-  linear floor: geometric-multigrid PCG for the same system without contact to the same
-  accuracy; each the median of ``--repeats`` runs (:func:`timing_rows`);
+* **timing** -- TNNMG on the reference's last Tresca step from zero and from the normal
+  step's answer, its time (setup included) to the relative energy error ``--target``
+  against the reference, beside the linear floor from zero: geometric-multigrid PCG for
+  the same system without contact to the same accuracy; each the median of
+  ``--repeats`` runs (:func:`timing_rows`);
 * **mu = 0** -- the reference's path with ``mu = 0`` against ``pdas`` on each load step's
   frictionless problem, both load steps;
 * **Coulomb** (Coulomb's law, the tangential step at ``--coulomb-shift``) -- the
@@ -195,21 +196,30 @@ def solver_row(path_qp, name: str, tol: str, time_limit: float, ref_step,
     return row
 
 
-def timing_rows(step_qp, u_ref, target: float, repeats: int, time_limit: float) -> list[dict]:
-    """TNNMG on the Tresca step ``step_qp`` from zero against the linear floor, each the
-    median of ``repeats`` timed runs (:func:`workflows.measure.median_run`): TNNMG's steps
-    and time (setup included) until its energy-norm distance to the reference's ``u_ref``
-    reaches ``target`` (:func:`workflows.measure.tnnmg_run`), then on to its verified stop;
-    the floor, geometric-multigrid PCG for ``A u = f`` of the same system without contact
-    to the same energy accuracy (:func:`workflows.measure.amg_pcg_floor`)."""
+def timing_rows(step_qp, u_ref, target: float, repeats: int, time_limit: float,
+                u_previous=None) -> list[dict]:
+    """TNNMG on the Tresca step ``step_qp`` against the linear floor, each the median of
+    ``repeats`` timed runs (:func:`workflows.measure.median_run`): TNNMG's steps and time
+    (setup included) until its energy-norm distance to the reference's ``u_ref`` reaches
+    ``target`` (:func:`workflows.measure.tnnmg_run`), then on to its verified stop, from
+    zero (``start`` ``cold``) and, given ``u_previous`` (the previous load step's answer),
+    from it (``warm``, as a load path runs it); the floor from zero, geometric-multigrid
+    PCG for ``A u = f`` of the same system without contact to the same energy accuracy
+    (:func:`workflows.measure.amg_pcg_floor`)."""
     keep = ("status", "message", "n_to_target", "t_to_target", "t_to_target_min",
             "t_to_target_max", "timing_repeats", "energy_error", "kkt_max")
-    tn = median_run(lambda: tnnmg_run(step_qp, u_ref, target, time_limit), repeats)
+    runs = [("tnnmg", "cold", median_run(
+        lambda: tnnmg_run(step_qp, u_ref, target, time_limit), repeats))]
+    if u_previous is not None:
+        runs.append(("tnnmg", "warm", median_run(
+            lambda: tnnmg_run(step_qp, u_ref, target, time_limit, start=u_previous),
+            repeats)))
     u_lin = linear_solution(step_qp)
-    floor = median_run(lambda: amg_pcg_floor(step_qp, "gmg", target, u_lin), repeats)
-    return [{"role": "timing", "solver": name, "target": target,
+    runs.append(("linear_floor", "cold", median_run(
+        lambda: amg_pcg_floor(step_qp, "gmg", target, u_lin), repeats)))
+    return [{"role": "timing", "solver": name, "start": start, "target": target,
              **{k: run[k] for k in keep if k in run}}
-            for name, run in (("tnnmg", tn), ("linear_floor", floor))]
+            for name, start, run in runs]
 
 
 def mu_zero_rows(qp, ref_solve) -> list[dict]:
@@ -274,7 +284,7 @@ def level_rows(spec, params: dict, level: int, args) -> tuple[list[dict], list[p
                      for warm in (True, False)]
         rows += [{**size, "ratio": ratio, **r} for r in
                  timing_rows(ref.qp, ref.solution.u, args.target, args.repeats,
-                             args.time_limit)]
+                             args.time_limit, steps[0].solution.u)]
     try:
         rows += [{**size, "role": "mu_zero", "solver": ref_name, **r}
                  for r in mu_zero_rows(qp, ref_solve)]
