@@ -199,6 +199,24 @@ def test_median_run_keeps_the_median_runs_row_and_the_spread():
         median_run(dict, 0)
 
 
+def test_interleaved_runs_take_turns_and_keep_each_median():
+    """Timings compared as a ratio are taken in rounds (a, b, a, b, ...), each run's median
+    kept as median_run keeps it; a run that does not reach its target is not repeated."""
+    from workflows.measure import interleaved_median_runs
+    order = []
+    times = {"a": iter([3.0, 1.0, 2.0]), "b": iter([9.0, 7.0, 8.0])}
+
+    def run(name):
+        return lambda: order.append(name) or {"t_to_target": next(times[name])}
+
+    rows = interleaved_median_runs({"a": run("a"), "b": run("b"),
+                                    "never": lambda: order.append("n") or {}}, 3)
+    assert order == ["a", "b", "n", "a", "b", "a", "b"]
+    assert rows["a"]["t_to_target"] == 2.0 and rows["b"]["t_to_target"] == 8.0
+    assert rows["b"]["t_to_target_min"] == 7.0 and rows["b"]["timing_repeats"] == 3
+    assert rows["never"]["timing_repeats"] == 1
+
+
 def test_augmented_projection_study_beyond_a_factorisation(tmp_path):
     """The route for sizes no Cholesky reaches: TNNMG to 1e-10, verified, as the reference,
     and no Alg. 8.4 configuration; its energy error agrees with the exact reference's."""

@@ -110,17 +110,35 @@ def median_run(run: Callable[[], dict], repeats: int, key: str = "t_to_target") 
     A timed solve is deterministic in its steps, not in its time: a claim judged on one
     sub-second run flips with the machine's noise, the median of a few does not. A run
     without a finite ``key`` (not reached, skipped) is returned at once, unrepeated."""
+    return interleaved_median_runs({"run": run}, repeats, key)["run"]
+
+
+def interleaved_median_runs(runs: dict[str, Callable[[], dict]], repeats: int,
+                            key: str = "t_to_target") -> dict[str, dict]:
+    """Each of ``runs`` ``repeats`` times in rounds, one run of each per round, and per
+    name the row :func:`median_run` keeps. Timings compared as a ratio are taken this way:
+    a drift of the machine's speed during the measurement (a shared host's neighbours,
+    its clock) then meets every run alike instead of one run's repeats. A run without a
+    finite ``key`` in the first round (not reached, skipped) is not repeated."""
     if repeats < 1:
         raise ValueError(f"repeats must be >= 1, got {repeats}")
-    runs = [run()]
+    rows: dict[str, list] = {name: [] for name in runs}
+    for round_ in range(repeats):
+        for name, run in runs.items():
+            if round_ and not np.isfinite(rows[name][0].get(key, np.nan)):
+                continue
+            rows[name].append(run())
+    return {name: _median_row(r, key) for name, r in rows.items()}
+
+
+def _median_row(runs: list[dict], key: str) -> dict:
     if not np.isfinite(runs[0].get(key, np.nan)):
         return {**runs[0], "timing_repeats": 1}
-    runs += [run() for _ in range(repeats - 1)]
     values = np.array([r.get(key, np.nan) for r in runs], dtype=float)
     order = np.argsort(values)                  # NaN last
     middle = runs[int(order[(len(runs) - 1) // 2])]
     return {**middle, f"{key}_min": float(np.nanmin(values)),
-            f"{key}_max": float(np.nanmax(values)), "timing_repeats": repeats}
+            f"{key}_max": float(np.nanmax(values)), "timing_repeats": len(runs)}
 
 
 def amg_pcg_floor(qp, kind: str, target: float, u_exact: np.ndarray,

@@ -73,7 +73,8 @@ from solvers.interface import parse_tolerance, run_load_path, solve, solvers
 from solvers.tresca import (as_tresca_solution, friction_path, path_for_ratio,
                             scaled_tangential_step, tangential_ratio, warm_start)
 from workflows.io import write_csv
-from workflows.measure import amg_pcg_floor, linear_solution, median_run, tnnmg_run
+from workflows.measure import (amg_pcg_floor, interleaved_median_runs, linear_solution,
+                               tnnmg_run)
 from workflows.progress import study_progress
 from workflows.scene_args import add_scene_arguments, check_levels, parse_sets, scene_from_args
 
@@ -199,7 +200,8 @@ def solver_row(path_qp, name: str, tol: str, time_limit: float, ref_step,
 def timing_rows(step_qp, u_ref, target: float, repeats: int, time_limit: float,
                 u_previous=None) -> list[dict]:
     """TNNMG on the Tresca step ``step_qp`` against the linear floor, each the median of
-    ``repeats`` timed runs (:func:`workflows.measure.median_run`): TNNMG's steps and time
+    ``repeats`` timed runs taken in rounds (:func:`workflows.measure.interleaved_median_runs`):
+    TNNMG's steps and time
     (setup included) until its energy-norm distance to the reference's ``u_ref`` reaches
     ``target`` (:func:`workflows.measure.tnnmg_run`), then on to its verified stop, from
     zero (``start`` ``cold``) and, given ``u_previous`` (the previous load step's answer),
@@ -208,18 +210,16 @@ def timing_rows(step_qp, u_ref, target: float, repeats: int, time_limit: float,
     (:func:`workflows.measure.amg_pcg_floor`)."""
     keep = ("status", "message", "n_to_target", "t_to_target", "t_to_target_min",
             "t_to_target_max", "timing_repeats", "energy_error", "kkt_max")
-    runs = [("tnnmg", "cold", median_run(
-        lambda: tnnmg_run(step_qp, u_ref, target, time_limit), repeats))]
-    if u_previous is not None:
-        runs.append(("tnnmg", "warm", median_run(
-            lambda: tnnmg_run(step_qp, u_ref, target, time_limit, start=u_previous),
-            repeats)))
     u_lin = linear_solution(step_qp)
-    runs.append(("linear_floor", "cold", median_run(
-        lambda: amg_pcg_floor(step_qp, "gmg", target, u_lin), repeats)))
+    runs = {("tnnmg", "cold"): lambda: tnnmg_run(step_qp, u_ref, target, time_limit),
+            ("linear_floor", "cold"): lambda: amg_pcg_floor(step_qp, "gmg", target, u_lin)}
+    if u_previous is not None:
+        runs[("tnnmg", "warm")] = lambda: tnnmg_run(step_qp, u_ref, target, time_limit,
+                                                   start=u_previous)
+    timed = interleaved_median_runs(runs, repeats)
     return [{"role": "timing", "solver": name, "start": start, "target": target,
              **{k: run[k] for k in keep if k in run}}
-            for name, start, run in runs]
+            for (name, start), run in timed.items()]
 
 
 def mu_zero_rows(qp, ref_solve) -> list[dict]:
