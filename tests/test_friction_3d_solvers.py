@@ -113,7 +113,8 @@ def _frictional(level, **kw):
 def _registered_path(qp, solver, **options):
     """The load path through the registry: every Tresca solve verified (the friction KKT
     residuals and the certified Tresca energy bound) at 1e-10."""
-    return run_load_path(qp, lambda step: solve(step, solver, tol=TIGHT, **options), TIGHT)
+    return run_load_path(qp, lambda step, start: solve(step, solver, tol=TIGHT, **options),
+                         TIGHT)
 
 
 @pytest.fixture(scope="module", params=[
