@@ -89,8 +89,8 @@ class ScaledQP:
 
     def unscale_tangential(self, lam_s: np.ndarray) -> np.ndarray:
         """The tangential multipliers ``lam = sigma rho lam~`` of the original step."""
-        k = self.T.shape[0] // max(len(self.rho), 1)
-        return self.sigma * np.repeat(self.rho, k) * np.asarray(lam_s, dtype=float)
+        return (self.sigma * np.repeat(self.rho, self.step().components)
+                * np.asarray(lam_s, dtype=float))
 
     def unscale(self, u_s: np.ndarray, p_s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Map a solution of the scaled problem back: ``(u, p)`` of the original."""
@@ -154,8 +154,7 @@ def _with_friction(data: ScaledQP, fr, enabled: bool = False) -> ScaledQP:
     docstring; ``rho = 1`` when scaling is off)."""
     if fr is None:
         return data
-    mt = len(fr.slip_bound)
-    k = fr.T.shape[0] // max(mt, 1)
+    mt, k = len(fr.slip_bound), fr.components
     TD = sp.csr_matrix(fr.T @ sp.diags(data.d))
     if enabled and mt:
         norms = np.asarray(TD.multiply(TD).sum(axis=1)).ravel().reshape(mt, k).sum(axis=1)

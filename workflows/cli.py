@@ -151,6 +151,10 @@ def _solve_contact(spec, level: int, params: dict, args: argparse.Namespace) -> 
     solver_opts = solver.options(**mine)
     tol, max_iter, time_limit = check_limits(solver, args.tol or "mid", args.max_iter,
                                              args.time_limit)
+    if args.cold and scene_opts.get("friction", "none") == "none":   # before any work
+        raise ParameterError("option '--cold' is not allowed on a frictionless problem; "
+                             "allowed: a frictional scene (--set friction=tresca or "
+                             "coulomb), whose load steps it starts from zero")
     t0 = time.perf_counter()
     qp = spec.build(level, scene_opts)
     t_build = time.perf_counter() - t0
@@ -165,10 +169,6 @@ def _solve_contact(spec, level: int, params: dict, args: argparse.Namespace) -> 
 
     friction = None
     if qp.friction is None:
-        if args.cold:
-            raise ParameterError("option '--cold' is not allowed on a frictionless problem; "
-                                 "allowed: a frictional scene (--set friction=tresca or "
-                                 "coulomb), whose load steps it starts from zero")
         result = solve_one(qp)
     else:   # the whole load path, each Tresca step by the solver (solvers.tresca)
         run = run_load_path(qp, solve_one, tol, warm=not args.cold)

@@ -84,7 +84,7 @@ last against a reference one level finer, biased upwards). As in 2D the four cou
 energy errors agree to 3 % at level 2, and they differ in the pressure: the standard
 mortar multipliers overshoot Hertz's peak by 59 % at level 1 and 16 % at level 2 (rms
 deviation 0.36, 0.26), and at level 0 (h = 1/4 against a = 0.28) put the whole force on
-the top face's centre node (moment half-width 0, peak infinite); the dual ones stay within
+the top face's centre node (moment radius 0, no peak pressure to measure); the dual ones stay within
 9 % (rms 0.12 to 0.07).
 
 Run by hand:
