@@ -330,6 +330,8 @@ def test_a_new_scene_joins_a_study_by_config_alone(tmp_path):
      "problem 'roll_stack' does not offer the couplings"),
     (lambda c: c["hard_cases"]["incompressibility"].update(scenes=["laplace_nonmatching"]),
      "'hard_cases.incompressibility.scenes': 'laplace_nonmatching' is not allowed"),
+    (lambda c: c["hard_cases"]["scenes"].update(hard_stiff_circle=[1]),
+     "'hard_cases.scenes.hard_stiff_circle': levels [1] are not among the test set's runs"),
     (lambda c: c["hard_cases"]["incompressibility"].update(level=9),
      "'hard_cases.incompressibility' for 'circle_square'"),
     (lambda c: c["element_order"]["reference_level"].update(circle_square=2),

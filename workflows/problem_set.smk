@@ -2,7 +2,7 @@
 # size class, every registered solver on every problem at every preset, and the summary
 # over it. Paths: workflows/studies/.
 from report.charts import chart_path
-from workflows.studies.problem_set import problem_set_runs
+from workflows.studies.problem_set import problem_set_runs, run_levels
 TS = config.get("test_set", {})
 TS_ID = problem_set_of(config).id if TS else ""
 TS_FAMILIES = list(scenes_of(config, "test_set"))
@@ -29,12 +29,13 @@ rule test_set_runs:
     conda: ENV
     params:
         py=PY, presets=" ".join(TS.get("presets", [])), limit=TS.get("time_limit"),
-        solvers=" ".join(["--solvers", *TS["solvers"]]) if TS.get("solvers") else ""
+        solvers=" ".join(["--solvers", *TS["solvers"]]) if TS.get("solvers") else "",
+        levels=lambda w: " ".join(map(str, run_levels(config, w.size_class, w.scene)))
     shell:
         "{params.py} -m workflows.scripts.problem_set_runs --set {wildcards.set} "
         "--class {wildcards.size_class} --family {wildcards.scene} --export {input} "
         "--presets {params.presets} --time-limit {params.limit} {params.solvers} "
-        "--out {output} > {log} 2>&1"
+        "--levels {params.levels} --out {output} > {log} 2>&1"
 
 rule solver_summary:
     input: problem_set_runs(config)

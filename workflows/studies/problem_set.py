@@ -15,6 +15,23 @@ PATHS = {
 }
 
 
+def levels_choice(config: dict) -> str:
+    """``test_set.levels`` (``all`` or ``smallest``), the schema's default if unset."""
+    from workflows.settings import study_defaults
+
+    return config["test_set"].get("levels") or study_defaults("test_set")["levels"]
+
+
+def run_levels(config: dict, size_class: str, family: str) -> list[int]:
+    """The levels of ``family`` in ``size_class`` that the test_set study runs: every one,
+    or with ``test_set.levels: smallest`` only the smallest (the quick scale's choice:
+    one problem per family keeps every family and solver in the quick regeneration)."""
+    levels = sorted({p.level for p in problem_set_of(config).problems(size_class, [family])})
+    if levels_choice(config) == "smallest":
+        return levels[:1]
+    return levels
+
+
 def problem_set_runs(config: dict) -> list[str]:
     """Every run table of the test_set study: family x size class (with problems)."""
     if "test_set" not in config:
@@ -35,7 +52,7 @@ def problem_set_hard_cases(config: dict) -> tuple[list[str], list[str]]:
         for level in levels:
             cases.append(f"{family}:{level}")
             for c in config["test_set"]["classes"]:
-                if any(p.level == level for p in ts.problems(c, [family])):
+                if ts.problems(c, [family]) and level in run_levels(config, c, family):
                     files.append(PATHS["test_set_runs"].format(set=ts.id, size_class=c,
                                                                scene=family))
     return sorted(set(files)), cases
@@ -61,13 +78,14 @@ def check(config: dict, registry: dict) -> None:
     hc = config.get("hard_cases", {})
     run = set(scenes_of(config, "test_set"))
     for family, levels in scenes_of(config, "hard_cases").items():
-        have = {p.level for c in cfg["classes"] for p in ts.problems(c, [family])} \
+        have = {level for c in cfg["classes"] for level in run_levels(config, c, family)} \
             if family in ts.families else set()
         if family not in run or not set(levels) <= have:
             raise ConfigError(f"config 'hard_cases.scenes.{family}': levels {levels} are not "
                               f"among the test set's runs; allowed: a family of "
-                              f"test_set.families at a level of test_set.classes "
-                              f"{cfg['classes']}")
+                              f"test_set.families at a level it runs (test_set.classes "
+                              f"{cfg['classes']}, test_set.levels "
+                              f"{levels_choice(config)!r})")
     if hc and hc["preset"] not in cfg["presets"]:
         raise ConfigError(f"config 'hard_cases.preset': {hc.get('preset')!r} is not run; "
                           f"allowed: one of test_set.presets {cfg['presets']}")
