@@ -74,8 +74,13 @@ def test_the_claims_table_has_every_claim_with_a_status_or_a_reason(run):
         judged = isinstance(row["pass"], (bool, np.bool_)) or str(row["pass"]) in ("True", "False")
         assert judged or (isinstance(row.reason, str) and len(row.reason) > 10), row.to_dict()
     # two levels: the mortar rates (three levels) are not judged here and say why
-    mortar = claims[claims.claim.str.contains("mortar") & claims.claim.str.contains("rate")]
+    mortar = claims[claims.claim.str.contains("mortar")
+                    & claims.claim.str.contains("energy-error rate")]
     assert len(mortar) == 2 and mortar.reason.str.contains("needs 3 levels").all()
+    # the multiplier's dual-norm rate: one reported row per coupling, with its reason
+    dual = claims[claims.claim.str.contains("err_pressure_dual")]
+    assert len(dual) == 4 and dual["pass"].isna().all()
+    assert dual.reason.str.contains("no rate of the multiplier error alone").all()
     assert {"nodal", "stabilised"} <= {w for c in claims.claim for w in c.replace(":", " ").split()}
 
 
@@ -88,9 +93,14 @@ def test_the_mortar_rate_is_judged_against_the_optimal_rate(dim, optimal):
              "dim": dim, "N": 64000, "status": "converged"}]
     for k, r in (("mortar_dual", optimal - 0.05), ("mortar", optimal + 0.2), ("nodal", -0.25)):
         rows += [{"scene": "s", "role": "compared", "coupling": k, "level": lv, "dim": dim,
-                  "N": n, "status": "converged", "err_energy": n ** r}
+                  "N": n, "status": "converged", "err_energy": n ** r,
+                  "err_pressure_dual": 3.0 * n ** (r - 0.25)}
                  for lv, n in enumerate(N)]
     claims = report.claims(pd.DataFrame(rows)).set_index("claim")
+    for k, r in (("mortar_dual", optimal - 0.05), ("mortar", optimal + 0.2), ("nodal", -0.25)):
+        row = claims.loc[f"s: {k} multiplier error in the dual norm (err_pressure_dual) rate "
+                         "against N (finest three levels)"]
+        assert math.isclose(row.measured, r - 0.25, abs_tol=1e-12) and row["pass"] is None
     dual = claims.loc[[c for c in claims.index if "mortar_dual energy" in c][0]]
     std = claims.loc[[c for c in claims.index if "mortar energy" in c][0]]
     nodal = claims.loc[[c for c in claims.index if "nodal energy" in c][0]]
@@ -143,6 +153,51 @@ def test_config_errors_name_the_key(change, needle):
     change(config)
     with pytest.raises(ConfigError, match=re.escape(needle)):
         check_config(config)
+
+
+@pytest.fixture(scope="module")
+def circle_square_pair():
+    """circle_square levels 0 and 1 (mortar_dual), solved exactly, and level 1 as the
+    reference."""
+    from problems.spec import problems
+    from workflows.scripts.adaptive_study import Reference
+
+    spec = problems()["circle_square"]
+    qp0, qp1 = (spec.make(level, coupling="mortar_dual") for level in (0, 1))
+    res0, _ = script.exact(qp0)
+    res1, _ = script.exact(qp1)
+    assert res0.status == res1.status == "converged"
+    ref = Reference(qp1, res1.u, res1.p, {"solver": res1.solver, "status": res1.status,
+                                          "t_solve": 0.0})
+    return qp0, res0, qp1, res1, ref
+
+
+def test_the_dual_norm_of_the_pressure_error(circle_square_pair):
+    """err_pressure_dual = ||A^{-1/2} B_C'(m (I lambda_h - lambda_ref))|| over
+    ||A^{-1/2} B' p_ref||: 0 for the reference's own pressure, 1 for no pressure (the
+    difference is the reference's whole load), and for level 0 against level 1 the same
+    as a sparse LU solve with the reference's A and the pressure interpolated by hand."""
+    import scipy.sparse.linalg as spla
+
+    from problems.fem.fields import in_plane
+
+    qp0, res0, qp1, res1, ref = circle_square_pair
+    assert ref.pressure_dual_error(qp1, res1.p) == 0.0
+    assert abs(ref.pressure_dual_error(qp1, np.zeros(qp1.m)) - 1) < 1e-12
+    assert abs(ref.pressure_dual_error(qp0, np.zeros(qp0.m)) - 1) < 1e-12
+    lu = spla.splu(qp1.A.tocsc())
+    m1 = qp1.contact.mass
+    s0, s1 = in_plane(qp0).ravel(), in_plane(qp1).ravel()
+    order = np.argsort(s0)
+    lam0 = np.interp(s1, s0[order], (res0.p / qp0.contact.mass)[order])
+
+    def energy(force):
+        return np.sqrt(force @ lu.solve(force))
+
+    d = qp1.B.T @ (m1 * lam0 - res1.p)
+    direct = energy(d) / energy(qp1.B.T @ res1.p)
+    measured = ref.pressure_dual_error(qp0, res0.p)
+    assert 0.01 < measured < 1 and abs(measured / direct - 1) < 1e-10, (measured, direct)
 
 
 # --------------------------------------------------------------------------- 3D (cube-sphere)
@@ -211,7 +266,7 @@ def test_the_3d_comparison_of_a_level_with_itself_is_zero(cube_sphere):
     qp0, qp1, res, ref = cube_sphere
     same = ref.compare(qp1, res.u, res.p)
     assert same["err_energy"] < 1e-12 and same["err_force"] < 1e-14
-    assert same["err_pressure"] < 1e-12
+    assert same["err_pressure"] < 1e-12 and ref.pressure_dual_error(qp1, res.p) < 1e-12
     res0, _ = script.exact(qp0)
     row = ref.compare(qp0, res0.u, res0.p)
     E = (ref.prolongation(qp0) @ qp0.full_displacement(res0.u) - ref.U).ravel()
@@ -259,7 +314,7 @@ def test_the_3d_claims_judge_against_the_3d_optimal_rate(run_3d):
     cs = claims[claims.claim.str.startswith("cube_sphere")]
     first = cs.iloc[0]
     assert "converged" in first.claim and first.measured == "5 of 5" and first["pass"] == True  # noqa: E712
-    mortar = cs[cs.claim.str.contains("mortar") & cs.claim.str.contains("rate")]
+    mortar = cs[cs.claim.str.contains("mortar") & cs.claim.str.contains("energy-error rate")]
     assert len(mortar) == 2 and mortar.claim.str.contains("-0.333").all()
     assert mortar.reason.str.contains("needs 3 levels; this run has 1").all()
     for key in ("figure", "hertz"):

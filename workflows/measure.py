@@ -184,12 +184,22 @@ def amg_pcg_floor(qp, kind: str, target: float, u_exact: np.ndarray,
             "status": "converged" if ok else "max_iter"}
 
 
+def dual_norm(qp, force: np.ndarray) -> float:
+    """``||A^{-1/2} F|| = sqrt(F' A^{-1} F)``: the norm of the nodal force vector ``F`` (on
+    ``qp``'s free DOFs) as a functional on the displacements, ``sup_v F'v / ||v||_A``,
+    i.e. the energy norm of the displacement it produces, ``w = A^{-1} F``
+    (:func:`solvers.interface.linear_solver`: ``A`` factorised once per problem where
+    affordable, else multigrid PCG). For ``F = B' q`` it is the S-norm of the
+    multipliers ``q`` (``S = B A^{-1} B'``)."""
+    w = linear_solver(qp)(np.asarray(force, dtype=float))
+    return float(np.sqrt(max(w @ (qp.A @ w), 0.0)))
+
+
 def multiplier_errors(qp, p, p_ref, u_ref) -> dict:
     """Errors of the multipliers against the reference (max norm, S-norm, total force)."""
     top = float(np.max(np.abs(p_ref))) if p_ref.size else 0.0
     dp = np.asarray(p) - p_ref
-    w = linear_solver(qp)(qp.B.T @ dp)
-    s_norm = float(np.sqrt(max(w @ (qp.A @ w), 0.0)))
+    s_norm = dual_norm(qp, qp.B.T @ dp)
     norm_u = float(np.sqrt(max(u_ref @ (qp.A @ u_ref), 0.0)))
     force = float(np.sum(p_ref))
     return {"multiplier_error": float(np.max(np.abs(dp))) / top if top > 0
