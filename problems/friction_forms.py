@@ -31,6 +31,10 @@ itself) map back to the suite's ``(p, lam)`` (``A u + B'p + T'lam = f``,
   in ``u`` ``lam_i = -y_i[1:]``; complementarity ``z_i . y_i = 0`` is
   ``s_i t_i = lam_i . slip_i``, the slip complementarity.
 
+A library that minimises a linear objective only (ECOS) is handed any of them through
+:func:`epigraph_program`: the quadratic term as one more second-order cone, the
+multipliers unchanged.
+
 A node with ``s_i = 0`` gets no ``t_i`` and no row (its ``t_i`` would cost nothing and
 be unbounded above, which interior-point methods do not take); its ``lam_i`` is zero.
 """
@@ -179,6 +183,58 @@ def standard_program(step: TrescaStep) -> ConeProgram:
     if step.T is None:
         return contact_program(step)
     return split_program(step) if step.components == 1 else cone_program(step)
+
+
+def epigraph_program(program: ConeProgram, F: sp.spmatrix) -> ConeProgram:
+    """``program`` with a linear objective, for a library that minimises ``c'x`` only
+    (ECOS): the quadratic term moved into one more second-order cone by its epigraph.
+
+    With ``P = F'F`` (``F`` of shape ``(k, N)``, ``N = len(q)``) and one more unknown
+    ``w``, ``x' = (x, w)``::
+
+        minimise  w + q'x   subject to   G x + z = h,  z in K,   1/2 |F x|^2 <= w.
+
+    The last constraint is the second-order cone of size ``k + 2``
+
+        ``z_e = ((1 + w)/sqrt2, (1 - w)/sqrt2, F x)``,  ``|z_e[1:]| <= z_e[0]``,
+
+    since ``((1 + w)^2 - (1 - w)^2) / 2 = 2 w``: ``|F x|^2 + (1 - w)^2/2 <= (1 + w)^2/2``
+    is ``1/2 |F x|^2 <= w`` (which makes ``w >= 0`` and so ``z_e[0] >= 0``). In the form
+    ``G_e x' + z_e = h_e`` its rows are ``(0, -1/sqrt2)``, ``(0, 1/sqrt2)``, ``(-F, 0)``
+    with ``h_e = (1/sqrt2, 1/sqrt2, 0)``. At a minimiser ``w = 1/2 |F x|^2`` (a larger
+    ``w`` costs more), so the optimal values and ``x`` are the program's.
+
+    The multipliers ``y`` of the program's rows are unchanged. Stationarity of the
+    lifted program, ``c + G'y + G_e'y_e = 0`` with ``c = (q, 1)``, reads in ``w``
+    ``y_e[0] - y_e[1] = sqrt2`` and in ``x`` ``q + G'y - F'y_e[2:] = 0``. So ``y_e != 0``,
+    and ``z_e != 0`` (``z_e[0] + z_e[1] = sqrt2``): complementarity ``z_e . y_e = 0`` of
+    two nonzero points of the cone puts both on its boundary with
+    ``y_e = gamma (z_e[0], -z_e[1:])``, ``gamma >= 0``. The ``w`` row gives
+    ``gamma (z_e[0] + z_e[1]) = sqrt2``, ``gamma = 1``, hence ``y_e[2:] = -F x`` and
+    ``P x + q + G'y = 0``: the program's own KKT conditions, with ``w = 1/2 |F x|^2``.
+
+    Returns
+    -------
+    ConeProgram
+        ``P = 0`` (``N + 1`` unknowns, ``w`` last), ``q = (q, 1)``, the program's rows
+        followed by the epigraph cone (``cones + (k + 2,)``); ``kind``, ``n`` and
+        ``bounded`` as given. Its first ``N`` unknowns and first ``len(h)`` multipliers
+        are the program's.
+    """
+    F = sp.csr_matrix(F)
+    k, N = F.shape
+    if N != len(program.q):
+        raise ValueError(f"epigraph_program: F has {N} columns; allowed: {len(program.q)} "
+                         "(the program's unknowns)")
+    root = 1.0 / np.sqrt(2.0)
+    w_column = sp.csr_matrix(np.array([[-root], [root]]))
+    epigraph = sp.bmat([[sp.csr_matrix((2, N)), w_column], [-F, None]], format="csr")
+    G = sp.vstack([sp.hstack([program.G, sp.csr_matrix((program.G.shape[0], 1))]), epigraph],
+                  format="csc")
+    h = np.concatenate([program.h, [root, root], np.zeros(k)])
+    return ConeProgram(P=sp.csc_matrix((N + 1, N + 1)), q=np.append(program.q, 1.0), G=G, h=h,
+                       nonnegative=program.nonnegative, cones=(*program.cones, k + 2),
+                       kind=program.kind, n=program.n, bounded=program.bounded)
 
 
 def lift(step: TrescaStep, program: ConeProgram, u: np.ndarray) -> np.ndarray:
