@@ -16,9 +16,10 @@ every library as a QP in ``(u, t)``, the slip split into two nonnegative parts
 cone program (:func:`problems.friction_forms.cone_program`) to the libraries whose own API
 takes such cones, Clarabel (``SecondOrderConeT``), SCS and ECOS (the cone sizes ``q``,
 called directly: qpsolvers passes no cones); the QP-only libraries skip it. ECOS minimises
-a linear objective only: it is handed every form with the quadratic term as one more
-second-order cone (:func:`problems.friction_forms.epigraph_program`, ``P = F'F`` with
-``F`` the sparse Cholesky factor of ``A``), which leaves the multipliers unchanged. The
+a linear objective only: it is handed every form with the quadratic term as
+second-order cones, one per row of ``F`` (:func:`problems.friction_forms.epigraph_program`,
+``P = F'F`` with ``F`` the sparse Cholesky factor of ``A``), which leaves the multipliers
+unchanged. The
 step is rescaled like the frictionless problem, the tangential rows by one factor per node
 (:mod:`solvers._scaling`), and the library's multipliers map back to ``p`` and the
 tangential multipliers ``lam`` (``SolveResult.tangential``).
@@ -293,15 +294,18 @@ def _scs_cone_call(program: ConeProgram, settings: dict, x0, z0) -> Outcome:
 def _ecos_call(program: ConeProgram, settings: dict, x0, z0) -> Outcome:
     """Direct (``ecos.solve(c, G, h, dims)``): ECOS minimises a linear objective only, so
     it is handed the program's epigraph form
-    (:func:`problems.friction_forms.epigraph_program`), ``1/2 x'Px <= w`` one more
-    second-order cone, ``P = F'F``. ``P`` is ``A`` on ``u`` and zero on ``t``, so
-    ``F = (F_A, 0)`` with ``F_A`` the sparse Cholesky factor of ``A``
-    (:func:`solvers.cholesky.cholesky_factor`, fill-reducing ordering): its nonzeros are
-    the factorisation's fill, and ECOS keeps a large cone sparse (its expanded scaling
-    matrix), so the KKT system ECOS factorises each iteration stays sparse; a dense
-    factor would put ``n^2`` entries in it. The nonnegative rows are ``dims["l"]``, the
-    cones ``dims["q"]``, the epigraph cone last; its ``z`` of the program's rows are the
-    program's multipliers (``c + G'z = 0``). ECOS takes no initial guess."""
+    (:func:`problems.friction_forms.epigraph_program`): ``1/2 (F_j x)^2 <= w_j``, a
+    second-order cone of size 3 per row of ``F``, ``P = F'F``. ``P`` is ``A`` on ``u``
+    and zero on ``t``, so ``F = (F_A, 0)`` with ``F_A`` the sparse Cholesky factor of
+    ``A`` (:func:`solvers.cholesky.cholesky_factor`, a fill-reducing ordering): its
+    nonzeros are the factorisation's fill, where a dense factor would put ``n^2/2`` into
+    the KKT system ECOS factorises at each iteration. The nonnegative rows are
+    ``dims["l"]``, the cones ``dims["q"]``, the epigraph cones last; its ``z`` of the
+    program's rows are the program's multipliers (``c + G'z = 0``). ECOS takes no
+    initial guess. Its answer's stationarity goes with the square root of its duality
+    gap (the epigraph cones' multipliers off their central path), so the suite's
+    verification refutes what it claims at a preset's own tolerance; ``tol_factor``
+    tightens it."""
     import ecos
 
     n, N = program.n, len(program.q)
@@ -489,7 +493,7 @@ LIBRARIES = (
                                  "verbose": False},
         statuses={"Optimal solution found": "converged",
                   "Close to optimal solution found": "inaccurate",
-                  "Maximum number of iterations reached": "max_iter"},
+                  "Maximum number of iterations reached": "max_iter"},  # the rest: failed
         call=_ecos_call, cone_call=_ecos_call, max_iter_key="max_iters",
         default_max_iter=100),
 )

@@ -277,28 +277,28 @@ def test_tol_factor_tightens_the_library_tolerance(references, solver):
 def test_ecos_through_its_epigraph_cone(references):
     """ECOS on the frictionless problems at ``mid``: it claims converged, the suite refutes
     it on ``kkt_stationarity`` (its stationarity goes with the square root of its gap;
-    measured 2e-5 to 5e-3 against tol 1e-6), its certified bound is a true bound on its
-    error and ``p >= 0``. With its tolerances at ``1e-4 tol`` it is verified ``converged``
-    at ``low`` (KKT and certified bound within 1e-3; measured <= 5.3e-5) on the two-body,
-    the weakly active and the unconstrained problem (answer 1/2); the 1D obstacle
-    (condition ~N^2) stays refuted there (KKT 4.9e-3)."""
+    measured 1.1e-5 to 4.5e-4 against tol 1e-6), its certified bound is a true bound on
+    its error and ``p >= 0``. With its tolerances at ``1e-4 tol`` it is verified
+    ``converged`` at ``low`` on every one and on the unconstrained problem (answer 1/2):
+    KKT and certified bound within 1e-3 (measured <= 2.5e-4, the 1D obstacle of condition
+    ~N^2; <= 4.9e-5 on the others), the energy-norm error too."""
     tol = TOLERANCES["mid"]
     for name, (qp, ref) in references.items():
         res = solve(qp, "ecos", "mid")
-        assert res.claimed_status == "converged" and res.message == "ecos: Optimal solution found"
+        assert res.claimed_status == "converged", res.message
         assert res.status == "inaccurate" and "kkt_stationarity" in res.failed_check, name
-        assert res.kkt.max > 10 * tol, name
         err = energy_error(qp, res.u, ref.u)
         assert res.gap.certified and err <= res.gap.relative_energy_bound * (1 + 1e-6) + 1e-12
         assert res.p.min() >= -1e-6 * res.p.max() and res.p.max() > 0, name
     free = ContactQP(A=2 * sp.eye(3), f=np.ones(3), B=sp.csr_matrix((0, 3)), g=np.zeros(0))
-    for qp, exact in ((references["two-body"][0], references["two-body"][1].u),
-                      (references["weakly-active"][0], references["weakly-active"][1].u),
-                      (free, np.full(3, 0.5))):
+    low = TOLERANCES["low"]
+    for qp, exact in [*((qp, ref.u) for qp, ref in references.values()),
+                      (free, np.full(3, 0.5))]:
         res = solve(qp, "ecos", "low", tol_factor=1e-4)
-        assert res.status == "converged", (res.message, res.failed_check)
-        assert res.kkt.max <= TOLERANCES["low"] and res.gap.meets(TOLERANCES["low"])
-        assert energy_error(qp, res.u, exact) <= TOLERANCES["low"]
+        assert res.status == "converged", (qp.name, res.message, res.failed_check)
+        assert res.message == "ecos: Optimal solution found"
+        assert res.kkt.max <= low and res.gap.meets(low)
+        assert energy_error(qp, res.u, exact) <= low
 
 
 def test_proxsuite_forces_the_sparse_cholesky_backend(references):
