@@ -19,8 +19,8 @@ called directly: qpsolvers passes no cones); the QP-only libraries skip it. ECOS
 a linear objective only: it is handed every form with the quadratic term as
 second-order cones, one per row of ``F`` (:func:`problems.friction_forms.epigraph_program`,
 ``P = F'F`` with ``F`` the sparse Cholesky factor of ``A``), which leaves the multipliers
-unchanged. The
-step is rescaled like the frictionless problem, the tangential rows by one factor per node
+unchanged. The step is rescaled like the frictionless problem, the tangential rows by one
+factor per node
 (:mod:`solvers._scaling`), and the library's multipliers map back to ``p`` and the
 tangential multipliers ``lam`` (``SolveResult.tangential``).
 
@@ -47,8 +47,8 @@ epigraph (qpsolvers's ``ecos_solve_problem`` builds it from a dense ``P`` and it
 Cholesky factor, ``n^2`` entries, and passes no cones).
 qpsolvers also passes dual warm starts to no library and drops QPALM's primal one (PIQP,
 Clarabel, HiGHS and ECOS take none either); the suite's studies start every library
-cold, so nothing measured depends on it, and a run given a guess says in its message whether the
-library used it.
+cold, so nothing measured depends on it, and a run given a guess says in its message
+whether the library used it.
 """
 from __future__ import annotations
 
