@@ -332,6 +332,10 @@ def test_a_new_scene_joins_a_study_by_config_alone(tmp_path):
      "'hard_cases.incompressibility.scenes': 'laplace_nonmatching' is not allowed"),
     (lambda c: c["hard_cases"]["scenes"].update(hard_stiff_circle=[1]),
      "'hard_cases.scenes.hard_stiff_circle': levels [1] are not among the test set's runs"),
+    (lambda c: c["test_set"].update(exclude_families=["roll_stak"]),
+     "'test_set.exclude_families': 'roll_stak' is not a family"),
+    (lambda c: c.update(shared=["contact_level"]),
+     "'shared': 'contact_level' is not a timing rule"),
     (lambda c: c["hard_cases"]["incompressibility"].update(level=9),
      "'hard_cases.incompressibility' for 'circle_square'"),
     (lambda c: c["element_order"]["reference_level"].update(circle_square=2),
@@ -429,7 +433,8 @@ def test_every_heavy_rule_has_a_benchmark_and_measured_resources():
 
 def test_timing_rules_take_the_whole_machine_share():
     """"Run alone" is a named resource, not ``threads: 2``: the local profile provides
-    the share, every job takes 1 by default and a timing rule all of it."""
+    the share, every job takes 1 by default and a timing rule all of it, unless the
+    scale lets it share the machine (``shared``: the quick scale's test-set runs)."""
     from workflows.studies import MACHINE_SHARE, RUNS_ALONE
 
     name, whole = MACHINE_SHARE
@@ -440,5 +445,8 @@ def test_timing_rules_take_the_whole_machine_share():
     jobs = re.findall(r"^rule (\w+):\n(.*?)(?=^\[|\Z)", out.stdout, flags=re.M | re.S)
     shares = {rule: int(re.search(rf"{name}=(\d+)", block)[1]) for rule, block in jobs}
     assert RUNS_ALONE <= set(shares)
-    assert all((share == whole) == (rule in RUNS_ALONE) for rule, share in shares.items()), shares
+    shared = set(load_config(ROOT / "workflows/config/quick.yaml")["shared"])
+    assert shared and shared < RUNS_ALONE
+    alone = RUNS_ALONE - shared
+    assert all((share == whole) == (rule in alone) for rule, share in shares.items()), shares
     assert not any("threads:" in p.read_text() for p in (ROOT / "workflows").glob("*.smk"))

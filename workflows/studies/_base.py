@@ -90,6 +90,9 @@ class Study:
         Its rules that carry a benchmark file and measured ``resources:``.
     runs_alone : tuple of str
         Those of them that time solvers, so that nothing may run beside them.
+    launches_mpi : tuple of str
+        Those of them whose jobs may start MPI jobs (every registered solver, petsc_tao
+        among them): one such job at a time on a machine.
     thesis_items : tuple of ThesisItem
         The thesis's tables and figures it regenerates (the summary page lists them).
     check : callable, optional
@@ -134,6 +137,7 @@ class Study:
     extra: tuple = ()
     heavy_rules: tuple[str, ...] = ()
     runs_alone: tuple[str, ...] = ()
+    launches_mpi: tuple[str, ...] = ()
     thesis_items: tuple[ThesisItem, ...] = ()
     check: Callable[[dict, dict], None] | None = None
     scripts: dict = field(default_factory=dict)
@@ -238,12 +242,15 @@ def coarser_levels(config: dict, study: str, scene: str, level) -> list[int]:
 
 def scenes_of(config: dict, study: str) -> dict[str, list[int]]:
     """``{scene: levels}`` a per-scene study runs (empty if the study is not configured);
-    for the test set its families (levels by size class:
+    for the test set its families run (``families``, else every one, less
+    ``exclude_families``; levels by size class:
     :func:`workflows.studies.problem_set.problem_set_runs`)."""
     if study == "test_set":
         if study not in config:
             return {}
-        return {f: [] for f in config[study].get("families") or problem_set_of(config).families}
+        skip = set(config[study].get("exclude_families") or ())
+        return {f: [] for f in config[study].get("families") or problem_set_of(config).families
+                if f not in skip}
     return dict(config.get(study, {}).get("scenes", {}))
 
 

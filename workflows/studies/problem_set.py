@@ -74,6 +74,10 @@ def check(config: dict, registry: dict) -> None:
         ts.problems(families=cfg.get("families") or None)
     except TestSetError as err:
         raise ConfigError(f"config 'test_set': {err}") from None
+    unknown = sorted(set(cfg.get("exclude_families") or ()) - set(ts.families))
+    if unknown:
+        raise ConfigError(f"config 'test_set.exclude_families': {unknown[0]!r} is not a family "
+                          f"of {ts.id}; allowed: {', '.join(ts.families)}")
     check_registered_solvers(config, "test_set")
     hc = config.get("hard_cases", {})
     run = set(scenes_of(config, "test_set"))
@@ -107,5 +111,6 @@ STUDY = Study(
              "solver_summary_claims", "solver_profiles", "solver_work_precision"),
     heavy_rules=("test_set_export", "test_set_runs"),
     runs_alone=("test_set_runs",),
+    launches_mpi=("test_set_runs",),
     check=check,
 )

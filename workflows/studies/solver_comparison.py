@@ -27,5 +27,6 @@ STUDY = Study(
     outputs=("solver_table", "solver_presets", "solver_times", "solver_work", "solver_costs"),
     heavy_rules=("solver_comparison",),
     runs_alone=("solver_comparison",),
+    launches_mpi=("solver_comparison",),
     check=check,
 )
