@@ -31,6 +31,10 @@ itself) map back to the suite's ``(p, lam)`` (``A u + B'p + T'lam = f``,
   in ``u`` ``lam_i = -y_i[1:]``; complementarity ``z_i . y_i = 0`` is
   ``s_i t_i = lam_i . slip_i``, the slip complementarity.
 
+A library that minimises a linear objective only (ECOS) is handed any of them through
+:func:`epigraph_program`: the quadratic term as second-order cones, one per row of a
+factor ``F'F = P``, the multipliers unchanged.
+
 A node with ``s_i = 0`` gets no ``t_i`` and no row (its ``t_i`` would cost nothing and
 be unbounded above, which interior-point methods do not take); its ``lam_i`` is zero.
 """
@@ -179,6 +183,70 @@ def standard_program(step: TrescaStep) -> ConeProgram:
     if step.T is None:
         return contact_program(step)
     return split_program(step) if step.components == 1 else cone_program(step)
+
+
+def epigraph_program(program: ConeProgram, F: sp.spmatrix) -> ConeProgram:
+    """``program`` with a linear objective, for a library that minimises ``c'x`` only
+    (ECOS): the quadratic term moved into second-order cones, one per row of ``F``.
+
+    With ``P = F'F`` (``F`` of shape ``(k, N)``, ``N = len(q)``, rows ``F_j``) and one more
+    unknown ``w_j`` per row, ``x' = (x, w)``::
+
+        minimise  q'x + sum_j w_j   subject to   G x + z = h,  z in K,
+                  1/2 (F_j x)^2 <= w_j   (j = 1..k).
+
+    Each epigraph constraint is the second-order cone of size 3
+
+        ``z_j = ((1 + w_j)/sqrt2, (1 - w_j)/sqrt2, F_j x)``,  ``|z_j[1:]| <= z_j[0]``,
+
+    since ``((1 + w)^2 - (1 - w)^2) / 2 = 2 w``: ``(F_j x)^2 + (1 - w_j)^2/2 <=
+    (1 + w_j)^2/2`` is ``1/2 (F_j x)^2 <= w_j`` (which makes ``w_j >= 0`` and so
+    ``z_j[0] >= 0``). In the form ``G_j x' + z_j = h_j`` its rows are ``(0, -e_j/sqrt2)``,
+    ``(0, e_j/sqrt2)``, ``(-F_j, 0)`` with ``h_j = (1/sqrt2, 1/sqrt2, 0)``. At a minimiser
+    ``w_j = 1/2 (F_j x)^2`` (a larger ``w_j`` costs more), so ``sum_j w_j = 1/2 x'Px``:
+    the optimal values and ``x`` are the program's.
+
+    The multipliers ``y`` of the program's rows are unchanged. Stationarity of the
+    lifted program, ``c + G'y + sum_j G_j'y_j = 0`` with ``c = (q, 1)``, reads in ``w_j``
+    ``y_j[0] - y_j[1] = sqrt2`` and in ``x`` ``q + G'y - sum_j F_j' y_j[2] = 0``. So
+    ``y_j != 0``, and ``z_j != 0`` (``z_j[0] + z_j[1] = sqrt2``): complementarity
+    ``z_j . y_j = 0`` of two nonzero points of the cone puts both on its boundary with
+    ``y_j = gamma_j (z_j[0], -z_j[1:])``, ``gamma_j >= 0``. The ``w_j`` row gives
+    ``gamma_j (z_j[0] + z_j[1]) = sqrt2``, ``gamma_j = 1``, hence ``y_j[2] = -F_j x`` and
+    ``P x + q + G'y = 0``: the program's own KKT conditions.
+
+    One cone per row, not one cone ``1/2 |F x|^2 <= w`` of size ``k + 2``: the same
+    program, but ECOS stops on the single large cone with "numerical problems" at
+    circle_square level 1 (8,288 unknowns) and solves the small ones.
+
+    Returns
+    -------
+    ConeProgram
+        ``P = 0`` (``N + k`` unknowns, the ``w_j`` last), ``q = (q, 1, ..., 1)``, the
+        program's rows followed by the epigraph cones (``cones + (3,) * k``); ``kind``,
+        ``n`` and ``bounded`` as given. Its first ``N`` unknowns and first ``len(h)``
+        multipliers are the program's.
+    """
+    F = sp.coo_matrix(F)
+    k, N = F.shape
+    if N != len(program.q):
+        raise ValueError(f"epigraph_program: F has {N} columns; allowed: {len(program.q)} "
+                         "(the program's unknowns)")
+    root = 1.0 / np.sqrt(2.0)
+    j = np.arange(k)
+    rows = np.concatenate([3 * j, 3 * j + 1, 3 * F.row + 2])
+    cols = np.concatenate([N + j, N + j, F.col])
+    values = np.concatenate([np.full(k, -root), np.full(k, root), -F.data])
+    epigraph = sp.csr_matrix((values, (rows, cols)), shape=(3 * k, N + k))
+    G = sp.vstack([sp.hstack([program.G, sp.csr_matrix((program.G.shape[0], k))]), epigraph],
+                  format="csc")
+    h_cones = np.zeros(3 * k)
+    h_cones[3 * j] = h_cones[3 * j + 1] = root
+    return ConeProgram(P=sp.csc_matrix((N + k, N + k)),
+                       q=np.concatenate([program.q, np.ones(k)]),
+                       G=G, h=np.concatenate([program.h, h_cones]),
+                       nonnegative=program.nonnegative, cones=(*program.cones, *(3,) * k),
+                       kind=program.kind, n=program.n, bounded=program.bounded)
 
 
 def lift(step: TrescaStep, program: ConeProgram, u: np.ndarray) -> np.ndarray:

@@ -30,10 +30,11 @@ from workflows.studies import PATHS  # noqa: E402
 #: the report's other rows (:data:`EXTRA_SOLVERS`); colour and marker together tell
 #: every solver apart.
 PALETTE = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2",
-           "#7f7f7f", "#bcbd22", "#17becf", "#393b79", "#8c6d31", "#637939", "#843c39")
+           "#7f7f7f", "#bcbd22", "#17becf", "#393b79", "#8c6d31", "#637939", "#843c39",
+           "#7b4173", "#e7ba52")
 #: One marker fewer than colours: the pair (colour, marker) repeats only after
-#: 14 x 13 solvers.
-MARKERS = ("o", "s", "^", "D", "v", "P", "X", "<", ">", "p", "h", "*", "d")
+#: 16 x 15 solvers.
+MARKERS = ("o", "s", "^", "D", "v", "P", "X", "<", ">", "p", "h", "*", "d", "H", "8")
 #: Rows of the report that are not registered solvers but are drawn like one.
 EXTRA_SOLVERS = ("pdas_kkt",)
 #: Drawn in black: the floors and references every solver is measured against.

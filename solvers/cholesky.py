@@ -255,6 +255,44 @@ def _splu(A: sp.csr_matrix, components: np.ndarray | None, threads: int) -> Chol
 BACKENDS = {"pardiso": _pardiso, "splu": _splu}
 
 
+def cholesky_factor(A: sp.spmatrix) -> sp.csc_matrix:
+    """A sparse ``F`` with ``F'F = A`` for a symmetric positive definite ``A``: the
+    Cholesky factor itself, where :func:`factorize` only hands out solves.
+
+    SciPy's SuperLU in symmetric mode (``MMD_AT_PLUS_A``, a fill-reducing ordering of
+    ``A + A'``; diagonal pivots only, so the row permutation is ``Pc'``) gives
+    ``A_pp = Pc' A Pc = L U`` with ``L`` unit lower triangular; ``A_pp`` symmetric makes
+    ``U = D L'`` (``D`` the pivots), so ``A_pp = U' D^-1 U`` and ``F = D^-1/2 U Pc'``
+    (upper triangular in the ordering).
+    Its nonzeros are the factorisation's fill, not the ``n^2`` of a dense Cholesky.
+
+    Raises
+    ------
+    FactorizationError
+        A pivot that is not positive (``A`` is not positive definite), or SuperLU left
+        the diagonal (then ``U`` is no Cholesky factor).
+    """
+    import scipy.sparse.linalg as spla
+
+    A = sp.csc_matrix(A)
+    try:
+        lu = spla.splu(A, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                       options={"SymmetricMode": True})
+    except RuntimeError as err:                     # exactly singular
+        raise FactorizationError(f"SuperLU: {err}") from None
+    order = lu.perm_c                       # A_pp[order[i], order[j]] = A[i, j]
+    if not np.array_equal(lu.perm_r, order):
+        raise FactorizationError("SuperLU pivoted off the diagonal: the matrix is not "
+                                 "symmetric positive definite")
+    pivots = lu.U.diagonal()
+    if not np.all(pivots > 0):
+        bad = np.flatnonzero(~(pivots > 0))
+        raise FactorizationError(f"{bad.size} pivots <= 0 (first: {pivots[bad[0]]:.3g}): "
+                                 "the matrix is not positive definite")
+    factor = sp.diags(1.0 / np.sqrt(pivots)) @ sp.csc_matrix(lu.U)
+    return sp.csc_matrix(factor[:, order])
+
+
 class FloatingCholesky:
     """``A^{-1}`` for an SPD ``A`` with a known near-kernel (floating bodies), stably.
 

@@ -14,9 +14,13 @@ fixed point run around it, :func:`solvers.tresca.run_load_path`): a 2D step is h
 every library as a QP in ``(u, t)``, the slip split into two nonnegative parts
 (:func:`problems.friction_forms.split_program`); a 3D step, isotropic, as a second-order
 cone program (:func:`problems.friction_forms.cone_program`) to the libraries whose own API
-takes such cones, Clarabel (``SecondOrderConeT``) and SCS (the cone sizes ``q``, called
-directly: qpsolvers passes no cones); the QP-only libraries skip it. The step is rescaled
-like the frictionless problem, the tangential rows by one factor per node
+takes such cones, Clarabel (``SecondOrderConeT``), SCS and ECOS (the cone sizes ``q``,
+called directly: qpsolvers passes no cones); the QP-only libraries skip it. ECOS minimises
+a linear objective only: it is handed every form with the quadratic term as
+second-order cones, one per row of ``F`` (:func:`problems.friction_forms.epigraph_program`,
+``P = F'F`` with ``F`` the sparse Cholesky factor of ``A``), which leaves the multipliers
+unchanged. The step is rescaled like the frictionless problem, the tangential rows by one
+factor per node
 (:mod:`solvers._scaling`), and the library's multipliers map back to ``p`` and the
 tangential multipliers ``lam`` (``SolveResult.tangential``).
 
@@ -25,8 +29,10 @@ tolerances, as qpbenchmark maps them (its ``test_set.define_solver_settings``), 
 relative ones at ``tol`` too where a library's absolute test alone would be
 dimension-bound (OSQP, ProxQP, QPALM; the problem is rescaled to O(1) first) and the
 duality-gap checks switched on where the library has them off by default (ProxQP,
-PIQP). The table of what each preset means to each library is the report's
-``solver_presets.csv`` (:func:`Library.describe`).
+PIQP). ECOS: ``feastol``, ``abstol`` and ``reltol`` all at ``tol`` (its gap test passes
+on either, as Clarabel's does); qpbenchmark sets ``feastol`` only and leaves the gap at
+ECOS's default 1e-8 for every preset. The table of what each preset means to each library
+is the report's ``solver_presets.csv`` (:func:`Library.describe`).
 
 How each library is reached: through qpsolvers (``qpsolvers.solve_problem``), the layer
 qpbenchmark itself runs, where it passes every option the presets need and the
@@ -35,12 +41,14 @@ QPALM, cvxopt, SCS. Measured on a 19,881-unknown contact-like QP (median of 3, o
 clarabel 0.11, proxsuite 0.8): 188-198 ms through qpsolvers against 191-205 ms direct
 for OSQP, 903 against 908 ms for Clarabel, 86.9 against 86.8 ms for ProxQP, the same
 iterations: qpsolvers costs no time. It loses options, though, and there the call is
-direct: Clarabel's iteration count (not in ``extras``), and HiGHS's status (``extras`` is
-empty: its own "Solve error" / "Large nullspace" would read as a bare failure).
+direct: Clarabel's iteration count (not in ``extras``), HiGHS's status (``extras`` is
+empty: its own "Solve error" / "Large nullspace" would read as a bare failure) and ECOS's
+epigraph (qpsolvers's ``ecos_solve_problem`` builds it from a dense ``P`` and its dense
+Cholesky factor, ``n^2`` entries, and passes no cones).
 qpsolvers also passes dual warm starts to no library and drops QPALM's primal one (PIQP,
-Clarabel and HiGHS take none either); the suite's studies start every library cold, so
-nothing measured depends on it, and a run given a guess says in its message whether the
-library used it.
+Clarabel, HiGHS and ECOS take none either); the suite's studies start every library
+cold, so nothing measured depends on it, and a run given a guess says in its message
+whether the library used it.
 """
 from __future__ import annotations
 
@@ -55,11 +63,12 @@ from typing import Any, Callable
 import numpy as np
 import scipy.sparse as sp
 
-from problems.friction_forms import (ConeProgram, lift, standard_program,
+from problems.friction_forms import (ConeProgram, epigraph_program, lift, standard_program,
                                      step_multipliers)
 from problems.qp import ContactQP
 from problems.spec import Options, Parameter, resolve_parameters
 from solvers._scaling import ADAPTER_PARAMETERS, scale_qp, upper_triangle
+from solvers.cholesky import cholesky_factor
 from solvers.base import TOLERANCES, Role, SolveResult, SolverSpec
 
 
@@ -282,6 +291,35 @@ def _scs_cone_call(program: ConeProgram, settings: dict, x0, z0) -> Outcome:
                    stats=_scs_stats(info), used_guess=x0 is not None)
 
 
+def _ecos_call(program: ConeProgram, settings: dict, x0, z0) -> Outcome:
+    """Direct (``ecos.solve(c, G, h, dims)``): ECOS minimises a linear objective only, so
+    it is handed the program's epigraph form
+    (:func:`problems.friction_forms.epigraph_program`): ``1/2 (F_j x)^2 <= w_j``, a
+    second-order cone of size 3 per row of ``F``, ``P = F'F``. ``P`` is ``A`` on ``u``
+    and zero on ``t``, so ``F = (F_A, 0)`` with ``F_A`` the sparse Cholesky factor of
+    ``A`` (:func:`solvers.cholesky.cholesky_factor`, a fill-reducing ordering): its
+    nonzeros are the factorisation's fill, where a dense factor would put ``n^2/2`` into
+    the KKT system ECOS factorises at each iteration. The nonnegative rows are
+    ``dims["l"]``, the cones ``dims["q"]``, the epigraph cones last; its ``z`` of the
+    program's rows are the program's multipliers (``c + G'z = 0``). ECOS takes no
+    initial guess. Its answer's stationarity goes with the square root of its duality
+    gap (the epigraph cones' multipliers off their central path), so the suite's
+    verification refutes what it claims at a preset's own tolerance; ``tol_factor``
+    tightens it."""
+    import ecos
+
+    n, N = program.n, len(program.q)
+    F = sp.hstack([cholesky_factor(program.P[:n, :n]), sp.csr_matrix((n, N - n))])
+    lifted = epigraph_program(program, F)
+    dims = {"l": lifted.nonnegative, "q": list(lifted.cones)}
+    sol = ecos.solve(lifted.q, lifted.G, lifted.h, dims, **settings)
+    info = sol["info"]
+    return Outcome(x=np.asarray(sol["x"])[:N], z=np.asarray(sol["z"])[:len(program.h)],
+                   status=str(info["infostring"]), iterations=int(info["iter"]),
+                   stats={"ecos_pres": float(info["pres"]), "ecos_dres": float(info["dres"]),
+                          "ecos_gap": float(info["gap"])})
+
+
 @contextlib.contextmanager
 def _banner_silenced():
     """Standard output (file descriptor 1) closed to the C library for a moment: the first
@@ -448,6 +486,16 @@ LIBRARIES = (
         call=via_qpsolvers("scs", _scs_status, _scs_iterations, _scs_stats),
         cone_call=_scs_cone_call,
         max_iter_key="max_iters", time_limit_key="time_limit_secs", default_max_iter=100_000),
+    Library(
+        "ecos", "ECOS (primal-dual interior point for second-order cone programs), the "
+        "quadratic term as an epigraph cone", "ecos",
+        settings=lambda tol, o: {"feastol": tol, "abstol": tol, "reltol": tol,
+                                 "verbose": False},
+        statuses={"Optimal solution found": "converged",
+                  "Close to optimal solution found": "inaccurate",
+                  "Maximum number of iterations reached": "max_iter"},  # the rest: failed
+        call=_ecos_call, cone_call=_ecos_call, max_iter_key="max_iters",
+        default_max_iter=100),
 )
 
 

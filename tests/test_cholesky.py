@@ -71,6 +71,21 @@ def test_pardiso_refuses_an_indefinite_matrix():
         factorize(A, "pardiso")
 
 
+def test_the_cholesky_factor_is_sparse_and_exact(scene_qp):
+    """``cholesky_factor``: ``F'F = A`` to round-off on a scene's stiffness matrix, ``F``
+    sparse (the factorisation's fill, far below a dense factor's ``n (n + 1) / 2``), and
+    an indefinite matrix refused, saying why."""
+    A = sp.csc_matrix(scene_qp.A)
+    n = A.shape[0]
+    F = cholesky.cholesky_factor(A)
+    assert F.shape == (n, n) and F.nnz < 0.1 * n * (n + 1) / 2
+    assert abs(F.T @ F - A).max() <= 1e-13 * abs(A).max()
+    x = np.random.default_rng(0).standard_normal(n)
+    assert abs(np.linalg.norm(F @ x) ** 2 - x @ (A @ x)) <= 1e-12 * x @ (A @ x)
+    with pytest.raises(FactorizationError, match="1 pivots <= 0 .*not positive definite"):
+        cholesky.cholesky_factor(sp.diags([1.0, -1.0, 2.0]))
+
+
 def test_bad_backend_names_the_choices(scene_qp, monkeypatch):
     with pytest.raises(ValueError, match="backend='lu' is not allowed; allowed: auto, pardiso"):
         factorize(scene_qp.A, "lu")

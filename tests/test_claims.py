@@ -82,3 +82,22 @@ def test_every_study_declares_its_claims_in_one_place():
         assert module.CLAIMS and all(isinstance(c, Claim) and c.thesis and c.quantity
                                      for c in module.CLAIMS.values()), module.__name__
         assert '"claim":' not in inspect.getsource(module), module.__name__
+
+
+@pytest.mark.parametrize("dim, N, verdict", [(2, 65_926, True), (3, 135_102, False),
+                                             (3, 18_360, None)])
+def test_tnnmg_time_bars_are_judged_at_the_sizes_they_are_set_for(dim, N, verdict):
+    """Alg. 8.4's study: TNNMG's time over the fastest multigrid-PCG floor at the finest
+    level is judged from TNNMG_TIME_MIN_N unknowns on (2x in 2D, 2.5x in 3D), reported with
+    the reason below."""
+    import pandas as pd
+
+    from report.augmented_projection import TNNMG_TIME_MIN_N, tnnmg_claims
+
+    ratio = 1.8 if verdict is not False else 2.6
+    study = pd.DataFrame([{"config": c, "level": 3, "N": N, "dim": dim, "n_to_target": 10,
+                           "t_to_target": t}
+                          for c, t in (("tnnmg", ratio), ("amg_pcg_gmg", 1.0))])
+    row = next(r for r in tnnmg_claims(study) if "time to the energy-error target" in r["claim"])
+    assert row["measured"] == pytest.approx(ratio) and row["pass"] is verdict
+    assert verdict is not None or f"{TNNMG_TIME_MIN_N[dim]:,}" in row["reason"]

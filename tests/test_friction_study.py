@@ -136,6 +136,25 @@ def test_the_claims_take_the_sphere_bars():
     assert pd.isna(again["pass"]) and "150" in again.reason
 
 
+@pytest.mark.parametrize("N, tnnmg, verdict", [(262_474, 2.5, True), (262_474, 3.5, False),
+                                               (65_926, 2.5, None)])
+def test_the_time_bar_is_judged_at_the_sizes_it_is_set_for(N, tnnmg, verdict):
+    """TNNMG's time over the floor's: judged from TIME_BAR_MIN_N unknowns on (3x), reported
+    with the reason below."""
+    import pandas as pd
+
+    from report.friction import TIME_BAR_MIN_N, _time_ratio
+
+    timing = pd.DataFrame([{"ratio": 0.3, "N": N, "level": 4, "target": 1e-6, "status": s,
+                            "solver": solver, "start": "cold", "t_to_target": t}
+                           for solver, t, s in (("tnnmg", tnnmg, "converged"),
+                                                ("linear_floor", 1.0, "converged"))])
+    row = _time_ratio(timing, "circle_square")[0]
+    assert row["measured"] == tnnmg and row["pass"] is verdict
+    assert (row["reason"] == "") == (verdict is not None)
+    assert verdict is not None or f"{TIME_BAR_MIN_N:,}" in row["reason"]
+
+
 def test_beyond_the_exact_size_the_reference_is_semismooth_newton(monkeypatch):
     """With tresca_exact's size limit below the surface, the study's reference is
     semismooth_newton at 'high' (the table says so) and finds the same path: c/a and the

@@ -26,6 +26,13 @@ from solvers.interface import TOLERANCES, solve, solvers
 #: Every QP library in the registry (role "library"): adding one adds it here.
 REFERENCE_SOLVERS = tuple(sorted(n for n, s in solvers().items() if s.role == "library"))
 ALL_SOLVERS = ("pdas", "semismooth_newton") + REFERENCE_SOLVERS
+#: The libraries that take the QP through an epigraph cone (ECOS: a linear objective only,
+#: problems.friction_forms.epigraph_program): the stationarity of their answer goes with the
+#: square root of their duality gap, so the accuracy bars at a preset's own tolerance
+#: (KKT within 10 tol, ``A u + B'p = f`` to 1e-6, the unconstrained answer to 1e-5) do not
+#: hold for them; test_ecos_through_its_epigraph_cone states what does
+EPIGRAPH = ("ecos",)
+ACCURATE = tuple(n for n in ALL_SOLVERS if n not in EPIGRAPH)
 
 
 # --------------------------------------------------------------------------- problems
@@ -239,7 +246,7 @@ def test_pdas_with_stabilisation_block():
 
 
 # --------------------------------------------------------------------------- adapters
-@pytest.mark.parametrize("solver", REFERENCE_SOLVERS)
+@pytest.mark.parametrize("solver", [n for n in REFERENCE_SOLVERS if n not in EPIGRAPH])
 @pytest.mark.parametrize("name", list(PROBLEMS))
 def test_reference_solver_agrees_with_pdas_at_mid(references, name, solver):
     qp, ref = references[name]
@@ -267,12 +274,39 @@ def test_tol_factor_tightens_the_library_tolerance(references, solver):
     assert tight.status == "converged" and tight.kkt.max <= min(loose.kkt.max, 1e-3)
 
 
+def test_ecos_through_its_epigraph_cone(references):
+    """ECOS on the frictionless problems at ``mid``: it claims converged, the suite refutes
+    it on ``kkt_stationarity`` (its stationarity goes with the square root of its gap;
+    measured 1.1e-5 to 4.5e-4 against tol 1e-6), its certified bound is a true bound on
+    its error and ``p >= 0``. With its tolerances at ``1e-4 tol`` it is verified
+    ``converged`` at ``low`` on every one and on the unconstrained problem (answer 1/2):
+    KKT and certified bound within 1e-3 (measured <= 2.5e-4, the 1D obstacle of condition
+    ~N^2; <= 4.9e-5 on the others), the energy-norm error too."""
+    tol = TOLERANCES["mid"]
+    for name, (qp, ref) in references.items():
+        res = solve(qp, "ecos", "mid")
+        assert res.claimed_status == "converged", res.message
+        assert res.status == "inaccurate" and "kkt_stationarity" in res.failed_check, name
+        err = energy_error(qp, res.u, ref.u)
+        assert res.gap.certified and err <= res.gap.relative_energy_bound * (1 + 1e-6) + 1e-12
+        assert res.p.min() >= -1e-6 * res.p.max() and res.p.max() > 0, name
+    free = ContactQP(A=2 * sp.eye(3), f=np.ones(3), B=sp.csr_matrix((0, 3)), g=np.zeros(0))
+    low = TOLERANCES["low"]
+    for qp, exact in [*((qp, ref.u) for qp, ref in references.values()),
+                      (free, np.full(3, 0.5))]:
+        res = solve(qp, "ecos", "low", tol_factor=1e-4)
+        assert res.status == "converged", (qp.name, res.message, res.failed_check)
+        assert res.message == "ecos: Optimal solution found"
+        assert res.kkt.max <= low and res.gap.meets(low)
+        assert energy_error(qp, res.u, exact) <= low
+
+
 def test_proxsuite_forces_the_sparse_cholesky_backend(references):
     res = solve(references["two-body"][0], "proxsuite", "mid")
     assert res.stats["backend"] == "SparseCholesky"
 
 
-@pytest.mark.parametrize("solver", ALL_SOLVERS)
+@pytest.mark.parametrize("solver", ACCURATE)
 def test_multiplier_sign_convention(references, solver):
     """At convergence A u + B'p = f with p >= 0 (no flipped sign anywhere)."""
     qp, _ = references["two-body"]
@@ -308,7 +342,7 @@ def test_tiny_time_limit_is_reported(solver):
     assert res.claimed_status == "time_limit" and res.status == "time_limit", res.message
 
 
-@pytest.mark.parametrize("solver", ALL_SOLVERS)
+@pytest.mark.parametrize("solver", ACCURATE)
 def test_no_constraints(solver):
     qp = ContactQP(A=2 * sp.eye(3), f=np.ones(3), B=sp.csr_matrix((0, 3)), g=np.zeros(0))
     res = solve(qp, solver, "mid")

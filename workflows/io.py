@@ -28,7 +28,7 @@ from typing import Any, Iterator
 import numpy as np
 
 PACKAGES = ("numpy", "scipy", "scikit-fem", "ngsolve", "pyamg", "qpsolvers", "osqp", "proxsuite",
-            "clarabel", "piqp", "qpalm", "cvxopt", "highspy", "scs", "pandas", "meshio",
+            "clarabel", "piqp", "qpalm", "cvxopt", "highspy", "scs", "ecos", "pandas", "meshio",
             "matplotlib", "snakemake", "mkl")
 
 

@@ -77,7 +77,9 @@ The accuracy bars and TNNMG's growth are judged only where the contact zone has 
 25 nodes on circle–square (level 3) or 150 on cube–sphere (level 3, about 240); the coarser
 levels give that reason instead.
 
-Measured at the quick levels, each scene's job alone on a quiet 2-core machine
+Measured at circle–square levels 1–3 and cube–sphere levels 1–2 (the quick scale runs
+cube–sphere level 1 only, and the machine there is shared), each scene's job alone on a
+quiet 2-core machine
 (`contactbench study friction --problem P --levels L --mu 0.5 --ratios 0.3 0.7 --shift 0.01
 --coulomb-shift 0.02 --solvers tnnmg semismooth_newton --tol high --time-limit 120 --target
 1e-6 --repeats 5 --out F --profiles G`; circle–square levels 1–3 in 101 s and 1.7 GB,
