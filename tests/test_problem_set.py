@@ -37,28 +37,50 @@ def test_the_set_has_at_least_80_named_problems_in_three_classes():
     assert any(p.get("gap", 0) < 0 for p in params)
 
 
+def added_problems(old: str, new: str) -> list:
+    """The problems of the set ``new`` that ``old`` does not have, after checking that
+    ``new`` keeps every problem of ``old`` unchanged and adds its own at the end."""
+    before = {p.name: p for p in load(old).problems()}
+    after = {p.name: p for p in load(new).problems()}
+    assert all(after[name] == p for name, p in before.items())
+    added = [p for name, p in after.items() if name not in before]
+    assert added and list(after)[-len(added):] == [p.name for p in added]
+    return added
+
+
 def test_version_2_keeps_every_problem_of_version_1_and_adds_p2_families():
-    old = {p.name: p for p in load("contact-qp-1").problems()}
-    new = {p.name: p for p in load("contact-qp-2").problems()}
-    assert all(new[name] == p for name, p in old.items())
-    added = [p for name, p in new.items() if name not in old]
-    assert added and all(p.params["degree"] == 2 for p in added)
+    added = added_problems("contact-qp-1", "contact-qp-2")
+    assert all(p.params["degree"] == 2 for p in added)
     # a P2 family's own levels: level 0 in the small class (the nodes of P1 level 1)
     small = {p.name for p in added if p.size_class == "small"}
     assert small == {"circle_square_p2_L0", "cube_sphere_p2_L0", "hard_incompressible_p2_L0"}
 
 
 def test_version_3_keeps_every_problem_of_version_2_and_adds_two_pass_families():
-    old = {p.name: p for p in load("contact-qp-2").problems()}
-    new = {p.name: p for p in load("contact-qp-3").problems()}
-    assert all(new[name] == p for name, p in old.items())
-    added = [p for name, p in new.items() if name not in old]
-    assert added and all(p.params["coupling"] == "two_pass" for p in added)
-    assert list(new)[-len(added):] == [p.name for p in added]        # at the end
+    added = added_problems("contact-qp-2", "contact-qp-3")
+    assert all(p.params["coupling"] == "two_pass" for p in added)
     small = {p.name for p in added if p.size_class == "small"}
     assert small == {f"{f}_L{level}" for level in (2, 3)
                      for f in ("degenerate_two_pass_matching", "degenerate_two_pass")} | \
         {"circle_square_two_pass_L0", "circle_square_two_pass_L1"}
+
+
+MORTAR_FAMILIES = ("circle_square_mortar", "circle_square_mortar_dual", "cube_sphere_mortar",
+                   "cube_sphere_mortar_dual")
+
+
+def test_version_4_keeps_every_problem_of_version_3_and_adds_mortar_families():
+    added = added_problems("contact-qp-3", "contact-qp-4")
+    assert {p.family for p in added} == set(MORTAR_FAMILIES)
+    assert {(p.problem, p.params["coupling"]) for p in added} == {
+        (s, c) for s in ("circle_square", "cube_sphere") for c in ("mortar", "mortar_dual")}
+    # the plain family's (named after its scene) levels in every class: the rows
+    # change, not the meshes
+    v4 = load("contact-qp-4")
+    for p in added:
+        assert v4.levels(p.family, p.size_class) == v4.levels(p.problem, p.size_class)
+    small = {p.name for p in added if p.size_class == "small"}
+    assert small == {f"{f}_L{level}" for f in MORTAR_FAMILIES for level in (0, 1)}
 
 
 def test_a_familys_own_levels_are_checked_by_name():
@@ -130,6 +152,19 @@ def test_export_round_trip_reproduces_the_reference(small):
     assert {name for name, k in dependent.items() if k} == {
         f"{f}_L{level}" for level in (2, 3)
         for f in ("degenerate_two_pass_matching", "degenerate_two_pass")}
+    # the mortar rows' structure, read from the exported G alone: a dual row owns unknowns
+    # that no other row touches (D diagonal: one constrained node per row, what the box
+    # transformation of TNNMG needs); a standard row shares its constrained node with its
+    # neighbours' rows (D the surface mass matrix)
+    for family in MORTAR_FAMILIES:
+        for level in (0, 1):
+            G = load_problem(small / f"{family}_L{level}")["G"].tocsc()
+            lone = np.diff(G.indptr) == 1                  # columns in one row only
+            owners = np.unique(G.indices[G.indptr[:-1][lone]])
+            if family.endswith("_dual"):
+                assert owners.size == G.shape[0], (family, level)
+            else:
+                assert owners.size == 0, (family, level, owners.size)
     roll = json.loads((small / "roll_stack_L0" / "meta.json").read_text())
     assert roll["floating_modes"] > 0 and roll["units"] == "m, N, Pa"     # the scene's own
     stab = json.loads((small / "flat_blocks_stabilised_L2" / "meta.json").read_text())
@@ -249,6 +284,25 @@ def test_runs_script_on_one_family(small, tmp_path):
     # the work-precision chart has the runs the PNG draws: one per run with an energy error
     solved = t[~t.solver.isin(["reference", "linear_floor"])]
     assert len(work["data"]["values"]) == int(solved.energy_error.notna().sum())
+
+
+def test_runs_script_on_the_mortar_families_tnnmg_takes_dual_rows_only(small, tmp_path):
+    """TNNMG's box transformation needs one constrained node per row: on the exported
+    3D mortar problems it takes the dual rows (verified, within tol of the exact
+    reference in the energy norm) and skips the standard ones, saying why."""
+    from workflows.scripts.problem_set_runs import main as runs_main
+
+    tables = []
+    for family in ("cube_sphere_mortar", "cube_sphere_mortar_dual"):
+        out = tmp_path / f"{family}.csv"
+        runs_main(["--set", CURRENT, "--class", "small", "--family", family, "--levels", "0",
+                   "--export", str(small), "--solvers", "tnnmg", "--presets", "mid",
+                   "--time-limit", "20", "--out", str(out)])
+        tables.append(pd.read_csv(out))
+    t = pd.concat(tables).set_index("family")
+    standard, dual = t.loc["cube_sphere_mortar"], t.loc["cube_sphere_mortar_dual"]
+    assert standard.status == "skipped" and "one per constrained node" in standard.message
+    assert dual.status == "converged" and dual.energy_error <= dual.tol
 
 
 def test_a_rebuilt_problem_that_differs_from_its_export_is_refused(small, tmp_path):

@@ -33,7 +33,7 @@ from problems.spec import contact_scene_error, problems
 
 #: Where the sets live, and the one ``contactbench export`` uses by default.
 SETS_DIR = Path(__file__).resolve().parent / "config" / "test_sets"
-CURRENT = "contact-qp-3"
+CURRENT = "contact-qp-4"
 #: Size classes, smallest first.
 CLASSES = ("small", "medium", "large")
 
