@@ -22,11 +22,13 @@ def levels_choice(config: dict) -> str:
     return config["test_set"].get("levels") or study_defaults("test_set")["levels"]
 
 
-def run_levels(config: dict, size_class: str, family: str) -> list[int]:
+def run_levels(config: dict, size_class: str, family: str, ts=None) -> list[int]:
     """The levels of ``family`` in ``size_class`` that the test_set study runs: every one,
     or with ``test_set.levels: smallest`` only the smallest (the quick scale's choice:
-    one problem per family keeps every family and solver in the quick regeneration)."""
-    levels = sorted({p.level for p in problem_set_of(config).problems(size_class, [family])})
+    one problem per family keeps every family and solver in the quick regeneration).
+    ``ts``: the config's test set if the caller has it loaded already."""
+    ts = ts or problem_set_of(config)
+    levels = sorted({p.level for p in ts.problems(size_class, [family])})
     if levels_choice(config) == "smallest":
         return levels[:1]
     return levels
@@ -52,7 +54,7 @@ def problem_set_hard_cases(config: dict) -> tuple[list[str], list[str]]:
         for level in levels:
             cases.append(f"{family}:{level}")
             for c in config["test_set"]["classes"]:
-                if ts.problems(c, [family]) and level in run_levels(config, c, family):
+                if ts.problems(c, [family]) and level in run_levels(config, c, family, ts):
                     files.append(PATHS["test_set_runs"].format(set=ts.id, size_class=c,
                                                                scene=family))
     return sorted(set(files)), cases
@@ -82,7 +84,7 @@ def check(config: dict, registry: dict) -> None:
     hc = config.get("hard_cases", {})
     run = set(scenes_of(config, "test_set"))
     for family, levels in scenes_of(config, "hard_cases").items():
-        have = {level for c in cfg["classes"] for level in run_levels(config, c, family)} \
+        have = {level for c in cfg["classes"] for level in run_levels(config, c, family, ts)} \
             if family in ts.families else set()
         if family not in run or not set(levels) <= have:
             raise ConfigError(f"config 'hard_cases.scenes.{family}': levels {levels} are not "
