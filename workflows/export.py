@@ -13,7 +13,26 @@ is a folder ``<out>/<problem>/``::
                                a condition estimate, the reference's residuals, checksums
 
 and ``<out>/index.json`` lists them; ``<out>/contact_qp.py`` is qpbenchmark's test-set
-module for the folder (``qpbenchmark <out>/contact_qp.py run ...``). A set is written
+module for the folder (``qpbenchmark <out>/contact_qp.py run ...``; it reads the
+problems whose ``form`` is ``qp``).
+
+A frictional problem (one Tresca step, :mod:`problems.friction_forms`) has ``x = (u, t)``,
+``t_i >= |slip_i|`` per node with a slip bound ``s_i > 0``. In 2D it is a QP (``form``
+``qp``, :func:`problems.friction_forms.split_program`), written as above; in 3D
+(isotropic friction) a second-order cone program (``form`` ``cone``,
+:func:`problems.friction_forms.cone_program`) in the conic form Clarabel and SCS take::
+
+    min 1/2 x'Px + q'x   s.t.   Ax + s = b,   s in K = R+^l x SOC(k_1) x ... x SOC(k_c)
+
+written as ``P.mtx q.mtx A.mtx b.mtx`` (and ``A_*``, ``b`` in ``problem.npz``), the cone
+sizes in ``meta.json`` (``cones``: ``zero`` 0, ``nonnegative`` l, ``second_order`` the
+list of k_j; a second-order cone ``|s[1:]| <= s[0]``). Its ``solution.npz`` holds ``x``,
+``z`` (the multipliers of the program's rows, ``Px + q + G'z = 0`` resp. ``A'z``) and the
+suite's ``u``, ``p`` (normal), ``lam`` (tangential); ``warm_start.npz`` the same for the
+previous step's reference solution (the warm start of a load path). The objective of
+``x = (u, |slip(u)|)`` is the step's energy ``1/2 u'Au - f'u + sum s_i |slip_i(u)|``
+exactly (``objective_constant`` 0: the slip's reference ``previous - offset`` sits in
+``h`` resp. ``b``). A set is written
 into a temporary folder beside ``out`` and renamed into place when complete: an
 interrupted export leaves nothing behind, an existing one is replaced only when asked.
 """
@@ -30,24 +49,43 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from problems.floating import floating_modes
+from problems.friction_forms import (lift, program_multipliers, standard_program,
+                                     tresca_step)
+from problems.kkt import tresca_energy
 from problems.slack import slack_form
 from workflows.io import _sha256 as file_digest, json_text, provenance
 from workflows.problem_set import SetProblem, TestSet
 
 CONVENTION = "min 1/2 x'Px + q'x  s.t.  Gx <= h"
+#: The conic form of a 3D frictional step (Clarabel's and SCS's).
+CONE_CONVENTION = "min 1/2 x'Px + q'x  s.t.  Ax + s = b,  s in K"
+#: Each form's convention and its constraint arrays' names.
+FORMS = {"qp": (CONVENTION, ("G", "h")), "cone": (CONE_CONVENTION, ("A", "b"))}
 #: The qpbenchmark test-set module copied into every export (class ContactQp).
 QPBENCHMARK_MODULE = Path(__file__).resolve().parent / "data" / "contact_qp.py"
 #: Largest n whose condition number is estimated (a few solves with A each).
 CONDITION_LIMIT = 300_000
-MATRICES = ("P", "q", "G", "h")
 
 
 class ExportError(ValueError):
     """An output folder that may not be written (the message says why)."""
 
 
+def form_of(qp) -> str:
+    """``qp`` (a frictionless problem or a 2D Tresca step) or ``cone`` (a 3D Tresca step)."""
+    if qp.friction is None:
+        return "qp"
+    return "qp" if standard_program(tresca_step(qp)).kind == "split" else "cone"
+
+
 def qp_arrays(qp) -> dict[str, np.ndarray | sp.csr_matrix]:
-    """``P, q, G, h`` of ``qp`` in the exported convention (the slack form if ``qp.C``)."""
+    """The exported arrays of ``qp``: ``P, q, G, h`` (the slack form if ``qp.C``; a 2D
+    Tresca step's split QP), or a 3D Tresca step's ``P, q, A, b`` (:func:`form_of`)."""
+    if qp.friction is not None:
+        program = standard_program(tresca_step(qp))
+        G, h = FORMS[form_of(qp)][1]
+        return {"P": sp.csr_matrix(program.P), "q": np.asarray(program.q, dtype=float),
+                G: sp.csr_matrix(program.G), h: np.asarray(program.h, dtype=float)}
     s = slack_form(qp)
     return {"P": sp.csr_matrix(s.A), "q": -np.asarray(s.f, dtype=float),
             "G": sp.csr_matrix(s.B), "h": np.asarray(s.g, dtype=float)}
@@ -55,7 +93,11 @@ def qp_arrays(qp) -> dict[str, np.ndarray | sp.csr_matrix]:
 
 def exported_solution(qp, u: np.ndarray, p: np.ndarray) -> np.ndarray:
     """``x`` of the exported problem for the contact solution ``(u, p)``: ``u``, or
-    ``(u, s)`` with ``s = c p`` on the penalised rows of the slack form."""
+    ``(u, s)`` with ``s = c p`` on the penalised rows of the slack form, or a Tresca
+    step's ``(u, t)``, ``t_i = |slip_i(u)|`` (:func:`problems.friction_forms.lift`)."""
+    if qp.friction is not None:
+        step = tresca_step(qp)
+        return lift(step, standard_program(step), u)
     if qp.C is None:
         return np.asarray(u, dtype=float)
     c = qp.C.diagonal()
@@ -64,7 +106,10 @@ def exported_solution(qp, u: np.ndarray, p: np.ndarray) -> np.ndarray:
 
 def objective(qp, u: np.ndarray, p: np.ndarray) -> float:
     """``1/2 x'Px + q'x`` at ``x`` = :func:`exported_solution` (the energy
-    ``1/2 u'Au - f'u``, plus ``1/2 p'Cp`` for a stabilised problem)."""
+    ``1/2 u'Au - f'u``, plus ``1/2 p'Cp`` for a stabilised problem, plus
+    ``sum s_i |slip_i(u)|`` for a Tresca step)."""
+    if qp.friction is not None:
+        return tresca_energy(qp, np.asarray(u, dtype=float))
     J = 0.5 * float(u @ (qp.A @ u)) - float(qp.f @ u)
     if qp.C is not None:
         J += 0.5 * float(p @ (qp.C @ p))
@@ -101,62 +146,127 @@ def write_problem(folder: Path, item: SetProblem, set_id: str,
     RuntimeError
         If the exact reference does not converge (nothing is exported then).
     """
+    from solvers.interface import solve
     from solvers.reference import reference_solve
 
     qp = item.build()
-    ref = reference_solve(qp, tol=reference_tol)
+    ref = (reference_solve(qp, tol=reference_tol) if qp.friction is None else
+           solve(qp, "tresca_exact", tol=reference_tol))
     if ref.status != "converged":
         raise RuntimeError(f"the exact reference failed on {item.name}: {ref.status} "
                            f"{ref.message}")
+    form = form_of(qp)
+    convention, (g_name, h_name) = FORMS[form]
     arrays = qp_arrays(qp)
     folder.mkdir(parents=True)
     for key, value in arrays.items():
         scipy.io.mmwrite(folder / f"{key}.mtx",
                          value if sp.issparse(value) else value.reshape(-1, 1),
-                         comment=f"{set_id} {item.name}: {key} of {CONVENTION}")
-    P, G = arrays["P"], arrays["G"]
-    np.savez_compressed(folder / "problem.npz", q=arrays["q"], h=arrays["h"],
-                        **{f"{k}_{a}": getattr(M, a) for k, M in (("P", P), ("G", G))
+                         comment=f"{set_id} {item.name}: {key} of {convention}")
+    P, G = arrays["P"], arrays[g_name]
+    np.savez_compressed(folder / "problem.npz", q=arrays["q"], **{h_name: arrays[h_name]},
+                        **{f"{k}_{a}": getattr(M, a) for k, M in (("P", P), (g_name, G))
                            for a in ("data", "indices", "indptr")},
-                        P_shape=np.array(P.shape), G_shape=np.array(G.shape))
+                        P_shape=np.array(P.shape), **{f"{g_name}_shape": np.array(G.shape)})
     x = exported_solution(qp, ref.u, ref.p)
     # the reference's multipliers are >= 0 up to round-off (-1e-17 where a row is inactive)
-    np.savez_compressed(folder / "solution.npz", x=x,
-                        z=np.maximum(np.asarray(ref.p, dtype=float), 0.0))
+    p_ref = np.maximum(np.asarray(ref.p, dtype=float), 0.0)
+    friction = None
+    if qp.friction is None:
+        np.savez_compressed(folder / "solution.npz", x=x, z=p_ref)
+    else:
+        friction = friction_solution_files(folder, item, qp, ref.u, p_ref, ref.tangential)
     J = objective(qp, ref.u, ref.p)
+    tight = (tight_rows(G, arrays[h_name], x) if form == "qp" else
+             tight_rows(G[:qp.m], arrays[h_name][:qp.m], x))
     meta = {
         "name": item.name, "set": set_id, "family": item.family, "problem": item.problem,
         "level": item.level, "size_class": item.size_class,
         "params": dict(problems_options(item)), "dim": qp.dim, "units": qp.units,
-        "convention": CONVENTION,
-        "form": ("slack form of the stabilised problem (Sect. 7.5): x = (u, s), "
-                 "s_i = c_i z_i on the penalised rows" if qp.C is not None else
-                 "x = u, the displacements of both bodies (Dirichlet unknowns eliminated)"),
+        "convention": convention,
+        "form": form,
+        "x": (FRICTION_X if qp.friction is not None else
+              "the slack form of the stabilised problem (Sect. 7.5): x = (u, s), "
+              "s_i = c_i z_i on the penalised rows" if qp.C is not None else
+              "x = u, the displacements of both bodies (Dirichlet unknowns eliminated)"),
         "n": int(P.shape[0]), "m": int(G.shape[0]), "n_displacements": int(qp.n),
-        "nnz_P": int(P.nnz), "nnz_G": int(G.nnz),
-        "objective": J,
+        "nnz_P": int(P.nnz), f"nnz_{g_name}": int(G.nnz),
+        "objective": J, "objective_constant": 0.0,
+        **({"cones": cone_sizes(qp)} if form == "cone" else {}),
+        **({"friction": friction} if friction is not None else {}),
         "solution": {"file": "solution.npz", "x": "x", "z": "z",
-                     "active_rows": int(np.sum(ref.p > 0)), **tight_rows(G, arrays["h"], x)},
+                     "active_rows": int(np.sum(ref.p > 0)), **tight},
         "reference": {"solver": ref.solver, "status": ref.status, "tol": reference_tol,
                       "kkt": ref.kkt.as_dict(prefix="") if ref.kkt is not None else None,
                       "relative_energy_bound": ref.gap.relative_energy_bound
                       if ref.gap is not None else None},
         "norms": {"P_max": float(abs(P).max()) if P.nnz else 0.0,
                   "P_fro": float(spla.norm(P)), "q_inf": float(np.max(np.abs(arrays["q"]))),
-                  "G_max": float(abs(G).max()) if G.nnz else 0.0,
-                  "h_inf": float(np.max(np.abs(arrays["h"]), initial=0.0)),
+                  f"{g_name}_max": float(abs(G).max()) if G.nnz else 0.0,
+                  f"{h_name}_inf": float(np.max(np.abs(arrays[h_name]), initial=0.0)),
                   "x_inf": float(np.max(np.abs(x))), "z_inf": float(np.max(ref.p, initial=0.0))},
-        "condition": condition_estimate(qp),
+        "condition": {**condition_estimate(qp), **({"of": "A, the displacement block of "
+                                                          "P = diag(A, 0)"}
+                                                   if qp.friction is not None else {})},
         "floating_modes": int(floating_modes(qp).shape[1]),
         "files": {},
     }
     meta["files"] = {f.name: file_digest(f)[0] for f in sorted(folder.iterdir())}
     (folder / "meta.json").write_text(json_text(meta), encoding="utf-8")
     return {"name": item.name, "family": item.family, "problem": item.problem,
-            "level": item.level, "size_class": item.size_class, "n": meta["n"], "m": meta["m"],
+            "level": item.level, "size_class": item.size_class, "form": form,
+            "n": meta["n"], "m": meta["m"],
             "dependent_tight_rows": meta["solution"]["dependent_tight_rows"],
             "objective": J, "folder": item.name,
             "meta_sha256": file_digest(folder / "meta.json")[0]}
+
+
+#: What ``x`` is in a frictional problem's export.
+FRICTION_X = ("x = (u, t): u the displacements of both bodies (Dirichlet unknowns "
+              "eliminated), t_i >= |slip_i(u)| one per node with a slip bound s_i > 0 "
+              "(friction.bounded_nodes), slip(u) = T u + offset - previous")
+
+
+def cone_sizes(qp) -> dict:
+    """The cone ``K`` of a cone-form problem as Clarabel and SCS state it: ``zero`` rows
+    (none), ``nonnegative`` rows, then one second-order cone per size in ``second_order``."""
+    program = standard_program(tresca_step(qp))
+    return {"zero": 0, "nonnegative": int(program.nonnegative),
+            "second_order": [int(c) for c in program.cones]}
+
+
+def friction_solution_files(folder: Path, item: SetProblem, qp, u: np.ndarray,
+                            p: np.ndarray, lam: np.ndarray) -> dict:
+    """Write a Tresca step's ``solution.npz`` and ``warm_start.npz`` (the previous step's
+    reference, :func:`workflows.problem_set.frictional_steps`) into ``folder``; returns
+    the ``friction`` entry of its meta.json: law, ``mu``, the step and the path's number
+    of tangential steps, the measured ``Q / (mu P)``, the slip bounds' range, Coulomb's
+    fixed point and the files."""
+    step = tresca_step(qp)
+    program = standard_program(step)
+    fs = item.frictional_step()
+
+    def save(name, u_, p_, lam_):
+        np.savez_compressed(folder / name, x=lift(step, program, u_),
+                            z=program_multipliers(step, program, p_, lam_), u=u_, p=p_,
+                            lam=np.asarray(lam_, dtype=float))
+
+    save("solution.npz", u, p, lam)
+    save("warm_start.npz", fs.warm.u, np.maximum(fs.warm.p, 0.0), fs.warm.lam)
+    fr = qp.friction
+    return {"law": fr.law, "mu": fr.mu, "step": fs.step, "steps": fs.steps,
+            "ratio": fs.ratio, "ratio_meaning": "Q / (mu P) of the reference solution",
+            "slip_bound_max": float(np.max(fr.slip_bound, initial=0.0)),
+            "bounded_nodes": int(program.bounded.size), "components": fr.components,
+            "fixed_point": fs.fixed_point,
+            "definition": "slip bounds and previous state rounded to 8 significant digits "
+                          "of their largest entry (workflows.problem_set.definition_digits)",
+            "solution": {"file": "solution.npz", "x": "x", "z": "z (the program's rows)",
+                         "u": "u", "p": "p (normal)", "lam": "lam (tangential)"},
+            "warm_start": {"file": "warm_start.npz",
+                           "of": "the previous step's reference solution (the first "
+                                 "tangential step's: the normal step's), in this step's "
+                                 "program (t = |slip| of this step)"}}
 
 
 def tight_rows(G: sp.spmatrix, h: np.ndarray, x: np.ndarray, rtol: float = 1e-8) -> dict:
@@ -215,7 +325,8 @@ def export_set(ts: TestSet, size_class: str, out: str | os.PathLike, force: bool
                                     disable=not progress)]
         index = {"set": ts.id, "name": ts.name, "version": ts.version,
                  "description": ts.description, "size_class": size_class,
-                 "convention": CONVENTION, "problems": entries,
+                 "convention": CONVENTION, "conventions": {k: v[0] for k, v in FORMS.items()},
+                 "problems": entries,
                  "families": sorted({e["family"] for e in entries}),
                  "qpbenchmark": f"qpbenchmark {out}/contact_qp.py run --solver osqp "
                                 f"--settings mid_accuracy --results-path "
@@ -237,18 +348,19 @@ def export_set(ts: TestSet, size_class: str, out: str | os.PathLike, force: bool
 
 
 def load_problem(folder: str | os.PathLike, source: str = "npz") -> dict:
-    """``P, q, G, h`` of an exported problem, from ``problem.npz`` or the ``.mtx`` files
-    (``source``), as CSR matrices and 1-D arrays."""
+    """``P, q, G, h`` of an exported problem (a cone-form problem's ``P, q, A, b``), from
+    ``problem.npz`` or the ``.mtx`` files (``source``), as CSR matrices and 1-D arrays."""
     folder = Path(folder)
+    G, h = FORMS["cone" if (folder / "A.mtx").exists() else "qp"][1]
     if source == "mtx":
-        read = {k: scipy.io.mmread(folder / f"{k}.mtx") for k in MATRICES}
-        return {"P": sp.csr_matrix(read["P"]), "G": sp.csr_matrix(read["G"]),
+        read = {k: scipy.io.mmread(folder / f"{k}.mtx") for k in ("P", "q", G, h)}
+        return {"P": sp.csr_matrix(read["P"]), G: sp.csr_matrix(read[G]),
                 "q": np.asarray(read["q"], dtype=float).ravel(),
-                "h": np.asarray(read["h"], dtype=float).ravel()}
+                h: np.asarray(read[h], dtype=float).ravel()}
     if source != "npz":
         raise ValueError(f"source {source!r} is not allowed; allowed: npz, mtx")
     with np.load(folder / "problem.npz") as z:
         def csr(k):
             return sp.csr_matrix((z[f"{k}_data"], z[f"{k}_indices"], z[f"{k}_indptr"]),
                                  shape=tuple(z[f"{k}_shape"]))
-        return {"P": csr("P"), "G": csr("G"), "q": z["q"], "h": z["h"]}
+        return {"P": csr("P"), G: csr(G), "q": z["q"], h: z[h]}

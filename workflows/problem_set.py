@@ -16,26 +16,42 @@ A test set is a YAML file under ``workflows/config/test_sets/`` (the current one
 
 A problem is a family at one level of a class, named ``<family>_L<level>``; a family's
 ``levels`` (class -> levels) replace its problem's levels of ``classes`` (a class it
-leaves out has none of its problems). The
+leaves out has none of its problems).
+
+A frictional family (``params: {friction: tresca | coulomb, mu: .., shift: ..}``) is one
+Tresca step of its scene's load path (:func:`frictional_steps`): ``step: last`` (the
+default) its last tangential step, ``step: <j>`` the tangential step ``j`` (1 ..
+``shift_steps``), ``step: all`` every tangential step, one problem each, named
+``<family>_L<level>_s<j>`` (a load-path family: each step's warm start is the previous
+step's reference solution). The
 families are also the workflow's scenes (:func:`workflows.studies.scenes_with_families`),
 so a hard case or a scene variant is typed once. Loading checks every name,
-problem, parameter and level (:class:`TestSetError` names the key and what is
-allowed); nothing here builds a problem.
+problem, parameter, level and step (:class:`TestSetError` names the key and what is
+allowed); loading builds no problem.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
+from functools import lru_cache
 from pathlib import Path
 
+import numpy as np
 import yaml
 
 from problems.spec import contact_scene_error, problems
 
 #: Where the sets live, and the one ``contactbench export`` uses by default.
 SETS_DIR = Path(__file__).resolve().parent / "config" / "test_sets"
-CURRENT = "contact-qp-4"
+CURRENT = "contact-qp-5"
 #: Size classes, smallest first.
 CLASSES = ("small", "medium", "large")
+#: A family's keys.
+FAMILY_KEYS = ("problem", "params", "levels", "step")
+#: A frictional family's ``step`` besides a step number: the last step, or every one.
+STEP_CHOICES = ("last", "all")
+#: Significant digits (of the vector's largest entry) kept in a frictional step's slip
+#: bounds and previous state (:func:`definition_digits`).
+DEFINITION_DIGITS = 8
 
 
 class TestSetError(ValueError):
@@ -60,6 +76,9 @@ class SetProblem:
         Refinement level.
     size_class : str
         One of :data:`CLASSES`.
+    step : int or None
+        A frictional family's tangential step (1 .. ``shift_steps``) of the scene's load
+        path; ``None`` without friction.
     """
 
     name: str
@@ -68,11 +87,22 @@ class SetProblem:
     params: dict
     level: int
     size_class: str
+    step: int | None = None
 
     def build(self):
-        """The :class:`problems.qp.ContactQP` (the registered problem's ``build``)."""
+        """The :class:`problems.qp.ContactQP` (the registered problem's ``build``); a
+        frictional problem's is its Tresca step (:meth:`frictional_step`)."""
+        if self.step is not None:
+            return self.frictional_step().qp
         spec = problems()[self.problem]
         return spec.build(self.level, spec.options(**self.params))
+
+    def frictional_step(self) -> "FrictionStep":
+        """The frictional problem's step of its load path (:func:`frictional_steps`)."""
+        if self.step is None:
+            raise ValueError(f"{self.name} has no friction")
+        return frictional_steps(self.problem, tuple(sorted(self.params.items())),
+                                self.level)[self.step]
 
 
 @dataclass(frozen=True)
@@ -106,10 +136,15 @@ class TestSet:
         out = []
         for fam in chosen:
             entry = self.families[fam]
+            params = dict(entry.get("params") or {})
+            steps = family_steps(problems()[entry["problem"]].options(**params),
+                                 entry.get("step", "last"))
             for cls in CLASSES if size_class is None else (size_class,):
                 for level in self.levels(fam, cls):
-                    out.append(SetProblem(f"{fam}_L{level}", fam, entry["problem"],
-                                          dict(entry.get("params") or {}), int(level), cls))
+                    for step in steps:
+                        name = f"{fam}_L{level}" + (f"_s{step}" if len(steps) > 1 else "")
+                        out.append(SetProblem(name, fam, entry["problem"], dict(params),
+                                              int(level), cls, step))
         return out
 
     def levels(self, family: str, size_class: str) -> list[int]:
@@ -168,13 +203,18 @@ def check(ts: TestSet) -> None:
                                    "registered contact problem")
             _check_levels(ts, f"classes.{cls}.{problem}", registry[problem], lv)
     for fam, entry in ts.families.items():
-        unknown = sorted(set(entry) - {"problem", "params", "levels"})
+        unknown = sorted(set(entry) - set(FAMILY_KEYS))
         if unknown:
             raise TestSetError(f"test set {ts.id} 'families.{fam}': keys {unknown} are not "
-                               "allowed; allowed: problem, params, levels")
+                               f"allowed; allowed: {', '.join(FAMILY_KEYS)}")
         wrong = contact_scene_error(entry.get("problem"), entry.get("params"))
         if wrong is not None:
             raise TestSetError(f"test set {ts.id} 'families.{fam}.{wrong[0]}': {wrong[1]}")
+        try:
+            family_steps(registry[entry["problem"]].options(**(entry.get("params") or {})),
+                         entry.get("step", "last"))
+        except ValueError as err:
+            raise TestSetError(f"test set {ts.id} 'families.{fam}.step': {err}") from None
         if entry.get("levels") is not None:
             if not isinstance(entry["levels"], dict):
                 raise TestSetError(f"test set {ts.id} 'families.{fam}.levels': "
@@ -195,3 +235,138 @@ def _check_levels(ts: TestSet, key: str, spec, levels) -> None:
     if bad:
         raise TestSetError(f"test set {ts.id} '{key}': levels {bad} are not allowed; "
                            f"allowed: integers {lo}..{hi}")
+
+
+def family_steps(options, step) -> list:
+    """The tangential steps a family's problems are (``[None]`` without friction): ``step``
+    ``last`` (``[shift_steps]``), ``all`` (``1 .. shift_steps``) or one step number.
+
+    Raises
+    ------
+    ValueError
+        A ``step`` on a frictionless family, or one outside the allowed values.
+    """
+    frictional = options.get("friction", "none") != "none"
+    if not frictional:
+        if step != "last":
+            raise ValueError(f"{step!r} is not allowed without friction; allowed: no step "
+                             "(a frictionless family is one problem per level)")
+        return [None]
+    count = int(options["shift_steps"])
+    if step == "last":
+        return [count]
+    if step == "all":
+        return list(range(1, count + 1))
+    if isinstance(step, int) and not isinstance(step, bool) and 1 <= step <= count:
+        return [step]
+    raise ValueError(f"{step!r} is not allowed; allowed: {', '.join(STEP_CHOICES)} or an "
+                     f"integer 1..{count} (shift_steps)")
+
+
+def definition_digits(v: np.ndarray, digits: int = DEFINITION_DIGITS) -> np.ndarray:
+    """``v`` rounded to ``digits`` significant digits of its largest entry (one decimal
+    grid for the whole vector, so round-off noise on its near-zero entries goes too).
+
+    A frictional step's slip bounds and previous state come out of reference solves of
+    the earlier steps (and of Coulomb's fixed point); their last digits depend on the
+    machine (BLAS kernel, summation order). Rounded to 8 of their about 13 reliable
+    digits, two machines define the same problem, unless an entry lies within the
+    solves' round-off of a rounding boundary (about 1e-5 per entry)."""
+    v = np.asarray(v, dtype=float)
+    top = float(np.max(np.abs(v), initial=0.0))
+    if top == 0.0:
+        return np.zeros_like(v)
+    decimals = digits - 1 - int(np.floor(np.log10(top)))
+    return np.round(v, decimals) + 0.0          # + 0.0: no negative zeros
+
+
+@dataclass(frozen=True)
+class FrictionStep:
+    """One tangential step of a frictional scene's load path as a test problem.
+
+    Attributes
+    ----------
+    qp : ContactQP
+        The Tresca step: the scene's data of the step, slip bounds ``s`` and previous
+        state rounded by :func:`definition_digits`.
+    solution : TrescaSolution
+        Its exact reference (:func:`solvers.tresca.tresca_exact`).
+    warm : TrescaSolution
+        The previous step's reference solution (the first tangential step's: the normal
+        step's), the step's recorded warm start.
+    step, steps : int
+        This tangential step (from 1) and the path's number of them.
+    ratio : float
+        ``Q / (mu P)`` of the reference solution (:func:`solvers.tresca.tangential_ratio`).
+    fixed_point : dict or None
+        Coulomb: the fixed point ``s = mu p`` of the step (its Tresca solves, last change
+        and contraction, and ``max |mu p - s| / max s`` of the rounded bound's reference).
+    """
+
+    qp: object
+    solution: object
+    warm: object
+    step: int
+    steps: int
+    ratio: float
+    fixed_point: dict | None
+
+
+@lru_cache(maxsize=8)
+def frictional_steps(problem: str, params: tuple, level: int,
+                     digits: int = DEFINITION_DIGITS,
+                     perturb: float = 0.0) -> dict[int, FrictionStep]:
+    """The tangential steps of a frictional scene's load path as test problems (cached).
+
+    The path is run as :func:`solvers.tresca.friction_path` runs it, with the exact
+    reference (``A`` factorised once) on the rounded definitions: the normal step's slip
+    bounds ``s = mu p`` (Tresca; Coulomb: the fixed point ``s = mu p`` of each step,
+    :func:`solvers.tresca.coulomb_step`, to 1e-12) and each step's previous state
+    ``T u + offset`` of the step before are rounded by :func:`definition_digits` before
+    the step is solved, so each step's problem and its warm start are exactly the
+    previous exported problem's reference. ``perturb`` (tests only) multiplies every
+    reference solution by ``1 + perturb`` before its quantities are rounded.
+
+    Returns
+    -------
+    dict
+        Tangential step (1 .. ``shift_steps``) -> :class:`FrictionStep`.
+    """
+    from solvers.tresca import (coulomb_step, dual_operators, tangential_ratio,
+                                tresca_exact, with_step, PathStep)
+
+    spec = problems()[problem]
+    qp = spec.build(level, spec.options(**dict(params)))
+    fr = qp.friction
+    ops = dual_operators(qp)
+
+    def solve(step_qp):
+        sol = tresca_exact(step_qp, ops)
+        if sol.status != "converged":
+            raise RuntimeError(f"the exact reference stopped on {qp.name}: {sol.status}")
+        return replace(sol, u=sol.u * (1 + perturb), p=sol.p * (1 + perturb))
+
+    rest = np.zeros(fr.T.shape[0])
+    s = definition_digits(fr.mu * solve(with_step(qp, 0, np.zeros(qp.m), rest)).p, digits)
+    previous, before, out = rest, None, {}
+    for k in range(len(fr.path)):
+        fixed_point = None
+        if fr.law == "coulomb":
+            run = coulomb_step(qp, k, previous, s, solve, tol=1e-12)
+            s = definition_digits(run.qp.friction.slip_bound, digits)
+        step_qp = with_step(qp, k, s, previous)
+        sol = solve(step_qp)
+        if fr.law == "coulomb":
+            fixed_point = {"tresca_solves": run.tresca_solves, "last_change": run.history[-1],
+                           "contraction": run.contraction, "status": run.solution.status,
+                           "residual": float(np.max(np.abs(fr.mu * sol.p - s), initial=0.0))
+                           / max(float(np.max(s, initial=0.0)), 1e-300)}
+        if k >= 1:
+            out[k] = FrictionStep(qp=step_qp, solution=sol, warm=before, step=k,
+                                  steps=len(fr.path) - 1,
+                                  ratio=tangential_ratio([PathStep(step_qp, sol)]),
+                                  fixed_point=fixed_point)
+        before = sol
+        previous = definition_digits(step_qp.friction.T @ sol.u + step_qp.friction.offset,
+                                     digits)
+    return out

@@ -52,8 +52,9 @@ ELEMENT_DEGREE = Parameter(
 
 
 def friction_parameters(held: str) -> tuple[Parameter, ...]:
-    """The friction parameters of a contact scene (``friction``, ``mu``, ``shift``);
-    ``held`` names the part of the loaded body the tangential ``shift`` moves."""
+    """The friction parameters of a contact scene (``friction``, ``mu``, ``shift``,
+    ``shift_steps``); ``held`` names the part of the loaded body the tangential ``shift``
+    moves, in ``shift_steps`` equal increments (1: one tangential step)."""
     return (
         Parameter("friction", "none", "friction law on the contact (none: the thesis's "
                   "frictionless problem; tresca: slip bound mu p of the normal step; coulomb: "
@@ -61,6 +62,9 @@ def friction_parameters(held: str) -> tuple[Parameter, ...]:
         Parameter("mu", 0.0, "friction coefficient", low=0.0),
         Parameter("shift", 0.0, f"tangential load: prescribed x-displacement of {held} after "
                   "the normal load", low=-0.2, high=0.2),
+        Parameter("shift_steps", 1, "tangential load steps: the shift applied in this many "
+                  "equal increments after the normal load (a quasi-static load path)", low=1,
+                  high=20, kind=int),
     )
 
 
@@ -414,7 +418,8 @@ def frictional_two_body(scene: Callable[[int, Options], TwoBodyScene], level: in
                         name: str) -> ContactQP:
     """The frictional ContactQP of a scene with ``friction``, ``mu`` and ``shift``
     (:func:`friction_parameters`): its load path is the normal load (``shift`` = 0) and
-    then the tangential step (the held part moved along x by ``shift``); the ContactQP
+    then the tangential steps (the held part moved along x to ``j shift / shift_steps``,
+    ``j = 1 .. shift_steps``: :func:`shift_increments`); the ContactQP
     holds the first step's data, slip measured from the unloaded state, slip bounds zero
     (the path's driver sets them: :func:`solvers.tresca.friction_path`).
 
@@ -437,5 +442,18 @@ def frictional_two_body(scene: Callable[[int, Options], TwoBodyScene], level: in
                                tangential=True) for shift in (0.0, p.shift)]
     qp = steps[0]
     qp.friction.law, qp.friction.mu = p.friction, float(p.mu)
-    qp.friction.path = tuple(LoadStep(s.f, s.g, s.friction.offset) for s in steps)
+    normal, full = (LoadStep(s.f, s.g, s.friction.offset) for s in steps)
+    qp.friction.path = (normal, *shift_increments(normal, full, p.shift_steps))
     return qp
+
+
+def shift_increments(normal: LoadStep, full: LoadStep, count: int) -> tuple[LoadStep, ...]:
+    """The tangential steps of a path that applies the shift in ``count`` equal increments:
+    step ``j`` the data at ``j / count`` of the way from ``normal`` to ``full`` (a step's
+    ``f``, ``g`` and ``offset`` are affine in the prescribed shift, so this is exact); the
+    last step is ``full`` itself (``count = 1``: the two-step path as assembled)."""
+    between = tuple(LoadStep(*(a + (j / count) * (b - a) for a, b in
+                               ((normal.f, full.f), (normal.g, full.g),
+                                (normal.offset, full.offset))))
+                    for j in range(1, count))
+    return (*between, full)

@@ -8,7 +8,9 @@ qpbenchmark::
         --results-path DIR/results/osqp.csv --author NAME
 
 Each problem is ``min 1/2 x'Px + q'x  s.t.  Gx <= h`` read from ``problem.npz``
-(the same arrays as the ``.mtx`` files). qpbenchmark's default settings and
+(the same arrays as the ``.mtx`` files); the set's problems in the conic form
+(``form`` ``cone`` in ``index.json``: 3D frictional steps, second-order cones) are
+left out, qpbenchmark takes QPs only. qpbenchmark's default settings and
 tolerances apply (``low_accuracy``, ``mid_accuracy``, ``high_accuracy``,
 ``default``); the time limit per run is ``CONTACT_QP_TIME_LIMIT`` seconds
 (default 60). ``CONTACT_QP_DIR`` points the module at another exported folder.
@@ -57,7 +59,7 @@ def read_problem(path: Path, name: str) -> Problem:
 
 
 class ContactQp(TestSet):
-    """Two-body frictionless contact QPs from the contactbench suite."""
+    """Two-body contact QPs (frictionless, and 2D Tresca steps) from the contactbench suite."""
 
     @property
     def description(self) -> str:
@@ -65,8 +67,9 @@ class ContactQp(TestSet):
 
     @property
     def title(self) -> str:
+        qps = [e for e in self.index["problems"] if e.get("form", "qp") == "qp"]
         return (f"Contact QP test set {self.index['set']}, class "
-                f"{self.index['size_class']} ({len(self.index['problems'])} problems)")
+                f"{self.index['size_class']} ({len(qps)} QPs)")
 
     @property
     def sparse_only(self) -> bool:
@@ -82,4 +85,5 @@ class ContactQp(TestSet):
 
     def __iter__(self):
         for entry in self.index["problems"]:
-            yield read_problem(folder() / entry["folder"], entry["name"])
+            if entry.get("form", "qp") == "qp":
+                yield read_problem(folder() / entry["folder"], entry["name"])

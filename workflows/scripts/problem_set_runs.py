@@ -3,12 +3,16 @@
 Reads the exported class folder (``contactbench export``; rule ``test_set_export``):
 each problem's exact reference (``solution.npz``) and objective (``meta.json``).
 Each problem is rebuilt from its definition (the solvers need its mesh hierarchy)
-and checked against the exported ``P, q, G, h`` (relative difference <= 1e-12),
+and checked against the exported ``P, q, G, h`` (a 3D frictional step's ``P, q, A,
+b``; relative difference <= 1e-12),
 so every solver sees the problem a QP user downloads. Per solver, one child
 process runs the presets in turn, each with a hard wall-clock limit
 (:func:`workflows.isolation.solve_batch_isolated`): a hung or crashed run is a
-row. A row per run: verified and claimed status, KKT residuals, certified energy
-bound, time, the energy error ``||u - u_ref||_A / ||u_ref||_A``, the objective and
+row. A frictional problem is one Tresca step, handed to each solver as it takes
+friction (a solver without friction: ``skipped`` with its reason). A row per run:
+verified and claimed status, KKT residuals, certified energy
+bound, time, the energy error ``||u - u_ref||_A / ||u_ref||_A``, the objective (a Tresca
+step's energy) and
 its error relative to the reference's, the multipliers' errors and the total-force
 error. Called by the rule ``test_set_runs``.
 
@@ -44,7 +48,10 @@ IDENTICAL = 1e-12
 def check_identical(qp, folder: Path) -> None:
     """Raise if the rebuilt ``qp`` is not the exported problem (to :data:`IDENTICAL`)."""
     mine, theirs = qp_arrays(qp), load_problem(folder)
-    for key in ("P", "q", "G", "h"):
+    if set(mine) != set(theirs):
+        raise RuntimeError(f"{folder.name}: the rebuilt problem has the arrays "
+                           f"{sorted(mine)}, exported {sorted(theirs)}; re-export the set")
+    for key in mine:
         a, b = mine[key], theirs[key]
         if a.shape != b.shape:
             raise RuntimeError(f"{folder.name}: {key} has shape {a.shape}, exported {b.shape}")
@@ -61,8 +68,8 @@ def run_problem(item, folder: Path, names: list[str], presets: list[str],
     meta = read_json(folder / "meta.json")
     qp = item.build()
     check_identical(qp, folder)
-    with np.load(folder / "solution.npz") as z:
-        u_ref, p_ref = z["x"][:qp.n], z["z"]
+    with np.load(folder / "solution.npz") as z:          # a frictional step's: x = (u, t)
+        u_ref, p_ref = z["x"][:qp.n], z["p"] if "p" in z.files else z["z"]
     J_ref = float(meta["objective"])
     scale = max(abs(J_ref), np.finfo(float).tiny)
     base = {"set": meta["set"], "problem": item.name, "family": item.family,
