@@ -93,7 +93,7 @@ def test_a_familys_own_levels_are_checked_by_name():
         check(TestSet(ts.name, ts.version, "", ts.classes,
                       {"c": {"problem": "circle_square", "levels": {"tiny": [0]}}}))
     with pytest.raises(TestSetError, match=r"'families.c': keys \['level'\].*allowed: "
-                                           "problem, params, levels"):
+                                           "problem, params, levels, step"):
         check(TestSet(ts.name, ts.version, "", ts.classes,
                       {"c": {"problem": "circle_square", "level": {"small": [0]}}}))
 
@@ -105,10 +105,19 @@ def test_bad_set_and_class_names_are_refused():
         load().problems("huge")
 
 
+def frictionless_families() -> list[str]:
+    """The current set's families without friction (the frictional ones' export and runs:
+    tests/test_problem_set_friction.py)."""
+    ts = load()
+    return [f for f, e in ts.families.items()
+            if (e.get("params") or {}).get("friction", "none") == "none"]
+
+
 @pytest.fixture(scope="module")
 def small(tmp_path_factory):
     out = tmp_path_factory.mktemp("export") / "small"
-    assert cli(["export", "--class", "small", "--out", str(out), "--quiet"]) == 0
+    assert cli(["export", "--class", "small", "--families", *frictionless_families(),
+                "--out", str(out), "--quiet"]) == 0
     return out
 
 
@@ -119,7 +128,8 @@ def objective(d, x):
 def test_export_round_trip_reproduces_the_reference(small):
     index = json.loads((small / "index.json").read_text())
     assert index["set"] == CURRENT and index["size_class"] == "small"
-    assert len(index["problems"]) == len(load().problems("small"))
+    assert len(index["problems"]) == len(load().problems("small", frictionless_families()))
+    assert {e["form"] for e in index["problems"]} == {"qp"}
     assert (small / "contact_qp.py").exists()
     for entry in index["problems"]:
         folder = small / entry["folder"]
