@@ -229,3 +229,21 @@ def test_runs_script_on_a_frictional_family(exported, tmp_path):
     assert (conv.energy_error <= conv.tol).all()
     assert set(t.status) <= {"converged", "inaccurate", "max_iter", "time_limit", "skipped"}
     assert t.loc["tresca_exact", "objective_error"] <= 1e-10
+
+
+def test_shift_steps_split_the_tangential_step_into_equal_increments():
+    """``shift_steps = 1`` is the two-step path as assembled (every existing result
+    unchanged); with 3 increments the last step is that path's and step 1 is the path
+    assembled with a third of the shift (the data are affine in the shift)."""
+    from problems.spec import problems
+
+    spec = problems()["circle_square"]
+    make = lambda **kw: spec.build(0, spec.options(friction="tresca", mu=0.3, **kw)).friction.path
+    one, three, third = make(shift=0.012), make(shift=0.012, shift_steps=3), make(shift=0.004)
+    assert len(one) == 2 and len(three) == 4
+    for a, b in zip(one, (three[0], three[-1])):
+        for name in ("f", "g", "offset"):
+            assert np.array_equal(getattr(a, name), getattr(b, name)), name
+    for name in ("f", "g", "offset"):
+        a, b = getattr(three[1], name), getattr(third[1], name)
+        assert np.abs(a - b).max() <= 1e-12 * np.abs(b).max(), name
