@@ -1,6 +1,6 @@
 """The test set's frictional families (contact-qp-5): the family/step schema, version 4
 kept, the count, the definition's machine independence, the export in QP and conic form
-(round trip to 1e-12, warm starts of a load path), qpbenchmark's module on the QP part,
+(round trip to 1e-12, warm starts of a load path), qpbenchmark on the QP part,
 and a QP library and the exact reference on an exported frictional problem."""
 from __future__ import annotations
 
@@ -169,7 +169,14 @@ def test_a_load_path_steps_warm_start_is_the_previous_steps_reference(exported):
     assert warm["x"].size == meta["n"]
 
 
-def test_qpbenchmark_module_reads_the_qp_form_only(exported):
+def test_qpbenchmark_runs_the_qp_form_only(exported, tmp_path):
+    """qpbenchmark's module reads the 2D steps (the QP form), not the 3D cone programs, and
+    its runner solves them with OSQP at the exported objective."""
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
     from qpbenchmark.benchmark import load_test_set
 
     test_set = load_test_set(str(exported / "contact_qp.py"))
@@ -177,6 +184,26 @@ def test_qpbenchmark_module_reads_the_qp_form_only(exported):
     assert set(problems) == {"circle_square_tresca_q05_L0", "circle_square_tresca_q05_L1"}
     d = load_problem(exported / "circle_square_tresca_q05_L0")
     assert (problems["circle_square_tresca_q05_L0"].G != d["G"]).nnz == 0
+    results = tmp_path / "osqp.csv"
+    run = subprocess.run([Path(sys.executable).parent / "qpbenchmark", "--results-path",
+                          str(results), str(exported / "contact_qp.py"), "run", "--solver",
+                          "osqp", "--author",
+                          "contactbench-tests"],
+                         capture_output=True, text=True, cwd=tmp_path, stdin=subprocess.DEVNULL,
+                         env={**os.environ, "CONTACT_QP_TIME_LIMIT": "60"})
+    assert run.returncode == 0, run.stderr[-2000:]
+    from qpbenchmark.utils import time_solve_problem
+
+    theirs = pd.read_csv(results)
+    assert set(theirs.problem) == set(problems)
+    theirs = theirs[theirs.settings == "high_accuracy"].set_index("problem")
+    for name, problem in problems.items():
+        J = json.loads((exported / name / "meta.json").read_text())["objective"]
+        assert bool(theirs.loc[name, "found"]), name
+        sol, _ = time_solve_problem(problem, "osqp",
+                                    **test_set.solver_settings["high_accuracy"]["osqp"])
+        J_theirs = 0.5 * sol.x @ (problem.P @ sol.x) + problem.q @ sol.x
+        assert abs(J_theirs - J) <= 1e-6 * abs(J), name
 
 
 def test_a_library_and_the_exact_reference_solve_an_exported_frictional_problem(exported):
