@@ -147,6 +147,10 @@ def test_frictional_export_round_trip_in_qp_and_cone_form(exported):
     coulomb = json.loads((exported / "cube_sphere_coulomb_q05_L0" / "meta.json").read_text())
     fp = coulomb["friction"]["fixed_point"]
     assert fp["status"] == "converged" and fp["residual"] <= 1e-6      # s = mu p to 8 digits
+    # the problem is the fixed point's final Tresca step: no solver re-runs the fixed point
+    assert coulomb["friction"]["law"] == "coulomb"
+    item = load().problems("small", ["cube_sphere_coulomb_q05"])[0]
+    assert item.build().friction.law == "tresca"
 
 
 def test_a_load_path_steps_warm_start_is_the_previous_steps_reference(exported):

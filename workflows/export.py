@@ -239,7 +239,7 @@ def friction_solution_files(folder: Path, item: SetProblem, qp, u: np.ndarray,
                             p: np.ndarray, lam: np.ndarray) -> dict:
     """Write a Tresca step's ``solution.npz`` and ``warm_start.npz`` (the previous step's
     reference, :func:`workflows.problem_set.frictional_steps`) into ``folder``; returns
-    the ``friction`` entry of its meta.json: law, ``mu``, the step and the path's number
+    the ``friction`` entry of its meta.json: the path's law, ``mu``, the step and the path's number
     of tangential steps, the measured ``Q / (mu P)``, the slip bounds' range, Coulomb's
     fixed point and the files."""
     step = tresca_step(qp)
@@ -254,7 +254,8 @@ def friction_solution_files(folder: Path, item: SetProblem, qp, u: np.ndarray,
     save("solution.npz", u, p, lam)
     save("warm_start.npz", fs.warm.u, np.maximum(fs.warm.p, 0.0), fs.warm.lam)
     fr = qp.friction
-    return {"law": fr.law, "mu": fr.mu, "step": fs.step, "steps": fs.steps,
+    return {"law": item.params["friction"], "problem_law": f"{fr.law} (one step, s given)",
+            "mu": fr.mu, "step": fs.step, "steps": fs.steps,
             "ratio": fs.ratio, "ratio_meaning": "Q / (mu P) of the reference solution",
             "slip_bound_max": float(np.max(fr.slip_bound, initial=0.0)),
             "bounded_nodes": int(program.bounded.size), "components": fr.components,

@@ -287,8 +287,9 @@ class FrictionStep:
     Attributes
     ----------
     qp : ContactQP
-        The Tresca step: the scene's data of the step, slip bounds ``s`` and previous
-        state rounded by :func:`definition_digits`.
+        The Tresca step (``friction.law`` ``tresca`` also on a Coulomb path, ``mu`` the
+        path's): the scene's data of the step, slip bounds ``s`` and previous state
+        rounded by :func:`definition_digits`.
     solution : TrescaSolution
         Its exact reference (:func:`solvers.tresca.tresca_exact`).
     warm : TrescaSolution
@@ -354,7 +355,10 @@ def frictional_steps(problem: str, params: tuple, level: int,
         if fr.law == "coulomb":
             run = coulomb_step(qp, k, previous, s, solve, tol=1e-12)
             s = definition_digits(run.qp.friction.slip_bound, digits)
+        # the problem is a Tresca step whatever the path's law (Coulomb's: the fixed
+        # point's final step, its bound s given): no solver re-runs the fixed point on it
         step_qp = with_step(qp, k, s, previous)
+        step_qp = replace(step_qp, friction=replace(step_qp.friction, law="tresca"))
         sol = solve(step_qp)
         if fr.law == "coulomb":
             fixed_point = {"tresca_solves": run.tresca_solves, "last_change": run.history[-1],
