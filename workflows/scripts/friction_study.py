@@ -160,7 +160,8 @@ def partial_slip(step, ratio: float) -> tuple[dict, pd.DataFrame]:
     fields = {"contact": kind, "ratio_reached": tangential_ratio([step]), "a": a, "p0": p0,
               "c": c, "c_over_a": c / a, "c_over_a_exact": c_exact,
               "dev_c_over_a": (c / a) / c_exact - 1.0, "traction_l2": l2,
-              "stick_offset": ref.stick_offset,
+              "stick_offset": (float(ref.stick_centre[0] - ref.centre[0]) / ref.a
+                               if kind == "line" else ref.stick_offset),
               "contact_nodes": int((sol.p > 0).sum()), "stick_nodes": int(sol.stick.sum())}
     return fields, profile
 
