@@ -37,9 +37,10 @@ default scene.
   analytic one, and e the stick zone's offset from the contact's centre, the first moment
   of the deficit (`reference.cattaneo_mindlin.partial_slip_reference`). The theory's zones
   are concentric because the normal load leaves no tangential traction between similar
-  half-planes; the curved, finite circle is not one, and the normal step leaves a small
-  traction odd in x (about 3 % of μP in all), which moves the stick zone by e/a =
-  2.3–2.8 % at both ratios and levels 2–4 (the table's `stick_offset`). Centred at the
+  half-planes; the scene's normal step, loaded with friction, leaves a small traction odd
+  in x (about 3 % of μP in all), which moves the stick zone by e/a = 2.3–2.8 % at both
+  ratios and levels 2–4 (the table's `stick_offset`; 0.0 % when the normal step is loaded
+  without friction, level 2). Centred at the
   contact, the profile's error at Q/(μP) = 0.3 would be 14.3 % at level 3 and 16.6 % at
   level 4 instead of 6.6 % and 6.1 %: the offset does not shrink with h.
 - **The solvers.** `tnnmg` and `semismooth_newton` run the same scaled load path as
