@@ -283,7 +283,8 @@ STUDY = Study(
     # 2-core machine (quick: circle-square 70 s and 1.6 GB, cube-sphere 99 s and 2.1 GB);
     # full and huge estimated: circle-square's paths cost ~4x per level (N x4,
     # iterations flat), cube-sphere level 3 goes to semismooth Newton (S of 3,267 columns
-    # formed once per problem, 5.7 GB peak, minutes)
+    # formed once per problem, 5.7 GB peak, minutes); the 2D scene's level 4, 6.9 GB with
+    # the default square's 262,474 nodes, has 14 % more on the matched square (299,466)
     scales={
         "tiny": AtScale(settings_at([0, 1], [1]),             # measured 13 s, 0.4 GB (2D)
                         {RULE: {"mem_mb": 1000, "runtime": 1}}),
@@ -291,7 +292,7 @@ STUDY = Study(
         "quick": AtScale(settings_at([1, 2, 3], [1]),
                          {RULE: {"mem_mb": 3000, "runtime": 5}}),
         "full": AtScale(settings_at([1, 2, 3, 4], [1, 2, 3]),
-                        {RULE: {"mem_mb": 8000, "runtime": 40}}),
+                        {RULE: {"mem_mb": 9000, "runtime": 40}}),
         "huge": AtScale(settings_at([1, 2, 3, 4, 5], [1, 2, 3]),
                         {RULE: {"mem_mb": 30000, "runtime": 60}}),
     },
