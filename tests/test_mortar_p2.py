@@ -13,8 +13,11 @@ What is tested, with its known answer:
   exist and ``mortar_dual`` at P2 in 3D is refused naming the parameter; both bases sum to
   one (``sum_j D_ij = m_i``), and in 3D the vertices' ``m_i`` are zero, so the rows are
   scaled by the positive HRZ mass;
-* the contact patch test solved (flat_blocks at P2, both sides): the uniform pressure to
-  round-off with both bases; on circle_square's curved, non-matching interface a uniform
+* the pressure at P2 is recovered from the forces and is ``q`` for the multipliers of a
+  uniform ``q`` (``s_i q``);
+* the contact patch test solved (flat_blocks at P2, both sides): the uniform pressure and
+  the multiplier coefficients to round-off with both bases, the nodal P2 rows off by
+  about 1 %; on circle_square's curved, non-matching interface a uniform
   pressure ``q`` loads each opposing node with ``q int phi_k^o dt`` (Simpson's rule on the
   projected chords, exact for the P2 hats); on cube_sphere a rigid translation by ``d``
   along ``n`` shifts weighted gap ``i`` by ``d m_i / s_i`` (zero at the face's vertices,
@@ -41,6 +44,7 @@ from problems.fem.quadratic import quadratic_mesh_of, shape_functions
 from problems.flat_blocks import exact_pressure
 from problems.spec import ParameterError, problems
 from solvers.contact_box import check_structure
+from solvers.interface import solve
 
 PROBLEMS = problems()
 CIRCLE, CUBE, FLAT = (PROBLEMS[k] for k in ("circle_square", "cube_sphere", "flat_blocks"))
@@ -171,17 +175,26 @@ def test_the_standard_p2_rows_sum_to_one(name):
         assert np.abs(mi.mass[vertex]).max() <= ROUND_OFF * mi.mass.max()
     else:                                       # 2D: the HRZ scaling is m_i itself
         np.testing.assert_allclose(qp.contact.mass, mi.mass, rtol=ROUND_OFF)
-    assert qp.contact.mass.min() > 0 and qp.contact.pressure_map is None
+    # the pressure recovered from the forces is q for the multipliers of a uniform q
+    q = 0.3
+    assert qp.contact.mass.min() > 0
+    np.testing.assert_allclose(qp.contact.pressure(q * qp.contact.mass), q, rtol=ROUND_OFF)
 
 
 @pytest.mark.parametrize("side", ["coarse", "fine"])
-def test_p2_mortar_passes_the_contact_patch_test(side):
+def test_p2_mortar_passes_the_contact_patch_test_and_nodal_does_not(side):
     q = exact_pressure(FLAT.options(constrained=side))
     for coupling in ("mortar", "mortar_dual"):
         qp = FLAT.make(1, constrained=side, coupling=coupling, degree=2)
         ref = assert_solvers_agree(qp, ("semismooth_newton",))
         assert ref.kkt.max <= 1e-9
         assert np.abs(qp.contact.pressure(ref.p) / q - 1.0).max() < PATCH_TOL, coupling
+        coefficients = ref.p / qp.contact.mass              # the multiplier field's
+        assert np.abs(coefficients / q - 1.0).max() < PATCH_TOL, coupling
+    nodal = FLAT.make(1, constrained=side, degree=2)
+    res = solve(nodal, "pdas", "high")
+    assert res.status == "converged"
+    assert np.abs(nodal.contact.pressure(res.p) / q - 1.0).max() > 1e-3
 
 
 def simpson_opposing_load(qp, lo, hi):

@@ -40,14 +40,20 @@ P2 (Remark 7.11's elements; :func:`multiplier_basis`, :func:`dual_coefficients`)
   the rows cannot be scaled by ``1/m_i``: every P2 row is scaled by ``1/s_i`` with
   ``s_i`` the HRZ lumped surface mass (:func:`problems.fem.quadratic.surface_mass_p2`,
   positive; on segments it is ``m_i`` itself). Scaling a row changes neither the
-  feasible set nor the displacement; the multiplier over ``s_i`` is the coefficient of
-  ``psi_i`` in the multiplier field, the P2 nodal value of the pressure, and
-  ``contact.mass = s`` makes :meth:`problems.qp.ContactSurface.pressure` return it
-  (the contact patch test: a uniform pressure ``q`` has every coefficient ``q``);
-  in 3D the vertex rows' weights sum to ``m_i = 0``: such a row does not see a rigid
-  translation along ``n`` and bounds only the gap's variation over the vertex's patch
-  (the standard mortar conditions, weighted gaps and multiplier coefficients >= 0, hold
-  all the same; the multiplier field may be negative between the nodes);
+  feasible set nor the displacement: the multiplier over ``s_i`` is the coefficient
+  ``c_i`` of ``psi_i`` in the multiplier field (a uniform pressure ``q`` has every
+  ``c_i = q``, the contact patch test). In 3D the vertex rows' weights sum to
+  ``m_i = 0``: such a row does not see a rigid translation along ``n`` and bounds only
+  the gap's variation over the vertex's patch, and its coefficient carries no net force
+  (the total force is ``sum c_i m_i``); the standard mortar conditions (weighted gaps
+  and coefficients >= 0) hold all the same, but the vertex coefficients are no pressure
+  (on cube_sphere at level 1 they reach 5 times the midpoints' largest);
+* the nodal pressure at P2 is therefore recovered from the forces, as for the nodal P2
+  rows (:func:`problems.fem.two_body.quadratic_pressure_map`): the constrained nodes'
+  forces ``F = D' diag(1/s) p`` aggregated onto the vertices (each midpoint's half to
+  each of its vertices), divided by the P1 lumped mass there and interpolated back to
+  the midpoints, ``pressure = P diag(1/m_P1) P' F`` (:func:`force_pressure_map`; exact
+  for a uniform pressure: ``F_j = q m_j`` aggregates to ``q m_P1``);
 * ``mortar_dual`` in 2D: the dual basis of the P2 segment, ``psi = A phi`` with
   ``A = diag(m) M^-1`` from the local mass matrix ``M`` and ``m = M 1 = |T| (1/6, 1/6,
   2/3)``, i.e. ``psi_0 = (6 phi_0 + 2 phi_1 - phi_m) / 4`` at a vertex and
@@ -95,6 +101,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.spatial import cKDTree
 
+from problems.fem.elasticity import lumped_surface_mass
 from problems.fem.quadratic import (FACET_EDGES, QuadraticMesh, quadratic_facets,
                                     quadratic_mesh_of, shape_functions, surface_mass_p2)
 from problems.qp import ContactQP, SharedWork
@@ -551,6 +558,26 @@ def mortar_integrals(points: np.ndarray, facets: np.ndarray, opposing_facets: np
     return MortarIntegrals(nodes=c_nodes, D=D, M=M, weighted_gap=weighted_gap, mass=mass)
 
 
+def force_pressure_map(points: np.ndarray, facets: np.ndarray, nodes: np.ndarray,
+                       quadratic: QuadraticMesh, forces: sp.spmatrix) -> sp.csr_matrix:
+    """The P2 nodal pressure of row multipliers (module docstring): ``P diag(1/m_P1) P'
+    forces``, with ``forces`` the map from the multipliers to the normal forces on the
+    constrained P2 ``nodes``, ``P`` the P1-to-P2 interpolation on the surface (a vertex
+    itself, a midpoint the mean of its edge's vertices) and ``m_P1`` the vertices' P1
+    lumped mass on the vertex ``facets``."""
+    vertices = np.unique(facets)
+    col_of = -np.ones(len(points), dtype=np.int64)
+    col_of[vertices] = np.arange(len(vertices))
+    is_vertex = nodes < quadratic.n_vertices
+    ends = quadratic.edges[np.where(is_vertex, 0, nodes - quadratic.n_vertices)]
+    rows = np.concatenate([np.flatnonzero(is_vertex), np.repeat(np.flatnonzero(~is_vertex), 2)])
+    cols = np.concatenate([col_of[nodes[is_vertex]], col_of[ends[~is_vertex]].ravel()])
+    vals = np.concatenate([np.ones(is_vertex.sum()), np.full(2 * (~is_vertex).sum(), 0.5)])
+    P = sp.csr_matrix((vals, (rows, cols)), shape=(len(nodes), len(vertices)))
+    m_p1 = lumped_surface_mass(points, facets)[vertices]
+    return (P @ sp.diags(1.0 / m_p1) @ P.T @ forces).tocsr()
+
+
 def mortar(qp: ContactQP, dual: bool = False) -> ContactQP:
     """``qp`` with its nodal rows replaced by the mortar weighted gaps (module docstring).
 
@@ -568,8 +595,9 @@ def mortar(qp: ContactQP, dual: bool = False) -> ContactQP:
         One row per node of the constrained surface (vertices, and edge midpoints at P2),
         scaled by ``1/s_i``: ``s_i = m_i`` at P1, the HRZ lumped mass at P2 (module
         docstring); ``contact`` keeps its facets and opposing facets, with those nodes,
-        ``mass = s``, no pressure map (the pressure is the multiplier over ``s``) and the
-        direction ``n``.
+        ``mass = s``, the direction ``n`` and, at P2, the pressure recovered from the
+        forces (:func:`force_pressure_map`; at P1 the pressure is the multiplier over
+        ``m_i``).
 
     Raises
     ------
@@ -605,8 +633,10 @@ def mortar(qp: ContactQP, dual: bool = False) -> ContactQP:
         shape=(m, dim * len(pts)))
     full = sp.diags(1.0 / scale) @ full
     full.eliminate_zeros()
+    pressure_map = None if quadratic is None else force_pressure_map(
+        pts, c.facets, mi.nodes, quadratic, mi.D.T @ sp.diags(1.0 / scale))
     contact = replace(c, nodes=mi.nodes, mass=scale, direction=np.tile(n, (m, 1)), dropped=0,
-                      pressure_map=None)
+                      pressure_map=pressure_map)
     kind = "mortar, dual multipliers" if dual else "mortar"
     return replace(qp, B=full[:, qp.free_dofs].tocsr(),
                    g=mi.weighted_gap / scale - full @ qp.u_fixed, contact=contact,
