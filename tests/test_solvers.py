@@ -435,25 +435,14 @@ def test_complementarity_residual_cannot_cancel():
 
 
 # --------------------------------------------------------------------------- certificate
-def test_certificate_pcg_warm_start_saves_steps_not_accuracy(monkeypatch):
+def test_certificate_pcg_warm_start_saves_steps_not_accuracy(monkeypatch, cg_steps):
     """Beyond the direct limit the certificate's A^-1 is multigrid PCG to 1e-14 ||r||:
     started from a nearby guess (the pair's feasible point) it takes fewer steps and
     meets the same residual."""
-    import scipy.sparse.linalg as linalg
-
     from solvers import certificate
 
     monkeypatch.setattr(certificate, "DIRECT_LINEAR_LIMIT", {})
-    steps = []
-    plain_cg = linalg.cg
-
-    def counted_cg(*args, **kwargs):
-        count = [0]
-        out = plain_cg(*args, callback=lambda _: count.__setitem__(0, count[0] + 1), **kwargs)
-        steps.append(count[0])
-        return out
-
-    monkeypatch.setattr(linalg, "cg", counted_cg)
+    steps = cg_steps
     qp = obstacle_qp(40)
     solve_A = certificate.linear_solver(qp)
     r = qp.f - qp.B.T @ np.linspace(0.0, 1e-3, qp.m)
