@@ -319,8 +319,8 @@ def certify(qp: ContactQP, u: np.ndarray, p: np.ndarray, tol: float | None = Non
     tangential multipliers, :func:`duality_gap`).
 
     The last certificate is kept in ``qp.cache.certificate`` with the digest of
-    ``(u, p, tol)`` (and of ``lam`` and the step's friction data: the steps of a load
-    path share the cache):
+    ``(u, p, tol)`` (and of ``lam`` and the step's friction data, its facets included:
+    the steps of a load path share the cache, and so may a law's faceted variant):
     a solver that certifies its own stop and :func:`verify` after it pay for one.
     """
     u, p = np.ascontiguousarray(u, dtype=float), np.ascontiguousarray(p, dtype=float)
@@ -329,6 +329,8 @@ def certify(qp: ContactQP, u: np.ndarray, p: np.ndarray, tol: float | None = Non
         fr = qp.friction
         data += b"".join(np.ascontiguousarray(v, dtype=float).tobytes() for v in
                          (lam, fr.slip_bound, fr.offset, fr.previous, qp.f, qp.g))
+        if fr.facets:                          # the law's shape (a faceted step shares A)
+            data += repr(fr.facets).encode()
     key = hashlib.blake2b(data, digest_size=16).digest()
     last = qp.cache.certificate
     if last is not None and last[0] == key:

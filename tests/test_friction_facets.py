@@ -10,6 +10,7 @@ import functools
 from dataclasses import replace
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from problems.friction_forms import (facet_program, facet_weights, lift, program_multipliers,
@@ -21,9 +22,11 @@ from problems.qp import (REGION_INSIDE, QPValidationError, polygon_gauge, polygo
 from problems.spec import ParameterError, problems
 from solvers.interface import solve, solvers
 from solvers.qp_libraries import LIBRARIES
+from report.friction import FACET_ENERGY_EXPONENT, FACET_FIT_LAST, complete, facet_claims
 from report.rates import fitted_slope
 from solvers.tresca import facet_convergence, friction_path
 from workflows.cli import main
+from workflows.scripts.friction_study import facet_rows
 
 SCENE = problems()["cube_sphere"]
 #: the tangential step of cube_sphere level 0 with sticking and slipping nodes
@@ -241,3 +244,34 @@ def test_the_faceted_law_converges_like_k_to_the_minus_2_in_energy():
     assert -2.3 <= energy <= -1.7, energy
     assert -1.3 <= displacement <= -0.7, displacement
     assert all(row["status"] == "converged" for row in table)
+
+
+# ----------------------------------------------------------------------------- the study
+def test_the_study_reports_the_faceted_law_and_its_claims():
+    """The friction study's ``facets`` rows (cube_sphere level 0) and their claims: the
+    bracket judged at every k, the exponents fitted from the rows; a fallback reference
+    gives one ``skipped`` row with the reason, a 2D scene none."""
+    qp = _isotropic()
+    rows = facet_rows(qp, list(FACETS), "tresca_exact")
+    assert [r["facets"] for r in rows] == list(FACETS)
+    assert [r["energy_gap"] for r in rows] == [r["energy_gap"] for r in _table()]
+    runs = complete(pd.DataFrame([{"scene": "cube_sphere", "level": 0, "ratio": 0.7, **r}
+                                  for r in rows]))
+    table = {row["claim"].split(":")[1][:40]: row for row in facet_claims(runs, "cube_sphere")}
+    bracket, last, every, displacement = table.values()
+    assert bracket["pass"] is True and bracket["measured"] == f"{len(FACETS)} of {len(FACETS)}"
+    k = np.array(FACETS)
+    gaps = [r["energy_gap"] for r in rows]
+    assert last["measured"] == fitted_slope(k[-FACET_FIT_LAST:], gaps[-FACET_FIT_LAST:],
+                                            last=FACET_FIT_LAST)
+    assert last["pass"] == (FACET_ENERGY_EXPONENT[0] <= last["measured"]
+                            <= FACET_ENERGY_EXPONENT[1])
+    assert every["measured"] == fitted_slope(k, gaps, last=len(k)) and every["pass"] is None
+    assert displacement["pass"] is None
+    skipped = facet_rows(qp, [8], "semismooth_newton")
+    assert skipped[0]["status"] == "skipped" and "tresca_exact" in skipped[0]["message"]
+    plane = problems()["circle_square"].make(0, friction="tresca", mu=0.5, shift=0.03)
+    assert facet_rows(plane, [8], "tresca_exact") == []
+    plain = facet_claims(complete(pd.DataFrame({"role": []})), "circle_square")
+    assert len(plain) == 4 and all(row["pass"] is None for row in plain)
+    assert all("2D" in row["reason"] for row in plain[:2])
