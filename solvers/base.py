@@ -223,11 +223,13 @@ class SolverSpec:
         (``friction.facets`` = k, :class:`problems.qp.Friction`); else why it does not,
         and it skips a faceted problem at once with this reason rather than solve the
         isotropic law.
-    size_limit : str, optional
+    size_limit : str or dict, optional
         Name of an integer option in ``parameters`` that bounds the problem's unknowns
         ``qp.n``: a larger problem is ``skipped`` at once, the option's help giving the
         reason (a method whose cost grows too fast to finish in a study's time limit).
-        Setting the option higher runs the solver anyway.
+        Setting the option higher runs the solver anyway. A dict ``{dim: name}`` gives
+        one option per spatial dimension (a sparse factor fills in faster in 3D than in
+        2D); a dimension it leaves out has no bound.
     """
 
     name: str
@@ -242,7 +244,7 @@ class SolverSpec:
     handles_friction: bool = False
     friction_reason: str = ""
     facets_reason: str = ""
-    size_limit: str | None = None
+    size_limit: str | dict | None = None
 
     def __post_init__(self):
         try:
@@ -250,15 +252,35 @@ class SolverSpec:
         except ValueError:
             raise ValueError(f"solver {self.name!r}: role {self.role!r} is not allowed; allowed: "
                              f"{', '.join(r.value for r in Role)}") from None
-        if self.size_limit is not None and self.size_parameter is None:
-            raise ValueError(f"solver {self.name!r}: size_limit {self.size_limit!r} is not one "
+        named = {getattr(p, "name", None) for p in self.parameters}
+        missing = [n for n in self.size_limit_names().values() if n not in named]
+        if missing:
+            raise ValueError(f"solver {self.name!r}: size_limit {missing[0]!r} is not one "
                              "of its parameters")
+
+    def size_limit_names(self) -> dict:
+        """``{dim: option name}`` of ``size_limit`` (key ``None``: every dimension)."""
+        if self.size_limit is None:
+            return {}
+        if isinstance(self.size_limit, dict):
+            return dict(self.size_limit)
+        return {None: self.size_limit}
+
+    def size_limit_name(self, dim: int) -> str | None:
+        """The option that bounds the unknowns of a ``dim``-dimensional problem, if any."""
+        names = self.size_limit_names()
+        return names.get(dim, names.get(None))
+
+    @property
+    def size_parameters(self) -> dict:
+        """``{dim: Parameter}`` of ``size_limit`` (their defaults and help, the reasons)."""
+        by_name = {getattr(p, "name", None): p for p in self.parameters}
+        return {dim: by_name[n] for dim, n in self.size_limit_names().items()}
 
     @property
     def size_parameter(self) -> Parameter | None:
-        """The option named by ``size_limit`` (its default and its help, the reason)."""
-        return next((p for p in self.parameters
-                     if getattr(p, "name", None) == self.size_limit), None)
+        """The option named by a single ``size_limit`` (its default and help, the reason)."""
+        return self.size_parameters.get(None)
 
     def options(self, **given: Any) -> Options:
         """The resolved options: defaults overridden by ``given``, validated."""
@@ -275,11 +297,12 @@ class SolverSpec:
         if friction is not None and getattr(friction, "facets", 0) and self.facets_reason:
             return False, (f"faceted friction (friction_facets = {friction.facets}): "
                            f"{self.facets_reason}")
-        if self.size_limit is not None:
-            cap = (opts if opts is not None else self.options())[self.size_limit]
+        limit = self.size_limit_name(getattr(qp, "dim", None))
+        if limit is not None:
+            cap = (opts if opts is not None else self.options())[limit]
             if qp.n > cap:
-                return False, (f"{qp.n} unknowns > {self.size_limit} = {cap}: "
-                               f"{self.size_parameter.help}")
+                help_ = next(p.help for p in self.parameters if getattr(p, "name", None) == limit)
+                return False, f"{qp.n} unknowns > {limit} = {cap}: {help_}"
         if self.supports is None:
             return True, ""
         ok, reason = self.supports(qp)

@@ -271,8 +271,8 @@ DIRECT_LINEAR_LIMIT = {2: 2_500_000, 3: 150_000}
 
 
 def linear_solver(qp: ContactQP) -> Callable[..., np.ndarray]:
-    """``(r, guess=None) -> A^{-1} r`` for the verification's duality gap, built once
-    per problem (``qp.cache.linear_solver``).
+    """``(r, guess=None, rtol=1e-14) -> A^{-1} r`` for the verification's duality gap,
+    built once per problem (``qp.cache.linear_solver``).
 
     The route depends on the problem alone, never on which solver ran before: a sparse
     Cholesky of ``A`` (:func:`solvers.cholesky.factorize`) up to
@@ -281,8 +281,10 @@ def linear_solver(qp: ContactQP) -> Callable[..., np.ndarray]:
     factor shared with the exact solver: a multigrid PCG on such a nearly singular
     ``A`` needs thousands of steps); else CG
     preconditioned by one V-cycle (geometric multigrid on the problem's hierarchy, pyamg
-    SA without one) to a residual of 1e-14 ||r||, started from ``guess`` (the direct
-    route ignores it): a guess close to the solution saves steps, never accuracy.
+    SA without one) to a residual of ``rtol ||r||`` (1e-14 for the duality gap; a
+    measurement may ask for less, :func:`workflows.measure.dual_norm`), started from
+    ``guess`` (the direct route ignores both): a guess close to the solution saves steps,
+    never accuracy.
     """
     if qp.cache.linear_solver is not None:
         return qp.cache.linear_solver
@@ -295,7 +297,7 @@ def linear_solver(qp: ContactQP) -> Callable[..., np.ndarray]:
         # intermediate results; see FloatingCholesky)
         chol = shared_floating_factor(qp, modes) if modes.shape[1] else factorize(qp.A)
 
-        def solve_A(r, guess=None):
+        def solve_A(r, guess=None, rtol=None):
             x = chol.solve(r)
             return x + chol.solve(r - qp.A @ x)        # one step of iterative refinement
     else:
@@ -303,8 +305,9 @@ def linear_solver(qp: ContactQP) -> Callable[..., np.ndarray]:
         vc = component_vcycle(qp, ahat_component())
         M = spla.LinearOperator(qp.A.shape, matvec=vc.raw)
 
-        def solve_A(r, guess=None):
-            x, info = spla.cg(qp.A, r, x0=guess, M=M, rtol=1e-14, atol=0.0, maxiter=3000)
+        def solve_A(r, guess=None, rtol=None):
+            x, info = spla.cg(qp.A, r, x0=guess, M=M, rtol=1e-14 if rtol is None else rtol,
+                              atol=0.0, maxiter=3000)
             if info != 0:
                 raise RuntimeError("multigrid PCG for the duality gap did not converge")
             return x

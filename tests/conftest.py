@@ -26,3 +26,20 @@ def plugin_env(tmp_path_factory) -> dict:
     assert list(target.glob("contactbench_example_solver-*.dist-info"))
     path = os.pathsep.join(filter(None, [str(target), os.environ.get("PYTHONPATH")]))
     return {**os.environ, "PYTHONPATH": path}
+
+
+@pytest.fixture
+def cg_steps(monkeypatch) -> list:
+    """The steps of every ``scipy.sparse.linalg.cg`` call the test makes, in order."""
+    import scipy.sparse.linalg as linalg
+
+    steps, plain_cg = [], linalg.cg
+
+    def counted_cg(*args, **kwargs):
+        count = [0]
+        out = plain_cg(*args, callback=lambda _: count.__setitem__(0, count[0] + 1), **kwargs)
+        steps.append(count[0])
+        return out
+
+    monkeypatch.setattr(linalg, "cg", counted_cg)
+    return steps

@@ -328,3 +328,25 @@ def test_the_3d_claims_judge_against_the_3d_optimal_rate(run_3d):
         with Image.open(out[key]) as im:
             im.load()
             assert im.size[1] > 600                     # one row of panels per scene
+
+
+def test_the_dual_norm_by_multigrid_pcg_meets_the_direct_one(monkeypatch, cg_steps):
+    """``err_pressure_dual``'s norm beyond the direct limit: multigrid PCG to
+    DUAL_NORM_RTOL (not the duality gap's 1e-14) gives sqrt(F' A^-1 F) to 1e-8, from
+    below (CG from zero: ||w_k||_A^2 = ||w||_A^2 - ||w - w_k||_A^2), in fewer steps."""
+    import scipy.sparse as sp
+    import scipy.sparse.linalg as spla
+
+    from problems.circle_square import PROBLEM
+    from solvers import certificate
+    from workflows.measure import DUAL_NORM_RTOL, dual_norm
+
+    qp = PROBLEM.make(1)
+    force = qp.B.T @ np.random.default_rng(2).uniform(0.0, 1.0, qp.m)
+    exact = float(np.sqrt(force @ spla.spsolve(sp.csc_matrix(qp.A), force)))
+    monkeypatch.setattr(certificate, "DIRECT_LINEAR_LIMIT", {})
+    steps = cg_steps
+    measured = dual_norm(qp, force)
+    assert DUAL_NORM_RTOL == 1e-8 and -1e-12 <= (exact - measured) / exact <= 1e-8
+    certificate.linear_solver(qp)(force)              # the duality gap's 1e-14
+    assert steps[0] < steps[1], steps

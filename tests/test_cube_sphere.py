@@ -144,3 +144,20 @@ def test_reference_beyond_the_direct_limit_is_the_verified_iterative_solve(level
     ref = reference.reference_solve(stabilised)
     assert ref.solver == "augmented_projection" and ref.status == "converged", ref.message
     assert ref.kkt.max <= 1e-10
+
+
+def test_the_ball_is_meshed_once_per_process_and_each_caller_owns_its_copy():
+    """netgen meshes a geometry once per process (the scene is built at every level and
+    coupling of a study): the same arguments give the same mesh, a caller that changes
+    its arrays does not change the next caller's, other arguments mesh anew, and bad
+    ones still raise."""
+    from problems.fem.mesh import netgen_ball
+
+    first = netgen_ball((0.5, 0.5, 1.5), 0.5, 0.3)
+    first[0][:] = 0.0
+    again = netgen_ball(np.array([0.5, 0.5, 1.5]), 0.5, 0.3)
+    assert np.linalg.norm(again[0] - [0.5, 0.5, 1.5], axis=1).max() == pytest.approx(0.5)
+    other = netgen_ball((0.5, 0.5, 1.5), 0.5, 0.2)
+    assert len(other[1]) > len(again[1])
+    with pytest.raises(ValueError, match="radius"):
+        netgen_ball((0.0, 0.0, 0.0), -1.0, 0.3)

@@ -301,8 +301,9 @@ def test_every_library_takes_a_2d_tresca_step_or_says_why(exact_step):
         if qp.dim == 3 and lib.cone_call is None:
             assert res.status == "skipped" and "no second-order cones" in res.message
             continue
-        if lib.size_limit and qp.n > spec.options()[lib.size_limit]:
-            assert res.status == "skipped" and lib.size_limit in res.message
+        limit = spec.size_limit_name(qp.dim)
+        if limit and qp.n > spec.options()[limit]:
+            assert res.status == "skipped" and limit in res.message
             continue
         errors[lib.name] = _check_answer(qp, sol, res)
     if qp.dim == 2:

@@ -435,25 +435,14 @@ def test_complementarity_residual_cannot_cancel():
 
 
 # --------------------------------------------------------------------------- certificate
-def test_certificate_pcg_warm_start_saves_steps_not_accuracy(monkeypatch):
+def test_certificate_pcg_warm_start_saves_steps_not_accuracy(monkeypatch, cg_steps):
     """Beyond the direct limit the certificate's A^-1 is multigrid PCG to 1e-14 ||r||:
     started from a nearby guess (the pair's feasible point) it takes fewer steps and
     meets the same residual."""
-    import scipy.sparse.linalg as linalg
-
     from solvers import certificate
 
     monkeypatch.setattr(certificate, "DIRECT_LINEAR_LIMIT", {})
-    steps = []
-    plain_cg = linalg.cg
-
-    def counted_cg(*args, **kwargs):
-        count = [0]
-        out = plain_cg(*args, callback=lambda _: count.__setitem__(0, count[0] + 1), **kwargs)
-        steps.append(count[0])
-        return out
-
-    monkeypatch.setattr(linalg, "cg", counted_cg)
+    steps = cg_steps
     qp = obstacle_qp(40)
     solve_A = certificate.linear_solver(qp)
     r = qp.f - qp.B.T @ np.linspace(0.0, 1e-3, qp.m)
@@ -627,6 +616,27 @@ def test_a_size_limit_skips_at_once_and_the_option_lifts_it():
         solve(qp, "highs", "mid", max_unknowns=0)
     with pytest.raises(ValueError, match="size_limit 'n_max' is not one of its parameters"):
         replace(spec, size_limit="n_max")
+
+
+def test_a_size_limit_per_dimension_bounds_only_its_dimension():
+    """ECOS's bound is one option per dimension (its factor fills in faster in 3D): a 3D
+    problem above ``max_unknowns_3d`` is skipped at once naming that option, a 2D one of
+    the same size is not, and lifting the 3D option runs the 3D one."""
+    from problems.cube_sphere import PROBLEM as CUBE
+    from problems.flat_blocks import PROBLEM as BLOCKS
+
+    spec = solvers()["ecos"]
+    cube, blocks = CUBE.make(0), BLOCKS.make(1)
+    assert set(spec.size_parameters) == {2, 3} and spec.size_parameter is None
+    small = min(cube.n, blocks.n) - 1
+    res = solve(cube, "ecos", "low", max_unknowns_3d=small)
+    assert res.status == "skipped" and res.iterations == 0
+    assert res.message.startswith(f"skipped: {cube.n} unknowns > max_unknowns_3d = {small}: ")
+    assert spec.check(blocks, spec.options(max_unknowns_3d=small)) == (True, "")
+    assert not spec.check(blocks, spec.options(max_unknowns_2d=small))[0]
+    assert spec.check(cube) == (True, "") and spec.size_limit_name(1) is None
+    with pytest.raises(ValueError, match="size_limit 'n3' is not one of its parameters"):
+        replace(spec, size_limit={2: "max_unknowns_2d", 3: "n3"})
 
 
 def test_the_preset_texts_follow_the_tolerance_table():

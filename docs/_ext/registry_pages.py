@@ -107,9 +107,9 @@ def solver_page(spec, builtin: bool) -> str:
         lines += ["", "A problem with friction (Tresca or Coulomb) is `skipped` at once: it "
                   "solves the frictionless problem only"
                   + (f" ({spec.friction_reason})." if spec.friction_reason else ".")]
-    if spec.size_limit is not None:
-        limit = spec.size_parameter
-        lines += ["", f"A problem with more unknowns than its option `{limit.name}` (default "
+    for dim, limit in spec.size_parameters.items():
+        which = "A problem" if dim is None else f"A {dim}D problem"
+        lines += ["", f"{which} with more unknowns than its option `{limit.name}` (default "
                   f"{limit.default:,}) is `skipped` at once, and `--set {limit.name}=N` runs "
                   f"it anyway. The reason: {limit.help}."]
     lines += ["", "## Description and references", "", *module_doc(module), ""]

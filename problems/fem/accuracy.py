@@ -216,10 +216,12 @@ def is_nested(coarse: Hierarchy, fine: Hierarchy, start: Hierarchy) -> bool:
 
 
 # --------------------------------------------------------------------------- norms
-def energy_norm_by_cell(points, cells, u, E, nu) -> np.ndarray:
-    """``int_T sigma(u) : eps(u)`` per cell (sums to ``u' A u`` for the P1 stiffness)."""
-    eps, sigma = strain_stress(points, cells, u, E, nu)
-    _, vol = barycentric_gradients(points, cells)
+def energy_norm_by_cell(points, cells, u, E, nu, geometry=None) -> np.ndarray:
+    """``int_T sigma(u) : eps(u)`` per cell (sums to ``u' A u`` for the P1 stiffness);
+    ``geometry``: the mesh's ``barycentric_gradients(points, cells)``, where one mesh
+    measures many fields."""
+    g, vol = barycentric_gradients(points, cells) if geometry is None else geometry
+    eps, sigma = strain_stress(points, cells, u, E, nu, gradients=g)
     return np.einsum("cij,cij->c", sigma, eps) * vol
 
 

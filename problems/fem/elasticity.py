@@ -460,7 +460,8 @@ def _displacement(u, n_nodes: int, d: int) -> np.ndarray:
                      f"allowed: ({n_nodes * d},) or ({n_nodes}, {d})")
 
 
-def strain_stress(points, cells, u, E, nu) -> tuple[np.ndarray, np.ndarray]:
+def strain_stress(points, cells, u, E, nu,
+                  gradients: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Cell-wise constant linearised strain (2.25) and stress (2.24) of a P1 field.
 
     Parameters
@@ -470,6 +471,8 @@ def strain_stress(points, cells, u, E, nu) -> tuple[np.ndarray, np.ndarray]:
     u : (n_nodes * d,) or (n_nodes, d) array
         Full nodal displacement (node-major).
     E, nu : float or (n_cells,) array
+    gradients : (n_cells, d + 1, d) array, optional
+        The mesh's :func:`barycentric_gradients`, where one mesh is measured many times.
 
     Returns
     -------
@@ -482,7 +485,7 @@ def strain_stress(points, cells, u, E, nu) -> tuple[np.ndarray, np.ndarray]:
     n_cells, d = t.shape[0], pts.shape[1]
     lam, mu = lame_parameters(_per_cell(E, "E", n_cells), _per_cell(nu, "nu", n_cells))
     U = _displacement(u, pts.shape[0], d)
-    g, _ = barycentric_gradients(pts, t)
+    g = barycentric_gradients(pts, t)[0] if gradients is None else gradients
     grad_u = np.einsum("cai,cak->cik", U[t], g)               # d u_i / d x_k
     eps = 0.5 * (grad_u + grad_u.transpose(0, 2, 1))
     tr = np.trace(eps, axis1=1, axis2=2)

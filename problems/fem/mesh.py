@@ -18,6 +18,7 @@ exact P1 interpolation), netgen disks and balls (OCC geometry).
 """
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 from typing import Callable
 
@@ -57,6 +58,23 @@ def structured_rectangle(nx: int, ny: int, x0: float = 0.0, y0: float = 0.0,
     return m.p.T.copy(), m.t.T.copy()
 
 
+def _generated_once(generate: Callable) -> Callable:
+    """``generate(center, *numbers)`` run once per process and arguments: a scene builds
+    its meshes at every level and coupling of a study, and netgen's meshing of the same
+    geometry (seconds for the ball) gives the same mesh each time. Each caller gets its
+    own copies of the arrays."""
+    cached = functools.lru_cache(maxsize=32)(
+        lambda center, *numbers: generate(np.array(center), *numbers))
+
+    @functools.wraps(generate)
+    def once(center, *numbers):
+        points, cells = cached(tuple(map(float, center)), *map(float, numbers))
+        return points.copy(), cells.copy()
+
+    return once
+
+
+@_generated_once
 def netgen_disk(center: tuple[float, float], radius: float, maxh: float):
     """Unstructured triangulation of a disk by netgen (OCC geometry): ``(points, cells)``."""
     from netgen.occ import Circle, OCCGeometry
@@ -298,6 +316,7 @@ def structured_cube(n: int, origin=(0.0, 0.0, 0.0), size: float = 1.0):
     return pts, orient_positive(pts, m.t.T)
 
 
+@_generated_once
 def netgen_ball(center, radius: float, maxh: float, grading: float = 0.3):
     """Unstructured tetrahedra of a ball by netgen (OCC geometry): ``(points, cells)``.
 

@@ -63,6 +63,7 @@ Example::
 from __future__ import annotations
 
 import argparse
+import hashlib
 import sys
 import time
 
@@ -73,7 +74,7 @@ import scipy.sparse as sp
 from problems.fem import accuracy as acc
 from problems.fem.adaptive import (STUDY_VARIANTS, adaptive_loop, adaptive_start,
                                    body_force_per_cell, mark_doerfler, truncated)
-from problems.fem.elasticity import boundary_facets, stiffness_matrix
+from problems.fem.elasticity import barycentric_gradients, boundary_facets, stiffness_matrix
 from problems.fem.estimators import estimate
 from problems.fem.fields import contact_fields, hertz_comparison, in_plane
 from problems.fem.mesh import project_to_circle
@@ -292,6 +293,8 @@ class Reference:
         self.qp, self.info = qp, info
         m = qp.mesh
         self.A = stiffness_matrix(m.points, m.cells, m.E_cell, m.nu_cell)
+        self.geometry = barycentric_gradients(m.points, m.cells)   # every compare's
+        self._prolongations = {}          # per compared mesh (a study's couplings share one)
         self.U = qp.full_displacement(u)
         self.norm = float(np.sqrt(self.U.ravel() @ (self.A @ self.U.ravel())))
         self.p = p
@@ -318,10 +321,16 @@ class Reference:
                     "n_singular_points": len(singular_points(qp))}
 
     def prolongation(self, qp: ContactQP) -> sp.csr_matrix:
-        """Nodal P1 interpolation from ``qp``'s mesh to the reference's (per body)."""
+        """Nodal P1 interpolation from ``qp``'s mesh to the reference's (per body), built
+        once per mesh."""
         m, r = qp.mesh, self.qp.mesh
-        return acc.interpolation_matrix(m.points, m.cells, r.points,
-                                        m.body_of_node[m.cells[:, 0]], r.body_of_node)
+        key = hashlib.blake2b(b"".join(np.ascontiguousarray(a).tobytes() for a in
+                                       (m.points, m.cells, m.body_of_node)),
+                              digest_size=16).digest()
+        if key not in self._prolongations:
+            self._prolongations[key] = acc.interpolation_matrix(
+                m.points, m.cells, r.points, m.body_of_node[m.cells[:, 0]], r.body_of_node)
+        return self._prolongations[key]
 
     def compare(self, qp: ContactQP, u: np.ndarray, p: np.ndarray,
                 P: sp.csr_matrix | None = None) -> dict:
@@ -331,7 +340,8 @@ class Reference:
         p = surface_multipliers(qp, p)
         E = (P @ qp.full_displacement(u)) - self.U
         m = self.qp.mesh
-        by_cell = acc.energy_norm_by_cell(m.points, m.cells, E, m.E_cell, m.nu_cell)
+        by_cell = acc.energy_norm_by_cell(m.points, m.cells, E, m.E_cell, m.nu_cell,
+                                          self.geometry)
         total = float(by_cell.sum())
         row = {"err_energy": float(np.sqrt(max(total, 0.0))) / self.norm,
                "err_force": abs(float(np.sum(p)) - self.force) / self.force}
