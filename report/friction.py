@@ -160,7 +160,8 @@ CLAIMS = {
 #: reference took has only a few of them).
 RUN_COLUMNS = ("scene", "mu", "level", "N", "role", "solver", "start", "status", "message",
                "ratio",
-               "contact", "contact_nodes", "dev_c_over_a", "traction_l2", "c_over_a",
+               "contact", "contact_nodes", "dev_c_over_a", "traction_l2", "stick_offset",
+               "c_over_a",
                "c_over_a_exact", "ratio_reached", "p0", "err_energy", "steps_tangential",
                "t_setup", "t_solve", "load_step", "tresca_solves", "contraction", "target",
                "t_to_target", "facets", "energy", "energy_gap", "gap_bound", "traction_dev",
@@ -383,9 +384,11 @@ def traction_figure(runs: pd.DataFrame, profiles: pd.DataFrame, path: str) -> No
                    & (runs.N == g.N.iloc[0])].iloc[0]
         x = np.linspace(-1.2 if line else 0.0, 1.2, 481)
         c = float(ref.c_over_a_exact)
+        e = float(ref.stick_offset) if line else 0.0       # the stick zone's centre over a
+        e = 0.0 if np.isnan(e) else e
         mu_p0 = float(ref.mu) * float(ref.p0)
         outer = mu_p0 * np.sqrt(np.clip(1 - x ** 2, 0, None))
-        inner = mu_p0 * c * np.sqrt(np.clip(1 - (x / c) ** 2, 0, None))
+        inner = mu_p0 * c * np.sqrt(np.clip(1 - ((x - e) / c) ** 2, 0, None))
         ax.plot(x, outer - inner, "-", color="C0", label="Cattaneo-Mindlin q(x)")
         ax.plot(x, outer, ":", color="gray", label="mu p(x), Hertz")
         ax.plot(g.x_over_a, g.mu_pressure, "x", color="gray", ms=4, label="mu p, measured")
@@ -393,7 +396,7 @@ def traction_figure(runs: pd.DataFrame, profiles: pd.DataFrame, path: str) -> No
             h = g[g.state == state]
             ax.plot(h.x_over_a, h.traction, style, color="C1" if state == "stick" else "C3",
                     ms=4, ls="none", label=f"traction, {state} nodes")
-        ax.axvspan(-c if line else 0.0, c, color="C0", alpha=0.06)
+        ax.axvspan(e - c if line else 0.0, e + c, color="C0", alpha=0.06)
         ax.set_xlim(-1.25 if line else 0.0, 1.25)
         ax.set_xlabel("x / a (contact half-width a, measured)" if line else
                       "r / a (distance from the contact's centre; radius a, measured)")

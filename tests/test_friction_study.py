@@ -20,21 +20,26 @@ from workflows.io import read_csv
 from workflows.scripts.friction_study import level_rows
 from workflows.scripts.friction_study import main as script
 from workflows.studies import STUDIES, ConfigError, check_config, load_config
+from workflows.studies._base import set_args
 from workflows.studies.friction import COMMON, friction_args
 
 ROOT = Path(__file__).resolve().parents[1]
 TINY = STUDIES["friction"].scales["tiny"].settings
 FIGURES = ("traction", "stick", "map", "cost")
+#: The study's 2D scene (workflows/studies/friction.py: circle-square, nodes matched).
+SCENE_2D = "circle_square_matched"
 
 
 @pytest.fixture(scope="module")
 def outputs(tmp_path_factory):
-    """The study's script and report at the tiny scale's settings, on circle-square."""
+    """The study's script and report at the tiny scale's settings, on its 2D scene as the
+    tiny config defines it (circle-square, the square's nodes matched to the circle's)."""
     d = tmp_path_factory.mktemp("friction")
     files = {k: d / f"{k}.{'png' if k in FIGURES else 'csv'}"
              for k in ("runs", "profiles", "claims", *FIGURES)}
-    config = {"friction": TINY, "scenes": {"circle_square": {"problem": "circle_square"}}}
-    script(["--problem", "circle_square", *shlex.split(friction_args(config, "circle_square")),
+    config = load_config(ROOT / "workflows/config/tiny.yaml")
+    script([*shlex.split(set_args(config, SCENE_2D)),
+            *shlex.split(friction_args(config, SCENE_2D)),
             "--out", str(files["runs"]), "--profiles", str(files["profiles"])])
     report_main([f"--{k}={v}" for k, v in files.items()])
     return files
@@ -42,7 +47,7 @@ def outputs(tmp_path_factory):
 
 def test_the_script_writes_every_declared_output(outputs):
     runs = read_csv(outputs["runs"])
-    levels = TINY["scenes"]["circle_square"]
+    levels = TINY["scenes"][SCENE_2D]
     assert sorted(runs.level.unique()) == levels
     for level in levels:
         at = runs[runs.level == level]
@@ -65,16 +70,17 @@ def test_the_script_writes_every_declared_output(outputs):
         assert image.ndim == 3 and min(image.shape[:2]) > 200, key
 
 
-def test_the_measured_stick_zone_at_level_1_is_cattaneo_mindlin_within_15_percent(outputs):
-    """c/a at level 1 (7 contact nodes) against sqrt(1 - Q/(mu P)); measured -2.9 % at 0.3
-    and -11 % at 0.7 (tests/test_friction.py's table)."""
+def test_the_measured_stick_zone_at_level_1_is_cattaneo_mindlin_within_20_percent(outputs):
+    """c/a at level 1 against sqrt(1 - Q/(mu P)); measured -1.5 % at 0.3 and -17 % at 0.7
+    on the study's scene (9 contact nodes: the stick zone at 0.7 spans 5 of them; the
+    bar that counts, 5 %, is judged from 25 contact nodes, level 3: -0.2 % and -1.0 %)."""
     runs = read_csv(outputs["runs"])
     ref = runs[(runs.role == "reference") & (runs.level == 1)]
     assert len(ref) == 2
     for _, row in ref.iterrows():
         assert row.ratio_reached == pytest.approx(row.ratio, rel=1e-6)
         assert row.c_over_a_exact == pytest.approx(np.sqrt(1 - row.ratio))
-        assert abs(row.c_over_a / row.c_over_a_exact - 1) <= 0.15
+        assert abs(row.c_over_a / row.c_over_a_exact - 1) <= 0.20
         assert row.kkt_max <= 1e-12
 
 
@@ -82,8 +88,9 @@ def test_every_claim_has_a_verdict_or_a_reason(outputs):
     table = read_csv(outputs["claims"])
     for _, row in table.iterrows():
         assert str(row["pass"]) in ("True", "False") or len(str(row["reason"])) > 10, row.claim
+    scene = read_csv(outputs["runs"]).scene.iloc[0]           # the scene and its settings
     for key, claim in CLAIMS.items():                          # every declared claim is a row
-        head = claim.quantity.replace("{scene}", "circle_square").split("{")[0]
+        head = claim.quantity.replace("{scene}", scene).split("{")[0]
         assert any(str(c).startswith(head) for c in table.claim), key
     agree = table[table.claim.str.contains("against the reference")].iloc[0]
     assert float(agree.measured) <= 1e-8 and str(agree["pass"]) == "True"

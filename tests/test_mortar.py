@@ -138,7 +138,6 @@ def test_standard_rows_are_solved_by_the_exact_methods_and_skipped_by_tnnmg():
     (scene, bad, needle) for scene, uncovered in (("circle_square", {"offset": 1.3}),
                                                   ("cube_sphere", {"radius": 0.5}))
     for bad, needle in (({"search": "closest_point"}, "parameter 'search'"),
-                        ({"degree": 2}, "parameter 'degree'"),
                         (uncovered, "parameter 'coupling'.*does not cover"))
 ])
 def test_bad_mortar_settings_name_the_parameter(scene, bad, needle):

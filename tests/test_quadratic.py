@@ -173,7 +173,7 @@ def test_degree_is_validated_by_name():
     with pytest.raises(ParameterError, match="degree"):
         circle_square.PROBLEM.make(0, degree=3)
     with pytest.raises(ParameterError, match="degree.*coupling"):
-        flat_blocks.PROBLEM.make(0, degree=2, coupling="mortar")
+        flat_blocks.PROBLEM.make(0, degree=2, coupling="stabilised")
 
 
 def test_element_order_study_script_and_report(tmp_path, capsys):
@@ -201,8 +201,8 @@ def test_element_order_study_script_and_report(tmp_path, capsys):
     assert bool(c["pass"].iloc[0])                      # every compared solve converged
     assert (tmp_path / "f.png").stat().st_size > 10_000
     for argv, refusal in (
-            (["--problem", "flat_blocks", "--set", "coupling=mortar"],
-             "allowed: degree=1, or degree=2 with coupling=nodal"),
+            (["--problem", "flat_blocks", "--set", "coupling=stabilised"],
+             "allowed: degree=1, or degree=2 with coupling in"),
             (["--problem", "laplace_nonmatching"], "not a contact problem"),
             (["--problem", "circle_square", "--set", "degree=2"], "'degree' is not allowed"),
             (["--problem", "circle_square", "--levels", "1"], "above every level (1)"),

@@ -99,4 +99,4 @@ def test_coupling_parameter():
     with pytest.raises(ParameterError, match="parameter 'degree'"):
         circle_square.PROBLEM.make(0, coupling="stabilised", degree=2)
     with pytest.raises(ParameterError, match="parameter 'degree'"):
-        cube_sphere.PROBLEM.make(0, coupling="mortar", degree=2)
+        cube_sphere.PROBLEM.make(0, coupling="two_pass", degree=2)

@@ -9,7 +9,8 @@ weighted gap
     (1/m_i) int_Gamma psi_i n.(u_c - u_o) ds  <=  (1/m_i) int_Gamma psi_i gap ds,
     m_i = int_Gamma phi_i ds,
 
-with ``Gamma`` the constrained surface, ``phi_i`` its P1 hats, ``u_c`` the constrained
+with ``Gamma`` the constrained surface, ``phi_i`` its P1 or P2 hats (the trace of the
+scene's elements: one row per vertex, and per edge midpoint at P2), ``u_c`` the constrained
 body's and ``u_o`` the opposing body's displacement at the opposing point, ``gap``
 the distance from ``Gamma`` to the opposing surface along ``n``, and ``psi_i`` the
 multiplier basis:
@@ -32,23 +33,61 @@ Both bases sum to 1 on each facet, so a uniform pressure is transmitted exactly 
 contact patch test); the multiplier over ``m_i`` is the nodal pressure (Sect. 8.6), as
 for the nodal rows.
 
+P2 (Remark 7.11's elements; :func:`multiplier_basis`, :func:`dual_coefficients`):
+
+* ``mortar``: ``psi_i`` the P2 trace hats (3-node segments, 6-node triangles). On a
+  triangle the vertex hats integrate to zero, ``m_i = 0`` at every vertex in 3D, so
+  the rows cannot be scaled by ``1/m_i``: every P2 row is scaled by ``1/s_i`` with
+  ``s_i`` the HRZ lumped surface mass (:func:`problems.fem.quadratic.surface_mass_p2`,
+  positive; on segments it is ``m_i`` itself). Scaling a row changes neither the
+  feasible set nor the displacement: the multiplier over ``s_i`` is the coefficient
+  ``c_i`` of ``psi_i`` in the multiplier field (a uniform pressure ``q`` has every
+  ``c_i = q``, the contact patch test). In 3D the vertex rows' weights sum to
+  ``m_i = 0``: such a row does not see a rigid translation along ``n`` and bounds only
+  the gap's variation over the vertex's patch, and its coefficient carries no net force
+  (the total force is ``sum c_i m_i``); the standard mortar conditions (weighted gaps
+  and coefficients >= 0) hold all the same, but the vertex coefficients are no pressure
+  (on cube_sphere at level 1 they reach 5 times the midpoints' largest);
+* the nodal pressure at P2 is therefore recovered from the forces, as for the nodal P2
+  rows (:func:`problems.fem.two_body.quadratic_pressure_map`): the constrained nodes'
+  forces ``F = D' diag(1/s) p`` aggregated onto the vertices (each midpoint's half to
+  each of its vertices), divided by the P1 lumped mass there and interpolated back to
+  the midpoints, ``pressure = P diag(1/m_P1) P' F`` (:func:`force_pressure_map`; exact
+  for a uniform pressure: ``F_j = q m_j`` aggregates to ``q m_P1``);
+* ``mortar_dual`` in 2D: the dual basis of the P2 segment, ``psi = A phi`` with
+  ``A = diag(m) M^-1`` from the local mass matrix ``M`` and ``m = M 1 = |T| (1/6, 1/6,
+  2/3)``, i.e. ``psi_0 = (6 phi_0 + 2 phi_1 - phi_m) / 4`` at a vertex and
+  ``psi_m = (-2 phi_0 - 2 phi_1 + 3 phi_m) / 2`` at the midpoint; its columns sum to
+  one (``m' M^-1 = 1'``), so the patch test holds, and ``D = diag(m)``;
+* ``mortar_dual`` in 3D is refused: ``A = diag(m) M^-1`` needs ``m_i > 0``, and the P2
+  vertex hats of a triangle integrate to zero, so no dual basis of the P2 trace exists
+  (the literature modifies the primal basis first: Lamichhane, Stevenson and Wohlmuth
+  2005; Popp et al. 2012; not built here).
+
 What is approximated, and how:
 
 * the surfaces are the meshes' polygons and triangulations (the circle of circle_square
-  by its chords, the sphere of cube_sphere by its flat triangles);
+  by its chords, the sphere of cube_sphere by its flat triangles), at P2 too: the P2
+  meshes are subparametric (:mod:`problems.fem.quadratic`), each midpoint on its
+  straight edge, so the P2 fields live on the P1 geometry and the curved surfaces'
+  approximation is not improved by the higher degree;
 * the normal field is the constant contact direction ``n`` of the scene (Alg. 7.1
   case b), which is the constrained surface's normal where that surface is flat
   (the straight edges of circle_square and flat_blocks, the top face of cube_sphere):
   the opposing facets are projected onto ``Gamma`` along ``n``. A curved constrained
   surface would need a continuous nodal normal field (averaged normals) and is refused;
 * the integrals: ``Gamma`` is split into pieces on which both surfaces are flat and the
-  projection is affine, so every integrand is a polynomial of degree <= 2 on each
-  piece, integrated exactly. In 2D the projected opposing nodes split the segments
-  (segment-based integration, 3-point Gauss per piece, :func:`segment_quadrature`); in
-  3D each projected opposing triangle is clipped against each constrained triangle it
-  overlaps, the convex intersection triangulated and integrated by a 3-point rule of
-  degree 2 (:func:`clipped_quadrature`). Both backends give the same
-  :class:`SurfaceQuadrature`, from which :func:`mortar_integrals` assembles the rows;
+  projection is affine, so every integrand is a polynomial of degree <= 2 (P1) or
+  <= 4 (P2: a product of two quadratics; the gap is affine, ``psi_i gap`` of degree
+  3) on each piece, integrated exactly. In 2D the projected opposing nodes split the
+  segments (segment-based integration, 3-point Gauss per piece, exact for degree 5,
+  :func:`segment_quadrature`); in 3D each projected opposing triangle is clipped
+  against each constrained triangle it overlaps, the convex intersection triangulated
+  and integrated by a rule of the integrands' degree, :data:`TRIANGLE_RULES`: the
+  3-point Strang-Fix rule (degree 2) at P1, the 6-point Strang-Fix/Dunavant rule
+  (degree 4) at P2 (:func:`clipped_quadrature`). Both backends give the same
+  :class:`SurfaceQuadrature` (P1 hats), which :func:`quadratic_quadrature` lifts to the
+  P2 hats, and from which :func:`mortar_integrals` assembles the rows;
 * linearisation: the weighted gaps are taken in the reference configuration (small
   displacements, as the nodal rows of Alg. 7.1).
 
@@ -62,18 +101,47 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.spatial import cKDTree
 
+from problems.fem.elasticity import lumped_surface_mass
+from problems.fem.quadratic import (FACET_EDGES, QuadraticMesh, quadratic_facets,
+                                    quadratic_mesh_of, shape_functions, surface_mass_p2)
 from problems.qp import ContactQP, SharedWork
 
 #: The mortar couplings: standard and dual multipliers (module docstring).
 MORTAR_COUPLINGS = ("mortar", "mortar_dual")
 
-#: Gauss points per piece in 2D: exact for the degree-2 integrands of the module docstring.
+#: Gauss points per piece in 2D: exact for degree 5, so for the P1 (degree 2) and the P2
+#: (degree 4) integrands of the module docstring.
 GAUSS_POINTS = 3
 
-#: A 3-point rule on the reference triangle, exact for degree 2 (Strang and Fix): its
-#: barycentric points and weights (summing to 1, times the piece's area).
-TRIANGLE_RULE = (np.array([[2 / 3, 1 / 6, 1 / 6], [1 / 6, 2 / 3, 1 / 6], [1 / 6, 1 / 6, 2 / 3]]),
-                 np.full(3, 1 / 3))
+
+def _symmetric_points(a: np.ndarray) -> np.ndarray:
+    """The barycentric points ``(a, a, 1 - 2a)`` for each ``a`` and their rotations:
+    ``(3 len(a), 3)``, rotation-major."""
+    base = np.column_stack([a, a, 1.0 - 2.0 * a])
+    return np.concatenate([np.roll(base, shift, axis=1) for shift in range(3)])
+
+
+def _strang_fix_6() -> tuple[np.ndarray, np.ndarray]:
+    """The 6-point rule of degree 4 on a triangle (Strang and Fix; Dunavant's degree-4
+    rule) in closed form: points ``(a, a, 1 - 2a)`` with weights ``w`` (summing to 1/3)."""
+    r10, root = np.sqrt(10.0), np.sqrt(38.0 - 44.0 * np.sqrt(0.4))
+    a = np.array([8.0 - r10 + root, 8.0 - r10 - root]) / 18.0
+    s = np.sqrt(213125.0 - 53320.0 * r10)
+    w = np.array([620.0 + s, 620.0 - s]) / 3720.0
+    return _symmetric_points(a), np.tile(w, 3)
+
+
+#: Rules on the reference triangle by the degree they integrate exactly: barycentric
+#: points and weights (summing to 1, times the piece's area); the 3-point Strang-Fix
+#: rule of degree 2 for the P1 integrands, the 6-point one of degree 4 for P2's.
+TRIANGLE_RULES = {
+    2: (np.array([[2 / 3, 1 / 6, 1 / 6], [1 / 6, 2 / 3, 1 / 6], [1 / 6, 1 / 6, 2 / 3]]),
+        np.full(3, 1 / 3)),
+    4: _strang_fix_6(),
+}
+
+#: The polynomial degree of the mortar integrands by element degree (module docstring).
+INTEGRAND_DEGREE = {1: 2, 2: 4}
 
 #: Relative bar of the geometric tests (a point on an edge, parallel edges): far above
 #: round-off, far below any mesh feature.
@@ -284,12 +352,13 @@ def convex_intersections(a: np.ndarray, b: np.ndarray):
 
 
 def clipped_quadrature(points: np.ndarray, facets: np.ndarray, opposing_facets: np.ndarray,
-                       normal: np.ndarray) -> SurfaceQuadrature:
+                       normal: np.ndarray, exact_degree: int = 2) -> SurfaceQuadrature:
     """Integration on a flat 3D constrained surface by clipping (module docstring): each
     opposing triangle projected along ``n`` onto the constrained plane is intersected with
     each constrained triangle it overlaps (candidates from :func:`_overlapping_pairs`),
     each convex intersection (:func:`convex_intersections`) split into triangles from its
-    vertices' mean, and :data:`TRIANGLE_RULE` applied on each (exact for degree 2).
+    vertices' mean, and the rule of :data:`TRIANGLE_RULES` exact for ``exact_degree``
+    (2 or 4) applied on each.
 
     Raises
     ------
@@ -315,7 +384,7 @@ def clipped_quadrature(points: np.ndarray, facets: np.ndarray, opposing_facets: 
     pair, _ = np.nonzero(use)
     pieces = np.stack([centre[pair], first[use], second[use]], axis=1)   # (pieces, 3, 2)
     piece_area = 0.5 * _cross(pieces[:, 1] - pieces[:, 0], pieces[:, 2] - pieces[:, 0])
-    lam, w = TRIANGLE_RULE
+    lam, w = TRIANGLE_RULES[exact_degree]
     x = np.einsum("qk,pkd->pqd", lam, pieces).reshape(-1, 2)
     weight = (piece_area[:, None] * w[None, :]).ravel()
     pair = np.repeat(pair, len(w))
@@ -329,9 +398,10 @@ def clipped_quadrature(points: np.ndarray, facets: np.ndarray, opposing_facets: 
 
 
 def surface_quadrature(points: np.ndarray, facets: np.ndarray, opposing_facets: np.ndarray,
-                       normal: np.ndarray) -> SurfaceQuadrature:
+                       normal: np.ndarray, exact_degree: int = 2) -> SurfaceQuadrature:
     """The quadrature of the mortar integrals on a flat constrained surface normal to
-    ``normal``: :func:`segment_quadrature` in 2D, :func:`clipped_quadrature` in 3D.
+    ``normal``: :func:`segment_quadrature` in 2D (exact for degree 5), :func:`clipped_quadrature`
+    in 3D (exact for ``exact_degree``, 2 or 4: :data:`TRIANGLE_RULES`).
 
     Raises
     ------
@@ -346,22 +416,82 @@ def surface_quadrature(points: np.ndarray, facets: np.ndarray, opposing_facets: 
     if np.ptp(height) > 1e-10 * max(extent, 1e-300):
         raise ValueError("the constrained surface is not flat and normal to the contact "
                          "direction n: the mortar coupling here projects along a constant n")
-    backend = segment_quadrature if points.shape[1] == 2 else clipped_quadrature
-    return backend(points, facets, opposing_facets, n)
+    if points.shape[1] == 2:
+        return segment_quadrature(points, facets, opposing_facets, n)
+    return clipped_quadrature(points, facets, opposing_facets, n, exact_degree)
 
 
-def multiplier_basis(phi: np.ndarray, dual: bool) -> np.ndarray:
+def multiplier_basis(phi: np.ndarray, dual: bool, degree: int = 1) -> np.ndarray:
     """The multipliers ``psi`` at the quadrature points from the constrained hats
-    ``phi (q, k)``: ``phi`` itself (standard) or Wohlmuth's dual basis
-    ``(k + 1) phi_a - 1``, written ``k phi_a - sum_{b != a} phi_b`` (module docstring)."""
+    ``phi (q, k)`` of a P1 or P2 facet: ``phi`` itself (standard) or the dual basis
+    (module docstring): at P1 Wohlmuth's ``(k + 1) phi_a - 1``, written
+    ``k phi_a - sum_{b != a} phi_b``; at P2 ``A phi`` with :func:`dual_coefficients`.
+
+    Raises
+    ------
+    ValueError
+        For a dual basis that does not exist (P2 triangles: :func:`dual_coefficients`).
+    """
     if not dual:
         return phi
+    if degree == 2:
+        vertices = {3: 2, 6: 3}[phi.shape[1]]
+        return phi @ dual_coefficients(vertices, degree).T
     k = phi.shape[1]
     return k * phi - sum(np.roll(phi, shift, axis=1) for shift in range(1, k))
 
 
+def reference_rule(vertices: int) -> tuple[np.ndarray, np.ndarray]:
+    """A rule on the reference facet with ``vertices`` vertices (a segment, 2; a triangle,
+    3), exact for degree 4: barycentric points and weights summing to 1 (3-point Gauss;
+    :data:`TRIANGLE_RULES`)."""
+    if vertices == 2:
+        g, w = np.polynomial.legendre.leggauss(GAUSS_POINTS)
+        s = 0.5 * (1.0 + g)
+        return np.column_stack([1.0 - s, s]), 0.5 * w
+    return TRIANGLE_RULES[4]
+
+
+def dual_coefficients(vertices: int, degree: int) -> np.ndarray:
+    """The dual basis ``psi_a = sum_c A_ac phi_c`` on a facet with ``vertices`` vertices
+    and P``degree`` hats ``phi``: ``A = diag(m) M^-1`` with the local mass matrix ``M``
+    and ``m = M 1`` (module docstring), so ``int psi_a phi_b = delta_ab m_a``. Scale-free:
+    computed on the reference facet.
+
+    Raises
+    ------
+    ValueError
+        If some ``m_a <= 0``: the P2 triangle, whose vertex hats integrate to zero, has no
+        dual basis (the multiplier of a vertex row would vanish).
+    """
+    bary, w = reference_rule(vertices)
+    phi = bary if degree == 1 else shape_functions(bary)
+    mass_matrix = np.einsum("q,qa,qb->ab", w, phi, phi)
+    m = mass_matrix.sum(axis=1)
+    if np.any(m <= 1e-12):
+        facet = {2: "segment", 3: "triangle"}[vertices]
+        raise ValueError(f"the dual multipliers of the P{degree} trace on a {facet} do not exist "
+                         f"(its vertex hats integrate to zero, int phi_i = 0, and the dual basis "
+                         f"needs int phi_i > 0); allowed: coupling='mortar' at degree={degree}, "
+                         "or coupling='mortar_dual' at degree=1")
+    return np.linalg.solve(mass_matrix, np.diag(m)).T
+
+
+def quadratic_quadrature(quad: SurfaceQuadrature, mesh: QuadraticMesh) -> SurfaceQuadrature:
+    """``quad`` with the P2 hats of both facets at its points: the facets' vertices
+    followed by their edges' midpoints (:func:`problems.fem.quadratic.quadratic_facets`'
+    order) and :func:`problems.fem.quadratic.shape_functions` of the P1 hats (the
+    barycentric coordinates)."""
+    def lift(nodes):
+        return np.column_stack([nodes] + [mesh.midpoint(nodes[:, i], nodes[:, j])
+                                          for i, j in FACET_EDGES[nodes.shape[1]]])
+    return replace(quad, constrained=lift(quad.constrained), opposing=lift(quad.opposing),
+                   phi=shape_functions(quad.phi), phi_opposing=shape_functions(quad.phi_opposing))
+
+
 def mortar_integrals(points: np.ndarray, facets: np.ndarray, opposing_facets: np.ndarray,
-                     normal: np.ndarray, dual: bool) -> MortarIntegrals:
+                     normal: np.ndarray, dual: bool,
+                     quadratic: QuadraticMesh | None = None) -> MortarIntegrals:
     """The mortar integrals (module docstring) of a flat constrained surface.
 
     Parameters
@@ -374,25 +504,34 @@ def mortar_integrals(points: np.ndarray, facets: np.ndarray, opposing_facets: np
         Unit contact direction ``n``, from the constrained towards the opposing body.
     dual : bool
         Dual (Wohlmuth) instead of standard multipliers.
+    quadratic : QuadraticMesh, optional
+        The P2 mesh of ``points`` (:func:`problems.fem.quadratic.quadratic_mesh_of`): P2
+        hats and multipliers, ``facets`` and ``opposing_facets`` still given by their
+        vertices. ``None``: P1.
 
     Returns
     -------
     MortarIntegrals
-        Rows for every node of ``facets``, sorted by x, then y (then z): the nodal rows'
-        order.
+        Rows for every node of ``facets`` (and every midpoint of their edges at P2),
+        sorted by x, then y (then z): the nodal rows' order.
 
     Raises
     ------
     ValueError
-        As :func:`surface_quadrature`.
+        As :func:`surface_quadrature` and :func:`dual_coefficients`.
     """
+    degree = 1 if quadratic is None else 2
     n = np.asarray(normal, dtype=float) / np.linalg.norm(normal)
-    quad = surface_quadrature(points, facets, opposing_facets, n)
-    wq, phi_c, phi_o = quad.weight, quad.phi, quad.phi_opposing
-    psi = multiplier_basis(phi_c, dual)
-    x_o = np.einsum("qk,qkd->qd", phi_o, points[quad.opposing])
-    x_c = np.einsum("qk,qkd->qd", phi_c, points[quad.constrained])
+    quad = surface_quadrature(points, facets, opposing_facets, n, INTEGRAND_DEGREE[degree])
+    # the gap from the P1 geometry (the P2 meshes are subparametric: the same points)
+    x_o = np.einsum("qk,qkd->qd", quad.phi_opposing, points[quad.opposing])
+    x_c = np.einsum("qk,qkd->qd", quad.phi, points[quad.constrained])
     gap = (x_o - x_c) @ n
+    if quadratic is not None:
+        quad = quadratic_quadrature(quad, quadratic)
+        facets = quadratic_facets(quadratic, facets)
+    wq, phi_c, phi_o = quad.weight, quad.phi, quad.phi_opposing
+    psi = multiplier_basis(phi_c, dual, degree)
     c_nodes = np.unique(facets)
     c_nodes = c_nodes[np.lexsort(points[c_nodes].T[::-1])]   # as the nodal rows' order
     row_of = -np.ones(len(points), dtype=np.int64)
@@ -419,37 +558,70 @@ def mortar_integrals(points: np.ndarray, facets: np.ndarray, opposing_facets: np
     return MortarIntegrals(nodes=c_nodes, D=D, M=M, weighted_gap=weighted_gap, mass=mass)
 
 
+def force_pressure_map(points: np.ndarray, facets: np.ndarray, nodes: np.ndarray,
+                       quadratic: QuadraticMesh, forces: sp.spmatrix) -> sp.csr_matrix:
+    """The P2 nodal pressure of row multipliers (module docstring): ``P diag(1/m_P1) P'
+    forces``, with ``forces`` the map from the multipliers to the normal forces on the
+    constrained P2 ``nodes``, ``P`` the P1-to-P2 interpolation on the surface (a vertex
+    itself, a midpoint the mean of its edge's vertices) and ``m_P1`` the vertices' P1
+    lumped mass on the vertex ``facets``."""
+    vertices = np.unique(facets)
+    col_of = -np.ones(len(points), dtype=np.int64)
+    col_of[vertices] = np.arange(len(vertices))
+    is_vertex = nodes < quadratic.n_vertices
+    ends = quadratic.edges[np.where(is_vertex, 0, nodes - quadratic.n_vertices)]
+    rows = np.concatenate([np.flatnonzero(is_vertex), np.repeat(np.flatnonzero(~is_vertex), 2)])
+    cols = np.concatenate([col_of[nodes[is_vertex]], col_of[ends[~is_vertex]].ravel()])
+    vals = np.concatenate([np.ones(is_vertex.sum()), np.full(2 * (~is_vertex).sum(), 0.5)])
+    P = sp.csr_matrix((vals, (rows, cols)), shape=(len(nodes), len(vertices)))
+    m_p1 = lumped_surface_mass(points, facets)[vertices]
+    return (P @ sp.diags(1.0 / m_p1) @ P.T @ forces).tocsr()
+
+
 def mortar(qp: ContactQP, dual: bool = False) -> ContactQP:
     """``qp`` with its nodal rows replaced by the mortar weighted gaps (module docstring).
 
     Parameters
     ----------
     qp : ContactQP
-        The nodal P1 constraints of a 2D or 3D two-body scene, searched along a constant
-        ``n`` (Alg. 7.1 case b), without reverse rows.
+        The nodal P1 or P2 constraints of a 2D or 3D two-body scene, searched along a
+        constant ``n`` (Alg. 7.1 case b), without reverse rows.
     dual : bool
         Dual multipliers (``mortar_dual``) instead of standard ones (``mortar``).
 
     Returns
     -------
     ContactQP
-        One row per node of the constrained surface; ``contact`` keeps its facets and
-        opposing facets, with those nodes, their masses and the direction ``n``.
+        One row per node of the constrained surface (vertices, and edge midpoints at P2),
+        scaled by ``1/s_i``: ``s_i = m_i`` at P1, the HRZ lumped mass at P2 (module
+        docstring); ``contact`` keeps its facets and opposing facets, with those nodes,
+        ``mass = s``, the direction ``n`` and, at P2, the pressure recovered from the
+        forces (:func:`force_pressure_map`; at P1 the pressure is the multiplier over
+        ``m_i``).
+
+    Raises
+    ------
+    ValueError
+        For a ContactQP the mortar coupling does not take (naming the parameter), a dual
+        basis that does not exist (P2 in 3D, :func:`dual_coefficients`) or a surface
+        :func:`surface_quadrature` refuses.
     """
     c = qp.contact
     if qp.mesh is None or c is None or qp.stabilisation is not None or qp.C is not None:
         raise ValueError("parameter 'qp': a nodal ContactQP with mesh and contact is required")
-    if qp.mesh.degree != 1:
-        raise ValueError(f"parameter 'degree': {qp.mesh.degree} is not allowed; allowed: 1 "
-                         "(the mortar coupling is built for P1)")
+    degree, dim = qp.mesh.degree, qp.dim
+    if dual:
+        dual_coefficients(dim, degree)                # refuses a basis that does not exist
     if c.search != "along_direction":
         raise ValueError(f"parameter 'search': {c.search!r} is not allowed with the mortar "
                          "coupling; allowed: along_direction (projection along a constant n)")
-    dim = qp.dim
     n = c.direction.mean(axis=0)
     n = n / np.linalg.norm(n)
     pts = qp.mesh.points
-    mi = mortar_integrals(pts, c.facets, c.opposing_facets, n, dual)
+    quadratic = quadratic_mesh_of(pts, qp.mesh.cells) if degree == 2 else None
+    mi = mortar_integrals(pts, c.facets, c.opposing_facets, n, dual, quadratic)
+    scale = mi.mass if quadratic is None else \
+        surface_mass_p2(pts, quadratic_facets(quadratic, c.facets))[mi.nodes]
     m = len(mi.nodes)
     D, M = mi.D.tocoo(), mi.M.tocoo()
     rows = [np.concatenate([D.row, M.row])] * dim
@@ -459,10 +631,13 @@ def mortar(qp: ContactQP, dual: bool = False) -> ContactQP:
                                                                 dim * M.col + k])
                                                 for k in range(dim)]))),
         shape=(m, dim * len(pts)))
-    full = sp.diags(1.0 / mi.mass) @ full
+    full = sp.diags(1.0 / scale) @ full
     full.eliminate_zeros()
-    contact = replace(c, nodes=mi.nodes, mass=mi.mass, direction=np.tile(n, (m, 1)), dropped=0)
+    pressure_map = None if quadratic is None else force_pressure_map(
+        pts, c.facets, mi.nodes, quadratic, mi.D.T @ sp.diags(1.0 / scale))
+    contact = replace(c, nodes=mi.nodes, mass=scale, direction=np.tile(n, (m, 1)), dropped=0,
+                      pressure_map=pressure_map)
     kind = "mortar, dual multipliers" if dual else "mortar"
     return replace(qp, B=full[:, qp.free_dofs].tocsr(),
-                   g=mi.weighted_gap / mi.mass - full @ qp.u_fixed, contact=contact,
+                   g=mi.weighted_gap / scale - full @ qp.u_fixed, contact=contact,
                    name=f"{qp.name} ({kind})", cache=SharedWork())

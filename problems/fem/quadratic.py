@@ -36,7 +36,7 @@ import scipy.sparse as sp
 from problems.fem.mesh import TET_EDGES, orient_positive, simplex_edges
 
 __all__ = [
-    "CELL_EDGES", "QuadraticMesh", "quadratic_mesh", "linear_to_quadratic",
+    "CELL_EDGES", "QuadraticMesh", "quadratic_mesh", "quadratic_mesh_of", "linear_to_quadratic",
     "quadratic_facets", "shape_functions", "facet_shape_functions", "stiffness_matrix_p2",
     "stiffness_matrix_p2_skfem", "body_force_vector_p2",
     "traction_vector_p2", "surface_mass_p2", "linear_subcells", "midpoint_supports",
@@ -110,6 +110,30 @@ def quadratic_mesh(points: np.ndarray, cells: np.ndarray) -> QuadraticMesh:
     mid = 0.5 * (points[edges[:, 0]] + points[edges[:, 1]])
     cells2 = np.hstack([cells, n + cell_edges])
     return QuadraticMesh(points=np.vstack([points, mid]), cells=cells2, edges=edges, n_vertices=n)
+
+
+def quadratic_mesh_of(points: np.ndarray, cells: np.ndarray) -> QuadraticMesh:
+    """The :class:`QuadraticMesh` of P2 nodes and cells made by :func:`quadratic_mesh`
+    (a ContactQP's mesh at ``degree=2``): its edges read off the cells' vertex columns.
+
+    Raises
+    ------
+    ValueError
+        If ``cells`` are not P2 cells whose midpoint columns are ``n_vertices + edge``.
+    """
+    points = np.asarray(points, dtype=float)
+    cells = np.asarray(cells, dtype=np.int64)
+    d = points.shape[1]
+    n_local = {2: 6, 3: 10}[d]
+    if cells.ndim != 2 or cells.shape[1] != n_local:
+        raise ValueError(f"parameter 'cells': shape {cells.shape} is not allowed; allowed: "
+                         f"(n_cells, {n_local}) P2 cells of a {d}D mesh")
+    n = int(cells[:, :d + 1].max()) + 1
+    edges, cell_edges = simplex_edges(cells[:, :d + 1], n, CELL_EDGES[d])
+    if not np.array_equal(cells[:, d + 1:], n + cell_edges):
+        raise ValueError("parameter 'cells': the midpoint columns are not the nodes "
+                         "n_vertices + edge of quadratic_mesh's numbering")
+    return QuadraticMesh(points=points, cells=cells, edges=edges, n_vertices=n)
 
 
 def linear_to_quadratic(n_vertices: int, edges: np.ndarray) -> sp.csr_matrix:

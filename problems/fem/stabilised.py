@@ -204,13 +204,18 @@ COUPLING_PARAMETERS = (
 )
 
 
+#: The couplings built for P2 elements too (the stabilised and two-pass rows are built for P1).
+P2_COUPLINGS = ("nodal",) + MORTAR_COUPLINGS
+
+
 def check_coupling(p: Options) -> None:
-    """Refuse a coupling the P2 elements do not have (every coupling but the nodal one is
-    built for P1)."""
-    if getattr(p, "degree", 1) == 2 and p.coupling != "nodal":
+    """Refuse a coupling the P2 elements do not have (:data:`P2_COUPLINGS`; ``mortar_dual``
+    at P2 in 3D is refused by :func:`problems.fem.mortar.mortar`, which knows the
+    dimension)."""
+    if getattr(p, "degree", 1) == 2 and p.coupling not in P2_COUPLINGS:
         raise ParameterError(f"parameter 'degree': 2 is not allowed with coupling="
-                             f"{p.coupling!r}; allowed: degree=1, or degree=2 with coupling=nodal "
-                             f"(the {p.coupling} coupling is built for P1)")
+                             f"{p.coupling!r}; allowed: degree=1, or degree=2 with coupling in "
+                             f"{P2_COUPLINGS} (the {p.coupling} coupling is built for P1)")
 
 
 def couple(qp: ContactQP, p: Options) -> ContactQP:

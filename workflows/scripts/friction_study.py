@@ -74,7 +74,8 @@ from problems.fem.fields import in_plane
 from problems.kkt import energy_error, tresca_energy
 from problems.qp import MIN_FRICTION_FACETS
 from problems.spec import ParameterError
-from reference.cattaneo_mindlin import stick_zone_ratio, stick_zone_size, tangential_traction
+from reference.cattaneo_mindlin import (partial_slip_reference, relative_l2, stick_zone_ratio,
+                                        stick_zone_size)
 from reference.hertz import moment_estimate
 from solvers import tresca
 from solvers.interface import parse_tolerance, run_load_path, solve, solvers
@@ -137,37 +138,39 @@ def partial_slip(step, ratio: float) -> tuple[dict, pd.DataFrame]:
     kind = step_qp.hertz.kind
     plane = in_plane(step_qp)
     x = plane[:, 0] if kind == "line" else plane
-    xbar, a, p0 = moment_estimate(kind, x, sol.p)
+    _, a, p0 = moment_estimate(kind, x, sol.p)
     _, c = stick_zone_size(x, sol.p, fr.magnitude(sol.lam), fr.slip_bound, kind=kind)
     c_exact = stick_zone_ratio(ratio, kind)
+    ref = partial_slip_reference(x, fr.slip_bound, fr.magnitude(sol.lam), ratio, kind)
     pressure = step_qp.contact.pressure(sol.p)
     w = step_qp.contact.mass
     if kind == "line":
         direction = 1.0 if sol.lam.sum() >= 0 else -1.0
         traction = direction * step_qp.contact.pressure(sol.lam)
-        r = x - float(xbar[0])
+        r = x - float(ref.centre[0])
         centred = np.stack([r, np.zeros_like(r)], axis=1)
     else:
         force = fr.tangential_force(sol.lam)
         along = fr.tangent @ (force / np.linalg.norm(force))       # each row's share
         traction = fr.blocks(sol.lam * along).sum(axis=1) / w
-        centred = plane - xbar
+        centred = plane - ref.centre
         r = np.linalg.norm(centred, axis=1)
-    exact = tangential_traction(r, a, a * c_exact, fr.mu * p0)
-    zone = sol.p > 0
-    l2 = float(np.sqrt(np.sum(w[zone] * (traction[zone] - exact[zone]) ** 2)
-                       / np.sum(w[zone] * exact[zone] ** 2)))
+    zone = (sol.p > 0) | (fr.slip_bound > 0)
+    l2 = relative_l2(w[zone], traction[zone], ref.traction[zone])
     state = np.where(fr.slip_bound > 0, np.where(sol.stick, "stick", "slip"), "free")
     profile = pd.DataFrame({
-        "x_over_a": r / a, "px_over_a": centred[:, 0] / a, "py_over_a": centred[:, 1] / a,
-        "traction": traction, "traction_exact": exact,
+        "x_over_a": r / ref.a, "px_over_a": centred[:, 0] / ref.a,
+        "py_over_a": centred[:, 1] / ref.a,
+        "traction": traction, "traction_exact": ref.traction,
         "mu_pressure": fr.mu * pressure,
-        "mu_pressure_exact": fr.mu * p0 * np.sqrt(np.clip(1 - (r / a) ** 2, 0, None)),
+        "mu_pressure_exact": ref.mu_p0 * np.sqrt(np.clip(1 - (r / ref.a) ** 2, 0, None)),
         "state": state})
     fields = {"contact": kind, "ratio_reached": tangential_ratio([step]), "a": a, "p0": p0,
               "c": c, "c_over_a": c / a, "c_over_a_exact": c_exact,
               "dev_c_over_a": (c / a) / c_exact - 1.0, "traction_l2": l2,
-              "contact_nodes": int(zone.sum()), "stick_nodes": int(sol.stick.sum())}
+              "stick_offset": (float(ref.stick_centre[0] - ref.centre[0]) / ref.a
+                               if kind == "line" else ref.stick_offset),
+              "contact_nodes": int((sol.p > 0).sum()), "stick_nodes": int(sol.stick.sum())}
     return fields, profile
 
 
