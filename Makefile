@@ -63,7 +63,7 @@ SOLVER_TESTS := tests/test_rounding.py tests/test_solvers.py tests/test_semismoo
 	tests/test_solver_contract.py tests/test_two_pass.py tests/test_friction.py tests/test_mortar.py \
 	tests/test_friction_ssn.py tests/test_mortar_3d.py tests/test_mortar_p2.py tests/test_friction_registry.py \
 	tests/test_friction_tnnmg.py tests/test_friction_tnnmg_3d.py tests/test_friction_3d_solvers.py \
-	tests/test_friction_libraries.py tests/test_problem_set_friction.py
+	tests/test_friction_libraries.py tests/test_friction_facets.py tests/test_problem_set_friction.py
 
 test: setup browser petsc
 	CONTACTBENCH_CHROMIUM=$(CHROMIUM) $(BIN)/python -m pytest -q --durations=15

@@ -73,7 +73,8 @@ from problems.fem.mesh import (Hierarchy, nested_prolongation, netgen_ball, proj
 from problems.fem.stabilised import COUPLING_PARAMETERS, check_coupling, couple
 from problems.fem.surface import tensor_coarsening
 from problems.fem.two_body import (ELEMENT_DEGREE, Body, TwoBodyScene, assemble_two_body,
-                                   friction_parameters, frictional_two_body)
+                                   friction_facets, friction_parameters,
+                                   frictional_two_body)
 from problems.qp import ContactQP, HertzSetup
 from problems.spec import Options, Parameter, ProblemSpec
 from reference.hertz import effective_modulus
@@ -133,6 +134,7 @@ def build(level: int, p: Options) -> ContactQP:
     friction, the first step of its load path
     (:func:`problems.fem.two_body.frictional_two_body`)."""
     check_coupling(p)
+    friction_facets(p, 3)
     if p.friction != "none":
         return frictional_two_body(scene, level, p, "cube_sphere")
     return couple(assemble_two_body(scene(level, p), level, degree=p.degree,
@@ -170,7 +172,7 @@ PROBLEM = ProblemSpec(
                   "on it)", choices=("cube_first", "ball_first")),
         ELEMENT_DEGREE,
         *COUPLING_PARAMETERS,
-        *friction_parameters("the ball's held cap"),
+        *friction_parameters("the ball's held cap", dim=3),
     ),
     build=build,
     thesis_tables={"augmented_projection": "table_9_3", "adaptive": "table_9_4"},

@@ -25,6 +25,14 @@ itself) map back to the suite's ``(p, lam)`` (``A u + B'p + T'lam = f``,
   ``lam_i = a_i - b_i``; with ``a, b >= 0`` that is ``|lam_i| <= s_i``, and complementarity
   puts ``lam_i = s_i sign(slip_i)`` where the node slips. The dual of this QP is
   the box problem of :func:`solvers.tresca.tresca_exact`.
+* :func:`facet_program` (3D, the faceted law, ``lam_i`` in the inscribed regular
+  ``k``-gon ``s_i P_k`` with vertices ``v_j``, :class:`problems.qp.Friction`): the
+  support function ``s_i max_j v_j . slip_i`` moved into the ``k`` rows
+  ``v_j . (T_i u - r_i) - t_i <= 0``: a QP. Stationarity in ``t_i`` gives
+  ``sum_j a_ij = s_i`` for the rows' multipliers ``a_ij >= 0``, in ``u``
+  ``lam_i = sum_j a_ij v_j``: ``s_i`` times a convex combination of the vertices, so
+  ``lam_i in s_i P_k``; complementarity ``a_ij (v_j . slip_i - t_i) = 0`` gives
+  ``lam_i . slip_i = s_i t_i = s_i h_Pk(slip_i)``, the faceted slip complementarity.
 * :func:`cone_program` (2D and 3D, isotropic): one second-order cone
   ``z_i = (t_i, T_i u - r_i)``, ``|z_i[1:]| <= z_i[0]``, per node with ``s_i > 0``.
   Stationarity in ``t_i`` gives ``y_i[0] = s_i``, the dual cone ``|y_i[1:]| <= s_i``, and
@@ -45,7 +53,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from problems.qp import ContactQP
+from problems.qp import ContactQP, polygon_support, polygon_vertices
 
 
 @dataclass(frozen=True)
@@ -62,6 +70,8 @@ class TrescaStep:
         The slip's reference: the slip of ``u`` is ``T u - r``.
     s : (m_t,) array or None
         Slip bounds ``s_i >= 0``.
+    facets : int
+        ``0``: isotropic; ``k >= 3``: the faceted law (3D, :class:`problems.qp.Friction`).
     """
 
     A: sp.spmatrix
@@ -71,6 +81,7 @@ class TrescaStep:
     T: sp.spmatrix | None = None
     r: np.ndarray | None = None
     s: np.ndarray | None = None
+    facets: int = 0
 
     @property
     def components(self) -> int:
@@ -94,7 +105,7 @@ def tresca_step(qp: ContactQP) -> TrescaStep:
     if fr is None:
         return TrescaStep(qp.A, qp.f, qp.B, qp.g)
     return TrescaStep(qp.A, qp.f, qp.B, qp.g, sp.csr_matrix(fr.T), fr.previous - fr.offset,
-                      fr.slip_bound)
+                      fr.slip_bound, fr.facets)
 
 
 @dataclass(frozen=True)
@@ -103,7 +114,7 @@ class ConeProgram:
     ``nonnegative`` rows a nonnegative cone, then one second-order cone
     (``|z[1:]| <= z[0]``) of each size in ``cones``, in order.
 
-    ``kind``: ``"contact"``, ``"split"`` or ``"cone"`` (which form, for the map of the
+    ``kind``: ``"contact"``, ``"split"``, ``"facet"`` or ``"cone"`` (which form, for the map of the
     multipliers); ``n``: the unknowns ``u`` (``x[:n]``); ``bounded``: the nodes with a
     ``t_i`` (``x[n:]``, in this order).
     """
@@ -154,6 +165,36 @@ def split_program(step: TrescaStep) -> ConeProgram:
                        cones=(), kind="split", n=step.A.shape[0], bounded=b)
 
 
+def _facet_rows(step: TrescaStep, b: np.ndarray) -> sp.csr_matrix:
+    """``kron(I, V)``: per bounded node the ``k`` vertices of ``P_k`` as rows acting on
+    its two tangential entries (node-major), ``(b.size k, 2 b.size)``."""
+    return sp.kron(sp.identity(b.size, format="csr"), sp.csr_matrix(polygon_vertices(step.facets)),
+                   format="csr")
+
+
+def facet_program(step: TrescaStep) -> ConeProgram:
+    """3D, the faceted law (module docstring): a QP in ``(u, t)`` with the rows
+    ``B u <= g`` and, per bounded node ``i`` and vertex ``v_j`` of ``P_k``,
+    ``v_j . T_i u - t_i <= v_j . r_i`` (node-major: row ``i k + j``).
+
+    Raises
+    ------
+    ValueError
+        For a step without facets (``step.facets`` 0) or not in 3D.
+    """
+    if not step.facets or step.components != 2:
+        raise ValueError(f"facet_program: facets = {step.facets}, {step.components} tangential "
+                         "rows per node; allowed: facets >= 3 with 2 rows per node (3D)")
+    P, q, b = _with_t(step)
+    k, m = step.facets, step.B.shape[0]
+    V = _facet_rows(step, b)
+    Tb, rb = step.T[step.rows(b)], step.r[step.rows(b)]
+    t_rows = sp.kron(sp.identity(b.size, format="csr"), np.ones((k, 1)), format="csr")
+    G = sp.bmat([[step.B, sp.csr_matrix((m, b.size))], [V @ Tb, -t_rows]], format="csc")
+    return ConeProgram(P=P, q=q, G=G, h=np.concatenate([step.g, V @ rb]), nonnegative=G.shape[0],
+                       cones=(), kind="facet", n=step.A.shape[0], bounded=b)
+
+
 def cone_program(step: TrescaStep) -> ConeProgram:
     """Isotropic Tresca (2D or 3D) as a second-order cone program in ``(u, t)``: the
     rows ``B u <= g`` (nonnegative cone), then per bounded node ``i`` the cone
@@ -179,9 +220,12 @@ def cone_program(step: TrescaStep) -> ConeProgram:
 
 def standard_program(step: TrescaStep) -> ConeProgram:
     """The form a library is handed: the frictionless problem as it is, a 2D Tresca step
-    split (a QP every library takes), a 3D one as a cone program (second-order cones)."""
+    split (a QP every library takes), a 3D one as a cone program (second-order cones),
+    a faceted one as a QP (:func:`facet_program`)."""
     if step.T is None:
         return contact_program(step)
+    if step.facets:
+        return facet_program(step)
     return split_program(step) if step.components == 1 else cone_program(step)
 
 
@@ -257,6 +301,8 @@ def lift(step: TrescaStep, program: ConeProgram, u: np.ndarray) -> np.ndarray:
         return u
     rows = step.rows(program.bounded)
     slip = (step.T[rows] @ u - step.r[rows]).reshape(program.bounded.size, -1)
+    if program.kind == "facet":
+        return np.concatenate([u, polygon_support(slip, step.facets)])
     return np.concatenate([u, np.linalg.norm(slip, axis=1)])
 
 
@@ -264,7 +310,8 @@ def program_multipliers(step: TrescaStep, program: ConeProgram,
                         p: np.ndarray, lam: np.ndarray | None) -> np.ndarray:
     """The multipliers ``y`` of ``program`` that map back to ``(p, lam)`` (the inverse of
     :func:`step_multipliers`; with ``|lam_i| <= s_i`` in the dual cone): split,
-    ``a = (s + lam) / 2``, ``b = (s - lam) / 2``; cone, ``y_i = (s_i, -lam_i)``."""
+    ``a = (s + lam) / 2``, ``b = (s - lam) / 2``; cone, ``y_i = (s_i, -lam_i)``; facet
+    (``lam_i in s_i P_k``), :func:`facet_weights`."""
     p = np.asarray(p, dtype=float)
     if program.kind == "contact":
         return p
@@ -273,14 +320,43 @@ def program_multipliers(step: TrescaStep, program: ConeProgram,
     if program.kind == "split":
         s = step.s[b]
         return np.concatenate([p, (s + lam_b) / 2, (s - lam_b) / 2])
+    if program.kind == "facet":
+        return np.concatenate([p, facet_weights(lam_b.reshape(b.size, 2), step.s[b],
+                                                step.facets).ravel()])
     cones = np.concatenate([step.s[b][:, None], -lam_b.reshape(b.size, k)], axis=1)
     return np.concatenate([p, cones.ravel()])
+
+
+def facet_weights(lam: np.ndarray, s: np.ndarray, k: int) -> np.ndarray:
+    """Multipliers ``a_i >= 0`` of the ``k`` facet rows of each node (``(N, k)``) with
+    ``sum_j a_ij = s_i`` and ``sum_j a_ij v_j = lam_i`` for ``lam_i in s_i P_k``
+    (:func:`program_multipliers`): ``lam_i / s_i = alpha v_j + beta v_j+1`` in the
+    triangle ``(0, v_j, v_j+1)`` of its angle, and the rest ``1 - alpha - beta`` spread
+    evenly over all ``k`` vertices (they sum to zero)::
+
+        a_i = s_i (alpha e_j + beta e_j+1 + (1 - alpha - beta) / k)
+    """
+    lam, s = np.asarray(lam, dtype=float), np.asarray(s, dtype=float)
+    v = polygon_vertices(k)
+    angle = np.mod(np.arctan2(lam[:, 1], lam[:, 0]), 2 * np.pi)
+    j = np.minimum((angle / (2 * np.pi / k)).astype(int), k - 1)
+    first, second = v[j], v[(j + 1) % k]
+    det = first[:, 0] * second[:, 1] - first[:, 1] * second[:, 0]
+    x = lam / np.where(s > 0, s, 1.0)[:, None]
+    alpha = (x[:, 0] * second[:, 1] - x[:, 1] * second[:, 0]) / det
+    beta = (first[:, 0] * x[:, 1] - first[:, 1] * x[:, 0]) / det
+    rows = np.arange(len(lam))
+    a = np.repeat(((1.0 - alpha - beta) / k)[:, None], k, axis=1)
+    a[rows, j] += alpha
+    a[rows, (j + 1) % k] += beta
+    return s[:, None] * a
 
 
 def step_multipliers(step: TrescaStep, program: ConeProgram,
                      y: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
     """``(p, lam)`` of the program's multipliers ``y`` (module docstring): ``p`` the
-    normal rows' ``y``; split, ``lam_i = a_i - b_i``; cone, ``lam_i = -y_i[1:]``;
+    normal rows' ``y``; split, ``lam_i = a_i - b_i``; facet, ``lam_i = sum_j a_ij v_j``;
+    cone, ``lam_i = -y_i[1:]``;
     ``lam_i = 0`` at the nodes without a ``t_i``. ``lam`` is ``None`` without friction."""
     y = np.asarray(y, dtype=float)
     m = step.B.shape[0]
@@ -290,6 +366,8 @@ def step_multipliers(step: TrescaStep, program: ConeProgram,
     lam = np.zeros(step.T.shape[0])
     if program.kind == "split":
         lam[step.rows(b)] = y[m:m + b.size] - y[m + b.size:m + 2 * b.size]
+    elif program.kind == "facet":
+        lam[step.rows(b)] = _facet_rows(step, b).T @ y[m:]
     else:
         lam[step.rows(b)] = -y[m:].reshape(b.size, k + 1)[:, 1:].ravel()
     return y[:m], lam

@@ -90,7 +90,10 @@ def friction_residuals(qp: ContactQP, u: np.ndarray, p: np.ndarray,
     """Verified KKT residuals of ``(u, p, lam)`` for the Tresca step ``qp`` (its
     ``friction``): ``A u + B'p + T'lam = f``, ``|lam_i| <= s_i``,
     ``lam_i . slip_i = s_i |slip_i|`` and the normal rows' conditions (``|.|`` the
-    Euclidean norm of a node's tangential vector in 3D, :meth:`problems.qp.Friction.magnitude`)."""
+    Euclidean norm of a node's tangential vector in 3D, :meth:`problems.qp.Friction.magnitude`).
+    The faceted law: ``lam_i in s_i P_k`` (its gauge, :meth:`problems.qp.Friction.gauge`,
+    at most ``s_i``) and ``lam_i . slip_i = s_i h_Pk(slip_i)``
+    (:meth:`problems.qp.Friction.dissipation`)."""
     if qp.friction is None:
         raise ValueError("friction_residuals: this ContactQP has no friction; use kkt_residuals")
     tiny = 1e-300
@@ -100,9 +103,9 @@ def friction_residuals(qp: ContactQP, u: np.ndarray, p: np.ndarray,
     normal = kkt_residuals(qp, u, p)
     Au, Btp, Ttl = qp.A @ u, qp.B.T @ p, fr.T.T @ lam
     r_stat = inf(Au + Btp + Ttl - qp.f)
-    s, slip, size = fr.slip_bound, fr.slip(u), fr.magnitude(lam)
+    s, slip, size = fr.slip_bound, fr.slip(u), fr.gauge(lam)
     r_bound = max(0.0, float(np.max(size - s))) if s.size else 0.0
-    r_slip = float(np.sum(np.abs(s * fr.magnitude(slip) - fr.inner(lam, slip))))
+    r_slip = float(np.sum(np.abs(s * fr.dissipation(slip) - fr.inner(lam, slip))))
     disp_scale = max(inf(slip), inf(qp.B @ u), inf(qp.g), tiny)
     return FrictionResiduals(
         stationarity=r_stat / max(inf(qp.f), inf(Au), inf(Btp), inf(Ttl), tiny),
@@ -116,9 +119,10 @@ def friction_residuals(qp: ContactQP, u: np.ndarray, p: np.ndarray,
 
 
 def tresca_energy(qp: ContactQP, u: np.ndarray) -> float:
-    """The Tresca step's energy ``1/2 u'Au - f'u + sum_i s_i |slip_i(u)|``."""
+    """The Tresca step's energy ``1/2 u'Au - f'u + sum_i s_i |slip_i(u)|`` (faceted:
+    ``s_i h_Pk(slip_i(u))``, :meth:`problems.qp.Friction.dissipation`)."""
     fr = qp.friction
-    return qp.energy(u) + (float(fr.slip_bound @ fr.magnitude(fr.slip(u))) if fr is not None
+    return qp.energy(u) + (float(fr.slip_bound @ fr.dissipation(fr.slip(u))) if fr is not None
                            else 0.0)
 
 

@@ -68,6 +68,9 @@ class ScaledQP:
         without friction.
     rho : (m_t,) array, optional
         The nodes' tangential scaling (ones when scaling is off).
+    facets : int
+        The friction law's facets (``0``: isotropic); one factor per node keeps the
+        ``k``-gon's shape.
     """
 
     A: sp.csc_matrix
@@ -81,11 +84,12 @@ class ScaledQP:
     slip_reference: np.ndarray | None = None
     slip_bound: np.ndarray | None = None
     rho: np.ndarray | None = None
+    facets: int = 0
 
     def step(self) -> TrescaStep:
         """The scaled problem (a Tresca step if it has friction) in plain arrays."""
         return TrescaStep(self.A, self.f, self.B, self.g, self.T, self.slip_reference,
-                          self.slip_bound)
+                          self.slip_bound, self.facets)
 
     def unscale_tangential(self, lam_s: np.ndarray) -> np.ndarray:
         """The tangential multipliers ``lam = sigma rho lam~`` of the original step."""
@@ -166,6 +170,7 @@ def _with_friction(data: ScaledQP, fr, enabled: bool = False) -> ScaledQP:
     data.slip_reference = rows_rho * (fr.previous - fr.offset) / data.sigma
     data.slip_bound = fr.slip_bound / (data.sigma * rho)
     data.rho = rho
+    data.facets = fr.facets
     return data
 
 

@@ -218,6 +218,11 @@ class SolverSpec:
     friction_reason : str
         Why a solver without ``handles_friction`` does not take friction, added to its
         skip message (empty: it solves the frictionless problem only, nothing more).
+    facets_reason : str
+        Empty: a solver that handles friction takes the faceted law too
+        (``friction.facets`` = k, :class:`problems.qp.Friction`); else why it does not,
+        and it skips a faceted problem at once with this reason rather than solve the
+        isotropic law.
     size_limit : str or dict, optional
         Name of an integer option in ``parameters`` that bounds the problem's unknowns
         ``qp.n``: a larger problem is ``skipped`` at once, the option's help giving the
@@ -238,6 +243,7 @@ class SolverSpec:
     supports: Callable[[Any], tuple[bool, str]] | None = None
     handles_friction: bool = False
     friction_reason: str = ""
+    facets_reason: str = ""
     size_limit: str | dict | None = None
 
     def __post_init__(self):
@@ -288,6 +294,9 @@ class SolverSpec:
             return False, (f"{friction.law} friction on the contact: this solver solves the "
                            "frictionless problem only"
                            + (f" ({self.friction_reason})" if self.friction_reason else ""))
+        if friction is not None and getattr(friction, "facets", 0) and self.facets_reason:
+            return False, (f"faceted friction (friction_facets = {friction.facets}): "
+                           f"{self.facets_reason}")
         limit = self.size_limit_name(getattr(qp, "dim", None))
         if limit is not None:
             cap = (opts if opts is not None else self.options())[limit]

@@ -167,7 +167,10 @@ def duality_gap(qp: ContactQP, u: np.ndarray, p: np.ndarray,
     the box ``p~ >= 0``, ``|l~_i| <= s_i`` (``l~`` = ``lam`` clipped to ``[-s, s]``; in 3D
     each node's 2-vector scaled back radially into its disc, isotropic friction) and
     any feasible ``u_f``: ``J(u_f) >= L(u_f, p~, l~) >= q(p~, l~) = min_v L``, the
-    minimiser ``x = A^{-1}(f - B'p~ - T'l~)``. The dual is the box problem of
+    minimiser ``x = A^{-1}(f - B'p~ - T'l~)``. The faceted law (``s_i h_Pk(t) =
+    max_{l in s_i P_k} l . t``, :class:`problems.qp.Friction`) is the same with ``l~``
+    projected onto the ``k``-gons ``s_i P_k`` and ``s_i h_Pk(slip_i)`` in place of
+    ``s_i |slip_i|`` in ``J`` and in the gap. The dual is the box problem of
     :mod:`solvers.tresca` (``p >= 0``, ``|lam| <= s``), so weak duality holds as
     above, and as ``L`` is quadratic in ``v`` with Hessian ``A`` the gap is again a sum
     of non-negative terms::
@@ -192,7 +195,7 @@ def duality_gap(qp: ContactQP, u: np.ndarray, p: np.ndarray,
         if qp.C is not None:
             return DualityGap(inf, inf, inf, inf, inf, inf, inf, False)
         s = fr.slip_bound
-        lam_t = fr.clip(lam)                   # into the dual box (3D: the discs)
+        lam_t = fr.clip(lam)           # into the dual box (3D: the discs or the k-gons)
         energy = lambda v: tresca_energy(qp, v)
     else:
         energy = qp.energy
@@ -202,7 +205,7 @@ def duality_gap(qp: ContactQP, u: np.ndarray, p: np.ndarray,
         if fr is not None:
             r = r - fr.T.T @ lam_t
             slip = fr.slip(u_f)
-            extra = float(np.sum(s * fr.magnitude(slip) - fr.inner(lam_t, slip)))
+            extra = float(np.sum(s * fr.dissipation(slip) - fr.inner(lam_t, slip)))
             extra_noise = float((s + fr.magnitude(lam_t)) @ fr.magnitude(slip)) + float(
                 np.abs(lam_t) @ (abs(fr.T) @ np.abs(u_f) + np.abs(fr.offset - fr.previous)))
         x = solve_A(r, guess=u_f)
@@ -319,8 +322,8 @@ def certify(qp: ContactQP, u: np.ndarray, p: np.ndarray, tol: float | None = Non
     tangential multipliers, :func:`duality_gap`).
 
     The last certificate is kept in ``qp.cache.certificate`` with the digest of
-    ``(u, p, tol)`` (and of ``lam`` and the step's friction data: the steps of a load
-    path share the cache):
+    ``(u, p, tol)`` (and of ``lam`` and the step's friction data, its facets included:
+    the steps of a load path share the cache, and so may a law's faceted variant):
     a solver that certifies its own stop and :func:`verify` after it pay for one.
     """
     u, p = np.ascontiguousarray(u, dtype=float), np.ascontiguousarray(p, dtype=float)
@@ -329,6 +332,8 @@ def certify(qp: ContactQP, u: np.ndarray, p: np.ndarray, tol: float | None = Non
         fr = qp.friction
         data += b"".join(np.ascontiguousarray(v, dtype=float).tobytes() for v in
                          (lam, fr.slip_bound, fr.offset, fr.previous, qp.f, qp.g))
+        if fr.facets:                          # the law's shape (a faceted step shares A)
+            data += repr(fr.facets).encode()
     key = hashlib.blake2b(data, digest_size=16).digest()
     last = qp.cache.certificate
     if last is not None and last[0] == key:

@@ -15,7 +15,9 @@ every library as a QP in ``(u, t)``, the slip split into two nonnegative parts
 (:func:`problems.friction_forms.split_program`); a 3D step, isotropic, as a second-order
 cone program (:func:`problems.friction_forms.cone_program`) to the libraries whose own API
 takes such cones, Clarabel (``SecondOrderConeT``), SCS and ECOS (the cone sizes ``q``,
-called directly: qpsolvers passes no cones); the QP-only libraries skip it. ECOS minimises
+called directly: qpsolvers passes no cones); the QP-only libraries skip it. A 3D step of
+the faceted law (the disc replaced by a ``k``-gon) is a QP
+(:func:`problems.friction_forms.facet_program`) handed to every library. ECOS minimises
 a linear objective only: it is handed every form with the quadratic term as
 second-order cones, one per row of ``F`` (:func:`problems.friction_forms.epigraph_program`,
 ``P = F'F`` with ``F`` the sparse Cholesky factor of ``A``), which leaves the multipliers
@@ -527,14 +529,16 @@ def _piqp_kkt(name: str):
 
 
 def cone_support(lib: Library) -> Callable[[ContactQP], tuple[bool, str]]:
-    """``supports(qp)`` of a row: a QP library (no ``cone_call``) skips a 3D Tresca step."""
+    """``supports(qp)`` of a row: a QP library (no ``cone_call``) skips an isotropic 3D
+    Tresca step and takes a faceted one (a QP)."""
 
     def supports(qp: ContactQP) -> tuple[bool, str]:
         """A 2D Tresca step is handed over as a QP (the slip split into two nonnegative
         parts), a 3D one, isotropic, as a second-order cone program; a library without
-        second-order cones skips a 3D Tresca step (or Coulomb, run as Tresca steps)."""
+        second-order cones skips a 3D Tresca step (or Coulomb, run as Tresca steps). A
+        faceted step (``friction_facets`` = k) is a QP every library takes."""
         fr = qp.friction
-        if lib.cone_call is None and fr is not None and fr.components > 1:
+        if lib.cone_call is None and fr is not None and fr.components > 1 and not fr.facets:
             return False, (f"{fr.law} friction in {qp.dim}D: isotropic friction is a "
                            f"second-order cone program, and {lib.name} is a QP solver (no "
                            "second-order cones)")

@@ -885,4 +885,7 @@ SOLVER = SolverSpec(
     role=Role.NEWTON,
     supports=supports,
     handles_friction=True,
+    facets_reason=("its friction branch is the isotropic law (the Newton step differentiates "
+                   "the projection onto discs); the faceted law is a QP, taken by the QP "
+                   "libraries and tresca_exact"),
 )

@@ -1318,6 +1318,9 @@ SOLVER = SolverSpec(
     default_max_iter=500,
     role=Role.NEWTON,
     handles_friction=True,
+    facets_reason=("its nonlinear smoother and truncation are built for the isotropic law "
+                   "(discs); the faceted law is a QP, taken by the QP libraries and "
+                   "tresca_exact"),
     # not that it solves the stabilised problem: handed over as it is, ``supports`` sees
     # its C block and names it as the reason to skip (its slack form would hide why)
     handles_C=True,

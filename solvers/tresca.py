@@ -22,6 +22,14 @@ columns for ``k`` tangential rows per node: the reference is for small surfaces)
 * 3D: ``|lam_i| <= s_i`` is a disc. A semismooth Newton method on the projection
   equation ``y = P_K(y - rho (S y - c))`` (:func:`disc_qp_newton`), globalised by the dual
   objective, is driven to round-off on fixed sets.
+* 3D, the faceted law (:class:`problems.qp.Friction`, ``facets = k``): ``lam_i`` in the
+  regular ``k``-gon ``s_i P_k``. The same semismooth Newton method with the projection
+  onto the ``k``-gons (:func:`problems.qp.polygon_regions`: piecewise affine, identity
+  inside, onto a facet's line, onto a vertex), so on the right sets its Newton step is
+  exact and the method ends after finitely many steps; one solver for both laws, on the
+  same dense ``S``. (A QP solved exactly by an active-set method on the dual would need
+  the equality ``sum_j a_ij = s_i`` of :func:`problems.friction_forms.facet_program`'s
+  multipliers, no box.)
 
 The answer is then exact to round-off, and :func:`problems.kkt.friction_residuals`
 verifies it.
@@ -39,8 +47,10 @@ import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
 
-from problems.kkt import FrictionResiduals, friction_residuals, kkt_residuals
-from problems.qp import ContactQP, LoadStep
+from problems.kkt import (FrictionResiduals, energy_error, friction_residuals, kkt_residuals,
+                         tresca_energy)
+from problems.qp import (REGION_INSIDE, ContactQP, LoadStep, polygon_regions,
+                         region_projection)
 from problems.spec import ParameterError
 from solvers.base import SolveResult
 from solvers.cholesky import factorize
@@ -158,11 +168,15 @@ def box_qp_active_set(S: np.ndarray, c: np.ndarray, lo: np.ndarray, hi: np.ndarr
     return y, at, max_iter, False
 
 
-def project_dual(z: np.ndarray, m: int, bound: np.ndarray) -> np.ndarray:
+def project_dual(z: np.ndarray, m: int, bound: np.ndarray, facets: int = 0) -> np.ndarray:
     """``P_K(z)`` onto ``K = {p >= 0, |lam_i| <= s_i}`` of a 3D Tresca step's dual,
     ``z = (p, lam)`` with ``lam`` node-major in blocks of ``k``: ``p`` clipped at zero,
-    each ``lam_i`` moved radially onto its disc (onto ``0`` where ``s_i = 0``)."""
+    each ``lam_i`` moved radially onto its disc (onto ``0`` where ``s_i = 0``); with
+    ``facets = k``, onto its ``k``-gon ``s_i P_k`` (:func:`problems.qp.polygon_regions`)."""
     lam = z[m:].reshape(len(bound), -1)
+    if facets:
+        return np.concatenate([np.maximum(z[:m], 0.0),
+                               polygon_regions(lam, bound, facets)[0].ravel()])
     norm = np.sqrt(np.sum(lam * lam, axis=1))
     with np.errstate(divide="ignore", invalid="ignore"):
         scale = np.where(norm > bound, bound / norm, 1.0)
@@ -180,12 +194,28 @@ DISC_ROUNDOFF = 1e3 * np.finfo(float).eps
 
 
 def _dual_sets(z: np.ndarray, m: int, bound: np.ndarray, before: tuple | None,
-               eps: float) -> tuple[np.ndarray, np.ndarray]:
+               eps: float, facets: int = 0) -> tuple[np.ndarray, np.ndarray]:
     """The sets of ``z = y - rho (S y - c)``: ``p_i`` free where ``z_i > 0`` and each
     node's disc (:data:`DISC_EDGE` where ``|z_lam,i| > s_i``). Round-off hysteresis: a
-    component within ``eps`` of its boundary keeps its set of ``before``."""
-    norm = np.sqrt(np.sum(z[m:].reshape(len(bound), -1) ** 2, axis=1))
+    component within ``eps`` of its boundary keeps its set of ``before``.
+
+    ``facets = k``: each node's region of its ``k``-gon (:func:`problems.qp.polygon_regions`;
+    :data:`DISC_INSIDE` is its inside, the codes from :data:`DISC_EDGE` on its facets and
+    vertices); a node keeps its region of ``before`` where that region's affine projection
+    (:func:`problems.qp.region_projection`) is within ``eps`` of the projection."""
     free = z[:m] > 0
+    if facets:
+        lam = z[m:].reshape(len(bound), 2)
+        projection, code = polygon_regions(lam, bound, facets)
+        disc = np.where(bound <= 0, DISC_ZERO, code)
+        if before is not None:
+            free = np.where(np.abs(z[:m]) <= eps, before[0], free)
+            kept = np.where(before[1] == DISC_ZERO, REGION_INSIDE, before[1])
+            near = np.max(np.abs(region_projection(lam, bound, facets, kept)[0] - projection),
+                          axis=1) <= eps
+            disc = np.where((bound > 0) & (before[1] != DISC_ZERO) & near, before[1], disc)
+        return free, disc
+    norm = np.sqrt(np.sum(z[m:].reshape(len(bound), -1) ** 2, axis=1))
     disc = np.where(bound <= 0, DISC_ZERO, np.where(norm > bound, DISC_EDGE, DISC_INSIDE))
     if before is not None:
         free = np.where(np.abs(z[:m]) <= eps, before[0], free)
@@ -194,12 +224,20 @@ def _dual_sets(z: np.ndarray, m: int, bound: np.ndarray, before: tuple | None,
     return free, disc
 
 
-def _projection_jacobian(z: np.ndarray, m: int, bound: np.ndarray, sets: tuple) -> sp.csr_matrix:
+def _projection_jacobian(z: np.ndarray, m: int, bound: np.ndarray, sets: tuple,
+                         facets: int = 0) -> sp.csr_matrix:
     """An element ``D`` of the generalised Jacobian of :func:`project_dual` at ``z`` on
     the given sets: ``1``/``0`` on ``p``; per node ``I`` inside the disc, ``0`` with
-    ``s_i = 0`` and ``(s_i / |z_i|) (I - n n')``, ``n = z_i / |z_i|``, on its edge."""
+    ``s_i = 0`` and ``(s_i / |z_i|) (I - n n')``, ``n = z_i / |z_i|``, on its edge.
+    ``facets = k``: per node the Jacobian of its region's affine projection onto the
+    ``k``-gon (:func:`problems.qp.region_projection`; ``0`` with ``s_i = 0``)."""
     free, disc = sets
     lam = z[m:].reshape(len(bound), -1)
+    if facets:
+        code = np.where(disc == DISC_ZERO, REGION_INSIDE, disc)
+        blocks = region_projection(lam, bound, facets, code)[1]
+        blocks = np.where((disc == DISC_ZERO)[:, None, None], 0.0, blocks)
+        return sp.block_diag([sp.diags(free * 1.0), sp.block_diag(list(blocks))], format="csr")
     k = lam.shape[1]
     norm = np.sqrt(np.sum(lam * lam, axis=1))
     edge = disc == DISC_EDGE
@@ -212,7 +250,8 @@ def _projection_jacobian(z: np.ndarray, m: int, bound: np.ndarray, sets: tuple) 
 
 def disc_qp_newton(S: np.ndarray, c: np.ndarray, m: int, bound: np.ndarray,
                    max_iter: int | None = None,
-                   start: np.ndarray | None = None) -> tuple[np.ndarray, tuple, int, bool]:
+                   start: np.ndarray | None = None,
+                   facets: int = 0) -> tuple[np.ndarray, tuple, int, bool]:
     """``min 1/2 y'Sy - c'y`` s.t. ``y = (p, lam)``, ``p >= 0``, ``|lam_i| <= s_i``
     (``lam`` node-major in blocks of ``k``, ``S`` symmetric positive definite): the dual
     of a 3D Tresca step, by a semismooth Newton method on the projection equation
@@ -231,13 +270,17 @@ def disc_qp_newton(S: np.ndarray, c: np.ndarray, m: int, bound: np.ndarray,
     the previous step and ``||F||_inf`` is at :data:`DISC_ROUNDOFF` of ``||y||_inf``.
 
     ``start``: a dual point of a neighbouring problem (projected onto ``K``).
+    ``facets = k``: ``|lam_i| <= s_i`` replaced by ``lam_i in s_i P_k`` (the faceted
+    law): the projection and its Jacobian onto the ``k``-gons, piecewise affine, so the
+    Newton step on the right sets is exact.
 
     Returns
     -------
     y : array
     sets : (free, disc)
         ``free``: ``(m,)`` bool, ``p_i`` off its bound; ``disc``: ``(m,)`` int, the
-        node's :data:`DISC_ZERO`, :data:`DISC_INSIDE` or :data:`DISC_EDGE`.
+        node's :data:`DISC_ZERO`, :data:`DISC_INSIDE` or :data:`DISC_EDGE` (faceted: the
+        region codes of :func:`problems.qp.polygon_regions` from :data:`DISC_EDGE` on).
     iterations : int
     converged : bool
     """
@@ -246,21 +289,21 @@ def disc_qp_newton(S: np.ndarray, c: np.ndarray, m: int, bound: np.ndarray,
     rho = 1.0 / max(float(np.max(np.sum(np.abs(S), axis=1), initial=0.0)), 1e-300)
     theta = lambda y: 0.5 * float(y @ (S @ y)) - float(c @ y)
     y = project_dual(np.zeros(size) if start is None or np.shape(start) != (size,)
-                     else np.asarray(start, float), m, bound)
+                     else np.asarray(start, float), m, bound, facets)
     sets = before = None
     for it in range(1, max_iter + 1):
         y_old = y
         z = y - rho * (S @ y - c)
-        gradient_step = project_dual(z, m, bound)
+        gradient_step = project_dual(z, m, bound, facets)
         F = y - gradient_step
         scale = max(float(np.max(np.abs(y), initial=0.0)),
                     float(np.max(np.abs(gradient_step), initial=0.0)), 1e-300)
-        sets = _dual_sets(z, m, bound, before, DISC_ROUNDOFF * scale)
+        sets = _dual_sets(z, m, bound, before, DISC_ROUNDOFF * scale, facets)
         if (before is not None and all(np.array_equal(a, b) for a, b in zip(sets, before))
                 and float(np.max(np.abs(F), initial=0.0)) <= DISC_ROUNDOFF * scale):
             return y, sets, it, True
         before = sets
-        D = _projection_jacobian(z, m, bound, sets)
+        D = _projection_jacobian(z, m, bound, sets, facets)
         fixed = np.asarray(abs(D).sum(axis=1)).ravel() == 0      # D = 0: y_j -> P_K(z)_j
         d = np.where(fixed, -F, 0.0)
         rest = np.flatnonzero(~fixed)
@@ -279,7 +322,7 @@ def disc_qp_newton(S: np.ndarray, c: np.ndarray, m: int, bound: np.ndarray,
         slack = 10 * np.finfo(float).eps * (abs(value) + 1e-300)
         y = gradient_step
         for halvings in range(30):
-            trial = project_dual(y_old + 0.5 ** halvings * d, m, bound)
+            trial = project_dual(y_old + 0.5 ** halvings * d, m, bound, facets)
             if theta(trial) <= value + slack:
                 if theta(trial) <= theta(gradient_step) + slack:
                     y = trial
@@ -341,7 +384,9 @@ def tresca_exact(qp: ContactQP, ops: DualOperators | None = None,
 
     2D: the dual box problem by the primal active-set method (:func:`box_qp_active_set`).
     3D (two tangential rows per node, ``|lam_i| <= s_i`` a disc): the dual by the
-    semismooth Newton method :func:`disc_qp_newton`, driven to round-off on fixed sets.
+    semismooth Newton method :func:`disc_qp_newton`, driven to round-off on fixed sets;
+    the faceted law (``qp.friction.facets`` = k) the same with ``lam_i`` in the
+    ``k``-gons ``s_i P_k``.
 
     ``ops``: :func:`dual_operators` of a ContactQP with the same ``A``, ``B`` and ``T``
     (the other steps of its load path), computed here if not given. ``start`` (2D): the
@@ -365,7 +410,7 @@ def tresca_exact(qp: ContactQP, ops: DualOperators | None = None,
     if fr is not None and fr.components > 1:
         y, (free, disc), iterations, ok = disc_qp_newton(ops.S, G @ Ainv_f - h, m,
                                                          fr.slip_bound, max_iter=max_iter,
-                                                         start=dual_start)
+                                                         start=dual_start, facets=fr.facets)
         at = np.concatenate([np.where(free, 0, -1), disc])
         stick = disc == DISC_INSIDE
     else:
@@ -681,3 +726,54 @@ def path_for_ratio(qp: ContactQP, ratio: float, rtol: float = 1e-6,
             side = 0
     raise RuntimeError(f"path_for_ratio: Q/(mu P) = {ratio} not reached within {max_iter} "
                        "solves")
+
+
+def facet_convergence(qp: ContactQP, facets: tuple, solve=None) -> list[dict]:
+    """The faceted law's distance to the isotropic one as the facets grow: the load path
+    of the frictional ``qp`` (isotropic, ``qp.friction.facets`` 0) and of the same problem
+    with each ``k`` of ``facets`` (:class:`problems.qp.Friction`), each by ``solve``
+    (default: :func:`tresca_exact`, ``A`` factorised once for all), compared in the last
+    step.
+
+    ``P_k`` lies between the disc of radius ``cos(pi/k)`` and the unit disc, so
+    ``cos(pi/k) |x| <= h_Pk(x) <= |x|`` and, with ``J`` and ``J_k`` the two energies,
+    ``J_k <= J <= J_k + (1 - cos(pi/k)) D(u)`` for every ``u`` (``D(u) = sum_i s_i
+    |slip_i(u)|``); at the minimisers ``0 <= J* - J_k* <= (1 - cos(pi/k)) D(u_k*)``: the
+    energy gap is ``O(k^-2)``. The displacement and the traction are only ``O(k^-1)``
+    in general: at a slipping node ``lam_i`` is ``s_i`` times a vertex of ``P_k``,
+    whose direction is off the slip's by up to ``pi / k``.
+
+    Returns
+    -------
+    list of dict
+        One row per ``k``: ``facets``, ``status`` and ``iterations`` of its last step,
+        ``energy`` (``J_k*``), ``energy_gap`` (``J* - J_k*``), ``gap_bound``
+        (``(1 - cos(pi/k)) D(u_k*)``), ``displacement`` (``||u_k - u||_A / ||u||_A``),
+        ``traction`` (``max_i |lam_k,i - lam_i| / max_i |lam_i|``), ``distance``
+        (``1 - cos(pi/k)``, the k-gon's relative distance to the disc).
+    """
+    fr = qp.friction
+    if fr is None or fr.facets or fr.components != 2:
+        raise ValueError("facet_convergence needs an isotropic 3D frictional ContactQP")
+    if solve is None:
+        ops = dual_operators(qp)
+        solve = lambda step_qp: tresca_exact(step_qp, ops)
+    iso = friction_path(qp, solve)[-1]
+    energy = tresca_energy(iso.qp, iso.solution.u)
+    lam_iso = fr.magnitude(iso.solution.lam)
+    rows = []
+    for k in facets:
+        last = friction_path(replace(qp, friction=replace(fr, facets=int(k))), solve)[-1]
+        u, lam, step_fr = last.solution.u, last.solution.lam, last.qp.friction
+        distance = float(1.0 - np.cos(np.pi / k))
+        rows.append({
+            "facets": int(k), "status": last.solution.status,
+            "iterations": int(last.solution.iterations),
+            "energy": tresca_energy(last.qp, u),
+            "energy_gap": energy - tresca_energy(last.qp, u),
+            "gap_bound": distance * float(step_fr.slip_bound @ step_fr.magnitude(step_fr.slip(u))),
+            "displacement": energy_error(iso.qp, u, iso.solution.u),
+            "traction": float(np.max(fr.magnitude(lam - iso.solution.lam))
+                              / max(float(np.max(lam_iso, initial=0.0)), 1e-300)),
+            "distance": distance})
+    return rows

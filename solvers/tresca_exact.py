@@ -5,7 +5,9 @@ One Tresca step (:class:`problems.qp.Friction`, its ``slip_bound`` given) is sol
 (``p >= 0``, ``|lam_i| <= s_i``) with the dense Hessian ``S = G A^-1 G'``, ``G = [B; T]``,
 ``u = A^-1 (f - G'y)``. 2D: a box, by a primal active-set method that ends on the exact
 active sets; 3D (two tangential rows per node): a disc per node, by a semismooth Newton
-method on the projection equation driven to round-off on fixed sets.
+method on the projection equation driven to round-off on fixed sets; the faceted law
+(``friction_facets`` = k: a regular k-gon per node) by the same method with the
+projection onto the k-gons, exact on its final sets.
 The answer carries the tangential multipliers in ``SolveResult.tangential``. A load path
 (normal load, then the tangential step; Coulomb's fixed point ``s = mu p``) is run around
 this solver by :func:`solvers.tresca.run_load_path` (``contactbench solve`` on a

@@ -168,7 +168,7 @@ def test_beyond_the_exact_size_the_reference_is_semismooth_newton(monkeypatch):
     traction error as with the exact reference."""
     spec = problems()["circle_square"]
     args = Namespace(mu=0.5, shift=0.01, ratios=[0.7], solvers=[], tol="high",
-                     time_limit=60.0, coulomb_shift=0.0, target=1e-6, repeats=1)
+                     time_limit=60.0, coulomb_shift=0.0, target=1e-6, repeats=1, facets=[])
     exact, _ = level_rows(spec, {}, 0, args)
     monkeypatch.setattr(tresca_exact, "TRESCA_EXACT_MAX_M", 0)
     fallback, _ = level_rows(spec, {}, 0, args)

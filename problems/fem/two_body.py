@@ -42,7 +42,7 @@ from problems.fem.quadratic import (FACET_EDGES, body_force_vector_p2, edge_look
 from problems.fem.surface import facet_sizes, surface_levels
 from problems.spec import Options, Parameter, ParameterError
 from problems.qp import (FRICTION_LAWS, ContactQP, ContactSurface, Friction, HertzSetup, LoadStep,
-                         Mesh, Multilevel)
+                         Mesh, Multilevel, check_facets)
 
 #: The scenes' element order (one declaration, every two-body scene lists it).
 ELEMENT_DEGREE = Parameter(
@@ -51,10 +51,15 @@ ELEMENT_DEGREE = Parameter(
 
 
 
-def friction_parameters(held: str) -> tuple[Parameter, ...]:
+def friction_parameters(held: str, dim: int = 2) -> tuple[Parameter, ...]:
     """The friction parameters of a contact scene (``friction``, ``mu``, ``shift``,
-    ``shift_steps``); ``held`` names the part of the loaded body the tangential ``shift``
-    moves, in ``shift_steps`` equal increments (1: one tangential step)."""
+    ``shift_steps``, in 3D ``friction_facets``); ``held`` names the part of the loaded body
+    the tangential ``shift`` moves, in ``shift_steps`` equal increments (1: one tangential
+    step). In 2D the law is already polyhedral (an interval): no facets."""
+    facets = (Parameter("friction_facets", 0, "3D friction law's shape: 0 = isotropic (the "
+                        "disc |lam| <= s), k >= 3 = faceted (lam in the regular k-gon "
+                        "inscribed in the disc, one vertex along the first tangent; a QP)",
+                        low=0),) if dim == 3 else ()
     return (
         Parameter("friction", "none", "friction law on the contact (none: the thesis's "
                   "frictionless problem; tresca: slip bound mu p of the normal step; coulomb: "
@@ -65,7 +70,26 @@ def friction_parameters(held: str) -> tuple[Parameter, ...]:
         Parameter("shift_steps", 1, "tangential load steps: the shift applied in this many "
                   "equal increments after the normal load (a quasi-static load path)", low=1,
                   high=20, kind=int),
+        *facets,
     )
+
+
+def friction_facets(p: Options, dim: int) -> int:
+    """The scene's ``friction_facets`` (``0`` where it has none), checked: ``0`` or an
+    integer ``>= 3`` in 3D, and only with a friction law.
+
+    Raises
+    ------
+    ParameterError
+        Naming the parameter and the allowed values.
+    """
+    facets = int(p.get("friction_facets", 0))
+    check_facets(facets, dim, ParameterError, "parameter 'friction_facets'")
+    if facets and p.friction == "none":
+        raise ParameterError(f"parameter 'friction_facets': {facets} is not allowed with "
+                             "friction='none'; allowed: 0 (the facets shape a friction law: "
+                             "set friction=tresca or coulomb)")
+    return facets
 
 
 #: ``dirichlet(points, body_of_node) -> (fixed_dofs, values)`` on one level's stacked mesh.
@@ -421,7 +445,8 @@ def frictional_two_body(scene: Callable[[int, Options], TwoBodyScene], level: in
     then the tangential steps (the held part moved along x to ``j shift / shift_steps``,
     ``j = 1 .. shift_steps``: :func:`shift_increments`); the ContactQP
     holds the first step's data, slip measured from the unloaded state, slip bounds zero
-    (the path's driver sets them: :func:`solvers.tresca.friction_path`).
+    (the path's driver sets them: :func:`solvers.tresca.friction_path`); in 3D the law's
+    shape ``friction_facets`` (:func:`friction_facets`).
 
     ``scene(level, options)`` builds the scene with the held part's x-displacement set
     to ``options.shift``; the two steps differ only in their prescribed values.
@@ -438,10 +463,13 @@ def frictional_two_body(scene: Callable[[int, Options], TwoBodyScene], level: in
                                  f"friction={p.friction!r}; allowed: {allowed!r} (the tangential "
                                  "rows are built for the nodal P1 constraints)")
     name = f"{name} level {level} {p.friction} mu={p.mu:g}"
+    if p.get("friction_facets", 0):
+        name += f" facets={p.friction_facets}"
     steps = [assemble_two_body(scene(level, Options({**p, "shift": shift})), level, name=name,
                                tangential=True) for shift in (0.0, p.shift)]
     qp = steps[0]
     qp.friction.law, qp.friction.mu = p.friction, float(p.mu)
+    qp.friction.facets = friction_facets(p, qp.dim)
     normal, full = (LoadStep(s.f, s.g, s.friction.offset) for s in steps)
     qp.friction.path = (normal, *shift_increments(normal, full, p.shift_steps))
     return qp

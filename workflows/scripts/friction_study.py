@@ -38,9 +38,16 @@ parameters, ``--problem P --set key=value``), at each of ``--levels``:
 * **Coulomb** (Coulomb's law, the tangential step at ``--coulomb-shift``) -- the
   reference's fixed point ``s = mu p`` over Tresca steps: its Tresca solves and last
   contraction per load step (the frictionless solve that starts the path not counted).
+* **the faceted law** (3D, each ``k`` of ``--facets``) -- the reference's path at the
+  last ratio with the disc replaced by the inscribed regular ``k``-gon, against the
+  isotropic one (:func:`solvers.tresca.facet_convergence`): the energy gap and its bound
+  ``(1 - cos(pi/k)) D``, the relative energy-norm distance of ``u``, the largest
+  traction difference, the Newton steps of the tangential step (``tresca_exact`` only:
+  the fallback references take the isotropic law alone).
 
 ``--out`` gets one row per (level, ratio, role): ``role`` is ``reference``, ``solver``,
-``timing`` (``solver`` ``tnnmg`` or ``linear_floor``), ``mu_zero`` or ``coulomb`` (a level no reference takes: one ``reference`` row,
+``timing`` (``solver`` ``tnnmg`` or ``linear_floor``), ``mu_zero``, ``coulomb`` or
+``facets`` (a level no reference takes: one ``reference`` row,
 ``skipped``, with the reasons); ``--profiles`` one row per constrained node of each
 reference's last step (distance from the contact's centre over ``a``, signed in 2D, and
 the position in the contact plane; measured and analytic traction, ``mu`` times the
@@ -65,6 +72,7 @@ import pandas as pd
 
 from problems.fem.fields import in_plane
 from problems.kkt import energy_error, tresca_energy
+from problems.qp import MIN_FRICTION_FACETS
 from problems.spec import ParameterError
 from reference.cattaneo_mindlin import (partial_slip_reference, relative_l2, stick_zone_ratio,
                                         stick_zone_size)
@@ -253,6 +261,25 @@ def coulomb_rows(qp, factor: float, ref_solve) -> list[dict]:
             for k, st in enumerate(steps, start=1)]
 
 
+def facet_rows(path_qp, facets: list[int], ref_name: str) -> list[dict]:
+    """The faceted law against the isotropic one on the reference path of ``path_qp``
+    (:func:`solvers.tresca.facet_convergence`), one row per ``k`` of ``facets``; none in
+    2D (the law is already polyhedral there); one ``skipped`` row where the reference is
+    not ``tresca_exact``."""
+    if not facets or path_qp.friction.components != 2:
+        return []
+    if ref_name != "tresca_exact":
+        return [{"role": "facets", "status": "skipped",
+                 "message": f"the reference here is {ref_name}, which takes the isotropic law "
+                            "only; the faceted paths need tresca_exact"}]
+    return [{"role": "facets", "solver": ref_name, "status": r["status"],
+             "facets": r["facets"], "steps_tangential": r["iterations"],
+             "energy": r["energy"], "energy_gap": r["energy_gap"], "gap_bound": r["gap_bound"],
+             "err_energy": r["displacement"], "traction_dev": r["traction"],
+             "facet_distance": r["distance"]}
+            for r in tresca.facet_convergence(path_qp, tuple(facets))]
+
+
 def level_rows(spec, params: dict, level: int, args) -> tuple[list[dict], list[pd.DataFrame]]:
     """Every row and profile of one level (module docstring)."""
     t0 = time.perf_counter()
@@ -264,7 +291,7 @@ def level_rows(spec, params: dict, level: int, args) -> tuple[list[dict], list[p
     except ReferenceFailed as err:
         return [{**size, "role": "reference", "status": "skipped", "message": str(err)}], []
     size["reference"] = ref_name
-    rows, profiles = [], []
+    rows, profiles, last_path = [], [], None
     for ratio in args.ratios:
         t0 = time.perf_counter()
         try:
@@ -281,6 +308,7 @@ def level_rows(spec, params: dict, level: int, args) -> tuple[list[dict], list[p
                      "steps_tangential": ref.solution.iterations,
                      "t_solve": time.perf_counter() - t0, **fields})
         profiles.append(profile.assign(level=level, N=qp.n_nodes, ratio=ratio))
+        last_path = (ratio, ref.qp)
         for name in args.solvers:
             rows += [{**size, "ratio": ratio, "role": "solver",
                       **solver_row(ref.qp, name, args.tol, args.time_limit, ref, warm)}
@@ -296,6 +324,9 @@ def level_rows(spec, params: dict, level: int, args) -> tuple[list[dict], list[p
                      coulomb_rows(qp, args.coulomb_shift / args.shift, ref_solve)]
     except ReferenceFailed as err:
         rows.append({**size, "role": "mu_zero", "status": "failed", "message": str(err)})
+    if last_path is not None and not last_path[1].friction.facets:
+        rows += [{**size, "ratio": last_path[0], **r}
+                 for r in facet_rows(last_path[1], args.facets, ref_name)]
     return rows, profiles
 
 
@@ -321,6 +352,9 @@ def main(argv=None) -> None:
                         help="relative energy error of the timed runs, in (0, 1)")
     parser.add_argument("--repeats", type=int, required=True,
                         help="timed runs of TNNMG and of the floor (the median is kept; >= 1)")
+    parser.add_argument("--facets", type=int, nargs="*", default=[],
+                        help="facet counts k of the faceted law compared with the isotropic "
+                             "one on 3D scenes (each >= 3; none: no comparison)")
     parser.add_argument("--out", required=True, help="the runs table (CSV)")
     parser.add_argument("--profiles", required=True, help="the traction profiles (CSV)")
     args = parser.parse_args(argv)
@@ -347,6 +381,10 @@ def main(argv=None) -> None:
         parser.error(f"argument --target: {args.target} is not allowed; allowed: in (0, 1)")
     if args.repeats < 1:
         parser.error(f"argument --repeats: {args.repeats} is not allowed; allowed: >= 1")
+    small = [k for k in args.facets if k < MIN_FRICTION_FACETS]
+    if small:
+        parser.error(f"argument --facets: {small} is not allowed; allowed: integers >= "
+                     f"{MIN_FRICTION_FACETS} (a polygon)")
     if args.time_limit <= 0:
         parser.error(f"argument --time-limit: {args.time_limit} is not allowed; allowed: > 0")
     registered = solvers()
