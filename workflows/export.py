@@ -72,10 +72,11 @@ class ExportError(ValueError):
 
 
 def form_of(qp) -> str:
-    """``qp`` (a frictionless problem or a 2D Tresca step) or ``cone`` (a 3D Tresca step)."""
+    """``qp`` (a frictionless problem, a 2D or faceted Tresca step: nonnegative rows only)
+    or ``cone`` (an isotropic 3D Tresca step: second-order cones)."""
     if qp.friction is None:
         return "qp"
-    return "qp" if standard_program(tresca_step(qp)).kind == "split" else "cone"
+    return "cone" if standard_program(tresca_step(qp)).cones else "qp"
 
 
 def qp_arrays(qp) -> dict[str, np.ndarray | sp.csr_matrix]:
