@@ -89,11 +89,12 @@ def test_the_definition_does_not_depend_on_the_references_last_digits(family):
 
 @pytest.fixture(scope="module")
 def exported(tmp_path_factory):
-    """A 2D and a 3D frictional family through the CLI (three problems), and the first
-    two steps of a 2D load path written one by one."""
+    """A 2D, a 3D isotropic and a 3D faceted frictional family through the CLI (four
+    problems), and the first two steps of a 2D load path written one by one."""
     out = tmp_path_factory.mktemp("friction") / "small"
     assert cli(["export", "--class", "small", "--families", "circle_square_tresca_q05",
-                "cube_sphere_coulomb_q05", "--out", str(out), "--quiet"]) == 0
+                "cube_sphere_coulomb_q05", "cube_sphere_tresca_q05_facets8", "--out", str(out),
+                "--quiet"]) == 0
     items = {p.name: p for p in load().problems("small", ["circle_square_tresca_path"])}
     for name in ("circle_square_tresca_path_L0_s1", "circle_square_tresca_path_L0_s2"):
         write_problem(out / name, items[name], CURRENT)
@@ -114,7 +115,8 @@ def test_frictional_export_round_trip_in_qp_and_cone_form(exported):
     index = json.loads((exported / "index.json").read_text())
     forms = {e["name"]: e["form"] for e in index["problems"]}
     assert forms == {"circle_square_tresca_q05_L0": "qp", "circle_square_tresca_q05_L1": "qp",
-                     "cube_sphere_coulomb_q05_L0": "cone"}
+                     "cube_sphere_coulomb_q05_L0": "cone",
+                     "cube_sphere_tresca_q05_facets8_L0": "qp"}   # the k-gon law: a QP
     for name in [*forms, "circle_square_tresca_path_L0_s1", "circle_square_tresca_path_L0_s2"]:
         folder = exported / name
         meta = json.loads((folder / "meta.json").read_text())
@@ -174,8 +176,8 @@ def test_a_load_path_steps_warm_start_is_the_previous_steps_reference(exported):
 
 
 def test_qpbenchmark_runs_the_qp_form_only(exported, tmp_path):
-    """qpbenchmark's module reads the 2D steps (the QP form), not the 3D cone programs, and
-    its runner solves them with OSQP at the exported objective."""
+    """qpbenchmark's module reads the 2D steps and the 3D faceted one (the QP form), not
+    the 3D cone programs, and its runner solves them with OSQP at the exported objective."""
     import os
     import subprocess
     import sys
@@ -185,7 +187,8 @@ def test_qpbenchmark_runs_the_qp_form_only(exported, tmp_path):
 
     test_set = load_test_set(str(exported / "contact_qp.py"))
     problems = {p.name: p for p in test_set}
-    assert set(problems) == {"circle_square_tresca_q05_L0", "circle_square_tresca_q05_L1"}
+    assert set(problems) == {"circle_square_tresca_q05_L0", "circle_square_tresca_q05_L1",
+                             "cube_sphere_tresca_q05_facets8_L0"}
     d = load_problem(exported / "circle_square_tresca_q05_L0")
     assert (problems["circle_square_tresca_q05_L0"].G != d["G"]).nnz == 0
     results = tmp_path / "osqp.csv"
