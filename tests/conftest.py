@@ -43,3 +43,22 @@ def cg_steps(monkeypatch) -> list:
 
     monkeypatch.setattr(linalg, "cg", counted_cg)
     return steps
+
+
+@pytest.fixture
+def qpbenchmark_set(monkeypatch):
+    """``load(path)``: qpbenchmark's ``load_test_set`` on an export's ``contact_qp.py``, fresh.
+
+    qpbenchmark appends the module's folder to ``sys.path`` and imports it by name, so in
+    one process a second export's module would be the first one's (same name, first folder
+    on the path): each load here drops the cached module, and the path is restored after
+    the test."""
+    from qpbenchmark.benchmark import load_test_set
+
+    monkeypatch.setattr(sys, "path", list(sys.path))
+
+    def load(path):
+        monkeypatch.delitem(sys.modules, Path(path).stem, raising=False)
+        return load_test_set(str(path))
+
+    return load

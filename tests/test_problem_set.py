@@ -210,7 +210,7 @@ SETTINGS = {"low_accuracy": "low", "mid_accuracy": "mid", "high_accuracy": "high
 
 
 @pytest.mark.slow
-def test_qpbenchmark_runner_agrees_with_the_suite(small, tmp_path):
+def test_qpbenchmark_runner_agrees_with_the_suite(small, tmp_path, qpbenchmark_set):
     """qpbenchmark's CLI runs Clarabel on the exported small class and writes its report;
     per problem and settings its status agrees with the suite's Clarabel on the same
     (unscaled) problem, and the objective of qpbenchmark's solve agrees too.
@@ -232,11 +232,10 @@ def test_qpbenchmark_runner_agrees_with_the_suite(small, tmp_path):
     index = json.loads((small / "index.json").read_text())
     assert set(theirs.problem) == {e["name"] for e in index["problems"]}
 
-    from qpbenchmark.benchmark import load_test_set
     from qpbenchmark.utils import time_solve_problem
 
     from solvers.interface import solve
-    test_set = load_test_set(str(small / "contact_qp.py"))
+    test_set = qpbenchmark_set(small / "contact_qp.py")
     by_name = {p.name: p for p in load().problems("small")}
     compared = 0
     for problem in test_set:

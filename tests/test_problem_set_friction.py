@@ -175,7 +175,7 @@ def test_a_load_path_steps_warm_start_is_the_previous_steps_reference(exported):
     assert warm["x"].size == meta["n"]
 
 
-def test_qpbenchmark_runs_the_qp_form_only(exported, tmp_path):
+def test_qpbenchmark_runs_the_qp_form_only(exported, tmp_path, qpbenchmark_set):
     """qpbenchmark's module reads the 2D steps and the 3D faceted one (the QP form), not
     the 3D cone programs, and its runner solves them with OSQP at the exported objective."""
     import os
@@ -183,9 +183,7 @@ def test_qpbenchmark_runs_the_qp_form_only(exported, tmp_path):
     import sys
     from pathlib import Path
 
-    from qpbenchmark.benchmark import load_test_set
-
-    test_set = load_test_set(str(exported / "contact_qp.py"))
+    test_set = qpbenchmark_set(exported / "contact_qp.py")
     problems = {p.name: p for p in test_set}
     assert set(problems) == {"circle_square_tresca_q05_L0", "circle_square_tresca_q05_L1",
                              "cube_sphere_tresca_q05_facets8_L0"}
