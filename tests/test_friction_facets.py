@@ -200,7 +200,6 @@ def test_every_qp_library_takes_a_faceted_3d_step():
         assert res.status in ("converged", "inaccurate"), lib.name
         if res.status == "converged":
             assert res.kkt.max <= res.tol
-    assert solve(qp, "qpalm", tol="high").status == "converged"
 
 
 @pytest.mark.parametrize("name", ["tnnmg", "semismooth_newton"])
