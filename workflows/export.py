@@ -76,7 +76,12 @@ def form_of(qp) -> str:
     or ``cone`` (an isotropic 3D Tresca step: second-order cones)."""
     if qp.friction is None:
         return "qp"
-    return "cone" if standard_program(tresca_step(qp)).cones else "qp"
+    return program_form(standard_program(tresca_step(qp)))
+
+
+def program_form(program) -> str:
+    """``cone`` if the Tresca step's program has second-order cones, else ``qp``."""
+    return "cone" if program.cones else "qp"
 
 
 def qp_arrays(qp) -> dict[str, np.ndarray | sp.csr_matrix]:
@@ -84,7 +89,7 @@ def qp_arrays(qp) -> dict[str, np.ndarray | sp.csr_matrix]:
     Tresca step's split QP), or a 3D Tresca step's ``P, q, A, b`` (:func:`form_of`)."""
     if qp.friction is not None:
         program = standard_program(tresca_step(qp))
-        G, h = FORMS[form_of(qp)][1]
+        G, h = FORMS[program_form(program)][1]     # the program built once
         return {"P": sp.csr_matrix(program.P), "q": np.asarray(program.q, dtype=float),
                 G: sp.csr_matrix(program.G), h: np.asarray(program.h, dtype=float)}
     s = slack_form(qp)
