@@ -297,7 +297,7 @@ def linear_solver(qp: ContactQP) -> Callable[..., np.ndarray]:
         # intermediate results; see FloatingCholesky)
         chol = shared_floating_factor(qp, modes) if modes.shape[1] else factorize(qp.A)
 
-        def solve_A(r, guess=None, rtol=None):
+        def solve_A(r, guess=None, rtol=1e-14):
             x = chol.solve(r)
             return x + chol.solve(r - qp.A @ x)        # one step of iterative refinement
     else:
@@ -305,9 +305,8 @@ def linear_solver(qp: ContactQP) -> Callable[..., np.ndarray]:
         vc = component_vcycle(qp, ahat_component())
         M = spla.LinearOperator(qp.A.shape, matvec=vc.raw)
 
-        def solve_A(r, guess=None, rtol=None):
-            x, info = spla.cg(qp.A, r, x0=guess, M=M, rtol=1e-14 if rtol is None else rtol,
-                              atol=0.0, maxiter=3000)
+        def solve_A(r, guess=None, rtol=1e-14):
+            x, info = spla.cg(qp.A, r, x0=guess, M=M, rtol=rtol, atol=0.0, maxiter=3000)
             if info != 0:
                 raise RuntimeError("multigrid PCG for the duality gap did not converge")
             return x
