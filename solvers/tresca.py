@@ -482,7 +482,7 @@ def coulomb_step(qp: ContactQP, step: int, previous: np.ndarray, s0: np.ndarray,
 
 
 def friction_path(qp: ContactQP, solve=None, tol: float = 1e-12, max_iter: int = 50,
-                  done: tuple = ()) -> list[PathStep]:
+                  done: tuple = (), define=None) -> list[PathStep]:
     """Run the load path of the frictional ``qp`` (``qp.friction.path``): each step's slip
     measured from the previous step's state (the first: from the unloaded state).
     ``solve(step_qp) -> TrescaSolution`` solves one Tresca step (default: :func:`tresca_exact`).
@@ -491,6 +491,11 @@ def friction_path(qp: ContactQP, solve=None, tol: float = 1e-12, max_iter: int =
     Tresca: ``s = mu p`` of the frictionless normal step, the same in every step.
     Coulomb: each step the fixed point ``s = mu p`` (:func:`coulomb_step`), started from the
     previous step's bound (the first: from the frictionless normal step's).
+
+    ``define(v) -> v``: applied to every slip bound and previous state before a step is
+    solved (a test problem's machine-independent definition,
+    :func:`workflows.problem_set.definition_digits`); a Coulomb step is then solved once
+    more at its defined bound, its fixed point's record kept.
     """
     fr = qp.friction
     if fr is None or not fr.path:
@@ -498,6 +503,7 @@ def friction_path(qp: ContactQP, solve=None, tol: float = 1e-12, max_iter: int =
     if solve is None:                               # the exact reference, A factorised once
         ops = dual_operators(qp)
         solve = lambda step_qp: tresca_exact(step_qp, ops)
+    keep = define or (lambda v: v)
     zero = np.zeros(qp.m)
     steps = list(done)
     if steps:
@@ -505,16 +511,19 @@ def friction_path(qp: ContactQP, solve=None, tol: float = 1e-12, max_iter: int =
         s, previous = last.slip_bound, last.T @ steps[-1].solution.u + last.offset
     else:
         rest = np.zeros(fr.T.shape[0])                 # the unloaded state
-        s, previous = fr.mu * solve(with_step(qp, 0, zero, rest)).p, rest
+        s, previous = keep(fr.mu * solve(with_step(qp, 0, zero, rest)).p), rest
     for k in range(len(steps), len(fr.path)):
         if fr.law == "coulomb":
             done = coulomb_step(qp, k, previous, s, solve, tol, max_iter)
-            s = done.qp.friction.slip_bound
+            s = keep(done.qp.friction.slip_bound)
+            if define is not None:
+                step_qp = with_step(qp, k, s, previous)
+                done = replace(done, qp=step_qp, solution=solve(step_qp))
         else:
             step_qp = with_step(qp, k, s, previous)
             done = PathStep(step_qp, solve(step_qp))
         steps.append(done)
-        previous = done.qp.friction.T @ done.solution.u + done.qp.friction.offset
+        previous = keep(done.qp.friction.T @ done.solution.u + done.qp.friction.offset)
     return steps
 
 

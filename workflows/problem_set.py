@@ -319,8 +319,8 @@ def frictional_steps(problem: str, params: tuple, level: int,
                      perturb: float = 0.0) -> dict[int, FrictionStep]:
     """The tangential steps of a frictional scene's load path as test problems (cached).
 
-    The path is run as :func:`solvers.tresca.friction_path` runs it, with the exact
-    reference (``A`` factorised once) on the rounded definitions: the normal step's slip
+    The path is :func:`solvers.tresca.friction_path`'s, with the exact reference (``A``
+    factorised once) on the rounded definitions (its ``define``): the normal step's slip
     bounds ``s = mu p`` (Tresca; Coulomb: the fixed point ``s = mu p`` of each step,
     :func:`solvers.tresca.coulomb_step`, to 1e-12) and each step's previous state
     ``T u + offset`` of the step before are rounded by :func:`definition_digits` before
@@ -333,8 +333,8 @@ def frictional_steps(problem: str, params: tuple, level: int,
     dict
         Tangential step (1 .. ``shift_steps``) -> :class:`FrictionStep`.
     """
-    from solvers.tresca import (coulomb_step, dual_operators, tangential_ratio,
-                                tresca_exact, with_step, PathStep)
+    from solvers.tresca import (PathStep, dual_operators, friction_path, tangential_ratio,
+                                tresca_exact)
 
     spec = problems()[problem]
     qp = spec.build(level, spec.options(**dict(params)))
@@ -347,30 +347,22 @@ def frictional_steps(problem: str, params: tuple, level: int,
             raise RuntimeError(f"the exact reference stopped on {qp.name}: {sol.status}")
         return replace(sol, u=sol.u * (1 + perturb), p=sol.p * (1 + perturb))
 
-    rest = np.zeros(fr.T.shape[0])
-    s = definition_digits(fr.mu * solve(with_step(qp, 0, np.zeros(qp.m), rest)).p, digits)
-    previous, before, out = rest, None, {}
-    for k in range(len(fr.path)):
-        fixed_point = None
-        if fr.law == "coulomb":
-            run = coulomb_step(qp, k, previous, s, solve, tol=1e-12)
-            s = definition_digits(run.qp.friction.slip_bound, digits)
+    path = friction_path(qp, solve, tol=1e-12, define=lambda v: definition_digits(v, digits))
+    out = {}
+    for k in range(1, len(path)):
+        done, sol = path[k], path[k].solution
         # the problem is a Tresca step whatever the path's law (Coulomb's: the fixed
         # point's final step, its bound s given): no solver re-runs the fixed point on it
-        step_qp = with_step(qp, k, s, previous)
-        step_qp = replace(step_qp, friction=replace(step_qp.friction, law="tresca"))
-        sol = solve(step_qp)
+        step_qp = replace(done.qp, friction=replace(done.qp.friction, law="tresca"))
+        fixed_point = None
         if fr.law == "coulomb":
-            fixed_point = {"tresca_solves": run.tresca_solves, "last_change": run.history[-1],
-                           "contraction": run.contraction, "status": run.solution.status,
+            s = step_qp.friction.slip_bound
+            fixed_point = {"tresca_solves": done.tresca_solves, "last_change": done.history[-1],
+                           "contraction": done.contraction, "status": sol.status,
                            "residual": float(np.max(np.abs(fr.mu * sol.p - s), initial=0.0))
                            / max(float(np.max(s, initial=0.0)), 1e-300)}
-        if k >= 1:
-            out[k] = FrictionStep(qp=step_qp, solution=sol, warm=before, step=k,
-                                  steps=len(fr.path) - 1,
-                                  ratio=tangential_ratio([PathStep(step_qp, sol)]),
-                                  fixed_point=fixed_point)
-        before = sol
-        previous = definition_digits(step_qp.friction.T @ sol.u + step_qp.friction.offset,
-                                     digits)
+        out[k] = FrictionStep(qp=step_qp, solution=sol, warm=path[k - 1].solution, step=k,
+                              steps=len(fr.path) - 1,
+                              ratio=tangential_ratio([PathStep(step_qp, sol)]),
+                              fixed_point=fixed_point)
     return out
