@@ -17,6 +17,7 @@ from snakemake.utils import validate
 
 from solvers.interface import solver_set
 from workflows.io import SOLVER_SET_ENV, run_solver_set, sweep_results
+from workflows.mesh_store import CACHE_VARIABLE
 from workflows.progress import clear as clear_progress, start_reporter
 
 from workflows.studies import (PATHS, STUDIES, all_targets, at_scale, bench_path,
@@ -48,7 +49,11 @@ CONFIG_SHA256 = hashlib.sha256(json.dumps(config, sort_keys=True).encode()).hexd
 # and version). A job that parses this file again inherits the set of its run.
 SOLVER_SET = run_solver_set() or solver_set()
 os.environ[SOLVER_SET_ENV] = json.dumps(SOLVER_SET, sort_keys=True)
+# netgen's meshes kept between the jobs' processes (workflows/mesh_store.py): each
+# geometry meshed once per run; `make clean` or a fresh clone starts with none
+MESH_CACHE = os.environ.get(CACHE_VARIABLE, os.path.abspath("results/cache/meshes"))
 shell.prefix(f"export CONTACTBENCH_CONFIGFILE={','.join(map(str, workflow.configfiles))} "
+             f"{CACHE_VARIABLE}={shlex.quote(MESH_CACHE)} "
              f"CONTACTBENCH_CONFIG_SHA256={CONFIG_SHA256} "
              f"{SOLVER_SET_ENV}="      # the prefix is formatted once more: braces doubled
              + shlex.quote(os.environ[SOLVER_SET_ENV]).replace("{", "{{").replace("}", "}}")

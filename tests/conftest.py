@@ -1,13 +1,20 @@
 """Fixtures shared by several test files."""
 from __future__ import annotations
 
+import atexit
 import os
 import shutil
 import subprocess
 import sys
+import tempfile
 from pathlib import Path
 
 import pytest
+
+# netgen's meshes kept for the session's processes (workflows/mesh_store.py), in a
+# directory of its own: nothing read from an earlier run
+os.environ.setdefault("CONTACTBENCH_CACHE_DIR", tempfile.mkdtemp(prefix="contactbench-meshes-"))
+atexit.register(shutil.rmtree, os.environ["CONTACTBENCH_CACHE_DIR"], ignore_errors=True)
 
 #: The template of a solver in a package of its own (entry-point group contactbench.solvers).
 EXAMPLE_SOLVER = Path(__file__).resolve().parent / "example_solver"

@@ -35,6 +35,7 @@ from typing import Any
 
 from problems.spec import ParameterError, lookup, problems
 from workflows.io import provenance, write_json, write_vtu
+from workflows.mesh_store import keep_meshes_from_environment
 from workflows.scene_args import parse_sets
 
 
@@ -318,6 +319,7 @@ def main(argv: list[str] | None = None) -> int:
     argv = [a for i, a in enumerate(argv) if not (i < end and a == "--debug")]
     args = parser.parse_args(argv)
     args.debug = debug
+    keep_meshes_from_environment()
     try:
         code = args.func(args)
         sys.stdout.flush()                 # a closed pipe is met here, not at exit

@@ -15,12 +15,22 @@ Generators: structured squares and cubes (Kuhn/Freudenthal: 6 tetrahedra per
 hexahedron sharing its main diagonal; the cube with 2n cells per edge is the
 Freudenthal refinement of the one with n, so :func:`nested_prolongation` is the
 exact P1 interpolation), netgen disks and balls (OCC geometry).
+
+netgen's meshes may be kept between processes (:func:`keep_meshes`: the workflow's
+scripts keep them in a directory, ``workflows.mesh_store``), as numba keeps its compiled
+kernels: a study's processes (the test set's families, the contact levels, every study on
+cube-sphere) each mesh the same ball, which takes netgen seconds. An entry is keyed by
+the generator's name and source, netgen's version and the arguments, and holds exactly
+the arrays netgen gave.
 """
 from __future__ import annotations
 
 import functools
+import hashlib
+import inspect
 from dataclasses import dataclass, field
-from typing import Callable
+from importlib import metadata
+from typing import Callable, Protocol
 
 import numpy as np
 import scipy.sparse as sp
@@ -58,13 +68,61 @@ def structured_rectangle(nx: int, ny: int, x0: float = 0.0, y0: float = 0.0,
     return m.p.T.copy(), m.t.T.copy()
 
 
+class MeshStore(Protocol):
+    """Where generated meshes are kept between processes (``workflows.mesh_store``)."""
+
+    def load(self, key: str) -> tuple[np.ndarray, np.ndarray] | None:
+        """The ``(points, cells)`` kept under ``key``, or None."""
+
+    def keep(self, key: str, points: np.ndarray, cells: np.ndarray) -> None:
+        """Keep ``(points, cells)`` under ``key``."""
+
+
+_STORE: list[MeshStore | None] = [None]
+
+
+def keep_meshes(store: MeshStore | None) -> None:
+    """Read netgen's meshes from ``store`` where an earlier process kept them, and keep
+    the ones generated here in it (``None``: generate every mesh, keep none)."""
+    _STORE[0] = store
+
+
+def mesh_key(generate: Callable, center: tuple, numbers: tuple) -> str:
+    """The key of ``generate(center, *numbers)``'s mesh: the generator's name and a SHA-256
+    of its name, its source, netgen's version and the arguments (a changed generator or
+    netgen meshes anew)."""
+    digest = hashlib.sha256(repr((generate.__qualname__, inspect.getsource(generate),
+                                  metadata.version("netgen-mesher"), tuple(center),
+                                  tuple(numbers))).encode()).hexdigest()
+    return f"{generate.__name__}-{digest[:32]}"
+
+
+def _kept(generate: Callable) -> Callable:
+    """``generate(center, *numbers)``, read from the :func:`keep_meshes` store where it
+    holds the mesh, else generated and kept there."""
+
+    def kept(center, *numbers):
+        store = _STORE[0]
+        if store is None:
+            return generate(np.array(center), *numbers)
+        key = mesh_key(generate, center, numbers)
+        found = store.load(key)
+        if found is not None:
+            return found
+        points, cells = generate(np.array(center), *numbers)
+        store.keep(key, points, cells)
+        return points, cells
+
+    return kept
+
+
 def _generated_once(generate: Callable) -> Callable:
-    """``generate(center, *numbers)`` run once per process and arguments: a scene builds
-    its meshes at every level and coupling of a study, and netgen's meshing of the same
-    geometry (seconds for the ball) gives the same mesh each time. Each caller gets its
-    own copies of the arrays."""
-    cached = functools.lru_cache(maxsize=32)(
-        lambda center, *numbers: generate(np.array(center), *numbers))
+    """``generate(center, *numbers)`` run once per process and arguments, and once per
+    store where meshes are kept (:func:`keep_meshes`): a scene builds its meshes at every
+    level and coupling of a study, and netgen's meshing of the same geometry (seconds for
+    the ball) gives the same mesh each time. Each caller gets its own copies of the
+    arrays."""
+    cached = functools.lru_cache(maxsize=32)(_kept(generate))
 
     @functools.wraps(generate)
     def once(center, *numbers):
