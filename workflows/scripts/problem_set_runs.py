@@ -54,6 +54,7 @@ from workflows.io import read_json, run_solvers, write_csv
 from workflows.isolation import log_traceback, solve_batch_isolated
 from workflows.measure import multiplier_errors
 from workflows.progress import study_progress
+from workflows.settings import study_defaults
 from workflows.problem_set import TestSetError, check_class, load
 
 #: Largest relative difference between a rebuilt problem and its exported arrays.
@@ -85,6 +86,15 @@ def cold_rows(t: pd.DataFrame) -> pd.DataFrame:
     """The rows of run tables started from zero (``start`` ``cold``; a table written before
     the column existed is all cold): what every table but the warm-start comparison reads."""
     return t if "start" not in t else t[t["start"].fillna("cold") == "cold"]
+
+
+def runs_warm(family: dict, choice: str) -> bool:
+    """Whether the steps of ``family`` (its entry in the set) with a recorded warm start run
+    warm too under ``--warm-starts`` ``choice`` (:data:`WARM_STARTS`)."""
+    if choice not in WARM_STARTS:
+        raise ValueError(f"parameter 'warm_starts': {choice!r} is not allowed; allowed: "
+                         f"{', '.join(WARM_STARTS)}")
+    return choice == "all" or (choice == "paths" and family.get("step", "last") == "all")
 
 
 def warm_guess(folder: Path) -> dict | None:
@@ -198,7 +208,8 @@ def main(argv=None) -> None:
                         help="seconds per run (killed at 1.25 x + 30 s)")
     parser.add_argument("--levels", nargs="+", type=int, default=None,
                         help="only these levels of the family (default: the class's)")
-    parser.add_argument("--warm-starts", choices=WARM_STARTS, default="all",
+    parser.add_argument("--warm-starts", choices=WARM_STARTS,
+                        default=study_defaults("test_set")["warm_starts"],
                         help="run warm too: every step with a recorded warm start, only "
                              "the steps of load-path families (step: all), or none")
     parser.add_argument("--out", required=True)
@@ -221,9 +232,7 @@ def main(argv=None) -> None:
         names = args.solvers or run_solvers(registry)   # a regeneration's fixed set
     except ParameterError as err:
         parser.error(str(err))
-    entry = ts.families[args.family]
-    warm = (args.warm_starts == "all"
-            or (args.warm_starts == "paths" and entry.get("step", "last") == "all"))
+    warm = runs_warm(ts.families[args.family], args.warm_starts)
     rows = []
     for item in study_progress(items, rule="test_set_runs", out=args.out,
                                desc=f"{args.family} ({args.size_class})"):
