@@ -52,6 +52,7 @@ from report import charts  # noqa: E402
 from report.claims import COLUMNS, Claim  # noqa: E402
 from report.figures import (nothing_to_draw, save_figure, solver_legend,  # noqa: E402
                             solver_style)
+from solvers.base import GUESS_NOT_USED  # noqa: E402
 from solvers.certificate import certifiable  # noqa: E402
 from solvers.interface import TOLERANCES  # noqa: E402
 from workflows.io import read_csv, write_csv  # noqa: E402
@@ -269,34 +270,44 @@ PAIR = ["problem", "solver", "preset"]
 def warm_pairs(t: pd.DataFrame) -> pd.DataFrame:
     """Every warm run beside the cold run of the same problem, solver and preset:
     the columns ``iterations``, ``time``, ``status``, ``claimed_status`` suffixed
-    ``_cold`` and ``_warm``, and the warm run's ``used_guess``."""
+    ``_cold`` and ``_warm``, the warm run's ``used_guess``, and ``ignored``: its message
+    says it ignored the guess (:data:`solvers.base.GUESS_NOT_USED`)."""
     cols = ["iterations", "time", "status", "claimed_status"]
     warm = t[t["start"] == "warm"]
     if warm.empty:
-        return pd.DataFrame(columns=[*PAIR, "used_guess",
+        return pd.DataFrame(columns=[*PAIR, "used_guess", "ignored",
                                      *(f"{c}_{s}" for s in ("cold", "warm") for c in cols)])
     cold = t[t["start"] == "cold"][PAIR + cols]
-    pairs = warm[PAIR + cols + ["used_guess"]].merge(cold, on=PAIR, suffixes=("_warm", "_cold"))
+    pairs = warm[PAIR + cols + ["used_guess", "message"]].merge(cold, on=PAIR,
+                                                                suffixes=("_warm", "_cold"))
     pairs["used_guess"] = pairs["used_guess"].astype(str).str.lower() == "true"
+    pairs["ignored"] = pairs.pop("message").fillna("").str.contains(GUESS_NOT_USED,
+                                                                     regex=False)
     return pairs
 
 
-def guess_use(used: pd.Series) -> str:
-    """``used`` (every run started from its guess), ``ignored`` (none did) or ``mixed``."""
-    return "used" if used.all() else "ignored" if not used.any() else "mixed"
+def guess_use(g: pd.DataFrame) -> str:
+    """How a solver's warm runs ``g`` (:func:`warm_pairs`) took the guess: ``ignored``
+    (every run says so), ``used`` (none says so and some started from it), ``no answer``
+    (no run returned one) or ``mixed``."""
+    if g["ignored"].all():
+        return "ignored"
+    if not g["ignored"].any():
+        return "used" if g["used_guess"].any() else "no answer"
+    return "mixed"
 
 
 def warm_frame(t: pd.DataFrame) -> pd.DataFrame:
     """Cold against warm starts per solver and preset over the steps run both ways
     (:func:`warm_pairs`): ``steps``; ``guess`` (:func:`guess_use`; ``ignored``: the
-    solver says it does not start from a guess); the median and total ``iterations``
+    solver says it does not start from a guess; ``used`` counts a primal guess alone); the median and total ``iterations``
     and ``time`` of each start and the ratios warm / cold of the medians; the steps
     verified ``converged`` cold and warm."""
     pairs = warm_pairs(t)
     rows = []
     for (solver, preset), g in pairs.groupby(["solver", "preset"]):
         row = {"solver": solver, "preset": preset, "steps": len(g),
-               "guess": guess_use(g["used_guess"])}
+               "guess": guess_use(g)}
         for q in ("iterations", "time"):
             for start in ("cold", "warm"):
                 v = g[f"{q}_{start}"].astype(float)
@@ -321,8 +332,7 @@ def ignored_guess_mismatches(t: pd.DataFrame) -> tuple[int, int]:
     cold run in iterations or claimed status, and how many pairs there are: a solver that
     truly starts from zero either way runs the same deterministic iteration twice."""
     pairs = warm_pairs(t)
-    pairs = pairs[~pairs["used_guess"] & (pairs["status_warm"] != "skipped")
-                  & ~pairs["claimed_status_cold"].eq("time_limit")
+    pairs = pairs[pairs["ignored"] & ~pairs["claimed_status_cold"].eq("time_limit")
                   & ~pairs["claimed_status_warm"].eq("time_limit")]
     differ = ((pairs["iterations_cold"] != pairs["iterations_warm"])
               | (pairs["claimed_status_cold"] != pairs["claimed_status_warm"]))

@@ -23,7 +23,8 @@ tangential step's the normal step's); with ``--warm-starts all`` (every such ste
 ``paths`` (only the steps of a load-path family, ``step: all``) each solver that took
 the cold problem runs it a second time started from ``u0, p0`` of that file (``start``
 ``warm``). ``used_guess`` says whether the run started from a guess: false for a cold
-row, a skipped run, and a solver that notes in its message that it ignores a guess
+row, a run without an answer (skipped, killed, raised), and a solver that notes in its
+message that it ignores a guess
 (:data:`solvers.base.GUESS_NOT_USED`: the QP libraries that take none, the exact
 reference). A faceted step (``friction_facets`` = k) records ``facets``, its isotropic
 twin (the same family without ``friction_facets``) and ``model_error``, the faceted
@@ -108,9 +109,10 @@ def warm_guess(folder: Path) -> dict | None:
 
 
 def used_guess(res, warm: bool) -> bool:
-    """Whether a run started from its guess: a warm run that was not skipped and whose
-    message does not say it ignored the guess (:data:`solvers.base.GUESS_NOT_USED`)."""
-    return bool(warm and res.status != "skipped" and GUESS_NOT_USED not in (res.message or ""))
+    """Whether a run started from its guess: a warm run that returned an answer (not
+    skipped, killed or raised: those say nothing of the guess) and whose message does not
+    say it ignored the guess (:data:`solvers.base.GUESS_NOT_USED`)."""
+    return bool(warm and res.kkt is not None and GUESS_NOT_USED not in (res.message or ""))
 
 
 def isotropic_twin(ts, item) -> str | None:

@@ -113,14 +113,17 @@ STUDY = Study(
             "the configured size classes exported (contactbench export) and solved by "
             "every registered solver at every preset; qpbenchmark's summary (success "
             "and correct rates, shifted geometric means, performance profiles) "
-            "overall, by size class and by scene; a work-precision figure per family",
+            "overall, by size class and by scene; a work-precision figure per family; cold "
+            "against warm starts on the frictional load paths; the faceted friction law's "
+            "model error and cost beside its isotropic twin",
     thesis="Ch. 8 (solvers) on every scene of Ch. 9 and its hard variants",
     order=40,
     rule_file="problem_set.smk",
     scripts={"test_set": "workflows.scripts.problem_set_runs"},
     paths=PATHS,
     outputs=("solver_summary", "solver_summary_by_class", "solver_summary_by_scene",
-             "solver_summary_claims", "solver_profiles", "solver_work_precision"),
+             "solver_summary_claims", "solver_warm_starts", "solver_facets", "solver_profiles",
+             "solver_work_precision"),
     heavy_rules=("test_set_export", "test_set_runs"),
     runs_alone=("test_set_runs",),
     launches_mpi=("test_set_runs",),
