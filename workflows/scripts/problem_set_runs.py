@@ -144,7 +144,7 @@ def facet_columns(qp, item, twin: str | None, u_ref: np.ndarray, export: Path) -
         with np.load(twin_file) as z:
             u_iso = np.asarray(z["u"], dtype=float)
         if u_iso.shape == (qp.n,):
-            error = energy_error(qp, u_iso, u_ref)
+            error = energy_error(qp, u_ref, u_iso)      # relative to the isotropic one
     return {"facets": k, "isotropic_twin": twin or "", "model_error": error}
 
 
