@@ -23,6 +23,15 @@ Per solver and preset (qpbenchmark's conventions, adapted to the suite's verific
   off), a run without a solution counting as 1/tol;
 * failures are counted, never dropped.
 
+Cold against warm starts (:func:`warm_frame`): the tables above read the runs started
+from zero (``start`` ``cold``); a frictional step with a recorded warm start (the previous
+load step's reference) is also run from it (``warm``), and per solver and preset the
+median and total iterations and times of the two, their ratios (warm / cold) and the
+verified convergences of each are compared over those steps, with whether the solver
+used the guess. The faceted friction law's trade-off (:func:`facet_frame`): per faceted
+step beside its isotropic twin, the model error of the k-gon law and per solver the
+status and time on the faceted QP against the isotropic cone program.
+
 Performance profiles (Dolan and Moré, Math. Program. 91, 2002): for each
 problem the ratio of a solver's time to the best
 verified time; a run that is not verified converged has an infinite ratio; the
@@ -40,12 +49,14 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
 from report import charts  # noqa: E402
-from report.claims import Claim  # noqa: E402
+from report.claims import COLUMNS, Claim  # noqa: E402
 from report.figures import (nothing_to_draw, save_figure, solver_legend,  # noqa: E402
                             solver_style)
+from solvers.base import GUESS_NOT_USED  # noqa: E402
 from solvers.certificate import certifiable  # noqa: E402
 from solvers.interface import TOLERANCES  # noqa: E402
 from workflows.io import read_csv, write_csv  # noqa: E402
+from workflows.scripts.problem_set_runs import cold_rows  # noqa: E402
 
 SHIFT = 10.0
 SKIP = ("reference", "linear_floor")
@@ -55,10 +66,14 @@ ACCURATE = 1.001
 
 
 def runs(inputs: list[str], time_limit: float) -> pd.DataFrame:
-    """Every solver run of the test set's run tables, with the penalised time and
-    whether the claim is correct against the reference."""
+    """Every solver run of the test set's run tables, cold and warm (``start``; a table
+    without the column is all cold), with the penalised time and whether the claim is
+    correct against the reference."""
     t = pd.concat([read_csv(path) for path in inputs], ignore_index=True)
     t = t[~t.solver.isin(SKIP)].copy()
+    if "start" not in t:
+        t["start"] = "cold"
+    t["start"] = t["start"].fillna("cold")
     t["scene"] = t["scene_problem"]
     t["time"] = t["total_time"]
     verified = t["status"] == "converged"
@@ -248,6 +263,107 @@ def work_precision(work: pd.DataFrame, family: str, path: str) -> None:
     save_figure(fig, path, scene=family)
 
 
+#: The columns a run pair (the same problem, solver and preset) is matched on.
+PAIR = ["problem", "solver", "preset"]
+
+
+def warm_pairs(t: pd.DataFrame) -> pd.DataFrame:
+    """Every warm run beside the cold run of the same problem, solver and preset:
+    the columns ``iterations``, ``time``, ``status``, ``claimed_status`` suffixed
+    ``_cold`` and ``_warm``, the warm run's ``used_guess``, and ``ignored``: its message
+    says it ignored the guess (:data:`solvers.base.GUESS_NOT_USED`)."""
+    cols = ["iterations", "time", "status", "claimed_status"]
+    warm = t[t["start"] == "warm"]
+    if warm.empty:
+        return pd.DataFrame(columns=[*PAIR, "used_guess", "ignored",
+                                     *(f"{c}_{s}" for s in ("cold", "warm") for c in cols)])
+    cold = t[t["start"] == "cold"][PAIR + cols]
+    pairs = warm[PAIR + cols + ["used_guess", "message"]].merge(cold, on=PAIR,
+                                                                suffixes=("_warm", "_cold"))
+    pairs["used_guess"] = pairs["used_guess"].astype(str).str.lower() == "true"
+    pairs["ignored"] = pairs.pop("message").fillna("").str.contains(GUESS_NOT_USED,
+                                                                     regex=False)
+    return pairs
+
+
+def guess_use(g: pd.DataFrame) -> str:
+    """How a solver's warm runs ``g`` (:func:`warm_pairs`) took the guess: ``ignored``
+    (every run says so), ``used`` (none says so and some started from it), ``no answer``
+    (no run returned one) or ``mixed``."""
+    if g["ignored"].all():
+        return "ignored"
+    if not g["ignored"].any():
+        return "used" if g["used_guess"].any() else "no answer"
+    return "mixed"
+
+
+def warm_frame(t: pd.DataFrame) -> pd.DataFrame:
+    """Cold against warm starts per solver and preset over the steps run both ways
+    (:func:`warm_pairs`): ``steps``; ``guess`` (:func:`guess_use`; ``ignored``: the
+    solver says it does not start from a guess; ``used`` counts a primal guess alone); the median and total ``iterations``
+    and ``time`` of each start and the ratios warm / cold of the medians; the steps
+    verified ``converged`` cold and warm."""
+    pairs = warm_pairs(t)
+    rows = []
+    for (solver, preset), g in pairs.groupby(["solver", "preset"]):
+        row = {"solver": solver, "preset": preset, "steps": len(g),
+               "guess": guess_use(g)}
+        for q in ("iterations", "time"):
+            for start in ("cold", "warm"):
+                v = g[f"{q}_{start}"].astype(float)
+                row[f"{q}_{start}_median"] = float(v.median())
+                row[f"{q}_{start}_total"] = float(v.sum())
+            cold = row[f"{q}_cold_median"]
+            row[f"{q}_ratio"] = row[f"{q}_warm_median"] / cold if cold > 0 else np.nan
+        for start in ("cold", "warm"):
+            row[f"converged_{start}"] = int((g[f"status_{start}"] == "converged").sum())
+        rows.append(row)
+    out = pd.DataFrame(rows, columns=[
+        "solver", "preset", "steps", "guess", "iterations_cold_median",
+        "iterations_cold_total", "iterations_warm_median", "iterations_warm_total",
+        "iterations_ratio", "time_cold_median", "time_cold_total", "time_warm_median",
+        "time_warm_total", "time_ratio", "converged_cold", "converged_warm"])
+    return out.sort_values(["preset", "solver"]).reset_index(drop=True)
+
+
+def ignored_guess_mismatches(t: pd.DataFrame) -> tuple[int, int]:
+    """Of the run pairs whose warm run says it ignored its guess (neither run stopped by
+    its time limit, which cuts a run wherever the clock says), how many differ from the
+    cold run in iterations or claimed status, and how many pairs there are: a solver that
+    truly starts from zero either way runs the same deterministic iteration twice."""
+    pairs = warm_pairs(t)
+    pairs = pairs[pairs["ignored"] & ~pairs["claimed_status_cold"].eq("time_limit")
+                  & ~pairs["claimed_status_warm"].eq("time_limit")]
+    differ = ((pairs["iterations_cold"] != pairs["iterations_warm"])
+              | (pairs["claimed_status_cold"] != pairs["claimed_status_warm"]))
+    return int(differ.sum()), len(pairs)
+
+
+def facet_frame(t: pd.DataFrame) -> pd.DataFrame:
+    """The faceted friction law's accuracy against cost: per faceted step (``facets`` = k)
+    whose isotropic twin was run, solver and preset: k, the ``model_error``
+    ``||u_k - u_iso||_A / ||u_iso||_A`` of the two exact references, and the status and
+    time of the solver on the faceted QP and on the isotropic cone program, and the time
+    ratio faceted / isotropic where both are verified converged. ``t``: cold runs."""
+    columns = ["family", "level", "problem", "facets", "isotropic_twin", "model_error",
+               "solver", "preset", "status_faceted", "time_faceted", "status_isotropic",
+               "time_isotropic", "time_ratio"]
+    if "facets" not in t or "isotropic_twin" not in t:
+        return pd.DataFrame(columns=columns)
+    faceted = t[t["facets"].fillna(0) > 0]
+    faceted = faceted[faceted["isotropic_twin"].isin(set(t["problem"]))]
+    twin = t[PAIR + ["status", "time"]].rename(columns={"problem": "isotropic_twin",
+                                                        "status": "status_isotropic",
+                                                        "time": "time_isotropic"})
+    out = faceted.rename(columns={"status": "status_faceted", "time": "time_faceted"}).merge(
+        twin, on=["isotropic_twin", "solver", "preset"], how="left")
+    both = (out["status_faceted"] == "converged") & (out["status_isotropic"] == "converged")
+    out["time_ratio"] = np.where(both, out["time_faceted"] / out["time_isotropic"], np.nan)
+    out["facets"] = out["facets"].astype(int)
+    return out[columns].sort_values(["family", "level", "problem", "preset", "solver"]) \
+        .reset_index(drop=True)
+
+
 #: The verification's promises over the test set (report/claims.py).
 CLAIMS = {
     "accurate": Claim("Ch. 8 (the solvers' stopping rules); suite bar: a verdict is never wrong",
@@ -258,6 +374,21 @@ CLAIMS = {
                      "certified bound)",
                      unjudged="information: a solver's own stopping test measured against "
                      "the suite's verification, no bar"),
+    "ignored_guess": Claim("suite bar (a solver that ignores its initial guess runs the same "
+                           "deterministic iteration warm and cold)",
+                           "test set: warm runs that say they ignored the guess take the "
+                           "cold run's iterations and claim ({pairs} run pairs)", "given",
+                           "0 pairs differ"),
+    "warm_iterations": Claim("suite figure (quasi-static load paths start each step from the "
+                             "last)", "test set: median iterations warm / cold per solver "
+                             "that uses the guess ({steps} steps with a warm start)",
+                             unjudged="information: no method here promises fewer iterations "
+                             "from the previous step's solution, no bar"),
+    "facets": Claim("suite figure (the k-gon friction law approximates the disc, "
+                    "problems/qp.py)", "test set: model error ||u_k - u_iso||_A / "
+                    "||u_iso||_A of the faceted references",
+                    unjudged="information: the faceted law's distance to the isotropic one "
+                    "at this k, no bar"),
 }
 
 
@@ -275,6 +406,29 @@ def claims(t: pd.DataFrame) -> pd.DataFrame:
         CLAIMS["refuted"].row(f"{refuted} of {int(claimed.sum())} claimed")])
 
 
+def warm_facet_claims(t: pd.DataFrame, warm: pd.DataFrame, facets: pd.DataFrame) -> list[dict]:
+    """The claims rows of the warm-start comparison (``t``: every run, ``warm``:
+    :func:`warm_frame`) and of the faceted law (``facets``: :func:`facet_frame`); none
+    for a part without runs."""
+    rows = []
+    if len(warm):
+        differ, pairs = ignored_guess_mismatches(t)
+        rows.append(CLAIMS["ignored_guess"].row(
+            f"{differ} of {pairs} pairs differ", judged=pairs > 0, passed=differ == 0,
+            reason="no run here ignored its guess", pairs=pairs))
+        used = warm[warm["guess"] != "ignored"]
+        text = "; ".join(f"{r.solver} ({r.preset}): {r.iterations_ratio:.3g}"
+                         for r in used.itertuples())
+        rows.append(CLAIMS["warm_iterations"].row(text or "no solver used the guess",
+                                                  steps=int(warm["steps"].max())))
+    if len(facets):
+        errors = facets.drop_duplicates("problem")
+        rows.append(CLAIMS["facets"].row("; ".join(
+            f"{r.problem} (k = {r.facets}): {r.model_error:.3g}"
+            for r in errors.itertuples())))
+    return rows
+
+
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -286,17 +440,28 @@ def main(argv=None) -> None:
     ap.add_argument("--by-class", required=True, help="CSV: per size class, solver, preset")
     ap.add_argument("--by-scene", required=True, help="CSV: per scene, solver, preset")
     ap.add_argument("--claims", required=True, help="CSV: the verification's promises")
+    ap.add_argument("--warm-starts", default=None,
+                    help="CSV: cold against warm starts per solver and preset")
+    ap.add_argument("--facets", default=None,
+                    help="CSV: the faceted friction law's model error and cost")
     ap.add_argument("--profiles", required=True, help="PNG: performance profiles")
     ap.add_argument("--work-precision", nargs="*", default=[], metavar="FAMILY=PNG",
                     help="work-precision figures, one per family")
     ap.add_argument("--charts", default=None,
                     help="HTML: the profiles and work-precision as interactive charts")
     args = ap.parse_args(argv)
-    t = runs(args.inputs, args.time_limit)
+    every = runs(args.inputs, args.time_limit)
+    t = cold_rows(every)
     write_csv(args.summary, summary(t))
     write_csv(args.by_class, summary(t, ("size_class",)))
     write_csv(args.by_scene, summary(t, ("scene",)))
-    write_csv(args.claims, claims(t))
+    warm, facets = warm_frame(every), facet_frame(t)
+    if args.warm_starts:
+        write_csv(args.warm_starts, warm)
+    if args.facets:
+        write_csv(args.facets, facets)
+    write_csv(args.claims, pd.concat([claims(t), pd.DataFrame(
+        warm_facet_claims(every, warm, facets), columns=COLUMNS)], ignore_index=True))
     profiles = profile_frame(t)
     performance_profiles(profiles, args.profiles)
     pages = [profiles_chart(profiles)] if len(profiles) else []

@@ -42,6 +42,17 @@ STATUSES = ("converged", "inaccurate", "max_iter", "time_limit", "failed", "skip
 #: ``mu p`` (:func:`solvers.certificate.verify`).
 COULOMB_MONOLITHIC = "coulomb_monolithic"
 
+#: The note a solver appends to its message when it was given an initial guess
+#: (``u0``, ``p0``) and did not start from it (:func:`guess_not_used`); a run table reads
+#: it as "ignores the guess" (``workflows.scripts.problem_set_runs``).
+GUESS_NOT_USED = "initial guess not used"
+
+
+def guess_not_used(message: str, by: str) -> str:
+    """``message`` with the note that the initial guess was not used ``by`` (the library,
+    the method and why): :data:`GUESS_NOT_USED` after a semicolon."""
+    return (message + "; " if message else "") + f"{GUESS_NOT_USED} by {by}"
+
 #: The rules of a solver's answer, checked by :func:`contract_violation` before anything
 #: uses it: ``{rule: what the solver must deliver}``. A broken rule makes the row
 #: ``failed`` with ``failed_check = "contract:<rule>"``. A solver that stops without an

@@ -71,7 +71,7 @@ from problems.qp import ContactQP
 from problems.spec import Options, Parameter, resolve_parameters
 from solvers._scaling import ADAPTER_PARAMETERS, scale_qp, upper_triangle
 from solvers.cholesky import cholesky_factor
-from solvers.base import TOLERANCES, Role, SolveResult, SolverSpec
+from solvers.base import TOLERANCES, Role, SolveResult, SolverSpec, guess_not_used
 
 
 @dataclass
@@ -196,7 +196,7 @@ def run(lib: Library, qp: ContactQP, tol: float, max_iter: int, time_limit: floa
         message += (f"; run took {setup_time + solve_time:.3g} s > time_limit {time_limit:g} s "
                     f"({lib.name} cannot be interrupted)")
     if (u0 is not None or p0 is not None) and not out.used_guess:
-        message += "; initial guess not used by the library"
+        message = guess_not_used(message, "the library")
     stats = {**out.stats, "scaled": bool(opts.scale)}
     if lam_s is not None:
         stats["form"] = program.kind

@@ -29,7 +29,7 @@ import numpy as np
 from problems.floating import floating_modes
 from problems.qp import ContactQP
 from problems.spec import Options
-from solvers.base import Role, SolveResult, SolverSpec, preset_texts
+from solvers.base import Role, SolveResult, SolverSpec, guess_not_used, preset_texts
 from solvers.tresca import (TRESCA_EXACT_MAX_ENTRIES, TRESCA_EXACT_MAX_M, dense_dual_size,
                             dual_operators, tresca_exact)
 
@@ -64,7 +64,8 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
     ``tol`` is left to the verification: the method is exact on its final active sets
     (2D) or driven to round-off on them (3D). ``max_iter`` caps the active-set or Newton
     steps (``max_iter`` claimed when it is reached); ``time_limit``, ``u0`` and ``p0``
-    are not used (the method starts from ``p = lam = 0``).
+    are not used (the method starts from ``p = lam = 0``; a guess given is noted in the
+    message, :func:`solvers.base.guess_not_used`).
 
     Returns
     -------
@@ -96,6 +97,8 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
                 "active sets exact")
                if sol.status == "converged" else
                f"{method} stopped after {sol.iterations} steps")
+    if u0 is not None or p0 is not None:
+        message = guess_not_used(message, "the method (it starts from p = lam = 0)")
     return SolveResult(u=sol.u, p=sol.p, claimed_status=sol.status, message=message,
                        iterations=int(sol.iterations), setup_time=t1 - t0, solve_time=t2 - t1,
                        stats=stats, tangential=sol.lam if qp.friction is not None else None)

@@ -2,7 +2,7 @@
 # size class, every registered solver on every problem at every preset, and the summary
 # over it. Paths: workflows/studies/.
 from report.charts import chart_path
-from workflows.studies.problem_set import problem_set_runs, run_levels
+from workflows.studies.problem_set import problem_set_runs, run_levels, warm_starts
 TS = config.get("test_set", {})
 TS_ID = problem_set_of(config).id if TS else ""
 TS_FAMILIES = list(scenes_of(config, "test_set"))
@@ -30,12 +30,13 @@ rule test_set_runs:
     params:
         py=PY, presets=" ".join(TS.get("presets", [])), limit=TS.get("time_limit"),
         solvers=" ".join(["--solvers", *TS["solvers"]]) if TS.get("solvers") else "",
-        levels=lambda w: " ".join(map(str, run_levels(config, w.size_class, w.scene)))
+        levels=lambda w: " ".join(map(str, run_levels(config, w.size_class, w.scene))),
+        warm=warm_starts(config) if TS else ""
     shell:
         "{params.py} -m workflows.scripts.problem_set_runs --set {wildcards.set} "
         "--class {wildcards.size_class} --family {wildcards.scene} --export {input} "
         "--presets {params.presets} --time-limit {params.limit} {params.solvers} "
-        "--levels {params.levels} --out {output} > {log} 2>&1"
+        "--levels {params.levels} --warm-starts {params.warm} --out {output} > {log} 2>&1"
 
 rule solver_summary:
     input: problem_set_runs(config)
@@ -49,6 +50,10 @@ rule solver_summary:
                         caption="../report/captions/solver_summary_table.rst",
                         category="solvers", subcategory="test set summary"),
         claims=PATHS["solver_summary_claims"],
+        warm=report(PATHS["solver_warm_starts"], caption="../report/captions/solver_warm_starts.rst",
+                    category="solvers", subcategory="test set summary"),
+        facets=report(PATHS["solver_facets"], caption="../report/captions/solver_facets.rst",
+                      category="solvers", subcategory="test set summary"),
         profiles=report(PATHS["solver_profiles"], caption="../report/captions/solver_profiles.rst",
                         category="solvers", subcategory="test set summary"),
         charts=report(chart_path(PATHS["solver_profiles"]),
@@ -67,5 +72,6 @@ rule solver_summary:
     shell:
         "{params.py} -m report.solver_summary --inputs {input} --time-limit {params.limit} "
         "--summary {output.summary} --by-class {output.by_class} --by-scene {output.by_scene} "
-        "--claims {output.claims} --profiles {output.profiles} "
+        "--claims {output.claims} --warm-starts {output.warm} --facets {output.facets} "
+        "--profiles {output.profiles} "
         "--charts {output.charts} --work-precision {params.work} > {log} 2>&1"

@@ -16,11 +16,26 @@ step's energy) and
 its error relative to the reference's, the multipliers' errors and the total-force
 error. Called by the rule ``test_set_runs``.
 
+Cold and warm starts: every row has ``start`` ``cold`` (the solver starts from zero,
+as every other table of the test set reads it). A frictional step has a recorded warm
+start (``warm_start.npz``: the previous step of its load path's reference, the first
+tangential step's the normal step's); with ``--warm-starts all`` (every such step) or
+``paths`` (only the steps of a load-path family, ``step: all``) each solver that took
+the cold problem runs it a second time started from ``u0, p0`` of that file (``start``
+``warm``). ``used_guess`` says whether the run started from a guess: false for a cold
+row, a run without an answer (skipped, killed, raised), and a solver that notes in its
+message that it ignores a guess
+(:data:`solvers.base.GUESS_NOT_USED`: the QP libraries that take none, the exact
+reference). A faceted step (``friction_facets`` = k) records ``facets``, its isotropic
+twin (the same family without ``friction_facets``) and ``model_error``, the faceted
+reference's relative energy-norm distance ``||u_k - u_iso||_A / ||u_iso||_A`` to the
+twin's exported reference (empty where the twin is not exported).
+
 Example::
 
     python -m workflows.scripts.problem_set_runs --set contact-qp-1 --class small \\
         --family hard_si_units --export results/test_set/contact-qp-1/small \\
-        --presets low mid high --time-limit 20 --out runs.csv
+        --presets low mid high --time-limit 20 --warm-starts paths --out runs.csv
 """
 from __future__ import annotations
 
@@ -32,6 +47,7 @@ import pandas as pd
 import scipy.sparse.linalg as spla
 
 from problems.kkt import energy_error
+from solvers.base import GUESS_NOT_USED
 from solvers.interface import TOLERANCES, solvers
 from workflows.export import load_problem, objective, qp_arrays
 from problems.spec import ParameterError
@@ -39,10 +55,15 @@ from workflows.io import read_json, run_solvers, write_csv
 from workflows.isolation import log_traceback, solve_batch_isolated
 from workflows.measure import multiplier_errors
 from workflows.progress import study_progress
+from workflows.settings import study_defaults
 from workflows.problem_set import TestSetError, check_class, load
 
 #: Largest relative difference between a rebuilt problem and its exported arrays.
 IDENTICAL = 1e-12
+#: ``--warm-starts``: which steps with a recorded warm start run warm too.
+WARM_STARTS = ("all", "paths", "none")
+#: The export's file of a frictional step's warm start.
+WARM_FILE = "warm_start.npz"
 
 
 def check_identical(qp, folder: Path) -> None:
@@ -62,9 +83,77 @@ def check_identical(qp, folder: Path) -> None:
                                f"one by {diff / size:.2e} (relative); re-export the set")
 
 
+def cold_rows(t: pd.DataFrame) -> pd.DataFrame:
+    """The rows of run tables started from zero (``start`` ``cold``; a table written before
+    the column existed is all cold): what every table but the warm-start comparison reads."""
+    return t if "start" not in t else t[t["start"].fillna("cold") == "cold"]
+
+
+def runs_warm(family: dict, choice: str) -> bool:
+    """Whether the steps of ``family`` (its entry in the set) with a recorded warm start run
+    warm too under ``--warm-starts`` ``choice`` (:data:`WARM_STARTS`)."""
+    if choice not in WARM_STARTS:
+        raise ValueError(f"parameter 'warm_starts': {choice!r} is not allowed; allowed: "
+                         f"{', '.join(WARM_STARTS)}")
+    return choice == "all" or (choice == "paths" and family.get("step", "last") == "all")
+
+
+def warm_guess(folder: Path) -> dict | None:
+    """The recorded warm start of an exported problem as ``solve``'s ``u0``, ``p0`` (the
+    displacements and normal multipliers of ``warm_start.npz``), ``None`` without one."""
+    path = folder / WARM_FILE
+    if not path.exists():
+        return None
+    with np.load(path) as z:
+        return {"u0": np.array(z["u"], dtype=float), "p0": np.array(z["p"], dtype=float)}
+
+
+def used_guess(res, warm: bool) -> bool:
+    """Whether a run started from its guess: a warm run that returned an answer (not
+    skipped, killed or raised: those say nothing of the guess) and whose message does not
+    say it ignored the guess (:data:`solvers.base.GUESS_NOT_USED`)."""
+    return bool(warm and res.kkt is not None and GUESS_NOT_USED not in (res.message or ""))
+
+
+def isotropic_twin(ts, item) -> str | None:
+    """The problem name of a faceted step's isotropic twin in the set ``ts``: the family
+    with the same problem, parameters but ``friction_facets`` and step choice, at the
+    same level and step (``None`` if ``item`` is not faceted or the set has no twin)."""
+    params = dict(item.params)
+    if not params.pop("friction_facets", 0):
+        return None
+    entry = ts.families[item.family]
+    for family, other in ts.families.items():
+        if (family != item.family and other["problem"] == item.problem
+                and dict(other.get("params") or {}) == params
+                and other.get("step", "last") == entry.get("step", "last")):
+            return item.name.replace(item.family, family, 1)
+    return None
+
+
+def facet_columns(qp, item, twin: str | None, u_ref: np.ndarray, export: Path) -> dict:
+    """A faceted step's ``facets``, ``isotropic_twin`` and ``model_error``
+    ``||u_k - u_iso||_A / ||u_iso||_A`` of its reference ``u_ref`` against the twin's
+    exported one (NaN if the twin is not in the export); ``{}`` for any other problem."""
+    k = int(item.params.get("friction_facets", 0) or 0)
+    if not k:
+        return {}
+    error = np.nan
+    twin_file = None if twin is None else export / twin / "solution.npz"
+    if twin_file is not None and twin_file.exists():
+        with np.load(twin_file) as z:
+            u_iso = np.asarray(z["u"], dtype=float)
+        if u_iso.shape == (qp.n,):
+            error = energy_error(qp, u_ref, u_iso)      # relative to the isotropic one
+    return {"facets": k, "isotropic_twin": twin or "", "model_error": error}
+
+
 def run_problem(item, folder: Path, names: list[str], presets: list[str],
-                time_limit: float) -> list[dict]:
-    """The rows of every solver at every preset on one exported problem."""
+                time_limit: float, warm: bool = False, twin: str | None = None) -> list[dict]:
+    """The rows of every solver at every preset on one exported problem, started from
+    zero (``start`` ``cold``); with ``warm`` and a recorded warm start (:func:`warm_guess`)
+    also from it (``warm``) by every solver that did not skip the problem. ``twin``: a
+    faceted step's isotropic twin (:func:`facet_columns`)."""
     meta = read_json(folder / "meta.json")
     qp = item.build()
     check_identical(qp, folder)
@@ -75,19 +164,33 @@ def run_problem(item, folder: Path, names: list[str], presets: list[str],
     base = {"set": meta["set"], "problem": item.name, "family": item.family,
             "scene_problem": item.problem, "level": item.level, "size_class": item.size_class,
             "n": meta["n"], "m": meta["m"], "objective_ref": J_ref,
-            "dropped_rows": qp.contact.dropped if qp.contact is not None else 0}
-    rows = []
-    for solver in names:
-        results = solve_batch_isolated(qp, solver, presets, time_limit=time_limit)
-        for preset, res in zip(presets, results):
-            log_traceback(res, f"{item.name} ({preset})")
-            row = {**base, "preset": preset, **res.summary()}
+            "dropped_rows": qp.contact.dropped if qp.contact is not None else 0,
+            **facet_columns(qp, item, twin, u_ref, folder.parent)}
+    guess = warm_guess(folder) if warm else None
+
+    def rows_of(solver, start, run_presets, **guess_kw):
+        out = []
+        results = solve_batch_isolated(qp, solver, run_presets, time_limit=time_limit,
+                                       **guess_kw)
+        for preset, res in zip(run_presets, results):
+            log_traceback(res, f"{item.name} ({preset}, {start})")
+            row = {**base, "preset": preset, "start": start, **res.summary(),
+                   "used_guess": used_guess(res, start == "warm")}
             if res.kkt is not None:
                 J = objective(qp, res.u, res.p)
                 row.update(objective=J, objective_error=abs(J - J_ref) / scale,
                            energy_error=energy_error(qp, res.u, u_ref),
                            **multiplier_errors(qp, res.p, p_ref, u_ref))
-            rows.append(row)
+            out.append(row)
+        return out
+
+    rows = []
+    for solver in names:
+        cold = rows_of(solver, "cold", presets)
+        rows += cold
+        taken = [r["preset"] for r in cold if r["status"] != "skipped"]
+        if guess is not None and taken:
+            rows += rows_of(solver, "warm", taken, **guess)
     return rows
 
 
@@ -107,6 +210,10 @@ def main(argv=None) -> None:
                         help="seconds per run (killed at 1.25 x + 30 s)")
     parser.add_argument("--levels", nargs="+", type=int, default=None,
                         help="only these levels of the family (default: the class's)")
+    parser.add_argument("--warm-starts", choices=WARM_STARTS,
+                        default=study_defaults("test_set")["warm_starts"],
+                        help="run warm too: every step with a recorded warm start, only "
+                             "the steps of load-path families (step: all), or none")
     parser.add_argument("--out", required=True)
     args = parser.parse_args(argv)
     try:
@@ -127,11 +234,12 @@ def main(argv=None) -> None:
         names = args.solvers or run_solvers(registry)   # a regeneration's fixed set
     except ParameterError as err:
         parser.error(str(err))
+    warm = runs_warm(ts.families[args.family], args.warm_starts)
     rows = []
     for item in study_progress(items, rule="test_set_runs", out=args.out,
                                desc=f"{args.family} ({args.size_class})"):
         rows += run_problem(item, Path(args.export) / item.name, names, args.presets,
-                            args.time_limit)
+                            args.time_limit, warm=warm, twin=isotropic_twin(ts, item))
     write_csv(args.out, pd.DataFrame(rows))
 
 

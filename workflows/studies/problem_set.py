@@ -10,6 +10,8 @@ PATHS = {
     "solver_summary_by_class": "results/solver_summary/summary_by_class.csv",
     "solver_summary_by_scene": "results/solver_summary/summary_by_scene.csv",
     "solver_summary_claims": "results/solver_summary/claims.csv",
+    "solver_warm_starts": "results/solver_summary/warm_starts.csv",
+    "solver_facets": "results/solver_summary/facets.csv",
     "solver_profiles": "results/solver_summary/performance_profiles.png",
     "solver_work_precision": "results/solver_summary/work_precision/{scene}.png",
 }
@@ -20,6 +22,14 @@ def levels_choice(config: dict) -> str:
     from workflows.settings import study_defaults
 
     return config["test_set"].get("levels") or study_defaults("test_set")["levels"]
+
+
+def warm_starts(config: dict) -> str:
+    """``test_set.warm_starts`` (``all``, ``paths`` or ``none``: which frictional steps with
+    a recorded warm start run warm too), the schema's default if unset."""
+    from workflows.settings import study_defaults
+
+    return config["test_set"].get("warm_starts") or study_defaults("test_set")["warm_starts"]
 
 
 def run_levels(config: dict, size_class: str, family: str, ts=None) -> list[int]:
@@ -103,14 +113,17 @@ STUDY = Study(
             "the configured size classes exported (contactbench export) and solved by "
             "every registered solver at every preset; qpbenchmark's summary (success "
             "and correct rates, shifted geometric means, performance profiles) "
-            "overall, by size class and by scene; a work-precision figure per family",
+            "overall, by size class and by scene; a work-precision figure per family; cold "
+            "against warm starts on the frictional load paths; the faceted friction law's "
+            "model error and cost beside its isotropic twin",
     thesis="Ch. 8 (solvers) on every scene of Ch. 9 and its hard variants",
     order=40,
     rule_file="problem_set.smk",
     scripts={"test_set": "workflows.scripts.problem_set_runs"},
     paths=PATHS,
     outputs=("solver_summary", "solver_summary_by_class", "solver_summary_by_scene",
-             "solver_summary_claims", "solver_profiles", "solver_work_precision"),
+             "solver_summary_claims", "solver_warm_starts", "solver_facets", "solver_profiles",
+             "solver_work_precision"),
     heavy_rules=("test_set_export", "test_set_runs"),
     runs_alone=("test_set_runs",),
     launches_mpi=("test_set_runs",),
