@@ -126,6 +126,7 @@ Run by hand:
         --reference-level 3 --out results/cube_sphere/coupling.csv
 """
 from problems.fem.stabilised import COUPLINGS
+from problems.spec import ParameterError
 from workflows.studies._base import (ConfigError, Study, ThesisItem, check_reference_levels,
                                      scenes_of)
 
@@ -137,8 +138,14 @@ def coupling_args(config: dict, scene: str) -> str:
     ``workflows/scripts/coupling.py``."""
     cs = config["coupling"]
     levels = " ".join(map(str, scenes_of(config, "coupling")[scene]))
-    return (f"--levels {levels} --reference-level {cs['reference_level'][scene]} "
-            f"--couplings {' '.join(cs['couplings'])}")
+    args = (f"--levels {levels} --reference-level {cs['reference_level'][scene]} "
+            f"--couplings {' '.join(cs['couplings'])} "
+            f"--orders {' '.join(map(str, cs['orders']))}")
+    if 2 in cs["orders"]:
+        p2 = cs["p2_reference"][scene]
+        args += (f" --p2-reference-level {p2['level']} "
+                 f"--p2-reference-coupling {p2['coupling']}")
+    return args
 
 
 def planned_jobs(config: dict, rule: str) -> list[tuple[str, str, int]]:
@@ -166,6 +173,27 @@ def check(config: dict, registry: dict) -> None:
             raise ConfigError(f"config 'coupling.scenes.{scene}': the scene sets 'coupling'; "
                               "allowed: a scene without it (the study sets it)")
     check_reference_levels(config, "coupling", registry)
+    if 2 not in (cs.get("orders") or ()):
+        return
+    p2 = cs.get("p2_reference") or {}
+    for scene, levels in scenes_of(config, "coupling").items():
+        spec = registry[config["scenes"][scene]["problem"]]
+        key = f"config 'coupling.p2_reference.{scene}"
+        if "degree" not in {p.name for p in spec.parameters}:
+            raise ConfigError(f"config 'coupling.orders': 2 is not allowed with scene "
+                              f"{scene!r} (problem {spec.name!r} has no 'degree'); allowed: "
+                              "[1], or scenes whose problem takes degree=2")
+        if scene not in p2:
+            raise ConfigError(f"{key}': missing; allowed: {{level, coupling}} of the P2 rows' "
+                              "reference (required with orders containing 2)")
+        lo, hi = spec.levels
+        if not min(levels) < p2[scene]["level"] <= hi:
+            raise ConfigError(f"{key}.level': {p2[scene]['level']} is not allowed; allowed: a "
+                              f"level in {min(levels) + 1}..{hi} (above a level of the scene)")
+        try:
+            spec.make(min(levels), **{"degree": 2, "coupling": p2[scene]["coupling"]})
+        except ParameterError as err:
+            raise ConfigError(f"{key}.coupling': {err}") from err
 
 
 STUDY = Study(
@@ -211,6 +239,22 @@ STUDY = Study(
                           "items": {"enum": list(COUPLINGS)},
                           "description": "the couplings compared (the reference's, "
                                          "mortar_dual, is offered by every scene too)"},
+            "orders": {"type": "array", "minItems": 1, "uniqueItems": True,
+                       "items": {"enum": [1, 2]}, "default": [1],
+                       "description": "element orders (the scenes' degree): 1, and 2 for "
+                                      "P2 rows of the couplings a scene takes at degree=2 "
+                                      "(the others: skipped rows with the reason), against "
+                                      "the P2 reference of p2_reference"},
+            "p2_reference": {"type": "object", "description": "{scene: {level, coupling}} "
+                             "of the P2 rows' reference (required with orders containing "
+                             "2): P2 at that level and coupling; the P2 rows run at the "
+                             "scene's levels below it",
+                             "additionalProperties": {
+                                 "type": "object", "additionalProperties": False,
+                                 "required": ["level", "coupling"],
+                                 "properties": {
+                                     "level": {"type": "integer", "minimum": 0},
+                                     "coupling": {"enum": list(COUPLINGS)}}}},
         },
     },
     claims=("cp_claims",),
