@@ -29,8 +29,16 @@ together with the energy error by ``O(h)``, an upper bound; the Hertz pressure's
 square-root edge, in ``H^{1-eps}``, lets its best approximation in ``H^{-1/2}`` fall
 as ``O(h^{3/2-eps})``, so no published rate of the multiplier error alone applies).
 
+P2 rows (``order`` 2; the study's ``orders``), each against a P2 reference: their fitted
+energy-error rate reported beside P2's optimal ``O(h^{3/2})`` (``N^{-3/4}`` in 2D,
+``N^{-1/2}`` in 3D; not judged: the ``r^{1/2}`` singularities at the supports' ends bound
+every order by ``O(h^{1/2})`` asymptotically and their share of P2's error is not
+measured), their Hertz rows at the finest P2 level; a coupling the scene refuses at P2
+(``skipped``) as a row with its reason, left out of the converged count.
+
 Figures: the energy error against N per coupling with the fitted slopes and the optimal
-slope; ``a / a_H`` and ``p0 / p0_H`` against N per coupling.
+slope; ``a / a_H`` and ``p0 / p0_H`` against N per coupling; P2 rows dashed with open
+markers, with P2's optimal slope dash-dotted.
 
 Example::
 

@@ -49,9 +49,9 @@ growing from level 0 to 2, so the rate judged in 3D is O(h), as in 2D.
 
 | file | content |
 | --- | --- |
-| `results/<scene>/coupling.csv` | per coupling and level: N, n, N^C, status, KKT, the energy, force and pressure errors against the reference (the pressure in discrete L2, `err_pressure`, and in the dual norm, `err_pressure_dual`), force, a and p0 against Hertz, the pressure's rms deviation from Hertz; the reference's row |
-| `results/<scene>/coupling_claims.csv` | every solve converged; each coupling's fitted energy-error rate (mortar: within 0.1 of the optimal) and dual-norm pressure-error rate (reported); a/a_H, p0/p0_H and the pressure deviation at the finest level |
-| `results/<scene>/coupling.png` | energy error against N per coupling (log-log), fitted rates in the legend, the optimal slope dotted |
+| `results/<scene>/coupling.csv` | per coupling, element order (`order`) and level: N, n, N^C, status (`skipped` with the `reason` for a coupling the scene refuses at P2), KKT, the energy, force and pressure errors against the reference (the pressure in discrete L2, `err_pressure`, and in the dual norm, `err_pressure_dual`), force, a and p0 against Hertz, the pressure's rms deviation from Hertz; the reference's row |
+| `results/<scene>/coupling_claims.csv` | every solve converged; each coupling's fitted energy-error rate (mortar: within 0.1 of the optimal) and dual-norm pressure-error rate (reported); a/a_H, p0/p0_H and the pressure deviation at the finest level; with P2 rows: each P2 coupling's fitted rate beside the optimal O(h^{3/2}) (reported), its Hertz rows, each skipped coupling with its reason |
+| `results/<scene>/coupling.png` | energy error against N per coupling (log-log), fitted rates in the legend, the optimal slope dotted; P2 rows dashed with open markers, their optimal slope dash-dotted |
 | `results/<scene>/coupling_hertz.png` | a/a_H and p0/p0_H against N per coupling, Hertz dotted at 1 |
 
 Read the energy-error figure as the difference to a finer discrete solution, not the true
@@ -117,6 +117,54 @@ mortar multipliers overshoot Hertz's peak by 59 % at level 1 and 16 % at level 2
 deviation 0.36, 0.26), and at level 0 (h = 1/4 against a = 0.28) put the whole force on
 the top face's centre node (moment radius 0, no peak pressure to measure); the dual ones stay within
 9 % (rms 0.12 to 0.07).
+
+P2 rows (`orders: [1, 2]`, the full scale; quick runs P1 only): every coupling the scene
+takes at `degree=2` (`nodal`, `mortar`, and `mortar_dual` in 2D; `stabilised` is built for
+P1 and the dual basis of the P2 trace on a triangle does not exist, so these are
+`skipped` rows with the scene's reason) at the scene's levels below `p2_reference.level`,
+against a P2 reference of their own (`p2_reference`: circle–square `mortar_dual` at level
+3, 262,474 nodes; cube–sphere `nodal` at level 2, 135,102 nodes, the one P2 coupling there
+that TNNMG takes beyond a factorisation). A P1 reference would not do: its own error is
+O(h_ref), P2's at best O(h^{3/2}). The P2 solution enters the comparison as its P2 field
+evaluated at the reference's P2 nodes (vertices and edge midpoints, per body: the reference
+space's P2 interpolant, exact on nested meshes), measured in the reference's P2 stiffness;
+the pressure is the one recovered from the forces at both sides; the dual-norm pressure
+error and the energy shares are P1 only. The optimal rate: with the solution in
+H^{5/2-eps} at best, P2's energy error is O(h^{3/2}), N^{-3/4} in 2D and N^{-1/2} in 3D.
+The P2 rates are reported beside it, not judged: the r^{1/2} singularities at the supports'
+ends bound every order by O(h^{1/2}) asymptotically, and at P2, whose error near the contact
+falls faster, their share is not known to be small (not measured at P2).
+
+Measured on circle–square, P2 levels 0-2 (N = 4,237, 16,636, 65,926) against P2 level 3
+(`contactbench study coupling --problem circle_square --levels 0 1 2 3 --reference-level 4
+--orders 1 2 --p2-reference-level 3 --out F`, 3.8 GB peak; its P1 rows are the table
+above, to the digits shown):
+
+| coupling | P2 energy error, levels 0-2 | per halving of h | fitted rate (levels 0-2) | a/a_H, p0/p0_H, level 2 | pressure rms / p0, level 2 |
+| --- | --- | --- | --- | --- | --- |
+| nodal | 0.088 0.041 0.025 | 1.11, 0.73 | -0.47 | 0.990, 1.010 | 0.025 |
+| mortar | 0.084 0.031 0.015 | 1.45, 1.03 | -0.63 | 0.991, 1.009 | 0.024 |
+| mortar_dual | 0.076 0.030 0.015 | 1.32, 1.01 | -0.59 | 0.989, 1.011 | 0.026 |
+
+The optimal -0.75 (h^{3/2}) is not reached: from level 0 to 1 the mortar errors fall as
+h^{1.3-1.5}, from level 1 to 2 as h^{1.0} (the last against a reference one level finer,
+which biases it upwards, not down), the nodal P2 rows as h^{1.1} and h^{0.7}. At 65,926
+nodes the mortar P2 rows are 2.5 times closer to their reference than P1 to its own
+(0.015 against 0.038, both references at 262k nodes; nodal P2 1.6 times), and P2's pressure deviates from Hertz by 0.024-0.026 of p0
+for every coupling, where P1's standard mortar pressure deviates by 0.052 at level 3.
+
+On cube–sphere, P2 levels 0-1 (N = 2,691, 18,360) against nodal P2 at level 2
+(`contactbench study coupling --problem cube_sphere --levels 0 1 --reference-level 2
+--orders 2 --p2-reference-level 2 --p2-reference-coupling nodal --out F`, 3.2 GB peak):
+nodal P2 0.263 and 0.126 (h^{1.06}; two levels, no rate fitted), the standard mortar P2 rows
+1.233 and 0.712. Their vertex rows, whose weights integrate to zero
+(`docs/guide/mortar.md`), bound only the gap's variation over a vertex's patch: the solution
+penetrates the cube by up to 0.011 (level 0) and 0.007 (level 1) at the nodes, against
+displacements of 0.08, and at level 0 it differs from the nodal P2 solution on the same mesh
+by 1.3 times that solution's energy norm. For the same reason their multipliers are no nodal forces (the total force is
+sum c_i m_i, not the multipliers' sum), so the force, a and p0 of these rows (moments of the
+multipliers) are not the contact's; their recovered pressure deviates from Hertz by 0.51 of
+p0 at both levels.
 
 Run by hand:
 
