@@ -210,3 +210,29 @@ def test_a_p2_rate_from_too_few_levels_says_so():
     p2 = claims[claims.claim.str.contains("mortar P2 energy-error rate")].iloc[0]
     assert np.isnan(p2.measured) and p2.reason.startswith("not fitted: needs 3 levels; this run has 2")
     assert "optimal -0.500" in p2.claim
+
+
+@pytest.mark.parametrize("name, coupling", [("cube_sphere", "mortar"), ("cube_sphere", "nodal"),
+                                            ("circle_square", "mortar_dual")])
+def test_the_p2_contact_force_is_the_one_the_rows_transmit(name, coupling):
+    """At P2 the study's force (and Hertz's moments) take the normal forces the rows exert
+    on the constrained nodes: the multipliers for nodal and dual rows; their total is the
+    normal force ``B' p`` exerts on each body, whatever the coupling. The standard mortar
+    multipliers in 3D are no nodal forces (a vertex row's weights integrate to zero):
+    their sum is several times the force."""
+    from problems.fem.fields import contact_forces
+    from problems.spec import problems
+
+    qp = problems()[name].make(0, degree=2, coupling=coupling)
+    res, _ = script.exact(qp)
+    full = np.zeros(qp.n_nodes * qp.dim)
+    full[qp.free_dofs] = qp.B.T @ res.p
+    on_body = [full.reshape(-1, qp.dim)[qp.mesh.body_of_node == b, -1].sum() for b in (0, 1)]
+    forces = contact_forces(qp, res.p)
+    assert res.status == "converged" and forces.sum() > 0
+    for total in on_body:
+        assert abs(abs(total) / forces.sum() - 1) < 1e-10, (on_body, forces.sum())
+    if (name, coupling) == ("cube_sphere", "mortar"):
+        assert res.p.sum() > 2 * forces.sum()
+    else:
+        np.testing.assert_allclose(forces, res.p, rtol=0, atol=1e-14 * res.p.max())

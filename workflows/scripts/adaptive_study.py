@@ -76,7 +76,7 @@ from problems.fem.adaptive import (STUDY_VARIANTS, adaptive_loop, adaptive_start
                                    body_force_per_cell, mark_doerfler, truncated)
 from problems.fem.elasticity import barycentric_gradients, boundary_facets, stiffness_matrix
 from problems.fem.estimators import estimate
-from problems.fem.fields import contact_fields, hertz_comparison, in_plane
+from problems.fem.fields import contact_fields, contact_forces, hertz_comparison, in_plane
 from problems.fem.mesh import project_to_circle
 from problems.fem.quadratic import quadratic_mesh_of, stiffness_matrix_p2
 from problems.fem.stabilised import stabilise
@@ -241,10 +241,11 @@ def contact_measures(qp: ContactQP, u: np.ndarray, p: np.ndarray) -> dict:
 
     row = {"kkt_max": kkt_residuals(qp, u, p).max}
     p_all, p = p, surface_multipliers(qp, p)       # the force on the constrained surface
-    row.update({"force": float(np.sum(p)), "n_active": int(np.sum(p > 0))})
-    if qp.hertz is None or np.sum(p) <= 0:
+    forces = contact_forces(qp, p_all)              # P1: p; P2: the rows' nodal forces
+    row.update({"force": float(np.sum(forces)), "n_active": int(np.sum(p > 0))})
+    if qp.hertz is None or np.sum(forces) <= 0:
         return row
-    row.update(hertz_comparison(qp, p_all))
+    row.update(hertz_comparison(qp, p_all, forces))
     n = qp.contact.direction.mean(axis=0)
     n /= np.linalg.norm(n)
     basis = np.linalg.svd(n[None, :])[2][1:]
@@ -314,7 +315,7 @@ class Reference:
         self.U = qp.full_displacement(u)
         self.norm = float(np.sqrt(self.U.ravel() @ (self.A @ self.U.ravel())))
         self.p = p
-        self.force = float(np.sum(p))
+        self.force = float(np.sum(contact_forces(qp, p)))
         self.s = in_plane(qp)
         self.pressure = qp.contact.pressure(p)
         self._force_norm = None          # ||A^{-1/2} B_C' p_ref||, at the first dual error
@@ -353,7 +354,7 @@ class Reference:
         """The errors of ``(u, p)`` on ``qp`` against the reference (module docstring)."""
         P = self.prolongation(qp) if P is None else P
         diff = self.pressure_difference(qp, p)
-        p = surface_multipliers(qp, p)
+        p = contact_forces(qp, p)
         E = (P @ qp.full_displacement(u)) - self.U
         m = self.qp.mesh
         if self.quadratic:

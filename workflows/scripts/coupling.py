@@ -68,7 +68,10 @@ A coupling the scene refuses at P2 (``stabilised``; ``mortar_dual`` in 3D) gets 
   P2 interpolant, exact on nested meshes (the circle's projected nodes get the
   quadratic extension of their nearest cell), and ``A`` the reference's P2 stiffness
   on all nodal DOFs (the element_order study's comparison);
-* ``err_force``; ``err_pressure`` with the P2 pressure recovered from the forces
+* ``err_force`` and Hertz's a and p0 with the normal nodal forces the rows exert on the
+  constrained nodes (:func:`problems.fem.fields.contact_forces`: the multipliers for nodal
+  and dual rows, the consistent loads for standard mortar rows, whose multipliers in 3D
+  are no nodal forces); ``err_pressure`` with the P2 pressure recovered from the forces
   (:meth:`problems.qp.ContactSurface.pressure`: aggregated onto the vertices, over the
   P1 lumped mass), at both sides;
 * ``err_pressure_dual`` and the energy shares per region are P1 only (NaN and absent
