@@ -149,9 +149,9 @@ which come out the same to the digits shown, 3.8 GB peak):
 
 | coupling | P2 energy error, levels 0-2 | per halving of h | fitted rate (levels 0-2) | a/a_H, p0/p0_H, level 2 | pressure rms / p0, level 2 |
 | --- | --- | --- | --- | --- | --- |
-| nodal | 0.088 0.041 0.025 | 1.11, 0.73 | -0.47 | 0.998, 1.002 | 0.025 |
-| mortar | 0.084 0.031 0.015 | 1.45, 1.03 | -0.63 | 1.000, 1.000 | 0.024 |
-| mortar_dual | 0.076 0.030 0.015 | 1.32, 1.01 | -0.59 | 0.997, 1.003 | 0.026 |
+| nodal | 0.088 0.041 0.025 | 1.11, 0.73 | -0.47 | 0.990, 1.010 | 0.025 |
+| mortar | 0.084 0.031 0.015 | 1.45, 1.03 | -0.63 | 0.991, 1.009 | 0.024 |
+| mortar_dual | 0.076 0.030 0.015 | 1.32, 1.01 | -0.59 | 0.989, 1.011 | 0.026 |
 
 The optimal -0.75 (h^{3/2}) is not reached: from level 0 to 1 the mortar errors fall as
 h^{1.3-1.5}, from level 1 to 2 as h^{1.0} (the last against a reference one level finer,
@@ -163,15 +163,16 @@ for every coupling, where P1's standard mortar pressure deviates by 0.052 at lev
 On cube–sphere, P2 levels 0-1 (N = 2,691, 18,360) against nodal P2 at level 2
 (`contactbench study coupling --problem cube_sphere --levels 0 1 --reference-level 2
 --orders 2 --p2-reference-level 2 --p2-reference-coupling nodal --out F`, 3.2 GB peak):
-nodal P2 0.263 and 0.126 (h^{1.06}; two levels, no rate fitted), the standard mortar P2 rows
-1.233 and 0.712. Their vertex rows, whose weights integrate to zero
-(`docs/guide/mortar.md`), bound only the gap's variation over a vertex's patch: the solution
-penetrates the cube by up to 0.011 (level 0) and 0.007 (level 1) at the nodes, against
-displacements of 0.08, and at level 0 it differs from the nodal P2 solution on the same mesh
-by 1.3 times that solution's energy norm. For the same reason their multipliers are no nodal forces (the total force is
-sum c_i m_i, not the multipliers' sum), so the force, a and p0 of these rows (moments of the
-multipliers) are not the contact's; their recovered pressure deviates from Hertz by 0.51 of
-p0 at both levels.
+nodal P2 0.263 and 0.126 (h^{1.06}; two levels, no rate fitted), a/a_H 0.989 and p0/p0_H
+1.022 at level 1; the standard mortar P2 rows 1.233 and 0.712. Their vertex rows, whose
+weights integrate to zero (`docs/guide/mortar.md`), bound only the gap's variation over a
+vertex's patch: the solution penetrates the cube by up to 0.011 (level 0) and 0.007
+(level 1) at the nodes, against displacements of 0.08, and at level 0 it differs from the
+nodal P2 solution on the same mesh by 1.3 times that solution's energy norm. They transmit
+a force 25 % (level 0) and 4 % (level 1) below the reference's (the multipliers' sum is
+about 5 times it), their recovered pressure deviates from Hertz by 0.29 and 0.12 of p0 (nodal
+P2: 0.25, 0.10), and the second moment of their consistent loads about the centre is
+negative, so a and p0 have no moment estimate (NaN).
 
 Run by hand:
 
