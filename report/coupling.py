@@ -29,8 +29,16 @@ together with the energy error by ``O(h)``, an upper bound; the Hertz pressure's
 square-root edge, in ``H^{1-eps}``, lets its best approximation in ``H^{-1/2}`` fall
 as ``O(h^{3/2-eps})``, so no published rate of the multiplier error alone applies).
 
+P2 rows (``order`` 2; the study's ``orders``), each against a P2 reference: their fitted
+energy-error rate reported beside P2's optimal ``O(h^{3/2})`` (``N^{-3/4}`` in 2D,
+``N^{-1/2}`` in 3D; not judged: the ``r^{1/2}`` singularities at the supports' ends bound
+every order by ``O(h^{1/2})`` asymptotically and their share of P2's error is not
+measured), their Hertz rows at the finest P2 level; a coupling the scene refuses at P2
+(``skipped``) as a row with its reason, left out of the converged count.
+
 Figures: the energy error against N per coupling with the fitted slopes and the optimal
-slope; ``a / a_H`` and ``p0 / p0_H`` against N per coupling.
+slope; ``a / a_H`` and ``p0 / p0_H`` against N per coupling; P2 rows dashed with open
+markers, with P2's optimal slope dash-dotted.
 
 Example::
 
@@ -56,11 +64,17 @@ from workflows.io import read_csv, write_csv  # noqa: E402
 #: The optimal energy-error rate against N of P1 on contact, per dimension (module
 #: docstring): O(h) = O(N^{-1/d}).
 OPTIMAL_RATE = {2: -1 / 2, 3: -1 / 3}
+#: The optimal energy-error rate against N of P2 on contact, per dimension: the
+#: solution in ``H^{5/2-eps}`` at best gives ``O(h^{3/2})`` = ``O(N^{-3/(2d)})``.
+OPTIMAL_RATE_P2 = {2: -3 / 4, 3: -1 / 2}
 #: Levels the fitted rates take (the finest ones).
 FIT_LEVELS = 3
 #: How far a mortar rate may lie from the optimal one.
 RATE_BAR = 0.1
 MORTAR = ("mortar", "mortar_dual")
+#: Where the optimal slopes end: this factor below the smallest error of their order (so
+#: that they run beside the measured lines, not on them).
+SLOPE_BELOW = 0.7
 #: Marker and colour per coupling in the figures.
 STYLE = {"nodal": ("o-", "C0"), "stabilised": ("s-", "C1"), "two_pass": ("v-", "C4"),
          "mortar": ("^-", "C2"), "mortar_dual": ("D-", "C3")}
@@ -87,6 +101,18 @@ CLAIMS = {
                       "from Hertz over the contact zone (/ p0)",
                       unjudged="a discrete L2 norm against Hertz, reported: the "
                       "H^{-1/2}-type norm of the mortar estimates is the dual-norm rate's row"),
+    "rate_p2": Claim("Hüeber-Wohlmuth 2005 (regularity H^{5/2-eps}: P2 at best O(h^3/2))",
+                     "{scene}: {coupling} P2 energy-error rate against N (finest three "
+                     "levels; optimal {optimal:.3f}: O(h^3/2) in {dim}D)",
+                     unjudged="reported beside the optimal rate: the r^1/2 singularities "
+                     "where a prescribed displacement meets a free surface bound every "
+                     "order by O(h^1/2) asymptotically, and P2's error near the contact "
+                     "falls faster than P1's, so their share is not small at these levels "
+                     "(not measured at P2)"),
+    "skipped": Claim("suite bar (a coupling a scene refuses says why)",
+                     "{scene}: {coupling} at P{order}",
+                     unjudged="not solved: the scene refuses this coupling at this "
+                     "element order"),
     "rate_dual": Claim("Wohlmuth 2000, Hüeber-Wohlmuth 2005 (multiplier in H^{-1/2})",
                        "{scene}: {coupling} multiplier error in the dual norm "
                        "(err_pressure_dual) rate against N (finest three levels)",
@@ -102,6 +128,17 @@ def compared(t: pd.DataFrame) -> pd.DataFrame:
     return t[(t.role == "compared") & (t.status == "converged")]
 
 
+def orders(t: pd.DataFrame) -> pd.Series:
+    """Each row's element order (1 for a table without the ``order`` column)."""
+    return t["order"].fillna(1).astype(int) if "order" in t else pd.Series(1, index=t.index)
+
+
+def by_coupling(t: pd.DataFrame):
+    """``(coupling, order, rows)`` per coupling and element order, in the table's order."""
+    for (coupling, order), g in t.groupby([t.coupling, orders(t)], sort=False):
+        yield coupling, int(order), g
+
+
 def rate(g: pd.DataFrame, error: str = "err_energy") -> float:
     """Fitted rate of the column ``error`` against N over the finest :data:`FIT_LEVELS`
     levels (NaN with fewer, or without the column)."""
@@ -114,12 +151,28 @@ def claims(t: pd.DataFrame) -> pd.DataFrame:
     """The claims of the module docstring, per scene."""
     rows = []
     for scene, s in t.groupby("scene", sort=True):
+        skipped = s[s.status == "skipped"]
+        s = s[s.status != "skipped"]
         ok = int((s.status == "converged").sum())
         rows.append(CLAIMS["converged"].row(f"{ok} of {len(s)}", passed=ok == len(s),
                                             scene=scene))
-        optimal = OPTIMAL_RATE[int(s.dim.iloc[0])]
-        for coupling, g in compared(s).groupby("coupling", sort=False):
+        dim = int(s.dim.iloc[0])
+        optimal = OPTIMAL_RATE[dim]
+        for coupling, order, g in by_coupling(skipped):
+            row = CLAIMS["skipped"].row("skipped", scene=scene, coupling=coupling,
+                                        order=order)
+            rows.append({**row, "reason": f"{row['reason']}: {g.reason.iloc[0]}"})
+        for coupling, order, g in by_coupling(compared(s)):
             r = rate(g)
+            if order == 2:
+                row = CLAIMS["rate_p2"].row(r, scene=scene, coupling=coupling,
+                                            optimal=OPTIMAL_RATE_P2[dim], dim=dim)
+                if not np.isfinite(r):
+                    row["reason"] = (f"not fitted: needs {FIT_LEVELS} levels; this run has "
+                                     f"{len(g)}. {row['reason']}")
+                rows.append(row)
+                _hertz_rows(rows, g, scene, f"{coupling} P2")
+                continue
             if coupling in MORTAR:
                 rows.append(CLAIMS["rate_mortar"].row(
                     r - optimal, judged=bool(np.isfinite(r)), scene=scene, coupling=coupling,
@@ -129,21 +182,41 @@ def claims(t: pd.DataFrame) -> pd.DataFrame:
                 rows.append(CLAIMS["rate"].row(r, scene=scene, coupling=coupling))
             rows.append(CLAIMS["rate_dual"].row(rate(g, "err_pressure_dual"), scene=scene,
                                                 coupling=coupling))
-            top = g.sort_values("N").iloc[-1]
-            if np.isfinite(top.get("a_hertz", np.nan)):        # scenes with Hertz
-                for what, ratio in (("a", top.a_moment / top.a_hertz),
-                                    ("p0", top.p0_moment / top.p0_hertz)):
-                    rows.append(CLAIMS["hertz"].row(float(ratio), scene=scene,
-                                                    coupling=coupling, level=int(top.level),
-                                                    what=what))
-                rows.append(CLAIMS["pressure"].row(float(top.dev_hertz_rms), scene=scene,
-                                                   coupling=coupling, level=int(top.level)))
+            _hertz_rows(rows, g, scene, coupling)
     return pd.DataFrame(rows, columns=COLUMNS)
 
 
-def _label(coupling: str, g: pd.DataFrame) -> str:
+def _hertz_rows(rows: list, g: pd.DataFrame, scene: str, coupling: str) -> None:
+    """At the finest level of ``g``: a and p0 over Hertz's and the pressure's rms
+    deviation (scenes with a Hertz reference)."""
+    top = g.sort_values("N").iloc[-1]
+    if np.isfinite(top.get("a_hertz", np.nan)):
+        for what, ratio in (("a", top.a_moment / top.a_hertz),
+                            ("p0", top.p0_moment / top.p0_hertz)):
+            rows.append(CLAIMS["hertz"].row(float(ratio), scene=scene, coupling=coupling,
+                                            level=int(top.level), what=what))
+        rows.append(CLAIMS["pressure"].row(float(top.dev_hertz_rms), scene=scene,
+                                           coupling=coupling, level=int(top.level)))
+
+
+def _label(coupling: str, g: pd.DataFrame, order: int = 1) -> str:
+    name = coupling if order == 1 else f"{coupling} P{order}"
     r = rate(g)
-    return f"{coupling}: rate {r:.2f}" if np.isfinite(r) else coupling
+    return f"{name}: rate {r:.2f}" if np.isfinite(r) else name
+
+
+def _style(coupling: str, order: int) -> dict:
+    """Line style of a coupling at an element order: P1 solid with filled markers, P2
+    dashed with open ones, the coupling's colour and marker at both."""
+    style, color = STYLE.get(coupling, ("x-", "k"))
+    if order == 1:
+        return {"fmt": style, "color": color}
+    return {"fmt": style[0] + "--", "color": color, "mfc": "none"}
+
+
+def _plot(plot, x, y, coupling: str, order: int, label: str) -> None:
+    kw = _style(coupling, order)
+    plot(x, y, kw.pop("fmt"), label=label, **kw)
 
 
 def figure(t: pd.DataFrame, path: str) -> None:
@@ -153,20 +226,24 @@ def figure(t: pd.DataFrame, path: str) -> None:
     for a, scene in zip(ax[:, 0], scenes):
         s = t[t.scene == scene]
         c = compared(s)
-        for coupling, g in c.groupby("coupling", sort=False):
+        for coupling, order, g in by_coupling(c):
             g = g.sort_values("N")
-            style, color = STYLE.get(coupling, ("x-", "k"))
-            a.loglog(g.N, g.err_energy, style, color=color, label=_label(coupling, g))
-        if len(c):
-            optimal = OPTIMAL_RATE[int(s.dim.iloc[0])]
-            n = np.array([float(c.N.min()), float(c.N.max())])
-            e0 = float(c.err_energy.min()) * (n[1] / n[0]) ** -optimal
-            a.loglog(n, e0 * (n / n[0]) ** optimal, ":", color="gray",
-                     label=f"N^{optimal:.2f} (optimal, O(h))")
+            _plot(a.loglog, g.N, g.err_energy, coupling, order, _label(coupling, g, order))
+        dim = int(s.dim.iloc[0])
+        for order, optimal, ls, text in ((1, OPTIMAL_RATE[dim], ":", "optimal, O(h)"),
+                                         (2, OPTIMAL_RATE_P2[dim], "-.",
+                                          "P2 optimal, O(h^3/2)")):
+            co = c[orders(c) == order]
+            if len(co):
+                n = np.array([float(co.N.min()), float(co.N.max())])
+                e0 = SLOPE_BELOW * float(co.err_energy.min()) * (n[1] / n[0]) ** -optimal
+                a.loglog(n, e0 * (n / n[0]) ** optimal, ls, color="gray",
+                         label=f"N^{optimal:.2f} ({text})")
         ref = s[s.role == "reference"]
+        refs = [f"{r.coupling} P{o} level {int(r.level)}"
+                for (_, r), o in zip(ref.iterrows(), orders(ref))]
         a.set_title(f"{scene}: energy error against the reference"
-                    + (f" ({ref.coupling.iloc[0]}, level {int(ref.level.iloc[0])})"
-                       if len(ref) else ""), fontsize=9)
+                    + (f" ({', '.join(refs)})" if refs else ""), fontsize=9)
         a.set_xlabel("nodes N")
         a.set_ylabel("||P u_h - u_ref||_A / ||u_ref||_A")
         a.grid(True, which="both", alpha=0.3)
@@ -181,13 +258,13 @@ def hertz_figure(t: pd.DataFrame, path: str) -> None:
     for row, scene in zip(ax, scenes):
         c = compared(t[t.scene == scene])
         size = "contact radius" if (t[t.scene == scene].dim == 3).all() else "half-width"
-        for coupling, g in c.groupby("coupling", sort=False):
+        for coupling, order, g in by_coupling(c):
             if "a_hertz" not in g or not np.isfinite(g.a_hertz).any():
                 continue
             g = g.sort_values("N")
-            style, color = STYLE.get(coupling, ("x-", "k"))
-            row[0].semilogx(g.N, g.a_moment / g.a_hertz, style, color=color, label=coupling)
-            row[1].semilogx(g.N, g.p0_moment / g.p0_hertz, style, color=color, label=coupling)
+            label = coupling if order == 1 else f"{coupling} P{order}"
+            _plot(row[0].semilogx, g.N, g.a_moment / g.a_hertz, coupling, order, label)
+            _plot(row[1].semilogx, g.N, g.p0_moment / g.p0_hertz, coupling, order, label)
         for a, what in zip(row, (f"{size} a / a_H", "peak pressure p0 / p0_H")):
             a.axhline(1.0, color="gray", ls=":", label="Hertz")
             a.set_title(f"{scene}: {what}", fontsize=9)

@@ -96,14 +96,39 @@ def in_plane(qp: ContactQP) -> np.ndarray:
     return x @ vt[1:].T
 
 
-def hertz_comparison(qp: ContactQP, p: np.ndarray) -> dict[str, float]:
+def contact_forces(qp: ContactQP, p: np.ndarray) -> np.ndarray:
+    """The contact's normal nodal forces at the constrained nodes.
+
+    At P1 the multipliers on the constrained surface (:func:`surface_multipliers`: the
+    rows carry a unit direction). At P2 (a surface with a recovered pressure) the normal
+    components of the forces the contact rows exert on the constrained nodes,
+    ``n . (B_C' p)`` per node: the multipliers themselves for nodal rows and dual mortar
+    rows (``D`` diagonal), the consistent loads ``int lambda phi_j`` for the standard
+    mortar rows, whose multipliers are no nodal forces (in 3D a P2 vertex row's weights
+    integrate to zero; the force is ``sum c_i m_i``, not the multipliers' sum). Their total
+    is the force the rows transmit, and on a flat surface their second moments are the
+    exact integrals of the pressure against quadratics. Every constrained node's DOFs are
+    taken to be free (a prescribed one would drop its force).
+    """
+    p = surface_multipliers(qp, p)
+    if qp.contact.pressure_map is None:
+        return p
+    full = np.zeros(qp.n_nodes * qp.dim)
+    full[qp.free_dofs] = qp.B[:qp.m_contact].T @ p
+    n = qp.contact.direction.mean(axis=0)
+    return full.reshape(-1, qp.dim)[qp.contact.nodes] @ (n / np.linalg.norm(n))
+
+
+def hertz_comparison(qp: ContactQP, p: np.ndarray,
+                     forces: np.ndarray | None = None) -> dict[str, float]:
     """The measured contact zone against Hertz for the measured total force.
 
     Three estimators of the size ``a`` and the peak ``p0``: the moments of the
     nodal forces (robust), a least-squares fit of ``p^2`` against ``r^2`` and
     the single nodal maximum; deviations ``dev_* = measured / Hertz - 1``.
     ``P`` is the total contact force (``sum p``: the constraints' rows carry a
-    unit direction), per unit thickness in 2D.
+    unit direction), per unit thickness in 2D. ``forces``: the nodal forces the
+    moments and ``P`` take instead of the multipliers (e.g. :func:`contact_forces`).
     """
     from reference import hertz
 
@@ -113,10 +138,11 @@ def hertz_comparison(qp: ContactQP, p: np.ndarray) -> dict[str, float]:
     p = surface_multipliers(qp, p)
     pressure = qp.contact.pressure(p)
     x = in_plane(qp)
-    P = float(p.sum())
+    f = p if forces is None else np.asarray(forces, dtype=float)
+    P = float(f.sum())
     a_h = hertz.contact_size(kind, P, R, E_star)
     p0_h = hertz.peak_pressure(kind, P, a_h)
-    xbar, a_m, p0_m = hertz.moment_estimate(kind, x, p)
+    xbar, a_m, p0_m = hertz.moment_estimate(kind, x, f)
     r = np.linalg.norm(x - xbar, axis=1)
     a_f, p0_f = hertz.fit_ellipse(r, pressure)
     h = float(np.median(cKDTree(x).query(x, k=2)[0][:, 1]))   # nodal spacing

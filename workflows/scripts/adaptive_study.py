@@ -76,8 +76,9 @@ from problems.fem.adaptive import (STUDY_VARIANTS, adaptive_loop, adaptive_start
                                    body_force_per_cell, mark_doerfler, truncated)
 from problems.fem.elasticity import barycentric_gradients, boundary_facets, stiffness_matrix
 from problems.fem.estimators import estimate
-from problems.fem.fields import contact_fields, hertz_comparison, in_plane
+from problems.fem.fields import contact_fields, contact_forces, hertz_comparison, in_plane
 from problems.fem.mesh import project_to_circle
+from problems.fem.quadratic import quadratic_mesh_of, stiffness_matrix_p2
 from problems.fem.stabilised import stabilise
 from problems.fem.two_body import assemble_two_body
 from problems.kkt import kkt_residuals
@@ -240,10 +241,11 @@ def contact_measures(qp: ContactQP, u: np.ndarray, p: np.ndarray) -> dict:
 
     row = {"kkt_max": kkt_residuals(qp, u, p).max}
     p_all, p = p, surface_multipliers(qp, p)       # the force on the constrained surface
-    row.update({"force": float(np.sum(p)), "n_active": int(np.sum(p > 0))})
-    if qp.hertz is None or np.sum(p) <= 0:
+    forces = contact_forces(qp, p_all)              # P1: p; P2: the rows' nodal forces
+    row.update({"force": float(np.sum(forces)), "n_active": int(np.sum(p > 0))})
+    if qp.hertz is None or np.sum(forces) <= 0:
         return row
-    row.update(hertz_comparison(qp, p_all))
+    row.update(hertz_comparison(qp, p_all, forces))
     n = qp.contact.direction.mean(axis=0)
     n /= np.linalg.norm(n)
     basis = np.linalg.svd(n[None, :])[2][1:]
@@ -256,7 +258,7 @@ def contact_measures(qp: ContactQP, u: np.ndarray, p: np.ndarray) -> dict:
     row["h_zone_constrained"] = _sizes_in_zone(qp.mesh.points, qp.contact.facets, s_of, center, a)
     row["h_zone_opposing"] = _sizes_in_zone(qp.mesh.points, qp.contact.opposing_facets, s_of,
                                             center, a)
-    pressure = p / qp.contact.mass
+    pressure = qp.contact.pressure(p)          # P2: recovered from the forces
     r = np.linalg.norm(s - center, axis=1)
     zone = r <= a
     p0 = row["p0_hertz"]
@@ -277,7 +279,7 @@ def singular_points(qp: ContactQP) -> np.ndarray:
     fixed = np.ones(qp.n_nodes * d, dtype=bool)
     fixed[qp.free_dofs] = False
     node_fixed = fixed.reshape(-1, d).all(axis=1)
-    f = boundary_facets(qp.mesh.cells)
+    f = boundary_facets(qp.mesh.cells[:, :d + 1])       # P2: the vertices' facets
     full = node_fixed[f].all(axis=1)
     touched = np.zeros(qp.n_nodes, dtype=int)
     np.add.at(touched, f[full].ravel(), 1)
@@ -287,27 +289,42 @@ def singular_points(qp: ContactQP) -> np.ndarray:
 
 
 class Reference:
-    """The reference solution on the common refinement and the comparisons with it."""
+    """The reference solution on the common refinement and the comparisons with it.
+
+    A P1 reference (the adaptive and coupling studies) or a P2 one (``degree=2``: cells
+    with midpoint columns, the coupling study's P2 rows). At P2 the energy norm is the
+    P2 stiffness's (:func:`problems.fem.quadratic.stiffness_matrix_p2`) on all nodal
+    DOFs, the nodal pressure the recovered one (:meth:`ContactSurface.pressure`), and
+    two measures are P1 only: the energy shares per region (``err_share_*``, from the
+    P1 energy per cell) and the multiplier's dual-norm error (NaN: the forces
+    ``B_C' (m lambda)`` of an interpolated nodal pressure are the P1 multiplier
+    basis's)."""
 
     def __init__(self, qp: ContactQP, u: np.ndarray, p: np.ndarray, info: dict):
         self.qp, self.info = qp, info
         m = qp.mesh
-        self.A = stiffness_matrix(m.points, m.cells, m.E_cell, m.nu_cell)
-        self.geometry = barycentric_gradients(m.points, m.cells)   # every compare's
+        self.quadratic = m.cells.shape[1] > qp.dim + 1
+        if self.quadratic:
+            self.A = stiffness_matrix_p2(quadratic_mesh_of(m.points, m.cells), m.E_cell,
+                                         m.nu_cell)
+            self.geometry = None
+        else:
+            self.A = stiffness_matrix(m.points, m.cells, m.E_cell, m.nu_cell)
+            self.geometry = barycentric_gradients(m.points, m.cells)   # every compare's
         self._prolongations = {}          # per compared mesh (a study's couplings share one)
         self.U = qp.full_displacement(u)
         self.norm = float(np.sqrt(self.U.ravel() @ (self.A @ self.U.ravel())))
         self.p = p
-        self.force = float(np.sum(p))
+        self.force = float(np.sum(contact_forces(qp, p)))
         self.s = in_plane(qp)
-        self.pressure = p / qp.contact.mass
+        self.pressure = qp.contact.pressure(p)
         self._force_norm = None          # ||A^{-1/2} B_C' p_ref||, at the first dual error
         meas = contact_measures(qp, u, p)
         a = meas.get("a_hertz", np.nan)
         center = (p @ qp.constrained_points()) / p.sum() if p.sum() > 0 else None
         cen = m.points[m.cells].mean(axis=1)
         self.regions = {}
-        if center is not None and np.isfinite(a):
+        if center is not None and np.isfinite(a) and not self.quadratic:
             self.regions["contact"] = np.linalg.norm(cen - center, axis=1) <= 2 * a
             sing = singular_points(qp)
             near = np.zeros(len(cen), dtype=bool)
@@ -337,12 +354,16 @@ class Reference:
         """The errors of ``(u, p)`` on ``qp`` against the reference (module docstring)."""
         P = self.prolongation(qp) if P is None else P
         diff = self.pressure_difference(qp, p)
-        p = surface_multipliers(qp, p)
+        p = contact_forces(qp, p)
         E = (P @ qp.full_displacement(u)) - self.U
         m = self.qp.mesh
-        by_cell = acc.energy_norm_by_cell(m.points, m.cells, E, m.E_cell, m.nu_cell,
-                                          self.geometry)
-        total = float(by_cell.sum())
+        if self.quadratic:
+            by_cell = None
+            total = float(E.ravel() @ (self.A @ E.ravel()))
+        else:
+            by_cell = acc.energy_norm_by_cell(m.points, m.cells, E, m.E_cell, m.nu_cell,
+                                              self.geometry)
+            total = float(by_cell.sum())
         row = {"err_energy": float(np.sqrt(max(total, 0.0))) / self.norm,
                "err_force": abs(float(np.sum(p)) - self.force) / self.force}
         for name, mask in self.regions.items():
@@ -355,14 +376,15 @@ class Reference:
     def pressure_difference(self, qp: ContactQP, p: np.ndarray) -> np.ndarray:
         """The nodal pressure of ``p`` on ``qp`` minus the reference's, at the reference's
         constrained nodes: ``p``'s pressure (:func:`problems.qp.surface_multipliers` over
-        the lumped surface mass) interpolated P1 along the in-plane coordinates
+        the lumped surface mass; at P2 recovered from the forces,
+        :meth:`problems.qp.ContactSurface.pressure`) interpolated P1 along the in-plane coordinates
         (:func:`problems.fem.accuracy.surface_interpolate`; in 3D on ``qp``'s surface
         triangles)."""
         facets = None
         if qp.dim == 3:
             index = {n: i for i, n in enumerate(qp.contact.nodes)}
             facets = np.vectorize(index.get)(qp.contact.facets)
-        lam_h = surface_multipliers(qp, p) / qp.contact.mass
+        lam_h = qp.contact.pressure(surface_multipliers(qp, p))
         return acc.surface_interpolate(in_plane(qp), lam_h, self.s, facets) - self.pressure
 
     def pressure_dual_error(self, qp: ContactQP, p: np.ndarray) -> float:
@@ -377,6 +399,8 @@ class Reference:
         docstring). One linear solve with the reference's ``A`` per call (its
         factorisation, or multigrid PCG, built once)."""
         q = self.qp
+        if self.quadratic or qp.contact.pressure_map is not None:
+            return float("nan")          # P1 only (the class docstring)
         rows = q.B[:q.m_contact]
         m = q.contact.mass
         if self._force_norm is None:

@@ -49,9 +49,9 @@ growing from level 0 to 2, so the rate judged in 3D is O(h), as in 2D.
 
 | file | content |
 | --- | --- |
-| `results/<scene>/coupling.csv` | per coupling and level: N, n, N^C, status, KKT, the energy, force and pressure errors against the reference (the pressure in discrete L2, `err_pressure`, and in the dual norm, `err_pressure_dual`), force, a and p0 against Hertz, the pressure's rms deviation from Hertz; the reference's row |
-| `results/<scene>/coupling_claims.csv` | every solve converged; each coupling's fitted energy-error rate (mortar: within 0.1 of the optimal) and dual-norm pressure-error rate (reported); a/a_H, p0/p0_H and the pressure deviation at the finest level |
-| `results/<scene>/coupling.png` | energy error against N per coupling (log-log), fitted rates in the legend, the optimal slope dotted |
+| `results/<scene>/coupling.csv` | per coupling, element order (`order`) and level: N, n, N^C, status (`skipped` with the `reason` for a coupling the scene refuses at P2), KKT, the energy, force and pressure errors against the reference (the pressure in discrete L2, `err_pressure`, and in the dual norm, `err_pressure_dual`), force, a and p0 against Hertz, the pressure's rms deviation from Hertz; the reference's row |
+| `results/<scene>/coupling_claims.csv` | every solve converged; each coupling's fitted energy-error rate (mortar: within 0.1 of the optimal) and dual-norm pressure-error rate (reported); a/a_H, p0/p0_H and the pressure deviation at the finest level; with P2 rows: each P2 coupling's fitted rate beside the optimal O(h^{3/2}) (reported), its Hertz rows, each skipped coupling with its reason |
+| `results/<scene>/coupling.png` | energy error against N per coupling (log-log), fitted rates in the legend, the optimal slope dotted; P2 rows dashed with open markers, their optimal slope dash-dotted |
 | `results/<scene>/coupling_hertz.png` | a/a_H and p0/p0_H against N per coupling, Hertz dotted at 1 |
 
 Read the energy-error figure as the difference to a finer discrete solution, not the true
@@ -118,6 +118,62 @@ deviation 0.36, 0.26), and at level 0 (h = 1/4 against a = 0.28) put the whole f
 the top face's centre node (moment radius 0, no peak pressure to measure); the dual ones stay within
 9 % (rms 0.12 to 0.07).
 
+P2 rows (`orders: [1, 2]`, the full scale; quick runs P1 only): every coupling the scene
+takes at `degree=2` (`nodal`, `mortar`, and `mortar_dual` in 2D; `stabilised` is built for
+P1 and the dual basis of the P2 trace on a triangle does not exist, so these are
+`skipped` rows with the scene's reason) at the scene's levels below `p2_reference.level`,
+against a P2 reference of their own (`p2_reference`: circle–square `mortar_dual` at level
+3, 262,474 nodes; cube–sphere `nodal` at level 2, 135,102 nodes, the one P2 coupling there
+that TNNMG takes beyond a factorisation). A P1 reference would not do: its own error is
+O(h_ref), P2's at best O(h^{3/2}). The P2 solution enters the comparison as its P2 field
+evaluated at the reference's P2 nodes (vertices and edge midpoints, per body: the reference
+space's P2 interpolant, exact on nested meshes), measured in the reference's P2 stiffness;
+the pressure is the one recovered from the forces at both sides; the dual-norm pressure
+error and the energy shares are P1 only. The optimal rate: with the solution in
+H^{5/2-eps} at best, P2's energy error is O(h^{3/2}), N^{-3/4} in 2D and N^{-1/2} in 3D.
+The P2 rates are reported beside it, not judged: the r^{1/2} singularities at the supports'
+ends bound every order by O(h^{1/2}) asymptotically, and at P2, whose error near the contact
+falls faster, their share is not known to be small (not measured at P2).
+
+At P2 the force and Hertz's a and p0 (moments of the nodal forces) take the normal forces
+the rows exert on the constrained nodes (`problems.fem.fields.contact_forces`: the
+multipliers for nodal and dual rows, the consistent loads for the standard mortar rows),
+whose total is the force the rows transmit; the standard mortar multipliers of the P2
+trace in 3D are no nodal forces.
+
+Measured on circle–square, P2 levels 0-2 (N = 4,237, 16,636, 65,926) against P2 level 3
+(`contactbench study coupling --problem circle_square --levels 0 1 2 --reference-level 3
+--orders 2 --p2-reference-level 3 --out F`, 2.6 GB peak; with `--levels 0 1 2 3
+--reference-level 4 --orders 1 2` the same P2 rows follow the P1 rows of the table above,
+which come out the same to the digits shown, 3.8 GB peak):
+
+| coupling | P2 energy error, levels 0-2 | per halving of h | fitted rate (levels 0-2) | a/a_H, p0/p0_H, level 2 | pressure rms / p0, level 2 |
+| --- | --- | --- | --- | --- | --- |
+| nodal | 0.088 0.041 0.025 | 1.11, 0.73 | -0.47 | 0.990, 1.010 | 0.025 |
+| mortar | 0.084 0.031 0.015 | 1.45, 1.03 | -0.63 | 0.991, 1.009 | 0.024 |
+| mortar_dual | 0.076 0.030 0.015 | 1.32, 1.01 | -0.59 | 0.989, 1.011 | 0.026 |
+
+The optimal -0.75 (h^{3/2}) is not reached: from level 0 to 1 the mortar errors fall as
+h^{1.3-1.5}, from level 1 to 2 as h^{1.0} (the last against a reference one level finer,
+which biases it upwards, not down), the nodal P2 rows as h^{1.1} and h^{0.7}. At 65,926
+nodes the mortar P2 rows are 2.5 times closer to their reference than P1 to its own
+(0.015 against 0.038, both references at 262k nodes; nodal P2 1.6 times), and P2's pressure deviates from Hertz by 0.024-0.026 of p0
+for every coupling, where P1's standard mortar pressure deviates by 0.052 at level 3.
+
+On cube–sphere, P2 levels 0-1 (N = 2,691, 18,360) against nodal P2 at level 2
+(`contactbench study coupling --problem cube_sphere --levels 0 1 --reference-level 2
+--orders 2 --p2-reference-level 2 --p2-reference-coupling nodal --out F`, 3.2 GB peak):
+nodal P2 0.263 and 0.126 (h^{1.06}; two levels, no rate fitted), a/a_H 0.989 and p0/p0_H
+1.022 at level 1; the standard mortar P2 rows 1.233 and 0.712. Their vertex rows, whose
+weights integrate to zero (`docs/guide/mortar.md`), bound only the gap's variation over a
+vertex's patch: the solution penetrates the cube by up to 0.011 (level 0) and 0.007
+(level 1) at the nodes, against displacements of 0.08, and at level 0 it differs from the
+nodal P2 solution on the same mesh by 1.3 times that solution's energy norm. They transmit
+a force 25 % (level 0) and 4 % (level 1) below the reference's (the multipliers' sum is
+about 5 times it), their recovered pressure deviates from Hertz by 0.29 and 0.12 of p0 (nodal
+P2: 0.25, 0.10), and the second moment of their consistent loads about the centre is
+negative, so a and p0 have no moment estimate (NaN).
+
 Run by hand:
 
     contactbench study coupling --problem circle_square --levels 0 1 2 \\
@@ -126,6 +182,7 @@ Run by hand:
         --reference-level 3 --out results/cube_sphere/coupling.csv
 """
 from problems.fem.stabilised import COUPLINGS
+from problems.spec import ParameterError
 from workflows.studies._base import (ConfigError, Study, ThesisItem, check_reference_levels,
                                      scenes_of)
 
@@ -137,8 +194,14 @@ def coupling_args(config: dict, scene: str) -> str:
     ``workflows/scripts/coupling.py``."""
     cs = config["coupling"]
     levels = " ".join(map(str, scenes_of(config, "coupling")[scene]))
-    return (f"--levels {levels} --reference-level {cs['reference_level'][scene]} "
-            f"--couplings {' '.join(cs['couplings'])}")
+    args = (f"--levels {levels} --reference-level {cs['reference_level'][scene]} "
+            f"--couplings {' '.join(cs['couplings'])} "
+            f"--orders {' '.join(map(str, cs['orders']))}")
+    if 2 in cs["orders"]:
+        p2 = cs["p2_reference"][scene]
+        args += (f" --p2-reference-level {p2['level']} "
+                 f"--p2-reference-coupling {p2['coupling']}")
+    return args
 
 
 def planned_jobs(config: dict, rule: str) -> list[tuple[str, str, int]]:
@@ -166,6 +229,27 @@ def check(config: dict, registry: dict) -> None:
             raise ConfigError(f"config 'coupling.scenes.{scene}': the scene sets 'coupling'; "
                               "allowed: a scene without it (the study sets it)")
     check_reference_levels(config, "coupling", registry)
+    if 2 not in (cs.get("orders") or ()):
+        return
+    p2 = cs.get("p2_reference") or {}
+    for scene, levels in scenes_of(config, "coupling").items():
+        spec = registry[config["scenes"][scene]["problem"]]
+        key = f"config 'coupling.p2_reference.{scene}"
+        if "degree" not in {p.name for p in spec.parameters}:
+            raise ConfigError(f"config 'coupling.orders': 2 is not allowed with scene "
+                              f"{scene!r} (problem {spec.name!r} has no 'degree'); allowed: "
+                              "[1], or scenes whose problem takes degree=2")
+        if scene not in p2:
+            raise ConfigError(f"{key}': missing; allowed: {{level, coupling}} of the P2 rows' "
+                              "reference (required with orders containing 2)")
+        lo, hi = spec.levels
+        if not min(levels) < p2[scene]["level"] <= hi:
+            raise ConfigError(f"{key}.level': {p2[scene]['level']} is not allowed; allowed: a "
+                              f"level in {min(levels) + 1}..{hi} (above a level of the scene)")
+        try:
+            spec.make(min(levels), **{"degree": 2, "coupling": p2[scene]["coupling"]})
+        except ParameterError as err:
+            raise ConfigError(f"{key}.coupling': {err}") from err
 
 
 STUDY = Study(
@@ -211,6 +295,22 @@ STUDY = Study(
                           "items": {"enum": list(COUPLINGS)},
                           "description": "the couplings compared (the reference's, "
                                          "mortar_dual, is offered by every scene too)"},
+            "orders": {"type": "array", "minItems": 1, "uniqueItems": True,
+                       "items": {"enum": [1, 2]}, "default": [1],
+                       "description": "element orders (the scenes' degree): 1, and 2 for "
+                                      "P2 rows of the couplings a scene takes at degree=2 "
+                                      "(the others: skipped rows with the reason), against "
+                                      "the P2 reference of p2_reference"},
+            "p2_reference": {"type": "object", "description": "{scene: {level, coupling}} "
+                             "of the P2 rows' reference (required with orders containing "
+                             "2): P2 at that level and coupling; the P2 rows run at the "
+                             "scene's levels below it",
+                             "additionalProperties": {
+                                 "type": "object", "additionalProperties": False,
+                                 "required": ["level", "coupling"],
+                                 "properties": {
+                                     "level": {"type": "integer", "minimum": 0},
+                                     "coupling": {"enum": list(COUPLINGS)}}}},
         },
     },
     claims=("cp_claims",),
