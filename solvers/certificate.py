@@ -17,11 +17,12 @@ from dataclasses import dataclass, replace
 from typing import Callable
 
 import numpy as np
+import scipy.linalg as sla
 import scipy.sparse as sp
 
 from problems.floating import floating_modes
 from problems.kkt import KKTResiduals, friction_residuals, kkt_residuals, tresca_energy
-from problems.qp import ContactQP
+from problems.qp import ContactQP, polygon_vertices
 from solvers.base import (CONTRACT, COULOMB_MONOLITHIC, SolveResult, contract_violation,
                           tangential_rows)
 
@@ -183,7 +184,27 @@ def duality_gap(qp: ContactQP, u: np.ndarray, p: np.ndarray,
     the frictionless case: the same bound ``||u - u*||_A <= ||u - u_f||_A +
     sqrt(2 gap)``, relative to ``||u_f||_A - sqrt(2 gap)``, and ``relative_gap``
     relative to the Tresca energy ``|J(u_f)|``. The pairs tried are those above, each
-    with ``l~``.
+    with ``l~``, and then the stick pairs: a library's ``u`` carries a small residual
+    slip at the stick nodes (``|l_i| < s_i``, exact slip 0) and the friction term is
+    linear in it (``~ s_i |slip_i|``) where the energy error is quadratic, so the pairs
+    above overestimate the error by orders of magnitude. For each of the two ``theta``
+    (nested active sets) ``u_f`` is the ``A``-orthogonal projection of ``u`` onto
+    ``{v : B_a v = g_a, slip_i(v) = 0 on the stick nodes}`` (:func:`stick_points`,
+    :func:`stick_nodes`; none where ``A^{-1} C'`` is neither cached nor cheap), made
+    feasible, with ``p~ = p_+`` on the active rows and 0 elsewhere, and with ``l~``, then
+    with ``l~`` aligned to the slip of ``u_f`` at the slipping nodes
+    (:func:`aligned_multipliers`, which makes those nodes' friction terms vanish). Each is
+    a feasible ``u_f`` and a dual point in the box, so the chain above holds for it
+    unchanged::
+
+        ||u - u*||_A <= ||u - u_f||_A + ||u_f - u*||_A
+                     <= ||u - u_f||_A + sqrt(2 (J(u_f) - J(u*)))
+                     <= ||u - u_f||_A + sqrt(2 (J(u_f) - q(p~, l~)))
+
+    and the best of all pairs is kept. On the stick nodes the friction term vanishes,
+    and ``||u - u_f||_A <= ||u - u*||_A`` whenever the exact solution lies in the
+    projected set (its active and stick sets contain the ones used), so the bound is of
+    the size of the true error. Frictionless problems (or ``lam`` None) never try them.
     """
     eps = np.finfo(float).eps
     u = np.asarray(u, dtype=float)
@@ -200,14 +221,15 @@ def duality_gap(qp: ContactQP, u: np.ndarray, p: np.ndarray,
     else:
         energy = qp.energy
 
-    def pair(u_f, p_t, extra=0.0):
+    def pair(u_f, p_t, extra=0.0, l_t=None):
         r = qp.f - qp.B.T @ p_t
         if fr is not None:
-            r = r - fr.T.T @ lam_t
+            l_t = lam_t if l_t is None else l_t
+            r = r - fr.T.T @ l_t
             slip = fr.slip(u_f)
-            extra = float(np.sum(s * fr.dissipation(slip) - fr.inner(lam_t, slip)))
-            extra_noise = float((s + fr.magnitude(lam_t)) @ fr.magnitude(slip)) + float(
-                np.abs(lam_t) @ (abs(fr.T) @ np.abs(u_f) + np.abs(fr.offset - fr.previous)))
+            extra = float(np.sum(s * fr.dissipation(slip) - fr.inner(l_t, slip)))
+            extra_noise = float((s + fr.magnitude(l_t)) @ fr.magnitude(slip)) + float(
+                np.abs(l_t) @ (abs(fr.T) @ np.abs(u_f) + np.abs(fr.offset - fr.previous)))
         x = solve_A(r, guess=u_f)
         e = u_f - x
         slack = qp.g - qp.B @ u_f
@@ -259,10 +281,136 @@ def duality_gap(qp: ContactQP, u: np.ndarray, p: np.ndarray,
             cand = pair(u_t, np.where(active, p_plus, 0.0))
             if cand[3] < best[3]:
                 best = cand
+    if fr is not None and not (target is not None and best[3] <= max(target, 4.0 * best[4])):
+        actives = [p_plus > theta * top if top > 0 else np.zeros(qp.m, dtype=bool)
+                   for theta in (1e-8, 1e-4)]
+        stick = stick_nodes(fr, u, lam_t)
+        for active, u_s in zip(actives, stick_points(qp, u, stick, actives, solve_A)):
+            if u_s is None:
+                continue
+            p_t = np.where(active, p_plus, 0.0)
+            for l_t in (lam_t, aligned_multipliers(fr, lam_t, fr.slip(u_s), stick)):
+                if target is not None and best[3] <= max(target, 4.0 * best[4]):
+                    break
+                cand = pair(u_s, p_t, l_t=l_t)
+                if cand[3] < best[3]:
+                    best = cand
     gap, shift, bound, rel, floor, relgap = best
     return DualityGap(gap=float(gap), relative_gap=float(relgap), shift=shift,
                       energy_bound=float(bound), relative_energy_bound=float(rel),
                       floor=float(floor), pair_gap=float(pair_gap), certified=True)
+
+
+#: A node sticks (:func:`stick_nodes`) where its clipped tangential multiplier lies inside
+#: its bound by more than this fraction of the largest bound ...
+STICK_MARGIN = 1e-3
+#: ... or where its slip is at most this fraction of the largest slip.
+STICK_SLIP = 1e-8
+#: Most stacked rows (active normal rows and the stick nodes' tangential rows) for which
+#: :func:`stick_points` forms ``A^{-1} C'`` without the cached dual operators: the dense
+#: ``C A^{-1} C'`` is then factorised in ``rows^3 / 3`` flops (2.7e9 at the limit, about a
+#: second), the size the exact Tresca route also takes
+#: (:data:`solvers.tresca.TRESCA_EXACT_MAX_M`).
+STICK_MAX_ROWS = 2000
+#: Largest dense ``A^{-1} C'`` (entries, ``n`` times the stacked rows) :func:`stick_points`
+#: forms: 200 MB, about four such arrays at once while it is solved for (``C'``, the solve
+#: and its refinement step), e.g. 2000 rows at 12.5k unknowns, 160 rows at 150k.
+STICK_MAX_ENTRIES = 25 * 10**6
+
+
+def stick_nodes(fr, u: np.ndarray, lam_t: np.ndarray) -> np.ndarray:
+    """The nodes :func:`stick_points` holds at zero slip: ``s_i > 0`` and the clipped
+    multiplier ``lam_t`` strictly inside its bound by more than :data:`STICK_MARGIN` of
+    the largest bound, or the slip of ``u`` at most :data:`STICK_SLIP` of the largest slip
+    (a node at the stick-slip transition). Only the sharpness of the bound depends on
+    this choice, never its validity. ``(m_contact,)`` bool."""
+    s = fr.slip_bound
+    size = fr.magnitude(fr.slip(u))
+    return (s > 0) & ((s - fr.gauge(lam_t) > STICK_MARGIN * float(s.max(initial=0.0)))
+                      | (size <= STICK_SLIP * float(size.max(initial=0.0))))
+
+
+def aligned_multipliers(fr, lam_t: np.ndarray, slip: np.ndarray,
+                        stick: np.ndarray) -> np.ndarray:
+    """``lam_t`` with each slipping node's multiplier moved onto the subgradient of its
+    dissipation at ``slip``: ``s_i slip_i / |slip_i|`` (isotropic; 2D ``s_i sign``),
+    ``s_i v_j`` with ``v_j`` the vertex of ``P_k`` where ``v_j . slip_i`` is largest
+    (faceted). Then ``s_i |slip_i| - l_i . slip_i = 0`` there; only nodes that are not in
+    ``stick``, have ``s_i > 0``, ``slip_i != 0`` and ``lam_t_i . slip_i > 0`` move. The
+    result lies in the dual box (``|l_i| <= s_i``, ``l_i in s_i P_k``)."""
+    s = fr.slip_bound
+    blocks = fr.blocks(slip)
+    size = fr.magnitude(slip)
+    if fr.facets:
+        vertices = polygon_vertices(fr.facets)
+        direction = vertices[np.argmax(blocks @ vertices.T, axis=1)]
+    else:
+        direction = blocks / np.where(size > 0, size, 1.0)[:, None]
+    move = (s > 0) & ~stick & (size > 0) & (fr.inner(lam_t, slip) > 0)
+    out = fr.blocks(lam_t).copy()
+    out[move] = s[move, None] * direction[move]
+    return out.ravel()
+
+
+def stick_points(qp: ContactQP, u: np.ndarray, stick: np.ndarray, actives: list,
+                 solve_A: Callable[..., np.ndarray]) -> list:
+    """Feasible points ``u_f`` with zero slip on the ``stick`` nodes and tight on the
+    normal rows ``active``, one per mask of ``actives`` (nested, the largest first; None
+    where the point is not found), for :func:`duality_gap`.
+
+    With ``C`` the stacked rows (the ``active`` rows of ``B``, the tangential rows of the
+    ``stick`` nodes) and ``c`` their values (``g``; ``previous - offset``), the
+    ``A``-orthogonal projection of ``u`` onto ``{v : C v = c}``::
+
+        u_f = u - A^{-1} C' y,   (C A^{-1} C') y = C u - c
+
+    the smallest correction in the energy norm: ``||u - u_f||_A <= ||u - v||_A`` for every
+    ``v`` of that set, the exact solution among them when ``active`` and ``stick`` are its
+    own sets. ``A^{-1} C'`` and ``C A^{-1} C'`` are columns and entries of the cached
+    dual operators (``qp.cache.dual_operators``, :func:`solvers.tresca.dual_operators`)
+    where present; else ``A^{-1} C'`` is formed with ``solve_A`` on the matrix ``C'``
+    when ``solve_A`` is direct (``solve_A.direct``, :func:`linear_solver`), at most
+    :data:`STICK_MAX_ROWS` rows and :data:`STICK_MAX_ENTRIES` entries (one solve with
+    the factor for all columns, ``rows`` times ``n`` floats; a CG route would need a solve
+    per row); beyond, no point. ``C A^{-1} C'`` may be singular (dependent rows):
+    Cholesky, else least squares. ``u_f`` is then made feasible (:func:`feasible_point`,
+    tight on ``active``; it moves nothing when ``B u_f <= g`` already holds); None if
+    that fails.
+    """
+    fr = qp.friction
+    k = fr.components
+    slip = fr.slip(u)
+    t_rows = (np.flatnonzero(stick)[:, None] * k + np.arange(k)).ravel()
+    n_rows = np.flatnonzero(actives[0])
+    rows = np.concatenate([n_rows, qp.m + t_rows])
+    if rows.size == 0:
+        return [None] * len(actives)
+    ops = qp.cache.dual_operators.get(True)
+    if ops is not None and ops.G.shape == (qp.m + fr.T.shape[0], qp.n):
+        W, S = ops.W[:, rows], ops.S[np.ix_(rows, rows)]
+    elif (getattr(solve_A, "direct", False) and rows.size <= STICK_MAX_ROWS
+          and rows.size * qp.n <= STICK_MAX_ENTRIES):
+        C = sp.vstack([qp.B.tocsr()[n_rows], fr.T.tocsr()[t_rows]]).tocsr()
+        W = solve_A(C.T.toarray())
+        S = C @ W
+        S = 0.5 * (S + S.T)
+    else:
+        return [None] * len(actives)
+    res = np.concatenate([qp.B.tocsr()[n_rows] @ u - qp.g[n_rows], slip[t_rows]])
+    out = []
+    for active in actives:
+        keep = np.concatenate([active[n_rows], np.ones(t_rows.size, dtype=bool)])
+        if not keep.any():
+            out.append(None)
+            continue
+        S_k = S[np.ix_(keep, keep)]
+        try:
+            y = sla.cho_solve(sla.cho_factor(S_k), res[keep])
+        except (sla.LinAlgError, ValueError):
+            y = sla.lstsq(S_k, res[keep])[0]
+        u_f, ok = feasible_point(qp, u - W[:, keep] @ y, tight=active)
+        out.append(u_f if ok else None)
+    return out
 
 
 #: Largest number of unknowns for which :func:`linear_solver` factorises A (per dimension);
@@ -284,7 +432,8 @@ def linear_solver(qp: ContactQP) -> Callable[..., np.ndarray]:
     SA without one) to a residual of ``rtol ||r||`` (1e-14 for the duality gap; a
     measurement may ask for less, :func:`workflows.measure.dual_norm`), started from
     ``guess`` (the direct route ignores both): a guess close to the solution saves steps,
-    never accuracy.
+    never accuracy. The direct route takes the columns of a matrix ``r`` as well and says
+    so (``solve_A.direct`` True; :func:`stick_points`).
     """
     if qp.cache.linear_solver is not None:
         return qp.cache.linear_solver
@@ -300,6 +449,7 @@ def linear_solver(qp: ContactQP) -> Callable[..., np.ndarray]:
         def solve_A(r, guess=None, rtol=1e-14):
             x = chol.solve(r)
             return x + chol.solve(r - qp.A @ x)        # one step of iterative refinement
+        solve_A.direct = True
     else:
         from solvers.multigrid import ahat_component, component_vcycle
         vc = component_vcycle(qp, ahat_component())

@@ -1,0 +1,117 @@
+"""The certificate of a Tresca step (:func:`solvers.certificate.duality_gap` with the
+tangential multipliers): the stick pairs (zero slip on the stick nodes, tight on the
+active rows, :func:`solvers.certificate.stick_points`) make the bound of an answer with a
+small residual slip of the size of its true error where the other pairs are orders of
+magnitude above it; the bound stays above the true error; frictionless problems never
+try them."""
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+import pytest
+
+from problems.kkt import energy_error
+from problems.spec import problems
+from solvers import certificate
+from solvers.certificate import duality_gap, linear_solver
+from solvers.tresca import friction_path
+
+#: the tangential step of each scene at level 0, with nodes that stick and nodes that slip
+SHIFT = {"circle_square": 0.03, "cube_sphere": 0.05}
+
+
+@functools.lru_cache(maxsize=None)
+def _step(scene):
+    """``(step_qp, solution)``: the last Tresca step of the scene's exact load path."""
+    qp = problems()[scene].make(0, friction="tresca", mu=0.5, shift=SHIFT[scene])
+    last = friction_path(qp)[-1]
+    assert 0 < last.solution.stick.sum() < (last.qp.friction.slip_bound > 0).sum()
+    last.qp.cache.dual_operators.clear()        # the verification as a library's row sees it
+    return last.qp, last.solution
+
+
+@pytest.fixture(scope="module", params=sorted(SHIFT))
+def step(request):
+    return _step(request.param)
+
+
+def _without_stick_pairs(monkeypatch):
+    monkeypatch.setattr(certificate, "stick_points",
+                        lambda qp, u, stick, actives, solve_A: [None] * len(actives))
+
+
+def _residual_slip(qp, sol, size):
+    """``u*`` plus a correction that slips the stick nodes by ``size`` times the largest
+    slip: ``A^{-1} T_s' w`` (an answer's typical error there), with its energy error."""
+    fr = qp.friction
+    k = fr.components
+    rows = (np.flatnonzero(sol.stick)[:, None] * k + np.arange(k)).ravel()
+    w = np.zeros(fr.T.shape[0])
+    w[rows] = np.random.default_rng(1).standard_normal(rows.size)
+    d = linear_solver(qp)(fr.T.T @ w)
+    slip = fr.magnitude(fr.slip(sol.u)).max()
+    d *= size * slip / np.abs(fr.T @ d)[rows].max()
+    return sol.u + d
+
+
+def test_a_residual_slip_at_the_stick_nodes_gets_a_bound_of_its_true_error(step, monkeypatch):
+    """An exact answer with a residual slip (1e-4 of the largest slip) at its stick nodes:
+    the other pairs' bound is >= 100 times its true energy error (the friction term is
+    linear in the slip), the stick pairs' within 10 times, and above it."""
+    qp, sol = step
+    u = _residual_slip(qp, sol, 1e-4)
+    err = energy_error(qp, u, sol.u)
+    solve_A = linear_solver(qp)
+    new = duality_gap(qp, u, sol.p, solve_A, lam=sol.lam)
+    with monkeypatch.context() as m:
+        _without_stick_pairs(m)
+        old = duality_gap(qp, u, sol.p, solve_A, lam=sol.lam)
+    assert err > 10 * new.floor                          # a measurable error
+    assert old.relative_energy_bound >= 100 * err, (old.relative_energy_bound, err)
+    assert err <= new.relative_energy_bound <= 10 * err, (new.relative_energy_bound, err)
+
+
+def test_the_bound_stays_above_the_true_error(step):
+    """Random perturbations of the exact answer (of ``u`` at several sizes, of the
+    multipliers, of the slip at the stick nodes): the certified relative bound is never
+    below the true energy error (up to the bound's floor)."""
+    qp, sol = step
+    fr = qp.friction
+    rng = np.random.default_rng(7)
+    solve_A = linear_solver(qp)
+    scale = np.abs(sol.u).max()
+    for size in (1e-2, 1e-4, 1e-6, 1e-8):
+        for _ in range(3):
+            u = sol.u + size * scale * rng.standard_normal(qp.n)
+            u = _residual_slip(qp, sol, size) + (u - sol.u) * rng.uniform()
+            p = sol.p * (1 + size * rng.standard_normal(qp.m))
+            lam = fr.clip(sol.lam + size * np.abs(sol.lam).max()
+                          * rng.standard_normal(sol.lam.shape))
+            gap = duality_gap(qp, u, p, solve_A, lam=lam)
+            err = energy_error(qp, u, sol.u)
+            assert gap.certified
+            assert err <= gap.relative_energy_bound + gap.floor, (size, err, gap)
+
+
+def test_frictionless_certificates_never_try_the_stick_pairs(monkeypatch):
+    """Without friction (a frictionless problem; a frictional one with ``lam`` None) the
+    stick pairs are never formed and every number of the certificate is as before."""
+    qp_free = problems()["circle_square"].make(0)
+    step_qp, sol = _step("circle_square")
+    rng = np.random.default_rng(3)
+    cases = []
+    for qp, u, p in ((qp_free, None, None), (step_qp, sol.u, sol.p)):
+        if u is None:
+            from solvers.tresca import tresca_exact
+            exact = tresca_exact(qp)
+            u, p = exact.u, exact.p
+        cases.append((qp, u + 1e-6 * np.abs(u).max() * rng.standard_normal(qp.n), p))
+    before = [duality_gap(qp, u, p, linear_solver(qp)) for qp, u, p in cases]
+
+    def refuse(*args):
+        raise AssertionError("stick pairs tried without friction")
+    monkeypatch.setattr(certificate, "stick_points", refuse)
+    for (qp, u, p), b in zip(cases, before):
+        a = duality_gap(qp, u, p, linear_solver(qp))
+        assert a == b                                 # bitwise, every field
