@@ -22,7 +22,7 @@ import scipy.sparse as sp
 
 from problems.floating import floating_modes
 from problems.kkt import KKTResiduals, friction_residuals, kkt_residuals, tresca_energy
-from problems.qp import ContactQP, polygon_vertices
+from problems.qp import ContactQP, polygon_normals, polygon_vertices
 from solvers.base import (CONTRACT, COULOMB_MONOLITHIC, SolveResult, contract_violation,
                           tangential_rows)
 
@@ -285,11 +285,12 @@ def duality_gap(qp: ContactQP, u: np.ndarray, p: np.ndarray,
         actives = [p_plus > theta * top if top > 0 else np.zeros(qp.m, dtype=bool)
                    for theta in (1e-8, 1e-4)]
         stick = stick_nodes(fr, u, lam_t)
-        for active, u_s in zip(actives, stick_points(qp, u, stick, actives, solve_A)):
+        facets = facet_slips(fr, fr.slip(u), stick)
+        for active, u_s in zip(actives, stick_points(qp, u, stick, facets, actives, solve_A)):
             if u_s is None:
                 continue
             p_t = np.where(active, p_plus, 0.0)
-            for l_t in (lam_t, aligned_multipliers(fr, lam_t, fr.slip(u_s), stick)):
+            for l_t in (lam_t, aligned_multipliers(fr, lam_t, fr.slip(u_s), stick, facets)):
                 if target is not None and best[3] <= max(target, 4.0 * best[4]):
                     break
                 cand = pair(u_s, p_t, l_t=l_t)
@@ -306,6 +307,11 @@ def duality_gap(qp: ContactQP, u: np.ndarray, p: np.ndarray,
 STICK_MARGIN = 1e-3
 #: ... or where its slip is at most this fraction of the largest slip.
 STICK_SLIP = 1e-8
+#: A faceted law's slipping node slips along a facet's normal (:func:`facet_slips`) where
+#: its slip direction is within this angle (radians) of it: the exact slip is exactly
+#: along it, an answer's within its accuracy; a vertex node's lies inside a cone of
+#: ``2 pi / k`` around the vertex.
+FACET_ANGLE = 1e-2
 #: Most stacked rows (active normal rows and the stick nodes' tangential rows) for which
 #: :func:`stick_points` forms ``A^{-1} C'`` without the cached dual operators: the dense
 #: ``C A^{-1} C'`` is then factorised in ``rows^3 / 3`` flops (2.7e9 at the limit, about a
@@ -330,76 +336,125 @@ def stick_nodes(fr, u: np.ndarray, lam_t: np.ndarray) -> np.ndarray:
                       | (size <= STICK_SLIP * float(size.max(initial=0.0))))
 
 
-def aligned_multipliers(fr, lam_t: np.ndarray, slip: np.ndarray,
-                        stick: np.ndarray) -> np.ndarray:
+def facet_slips(fr, slip: np.ndarray, stick: np.ndarray) -> np.ndarray:
+    """The slipping nodes of a faceted law whose slip points along a facet's outward
+    normal ``n_j`` (within :data:`FACET_ANGLE`): there the exact multiplier lies on the
+    facet ``[s_i v_j, s_i v_j+1]`` and the exact slip is along ``n_j``, so the stick
+    points also hold the slip's component along the facet at zero. ``(m_contact, 2)``:
+    the facet's direction ``(v_j+1 - v_j) / |.|`` at those nodes, 0 elsewhere (all 0 for
+    an isotropic law)."""
+    out = np.zeros((len(fr.slip_bound), fr.components))
+    if not fr.facets:
+        return out
+    blocks, size = fr.blocks(slip), fr.magnitude(slip)
+    normals = polygon_normals(fr.facets)
+    cosine = (blocks @ normals.T) / np.where(size > 0, size, 1.0)[:, None]
+    j = np.argmax(cosine, axis=1)
+    on = ((fr.slip_bound > 0) & ~stick & (size > 0)
+          & (cosine[np.arange(len(j)), j] >= np.cos(FACET_ANGLE)))
+    along = np.column_stack([-normals[:, 1], normals[:, 0]])[j]   # n_j turned by 90 degrees
+    out[on] = along[on]
+    return out
+
+
+def aligned_multipliers(fr, lam_t: np.ndarray, slip: np.ndarray, stick: np.ndarray,
+                        facets: np.ndarray) -> np.ndarray:
     """``lam_t`` with each slipping node's multiplier moved onto the subgradient of its
-    dissipation at ``slip``: ``s_i slip_i / |slip_i|`` (isotropic; 2D ``s_i sign``),
-    ``s_i v_j`` with ``v_j`` the vertex of ``P_k`` where ``v_j . slip_i`` is largest
-    (faceted). Then ``s_i |slip_i| - l_i . slip_i = 0`` there; only nodes that are not in
-    ``stick``, have ``s_i > 0``, ``slip_i != 0`` and ``lam_t_i . slip_i > 0`` move. The
-    result lies in the dual box (``|l_i| <= s_i``, ``l_i in s_i P_k``)."""
+    dissipation at ``slip``, so that its friction term ``s_i |slip_i| - l_i . slip_i``
+    (faceted: ``s_i h_Pk(slip_i) - l_i . slip_i``) vanishes: ``s_i slip_i / |slip_i|``
+    (isotropic; 2D ``s_i sign(slip_i)``); faceted, on a facet node of ``facets``
+    (:func:`facet_slips`, its slip along the facet's normal) ``lam_t_i`` projected onto
+    that facet's segment, elsewhere the vertex ``s_i v_j`` where ``v_j . slip_i`` is
+    largest. Only nodes that are not in ``stick``, have ``s_i > 0``, ``slip_i != 0`` and
+    ``lam_t_i . slip_i > 0`` move. The result lies in the dual box (``|l_i| <= s_i``,
+    ``l_i in s_i P_k``)."""
     s = fr.slip_bound
-    blocks = fr.blocks(slip)
-    size = fr.magnitude(slip)
+    blocks, size, lam = fr.blocks(slip), fr.magnitude(slip), fr.blocks(lam_t)
     if fr.facets:
         vertices = polygon_vertices(fr.facets)
-        direction = vertices[np.argmax(blocks @ vertices.T, axis=1)]
+        top = np.argmax(blocks @ vertices.T, axis=1)
+        target = s[:, None] * vertices[top]
+        on = np.any(facets != 0, axis=1)
+        normal = np.column_stack([facets[:, 1], -facets[:, 0]])        # back to n_j
+        first = np.argmax(normal @ polygon_normals(fr.facets).T, axis=1)
+        start = s[:, None] * vertices[first]
+        edge = s[:, None] * (vertices[(first + 1) % fr.facets] - vertices[first])
+        length2 = np.maximum(np.einsum("nd,nd->n", edge, edge), 1e-300)
+        t = np.clip(np.einsum("nd,nd->n", lam - start, edge) / length2, 0.0, 1.0)
+        target = np.where(on[:, None], start + t[:, None] * edge, target)
     else:
-        direction = blocks / np.where(size > 0, size, 1.0)[:, None]
+        target = s[:, None] * blocks / np.where(size > 0, size, 1.0)[:, None]
     move = (s > 0) & ~stick & (size > 0) & (fr.inner(lam_t, slip) > 0)
-    out = fr.blocks(lam_t).copy()
-    out[move] = s[move, None] * direction[move]
+    out = lam.copy()
+    out[move] = target[move]
     return out.ravel()
 
 
-def stick_points(qp: ContactQP, u: np.ndarray, stick: np.ndarray, actives: list,
-                 solve_A: Callable[..., np.ndarray]) -> list:
-    """Feasible points ``u_f`` with zero slip on the ``stick`` nodes and tight on the
+def held_rows(qp: ContactQP, active: np.ndarray, stick: np.ndarray,
+              facets: np.ndarray) -> sp.csr_matrix:
+    """The rows ``R`` with ``C = R G``, ``G = [B; T]`` (:func:`stick_points`): the
+    ``active`` rows of ``B``, the ``k`` tangential rows of each ``stick`` node, and the
+    slip along the facet at each facet node (:func:`facet_slips`, a row
+    ``e_i' T_i``)."""
+    fr = qp.friction
+    k, width = fr.components, qp.m + fr.T.shape[0]
+    nodes = np.flatnonzero(stick)
+    single = np.concatenate([np.flatnonzero(active),
+                             qp.m + (nodes[:, None] * k + np.arange(k)).ravel()])
+    on = np.flatnonzero(np.any(facets != 0, axis=1))
+    rows = np.concatenate([np.arange(single.size),
+                           single.size + np.repeat(np.arange(on.size), k)])
+    cols = np.concatenate([single, qp.m + (on[:, None] * k + np.arange(k)).ravel()])
+    data = np.concatenate([np.ones(single.size), facets[on].ravel()])
+    return sp.csr_matrix((data, (rows, cols)), shape=(single.size + on.size, width))
+
+
+def stick_points(qp: ContactQP, u: np.ndarray, stick: np.ndarray, facets: np.ndarray,
+                 actives: list, solve_A: Callable[..., np.ndarray]) -> list:
+    """Feasible points ``u_f`` with zero slip on the ``stick`` nodes (and zero slip
+    along the facet on the ``facets`` nodes, :func:`facet_slips`) and tight on the
     normal rows ``active``, one per mask of ``actives`` (nested, the largest first; None
     where the point is not found), for :func:`duality_gap`.
 
-    With ``C`` the stacked rows (the ``active`` rows of ``B``, the tangential rows of the
-    ``stick`` nodes) and ``c`` their values (``g``; ``previous - offset``), the
-    ``A``-orthogonal projection of ``u`` onto ``{v : C v = c}``::
+    With ``C = R G`` the stacked rows (:func:`held_rows` of the largest mask) and ``c``
+    their values (``R [g; previous - offset]``), the ``A``-orthogonal projection of ``u``
+    onto ``{v : C v = c}``::
 
         u_f = u - A^{-1} C' y,   (C A^{-1} C') y = C u - c
 
     the smallest correction in the energy norm: ``||u - u_f||_A <= ||u - v||_A`` for every
-    ``v`` of that set, the exact solution among them when ``active`` and ``stick`` are its
-    own sets. ``A^{-1} C'`` and ``C A^{-1} C'`` are columns and entries of the cached
+    ``v`` of that set, the exact solution among them when the held rows hold for it.
+    ``A^{-1} C' = (A^{-1} G') R'`` and ``C A^{-1} C' = R S R'`` come from the cached
     dual operators (``qp.cache.dual_operators``, :func:`solvers.tresca.dual_operators`)
     where present; else ``A^{-1} C'`` is formed with ``solve_A`` on the matrix ``C'``
     when ``solve_A`` is direct (``solve_A.direct``, :func:`linear_solver`), at most
     :data:`STICK_MAX_ROWS` rows and :data:`STICK_MAX_ENTRIES` entries (one solve with
-    the factor for all columns, ``rows`` times ``n`` floats; a CG route would need a solve
-    per row); beyond, no point. ``C A^{-1} C'`` may be singular (dependent rows):
-    Cholesky, else least squares. ``u_f`` is then made feasible (:func:`feasible_point`,
-    tight on ``active``; it moves nothing when ``B u_f <= g`` already holds); None if
-    that fails.
+    the factor for all columns; a CG route would need a solve per row); beyond, no
+    point. ``C A^{-1} C'`` may be singular (dependent rows): Cholesky, else least
+    squares. ``u_f`` is then made feasible (:func:`feasible_point`, tight on ``active``;
+    it moves nothing when ``B u_f <= g`` already holds); None if that fails.
     """
     fr = qp.friction
-    k = fr.components
-    slip = fr.slip(u)
-    t_rows = (np.flatnonzero(stick)[:, None] * k + np.arange(k)).ravel()
-    n_rows = np.flatnonzero(actives[0])
-    rows = np.concatenate([n_rows, qp.m + t_rows])
-    if rows.size == 0:
+    R = held_rows(qp, actives[0], stick, facets)
+    if R.shape[0] == 0:
         return [None] * len(actives)
     ops = qp.cache.dual_operators.get(True)
-    if ops is not None and ops.G.shape == (qp.m + fr.T.shape[0], qp.n):
-        W, S = ops.W[:, rows], ops.S[np.ix_(rows, rows)]
-    elif (getattr(solve_A, "direct", False) and rows.size <= STICK_MAX_ROWS
-          and rows.size * qp.n <= STICK_MAX_ENTRIES):
-        C = sp.vstack([qp.B.tocsr()[n_rows], fr.T.tocsr()[t_rows]]).tocsr()
+    if ops is not None and ops.G.shape == (R.shape[1], qp.n):
+        W = (R @ ops.W.T).T
+        S = R @ (R @ ops.S).T
+    elif (getattr(solve_A, "direct", False) and R.shape[0] <= STICK_MAX_ROWS
+          and R.shape[0] * qp.n <= STICK_MAX_ENTRIES):
+        C = (R @ sp.vstack([qp.B, fr.T]).tocsr()).tocsr()
         W = solve_A(C.T.toarray())
         S = C @ W
-        S = 0.5 * (S + S.T)
     else:
         return [None] * len(actives)
-    res = np.concatenate([qp.B.tocsr()[n_rows] @ u - qp.g[n_rows], slip[t_rows]])
+    S = 0.5 * (S + S.T)
+    res = R @ np.concatenate([qp.B @ u - qp.g, fr.slip(u)])
+    n_active = int(actives[0].sum())
     out = []
     for active in actives:
-        keep = np.concatenate([active[n_rows], np.ones(t_rows.size, dtype=bool)])
+        keep = np.concatenate([active[actives[0]], np.ones(R.shape[0] - n_active, dtype=bool)])
         if not keep.any():
             out.append(None)
             continue
