@@ -193,7 +193,10 @@ def duality_gap(qp: ContactQP, u: np.ndarray, p: np.ndarray,
     :func:`stick_nodes`; none where ``A^{-1} C'`` is neither cached nor cheap), made
     feasible, with ``p~ = p_+`` on the active rows and 0 elsewhere, and with ``l~``, then
     with ``l~`` aligned to the slip of ``u_f`` at the slipping nodes
-    (:func:`aligned_multipliers`, which makes those nodes' friction terms vanish). Each is
+    (:func:`aligned_multipliers`, which makes those nodes' friction terms vanish; where it
+    moves none, the pair is not repeated; nor is an active set equal to the other). They
+    cost one solve with ``A`` for the columns of ``C'`` (none with the cached dual
+    operators) and one per pair, at most four. Each is
     a feasible ``u_f`` and a dual point in the box, so the chain above holds for it
     unchanged::
 
@@ -284,13 +287,16 @@ def duality_gap(qp: ContactQP, u: np.ndarray, p: np.ndarray,
     if fr is not None and not (target is not None and best[3] <= max(target, 4.0 * best[4])):
         actives = [p_plus > theta * top if top > 0 else np.zeros(qp.m, dtype=bool)
                    for theta in (1e-8, 1e-4)]
+        if np.array_equal(*actives):
+            actives = actives[:1]
         stick = stick_nodes(fr, u, lam_t)
         facets = facet_slips(fr, fr.slip(u), stick)
         for active, u_s in zip(actives, stick_points(qp, u, stick, facets, actives, solve_A)):
             if u_s is None:
                 continue
             p_t = np.where(active, p_plus, 0.0)
-            for l_t in (lam_t, aligned_multipliers(fr, lam_t, fr.slip(u_s), stick, facets)):
+            aligned = aligned_multipliers(fr, lam_t, fr.slip(u_s), stick, facets)
+            for l_t in (lam_t,) if np.array_equal(aligned, lam_t) else (lam_t, aligned):
                 if target is not None and best[3] <= max(target, 4.0 * best[4]):
                     break
                 cand = pair(u_s, p_t, l_t=l_t)
