@@ -187,18 +187,18 @@ def duality_gap(qp: ContactQP, u: np.ndarray, p: np.ndarray,
     with ``l~``, and then the stick pairs: a library's ``u`` carries a small residual
     slip at the stick nodes (``|l_i| < s_i``, exact slip 0) and the friction term is
     linear in it (``~ s_i |slip_i|``) where the energy error is quadratic, so the pairs
-    above overestimate the error by orders of magnitude. For each of the two ``theta``
-    (nested active sets) ``u_f`` is the ``A``-orthogonal projection of ``u`` onto
-    ``{v : B_a v = g_a, slip_i(v) = 0 on the stick nodes}`` (:func:`stick_points`,
-    :func:`stick_nodes`; none where ``A^{-1} C'`` is neither cached nor cheap), made
-    feasible, with ``p~ = p_+`` on the active rows and 0 elsewhere, and with ``l~``, then
-    with ``l~`` aligned to the slip of ``u_f`` at the slipping nodes
-    (:func:`aligned_multipliers`, which makes those nodes' friction terms vanish; where it
-    moves none, the pair is not repeated; nor is an active set equal to the other). They
-    cost one solve with ``A`` for the columns of ``C'`` (none with the cached dual
-    operators) and one per pair, at most four. Each is
-    a feasible ``u_f`` and a dual point in the box, so the chain above holds for it
-    unchanged::
+    above overestimate the error by orders of magnitude. ``u_f`` is the
+    ``A``-orthogonal projection of ``u`` onto ``{v : B_a v = g_a, slip_i(v) = 0 on the
+    stick nodes}`` (:func:`stick_point`; the active rows ``a`` by
+    :func:`complementary_active`, the stick nodes by :func:`stick_nodes`, on a faceted law
+    also the slip along the facet at the nodes of :func:`facet_slips`; none where
+    ``A^{-1} C'`` is neither cached nor cheap), made feasible, with ``p~ = p_+`` on the
+    active rows and 0 elsewhere, and with ``l~``, then with ``l~`` aligned to the slip of
+    ``u_f`` at the slipping nodes (:func:`aligned_multipliers`, which makes those nodes'
+    friction terms vanish; not repeated where it moves none). They cost one solve with
+    ``A`` for the columns of ``C'`` (none with the cached dual operators) and one per
+    pair, at most two. Each is a feasible ``u_f`` and a dual point in the box, so the
+    chain above holds for it unchanged::
 
         ||u - u*||_A <= ||u - u_f||_A + ||u_f - u*||_A
                      <= ||u - u_f||_A + sqrt(2 (J(u_f) - J(u*)))
@@ -206,7 +206,7 @@ def duality_gap(qp: ContactQP, u: np.ndarray, p: np.ndarray,
 
     and the best of all pairs is kept. On the stick nodes the friction term vanishes,
     and ``||u - u_f||_A <= ||u - u*||_A`` whenever the exact solution lies in the
-    projected set (its active and stick sets contain the ones used), so the bound is of
+    projected set (the held rows hold for it), so the bound is of
     the size of the true error. Frictionless problems (or ``lam`` None) never try them.
     """
     eps = np.finfo(float).eps
@@ -285,15 +285,11 @@ def duality_gap(qp: ContactQP, u: np.ndarray, p: np.ndarray,
             if cand[3] < best[3]:
                 best = cand
     if fr is not None and not (target is not None and best[3] <= max(target, 4.0 * best[4])):
-        actives = [p_plus > theta * top if top > 0 else np.zeros(qp.m, dtype=bool)
-                   for theta in (1e-8, 1e-4)]
-        if np.array_equal(*actives):
-            actives = actives[:1]
+        active = complementary_active(qp, u_f, p_plus)
         stick = stick_nodes(fr, u, lam_t)
         facets = facet_slips(fr, fr.slip(u), stick)
-        for active, u_s in zip(actives, stick_points(qp, u, stick, facets, actives, solve_A)):
-            if u_s is None:
-                continue
+        u_s = stick_point(qp, u, active, stick, facets, solve_A)
+        if u_s is not None:
             p_t = np.where(active, p_plus, 0.0)
             aligned = aligned_multipliers(fr, lam_t, fr.slip(u_s), stick, facets)
             for l_t in (lam_t,) if np.array_equal(aligned, lam_t) else (lam_t, aligned):
@@ -308,10 +304,8 @@ def duality_gap(qp: ContactQP, u: np.ndarray, p: np.ndarray,
                       floor=float(floor), pair_gap=float(pair_gap), certified=True)
 
 
-#: A node sticks (:func:`stick_nodes`) where its clipped tangential multiplier lies inside
-#: its bound by more than this fraction of the largest bound ...
-STICK_MARGIN = 1e-3
-#: ... or where its slip is at most this fraction of the largest slip.
+#: A node sticks (:func:`stick_nodes`) where its slip is at most this fraction of the
+#: largest slip, whatever its multiplier.
 STICK_SLIP = 1e-8
 #: A faceted law's slipping node slips along a facet's normal (:func:`facet_slips`) where
 #: its slip direction is within this angle (radians) of it: the exact slip is exactly
@@ -319,27 +313,46 @@ STICK_SLIP = 1e-8
 #: ``2 pi / k`` around the vertex.
 FACET_ANGLE = 1e-2
 #: Most stacked rows (active normal rows and the stick nodes' tangential rows) for which
-#: :func:`stick_points` forms ``A^{-1} C'`` without the cached dual operators: the dense
+#: :func:`stick_point` forms ``A^{-1} C'`` without the cached dual operators: the dense
 #: ``C A^{-1} C'`` is then factorised in ``rows^3 / 3`` flops (2.7e9 at the limit, about a
 #: second), the size the exact Tresca route also takes
 #: (:data:`solvers.tresca.TRESCA_EXACT_MAX_M`).
 STICK_MAX_ROWS = 2000
-#: Largest dense ``A^{-1} C'`` (entries, ``n`` times the stacked rows) :func:`stick_points`
+#: Largest dense ``A^{-1} C'`` (entries, ``n`` times the stacked rows) :func:`stick_point`
 #: forms: 200 MB, about four such arrays at once while it is solved for (``C'``, the solve
 #: and its refinement step), e.g. 2000 rows at 12.5k unknowns, 160 rows at 150k.
 STICK_MAX_ENTRIES = 25 * 10**6
 
 
+def complementary_active(qp: ContactQP, u_f: np.ndarray, p_plus: np.ndarray) -> np.ndarray:
+    """The normal rows the stick pair holds tight (:func:`stick_point`): ``p_i``
+    larger, relative to the largest, than the row's slack ``g_i - B_i u_f`` relative to
+    the largest. Of the two complementary quantities an answer has the active row's
+    slack and the inactive row's ``p_i`` small (an interior-point method's ``p_i ~
+    mu / slack_i`` lies far above a fixed threshold ``theta max p`` at a loose stop).
+    ``(m,)`` bool, none where ``p_+ = 0``."""
+    top = float(p_plus.max(initial=0.0))
+    if top == 0:
+        return np.zeros(qp.m, dtype=bool)
+    slack = np.maximum(qp.g - qp.B @ u_f, 0.0)
+    return p_plus / top > slack / max(float(slack.max()), np.finfo(float).tiny)
+
+
 def stick_nodes(fr, u: np.ndarray, lam_t: np.ndarray) -> np.ndarray:
-    """The nodes :func:`stick_points` holds at zero slip: ``s_i > 0`` and the clipped
-    multiplier ``lam_t`` strictly inside its bound by more than :data:`STICK_MARGIN` of
-    the largest bound, or the slip of ``u`` at most :data:`STICK_SLIP` of the largest slip
-    (a node at the stick-slip transition). Only the sharpness of the bound depends on
-    this choice, never its validity. ``(m_contact,)`` bool."""
+    """The nodes :func:`stick_point` holds at zero slip: ``s_i > 0`` and the clipped
+    multiplier ``lam_t`` further inside its bound, relative to the largest bound, than
+    the node slips relative to the largest slip (of the two complementary quantities,
+    ``s_i - |lam_i|`` and ``|slip_i|``, an answer has the stick node's one small), or a
+    slip of at most :data:`STICK_SLIP` of the largest (a node at the stick-slip
+    transition). Only the sharpness of the bound depends on this choice, never its
+    validity. ``(m_contact,)`` bool."""
     s = fr.slip_bound
     size = fr.magnitude(fr.slip(u))
-    return (s > 0) & ((s - fr.gauge(lam_t) > STICK_MARGIN * float(s.max(initial=0.0)))
-                      | (size <= STICK_SLIP * float(size.max(initial=0.0))))
+    top_s = max(float(s.max(initial=0.0)), np.finfo(float).tiny)
+    top_slip = float(size.max(initial=0.0))
+    return (s > 0) & (((s - fr.gauge(lam_t)) / top_s
+                       > size / max(top_slip, np.finfo(float).tiny))
+                      | (size <= STICK_SLIP * top_slip))
 
 
 def facet_slips(fr, slip: np.ndarray, stick: np.ndarray) -> np.ndarray:
@@ -398,7 +411,7 @@ def aligned_multipliers(fr, lam_t: np.ndarray, slip: np.ndarray, stick: np.ndarr
 
 def held_rows(qp: ContactQP, active: np.ndarray, stick: np.ndarray,
               facets: np.ndarray) -> sp.csr_matrix:
-    """The rows ``R`` with ``C = R G``, ``G = [B; T]`` (:func:`stick_points`): the
+    """The rows ``R`` with ``C = R G``, ``G = [B; T]`` (:func:`stick_point`): the
     ``active`` rows of ``B``, the ``k`` tangential rows of each ``stick`` node, and the
     slip along the facet at each facet node (:func:`facet_slips`, a row
     ``e_i' T_i``)."""
@@ -415,16 +428,15 @@ def held_rows(qp: ContactQP, active: np.ndarray, stick: np.ndarray,
     return sp.csr_matrix((data, (rows, cols)), shape=(single.size + on.size, width))
 
 
-def stick_points(qp: ContactQP, u: np.ndarray, stick: np.ndarray, facets: np.ndarray,
-                 actives: list, solve_A: Callable[..., np.ndarray]) -> list:
-    """Feasible points ``u_f`` with zero slip on the ``stick`` nodes (and zero slip
+def stick_point(qp: ContactQP, u: np.ndarray, active: np.ndarray, stick: np.ndarray,
+                facets: np.ndarray, solve_A: Callable[..., np.ndarray]) -> np.ndarray | None:
+    """The feasible point ``u_f`` with zero slip on the ``stick`` nodes (and zero slip
     along the facet on the ``facets`` nodes, :func:`facet_slips`) and tight on the
-    normal rows ``active``, one per mask of ``actives`` (nested, the largest first; None
-    where the point is not found), for :func:`duality_gap`.
+    normal rows ``active``, for :func:`duality_gap`; None where it is not found.
 
-    With ``C = R G`` the stacked rows (:func:`held_rows` of the largest mask) and ``c``
-    their values (``R [g; previous - offset]``), the ``A``-orthogonal projection of ``u``
-    onto ``{v : C v = c}``::
+    With ``C = R G`` the stacked rows (:func:`held_rows`) and ``c`` their values
+    (``R [g; previous - offset]``), the ``A``-orthogonal projection of ``u`` onto
+    ``{v : C v = c}``::
 
         u_f = u - A^{-1} C' y,   (C A^{-1} C') y = C u - c
 
@@ -441,9 +453,9 @@ def stick_points(qp: ContactQP, u: np.ndarray, stick: np.ndarray, facets: np.nda
     it moves nothing when ``B u_f <= g`` already holds); None if that fails.
     """
     fr = qp.friction
-    R = held_rows(qp, actives[0], stick, facets)
+    R = held_rows(qp, active, stick, facets)
     if R.shape[0] == 0:
-        return [None] * len(actives)
+        return None
     ops = qp.cache.dual_operators.get(True)
     if ops is not None and ops.G.shape == (R.shape[1], qp.n):
         W = (R @ ops.W.T).T
@@ -454,24 +466,15 @@ def stick_points(qp: ContactQP, u: np.ndarray, stick: np.ndarray, facets: np.nda
         W = solve_A(C.T.toarray())
         S = C @ W
     else:
-        return [None] * len(actives)
+        return None
     S = 0.5 * (S + S.T)
     res = R @ np.concatenate([qp.B @ u - qp.g, fr.slip(u)])
-    n_active = int(actives[0].sum())
-    out = []
-    for active in actives:
-        keep = np.concatenate([active[actives[0]], np.ones(R.shape[0] - n_active, dtype=bool)])
-        if not keep.any():
-            out.append(None)
-            continue
-        S_k = S[np.ix_(keep, keep)]
-        try:
-            y = sla.cho_solve(sla.cho_factor(S_k), res[keep])
-        except (sla.LinAlgError, ValueError):
-            y = sla.lstsq(S_k, res[keep])[0]
-        u_f, ok = feasible_point(qp, u - W[:, keep] @ y, tight=active)
-        out.append(u_f if ok else None)
-    return out
+    try:
+        y = sla.cho_solve(sla.cho_factor(S), res)
+    except (sla.LinAlgError, ValueError):
+        y = sla.lstsq(S, res)[0]
+    u_f, ok = feasible_point(qp, u - W @ y, tight=active)
+    return u_f if ok else None
 
 
 #: Largest number of unknowns for which :func:`linear_solver` factorises A (per dimension);
@@ -494,7 +497,7 @@ def linear_solver(qp: ContactQP) -> Callable[..., np.ndarray]:
     measurement may ask for less, :func:`workflows.measure.dual_norm`), started from
     ``guess`` (the direct route ignores both): a guess close to the solution saves steps,
     never accuracy. The direct route takes the columns of a matrix ``r`` as well and says
-    so (``solve_A.direct`` True; :func:`stick_points`).
+    so (``solve_A.direct`` True; :func:`stick_point`).
     """
     if qp.cache.linear_solver is not None:
         return qp.cache.linear_solver

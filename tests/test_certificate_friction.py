@@ -1,6 +1,6 @@
 """The certificate of a Tresca step (:func:`solvers.certificate.duality_gap` with the
 tangential multipliers): the stick pairs (zero slip on the stick nodes, tight on the
-active rows, :func:`solvers.certificate.stick_points`) make the bound of an answer with a
+active rows, :func:`solvers.certificate.stick_point`) make the bound of an answer with a
 small residual slip of the size of its true error where the other pairs are orders of
 magnitude above it; the bound stays above the true error; frictionless problems never
 try them."""
@@ -42,8 +42,8 @@ def step(request):
 
 
 def _without_stick_pairs(monkeypatch):
-    monkeypatch.setattr(certificate, "stick_points",
-                        lambda *args: [None] * len(args[-2]))
+    monkeypatch.setattr(certificate, "stick_point",
+                        lambda *args: None)
 
 
 def _residual_slip(qp, sol, size):
@@ -125,6 +125,21 @@ def test_a_faceted_slip_on_a_facet_gets_the_facets_multiplier():
     assert np.all(fr.gauge(aligned) <= s * (1 + 1e-12))
 
 
+def test_the_active_rows_by_complementarity_ignore_an_interior_point_tail(step):
+    """An interior point's multipliers ``p* + mu / slack`` on the inactive rows (``mu``
+    with the largest tail entry 1e-3 of the largest ``p``): a threshold of 1e-4 of the
+    largest ``p`` takes rows that are not in contact, the comparison with the slack
+    (:func:`solvers.certificate.complementary_active`) the exact active rows."""
+    qp, sol = step
+    slack = qp.g - qp.B @ sol.u
+    exact = sol.p > 0
+    assert np.all(slack[~exact] > 0)
+    tail = np.where(exact, 0.0, 1.0 / np.where(exact, 1.0, slack))
+    p = sol.p + 1e-3 * sol.p.max() * tail / tail.max()
+    assert not np.array_equal(p > 1e-4 * p.max(), exact)
+    assert np.array_equal(certificate.complementary_active(qp, sol.u, p), exact)
+
+
 def test_the_bound_stays_above_the_true_error(step):
     """Random perturbations of the exact answer (of ``u`` at several sizes, of the
     multipliers, of the slip at the stick nodes): the certified relative bound is never
@@ -164,7 +179,7 @@ def test_frictionless_certificates_never_try_the_stick_pairs(monkeypatch):
 
     def refuse(*args):
         raise AssertionError("stick pairs tried without friction")
-    monkeypatch.setattr(certificate, "stick_points", refuse)
+    monkeypatch.setattr(certificate, "stick_point", refuse)
     for (qp, u, p), b in zip(cases, before):
         a = duality_gap(qp, u, p, linear_solver(qp))
         assert a == b                                 # bitwise, every field
