@@ -15,7 +15,7 @@ from problems.kkt import energy_error
 from problems.spec import problems
 from solvers import certificate
 from solvers.certificate import duality_gap, linear_solver
-from solvers.tresca import friction_path
+from solvers.tresca import dual_operators, friction_path
 
 #: the tangential step of each scene at level 0, with nodes that stick and nodes that slip
 SHIFT = {"circle_square": 0.03, "cube_sphere": 0.05}
@@ -138,6 +138,32 @@ def test_the_active_rows_by_complementarity_ignore_an_interior_point_tail(step):
     p = sol.p + 1e-3 * sol.p.max() * tail / tail.max()
     assert not np.array_equal(p > 1e-4 * p.max(), exact)
     assert np.array_equal(certificate.complementary_active(qp, sol.u, p), exact)
+
+
+def test_the_stick_point_from_the_cached_dual_operators_is_the_one_it_forms(step):
+    """The stick point from the exact route's cached ``A^{-1} [B; T]'`` and ``S``
+    (:func:`solvers.tresca.dual_operators`) is the one formed with the verification's
+    factor of ``A``, to round-off; it has zero slip at the stick nodes and is tight on
+    the active rows."""
+    qp, sol = step
+    fr = qp.friction
+    u = _residual_slip(qp, sol, 1e-4)
+    active = certificate.complementary_active(qp, u, sol.p)
+    stick = certificate.stick_nodes(fr, u, fr.clip(sol.lam))
+    facets = certificate.facet_slips(fr, fr.slip(u), stick)
+    args = (qp, u, active, stick, facets, linear_solver(qp))
+    assert not qp.cache.dual_operators
+    formed = certificate.stick_point(*args)
+    dual_operators(qp)
+    try:
+        cached = certificate.stick_point(*args)
+    finally:
+        qp.cache.dual_operators.clear()
+    scale = np.abs(sol.u).max()
+    assert np.abs(cached - formed).max() <= 1e-10 * scale
+    slip = fr.magnitude(fr.slip(formed))
+    assert slip[stick].max() <= 1e-12 * slip.max()
+    assert np.abs((qp.B @ formed - qp.g)[active]).max() <= 1e-12 * np.abs(qp.g).max()
 
 
 def test_the_bound_stays_above_the_true_error(step):
