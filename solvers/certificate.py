@@ -359,7 +359,7 @@ def facet_slips(fr, slip: np.ndarray, stick: np.ndarray) -> np.ndarray:
     """The slipping nodes of a faceted law whose slip points along a facet's outward
     normal ``n_j`` (within :data:`FACET_ANGLE`): there the exact multiplier lies on the
     facet ``[s_i v_j, s_i v_j+1]`` and the exact slip is along ``n_j``, so the stick
-    points also hold the slip's component along the facet at zero. ``(m_contact, 2)``:
+    point also holds the slip's component along the facet at zero. ``(m_contact, 2)``:
     the facet's direction ``(v_j+1 - v_j) / |.|`` at those nodes, 0 elsewhere (all 0 for
     an isotropic law)."""
     out = np.zeros((len(fr.slip_bound), fr.components))
@@ -450,7 +450,8 @@ def stick_point(qp: ContactQP, u: np.ndarray, active: np.ndarray, stick: np.ndar
     the factor for all columns; a CG route would need a solve per row); beyond, no
     point. ``C A^{-1} C'`` may be singular (dependent rows): Cholesky, else least
     squares. ``u_f`` is then made feasible (:func:`feasible_point`, tight on ``active``;
-    it moves nothing when ``B u_f <= g`` already holds); None if that fails.
+    it moves nothing beyond round-off when ``B u_f <= g`` already holds); None if that
+    fails.
     """
     fr = qp.friction
     R = held_rows(qp, active, stick, facets)
