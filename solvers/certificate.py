@@ -17,11 +17,12 @@ from dataclasses import dataclass, replace
 from typing import Callable
 
 import numpy as np
+import scipy.linalg as sla
 import scipy.sparse as sp
 
 from problems.floating import floating_modes
 from problems.kkt import KKTResiduals, friction_residuals, kkt_residuals, tresca_energy
-from problems.qp import ContactQP
+from problems.qp import ContactQP, polygon_normals, polygon_vertices
 from solvers.base import (CONTRACT, COULOMB_MONOLITHIC, SolveResult, contract_violation,
                           tangential_rows)
 
@@ -183,7 +184,30 @@ def duality_gap(qp: ContactQP, u: np.ndarray, p: np.ndarray,
     the frictionless case: the same bound ``||u - u*||_A <= ||u - u_f||_A +
     sqrt(2 gap)``, relative to ``||u_f||_A - sqrt(2 gap)``, and ``relative_gap``
     relative to the Tresca energy ``|J(u_f)|``. The pairs tried are those above, each
-    with ``l~``.
+    with ``l~``, and then the stick pairs: a library's ``u`` carries a small residual
+    slip at the stick nodes (``|l_i| < s_i``, exact slip 0) and the friction term is
+    linear in it (``~ s_i |slip_i|``) where the energy error is quadratic, so the pairs
+    above overestimate the error by orders of magnitude. ``u_f`` is the
+    ``A``-orthogonal projection of ``u`` onto ``{v : B_a v = g_a, slip_i(v) = 0 on the
+    stick nodes}`` (:func:`stick_point`; the active rows ``a`` by
+    :func:`complementary_active`, the stick nodes by :func:`stick_nodes`, on a faceted law
+    also the slip along the facet at the nodes of :func:`facet_slips`; none where
+    ``A^{-1} C'`` is neither cached nor cheap), made feasible, with ``p~ = p_+`` on the
+    active rows and 0 elsewhere, and with ``l~``, then with ``l~`` aligned to the slip of
+    ``u_f`` at the slipping nodes (:func:`aligned_multipliers`, which makes those nodes'
+    friction terms vanish; not repeated where it moves none). They cost one solve with
+    ``A`` for the columns of ``C'`` (none with the cached dual operators) and one per
+    pair, at most two. Each is a feasible ``u_f`` and a dual point in the box, so the
+    chain above holds for it unchanged::
+
+        ||u - u*||_A <= ||u - u_f||_A + ||u_f - u*||_A
+                     <= ||u - u_f||_A + sqrt(2 (J(u_f) - J(u*)))
+                     <= ||u - u_f||_A + sqrt(2 (J(u_f) - q(p~, l~)))
+
+    and the best of all pairs is kept. On the stick nodes the friction term vanishes,
+    and ``||u - u_f||_A <= ||u - u*||_A`` whenever the exact solution lies in the
+    projected set (the held rows hold for it), so the bound is of
+    the size of the true error. Frictionless problems (or ``lam`` None) never try them.
     """
     eps = np.finfo(float).eps
     u = np.asarray(u, dtype=float)
@@ -200,14 +224,15 @@ def duality_gap(qp: ContactQP, u: np.ndarray, p: np.ndarray,
     else:
         energy = qp.energy
 
-    def pair(u_f, p_t, extra=0.0):
+    def pair(u_f, p_t, extra=0.0, l_t=None):
         r = qp.f - qp.B.T @ p_t
         if fr is not None:
-            r = r - fr.T.T @ lam_t
+            l_t = lam_t if l_t is None else l_t
+            r = r - fr.T.T @ l_t
             slip = fr.slip(u_f)
-            extra = float(np.sum(s * fr.dissipation(slip) - fr.inner(lam_t, slip)))
-            extra_noise = float((s + fr.magnitude(lam_t)) @ fr.magnitude(slip)) + float(
-                np.abs(lam_t) @ (abs(fr.T) @ np.abs(u_f) + np.abs(fr.offset - fr.previous)))
+            extra = float(np.sum(s * fr.dissipation(slip) - fr.inner(l_t, slip)))
+            extra_noise = float((s + fr.magnitude(l_t)) @ fr.magnitude(slip)) + float(
+                np.abs(l_t) @ (abs(fr.T) @ np.abs(u_f) + np.abs(fr.offset - fr.previous)))
         x = solve_A(r, guess=u_f)
         e = u_f - x
         slack = qp.g - qp.B @ u_f
@@ -259,10 +284,198 @@ def duality_gap(qp: ContactQP, u: np.ndarray, p: np.ndarray,
             cand = pair(u_t, np.where(active, p_plus, 0.0))
             if cand[3] < best[3]:
                 best = cand
+    if fr is not None and not (target is not None and best[3] <= max(target, 4.0 * best[4])):
+        active = complementary_active(qp, u_f, p_plus)
+        stick = stick_nodes(fr, u, lam_t)
+        facets = facet_slips(fr, fr.slip(u), stick)
+        u_s = stick_point(qp, u, active, stick, facets, solve_A)
+        if u_s is not None:
+            p_t = np.where(active, p_plus, 0.0)
+            aligned = aligned_multipliers(fr, lam_t, fr.slip(u_s), stick, facets)
+            for l_t in (lam_t,) if np.array_equal(aligned, lam_t) else (lam_t, aligned):
+                if target is not None and best[3] <= max(target, 4.0 * best[4]):
+                    break
+                cand = pair(u_s, p_t, l_t=l_t)
+                if cand[3] < best[3]:
+                    best = cand
     gap, shift, bound, rel, floor, relgap = best
     return DualityGap(gap=float(gap), relative_gap=float(relgap), shift=shift,
                       energy_bound=float(bound), relative_energy_bound=float(rel),
                       floor=float(floor), pair_gap=float(pair_gap), certified=True)
+
+
+#: A node sticks (:func:`stick_nodes`) where its slip is at most this fraction of the
+#: largest slip, whatever its multiplier.
+STICK_SLIP = 1e-8
+#: A faceted law's slipping node slips along a facet's normal (:func:`facet_slips`) where
+#: its slip direction is within this angle (radians) of it: the exact slip is exactly
+#: along it, an answer's within its accuracy; a vertex node's lies inside a cone of
+#: ``2 pi / k`` around the vertex.
+FACET_ANGLE = 1e-2
+#: Most stacked rows (active normal rows and the stick nodes' tangential rows) for which
+#: :func:`stick_point` forms ``A^{-1} C'`` without the cached dual operators: the dense
+#: ``C A^{-1} C'`` is then factorised in ``rows^3 / 3`` flops (2.7e9 at the limit, about a
+#: second), the size the exact Tresca route also takes
+#: (:data:`solvers.tresca.TRESCA_EXACT_MAX_M`).
+STICK_MAX_ROWS = 2000
+#: Largest dense ``A^{-1} C'`` (entries, ``n`` times the stacked rows) :func:`stick_point`
+#: forms: 200 MB, about four such arrays at once while it is solved for (``C'``, the solve
+#: and its refinement step), e.g. 2000 rows at 12.5k unknowns, 160 rows at 150k.
+STICK_MAX_ENTRIES = 25 * 10**6
+
+
+def complementary_active(qp: ContactQP, u_f: np.ndarray, p_plus: np.ndarray) -> np.ndarray:
+    """The normal rows the stick pair holds tight (:func:`stick_point`): ``p_i``
+    larger, relative to the largest, than the row's slack ``g_i - B_i u_f`` relative to
+    the largest. Of the two complementary quantities an answer has the active row's
+    slack and the inactive row's ``p_i`` small (an interior-point method's ``p_i ~
+    mu / slack_i`` lies far above a fixed threshold ``theta max p`` at a loose stop).
+    ``(m,)`` bool, none where ``p_+ = 0``."""
+    top = float(p_plus.max(initial=0.0))
+    if top == 0:
+        return np.zeros(qp.m, dtype=bool)
+    slack = np.maximum(qp.g - qp.B @ u_f, 0.0)
+    return p_plus / top > slack / max(float(slack.max()), np.finfo(float).tiny)
+
+
+def stick_nodes(fr, u: np.ndarray, lam_t: np.ndarray) -> np.ndarray:
+    """The nodes :func:`stick_point` holds at zero slip: ``s_i > 0`` and the clipped
+    multiplier ``lam_t`` further inside its bound, relative to the largest bound, than
+    the node slips relative to the largest slip (of the two complementary quantities,
+    ``s_i - |lam_i|`` and ``|slip_i|``, an answer has the stick node's one small), or a
+    slip of at most :data:`STICK_SLIP` of the largest (a node at the stick-slip
+    transition). Only the sharpness of the bound depends on this choice, never its
+    validity. ``(m_contact,)`` bool."""
+    s = fr.slip_bound
+    size = fr.magnitude(fr.slip(u))
+    top_s = max(float(s.max(initial=0.0)), np.finfo(float).tiny)
+    top_slip = float(size.max(initial=0.0))
+    return (s > 0) & (((s - fr.gauge(lam_t)) / top_s
+                       > size / max(top_slip, np.finfo(float).tiny))
+                      | (size <= STICK_SLIP * top_slip))
+
+
+def facet_slips(fr, slip: np.ndarray, stick: np.ndarray) -> np.ndarray:
+    """The slipping nodes of a faceted law whose slip points along a facet's outward
+    normal ``n_j`` (within :data:`FACET_ANGLE`): there the exact multiplier lies on the
+    facet ``[s_i v_j, s_i v_j+1]`` and the exact slip is along ``n_j``, so the stick
+    point also holds the slip's component along the facet at zero. ``(m_contact, 2)``:
+    the facet's direction ``(v_j+1 - v_j) / |.|`` at those nodes, 0 elsewhere (all 0 for
+    an isotropic law)."""
+    out = np.zeros((len(fr.slip_bound), fr.components))
+    if not fr.facets:
+        return out
+    blocks, size = fr.blocks(slip), fr.magnitude(slip)
+    normals = polygon_normals(fr.facets)
+    cosine = (blocks @ normals.T) / np.where(size > 0, size, 1.0)[:, None]
+    j = np.argmax(cosine, axis=1)
+    on = ((fr.slip_bound > 0) & ~stick & (size > 0)
+          & (cosine[np.arange(len(j)), j] >= np.cos(FACET_ANGLE)))
+    along = np.column_stack([-normals[:, 1], normals[:, 0]])[j]   # n_j turned by 90 degrees
+    out[on] = along[on]
+    return out
+
+
+def aligned_multipliers(fr, lam_t: np.ndarray, slip: np.ndarray, stick: np.ndarray,
+                        facets: np.ndarray) -> np.ndarray:
+    """``lam_t`` with each slipping node's multiplier moved onto the subgradient of its
+    dissipation at ``slip``, so that its friction term ``s_i |slip_i| - l_i . slip_i``
+    (faceted: ``s_i h_Pk(slip_i) - l_i . slip_i``) vanishes: ``s_i slip_i / |slip_i|``
+    (isotropic; 2D ``s_i sign(slip_i)``); faceted, on a facet node of ``facets``
+    (:func:`facet_slips`, its slip along the facet's normal) ``lam_t_i`` projected onto
+    that facet's segment, elsewhere the vertex ``s_i v_j`` where ``v_j . slip_i`` is
+    largest. Only nodes that are not in ``stick``, have ``s_i > 0``, ``slip_i != 0`` and
+    ``lam_t_i . slip_i > 0`` move. The result lies in the dual box (``|l_i| <= s_i``,
+    ``l_i in s_i P_k``)."""
+    s = fr.slip_bound
+    blocks, size, lam = fr.blocks(slip), fr.magnitude(slip), fr.blocks(lam_t)
+    if fr.facets:
+        vertices = polygon_vertices(fr.facets)
+        top = np.argmax(blocks @ vertices.T, axis=1)
+        target = s[:, None] * vertices[top]
+        on = np.any(facets != 0, axis=1)
+        normal = np.column_stack([facets[:, 1], -facets[:, 0]])        # back to n_j
+        first = np.argmax(normal @ polygon_normals(fr.facets).T, axis=1)
+        start = s[:, None] * vertices[first]
+        edge = s[:, None] * (vertices[(first + 1) % fr.facets] - vertices[first])
+        length2 = np.maximum(np.einsum("nd,nd->n", edge, edge), 1e-300)
+        t = np.clip(np.einsum("nd,nd->n", lam - start, edge) / length2, 0.0, 1.0)
+        target = np.where(on[:, None], start + t[:, None] * edge, target)
+    else:
+        target = s[:, None] * blocks / np.where(size > 0, size, 1.0)[:, None]
+    move = (s > 0) & ~stick & (size > 0) & (fr.inner(lam_t, slip) > 0)
+    out = lam.copy()
+    out[move] = target[move]
+    return out.ravel()
+
+
+def held_rows(qp: ContactQP, active: np.ndarray, stick: np.ndarray,
+              facets: np.ndarray) -> sp.csr_matrix:
+    """The rows ``R`` with ``C = R G``, ``G = [B; T]`` (:func:`stick_point`): the
+    ``active`` rows of ``B``, the ``k`` tangential rows of each ``stick`` node, and the
+    slip along the facet at each facet node (:func:`facet_slips`, a row
+    ``e_i' T_i``)."""
+    fr = qp.friction
+    k, width = fr.components, qp.m + fr.T.shape[0]
+    nodes = np.flatnonzero(stick)
+    single = np.concatenate([np.flatnonzero(active),
+                             qp.m + (nodes[:, None] * k + np.arange(k)).ravel()])
+    on = np.flatnonzero(np.any(facets != 0, axis=1))
+    rows = np.concatenate([np.arange(single.size),
+                           single.size + np.repeat(np.arange(on.size), k)])
+    cols = np.concatenate([single, qp.m + (on[:, None] * k + np.arange(k)).ravel()])
+    data = np.concatenate([np.ones(single.size), facets[on].ravel()])
+    return sp.csr_matrix((data, (rows, cols)), shape=(single.size + on.size, width))
+
+
+def stick_point(qp: ContactQP, u: np.ndarray, active: np.ndarray, stick: np.ndarray,
+                facets: np.ndarray, solve_A: Callable[..., np.ndarray]) -> np.ndarray | None:
+    """The feasible point ``u_f`` with zero slip on the ``stick`` nodes (and zero slip
+    along the facet on the ``facets`` nodes, :func:`facet_slips`) and tight on the
+    normal rows ``active``, for :func:`duality_gap`; None where it is not found.
+
+    With ``C = R G`` the stacked rows (:func:`held_rows`) and ``c`` their values
+    (``R [g; previous - offset]``), the ``A``-orthogonal projection of ``u`` onto
+    ``{v : C v = c}``::
+
+        u_f = u - A^{-1} C' y,   (C A^{-1} C') y = C u - c
+
+    the smallest correction in the energy norm: ``||u - u_f||_A <= ||u - v||_A`` for every
+    ``v`` of that set, the exact solution among them when the held rows hold for it.
+    ``A^{-1} C' = (A^{-1} G') R'`` and ``C A^{-1} C' = R S R'`` come from the cached
+    dual operators (``qp.cache.dual_operators``, :func:`solvers.tresca.dual_operators`)
+    where present; else ``A^{-1} C'`` is formed with ``solve_A`` on the matrix ``C'``
+    when ``solve_A`` is direct (``solve_A.direct``, :func:`linear_solver`), at most
+    :data:`STICK_MAX_ROWS` rows and :data:`STICK_MAX_ENTRIES` entries (one solve with
+    the factor for all columns; a CG route would need a solve per row); beyond, no
+    point. ``C A^{-1} C'`` may be singular (dependent rows): Cholesky, else least
+    squares. ``u_f`` is then made feasible (:func:`feasible_point`, tight on ``active``;
+    it moves nothing beyond round-off when ``B u_f <= g`` already holds); None if that
+    fails.
+    """
+    fr = qp.friction
+    R = held_rows(qp, active, stick, facets)
+    if R.shape[0] == 0:
+        return None
+    ops = qp.cache.dual_operators.get(True)
+    if ops is not None and ops.G.shape == (R.shape[1], qp.n):
+        W = (R @ ops.W.T).T
+        S = R @ (R @ ops.S).T
+    elif (getattr(solve_A, "direct", False) and R.shape[0] <= STICK_MAX_ROWS
+          and R.shape[0] * qp.n <= STICK_MAX_ENTRIES):
+        C = (R @ sp.vstack([qp.B, fr.T]).tocsr()).tocsr()
+        W = solve_A(C.T.toarray())
+        S = C @ W
+    else:
+        return None
+    S = 0.5 * (S + S.T)
+    res = R @ np.concatenate([qp.B @ u - qp.g, fr.slip(u)])
+    try:
+        y = sla.cho_solve(sla.cho_factor(S), res)
+    except (sla.LinAlgError, ValueError):
+        y = sla.lstsq(S, res)[0]
+    u_f, ok = feasible_point(qp, u - W @ y, tight=active)
+    return u_f if ok else None
 
 
 #: Largest number of unknowns for which :func:`linear_solver` factorises A (per dimension);
@@ -284,7 +497,8 @@ def linear_solver(qp: ContactQP) -> Callable[..., np.ndarray]:
     SA without one) to a residual of ``rtol ||r||`` (1e-14 for the duality gap; a
     measurement may ask for less, :func:`workflows.measure.dual_norm`), started from
     ``guess`` (the direct route ignores both): a guess close to the solution saves steps,
-    never accuracy.
+    never accuracy. The direct route takes the columns of a matrix ``r`` as well and says
+    so (``solve_A.direct`` True; :func:`stick_point`).
     """
     if qp.cache.linear_solver is not None:
         return qp.cache.linear_solver
@@ -300,6 +514,7 @@ def linear_solver(qp: ContactQP) -> Callable[..., np.ndarray]:
         def solve_A(r, guess=None, rtol=1e-14):
             x = chol.solve(r)
             return x + chol.solve(r - qp.A @ x)        # one step of iterative refinement
+        solve_A.direct = True
     else:
         from solvers.multigrid import ahat_component, component_vcycle
         vc = component_vcycle(qp, ahat_component())
