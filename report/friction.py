@@ -112,6 +112,15 @@ CLAIMS = {
                          "{scene}: TNNMG tangential-step iterations from the normal step's "
                          "answer, level {level} over level {coarser} at Q/(mu P) = "
                          "{ratio:g}", "<=", STEPS_GROWTH_BAR),
+    "tnnmg_steps_on_face": Claim(
+        "Gräser-Kornhuber: on a fixed face a TNNMG step is a linear multigrid step "
+        "(contraction bounded in h)", "{scene}: TNNMG tangential-step iterations from the "
+        "normal step's answer after its face (normal active set, stick set, slip signs) "
+        "last changed, level {level} over level {coarser} at Q/(mu P) = {ratio:g} (steps "
+        "before it: {to_face})",
+        unjudged="information: the steps that find the face grow with the nodes whose "
+        "state changes (the slip front's nodes nearest their kink are found last); the "
+        "steps after it are the multigrid phase the h-independence is about"),
     "tnnmg_steps_cold": Claim("suite figure (the tangential step solved as a problem of its "
                               "own)", "{scene}: TNNMG tangential-step iterations from zero, "
                               "level {level} over level {coarser} at Q/(mu P) = {ratio:g}",
@@ -163,6 +172,7 @@ RUN_COLUMNS = ("scene", "mu", "level", "N", "role", "solver", "start", "status",
                "contact", "contact_nodes", "dev_c_over_a", "traction_l2", "stick_offset",
                "c_over_a",
                "c_over_a_exact", "ratio_reached", "p0", "err_energy", "steps_tangential",
+               "steps_tangential_to_face", "steps_tangential_on_face",
                "t_setup", "t_solve", "load_step", "tresca_solves", "contraction", "target",
                "t_to_target", "facets", "energy", "energy_gap", "gap_bound", "traction_dev",
                "facet_distance")
@@ -217,6 +227,9 @@ def claims(runs: pd.DataFrame) -> pd.DataFrame:
                               RESOLVED_CONTACT_NODES[kind])
         rows += _tnnmg_growth(solved[solved.start == "cold"], nodes, scene,
                               RESOLVED_CONTACT_NODES[kind], claim="tnnmg_steps_cold")
+        rows += _tnnmg_growth(solved[solved.start != "cold"], nodes, scene,
+                              RESOLVED_CONTACT_NODES[kind], claim="tnnmg_steps_on_face",
+                              column="steps_tangential_on_face")
         rows += _time_ratio(t[t.role == "timing"], scene)
         rows += _time_ratio(t[t.role == "timing"], scene, "warm", "tnnmg_time_warm")
         rows.append(_coulomb(t[t.role == "coulomb"], scene))
@@ -323,24 +336,29 @@ def contact_kind(runs: pd.DataFrame) -> str:
 
 
 def _tnnmg_growth(solved: pd.DataFrame, contact_nodes: pd.Series, scene: str,
-                  resolved_nodes: int, claim: str = "tnnmg_steps") -> list[dict]:
-    """TNNMG's tangential-step iterations over the last two levels, per ratio
-    (``solved``: the solver rows of one start; ``contact_nodes``: per level, from the
-    reference rows; ``resolved_nodes``: the fewest the finer level needs for the bar to
-    be judged; ``claim``: the key in :data:`CLAIMS`)."""
+                  resolved_nodes: int, claim: str = "tnnmg_steps",
+                  column: str = "steps_tangential") -> list[dict]:
+    """TNNMG's tangential-step iterations (``column``: all of them, or those after its
+    face last changed) over the last two levels, per ratio (``solved``: the solver rows
+    of one start; ``contact_nodes``: per level, from the reference rows;
+    ``resolved_nodes``: the fewest the finer level needs for the bar to be judged;
+    ``claim``: the key in :data:`CLAIMS`; the steps before the face, ``coarser -> finer``,
+    go into its ``to_face`` field where it has one)."""
     tn = solved[(solved.solver == "tnnmg") & (solved.status == "converged")]
     rows = []
     for ratio, g in tn.groupby("ratio", sort=True):
         g = g.sort_values("N")
         if len(g) < 2:
             rows.append(CLAIMS[claim].row(np.nan, judged=False, scene=scene,
-                                          ratio=ratio, level="-", coarser="-",
+                                          ratio=ratio, level="-", coarser="-", to_face="-",
                                           reason="needs two levels"))
             continue
         fine, coarse = g.iloc[-1], g.iloc[-2]
         resolved = contact_nodes.get(fine.level, 0) >= resolved_nodes
+        to_face = " -> ".join(f"{float(r.steps_tangential_to_face):g}" for r in (coarse, fine))
         rows.append(CLAIMS[claim].row(
-            float(fine.steps_tangential / coarse.steps_tangential), judged=resolved,
+            float(fine[column] / coarse[column]) if coarse[column] > 0 else np.nan,
+            judged=resolved, to_face=to_face,
             scene=scene, ratio=ratio, level=int(fine.level), coarser=int(coarse.level),
             reason=f"level {int(fine.level)} has fewer than {resolved_nodes} "
                    "contact nodes: the bar is about fine levels (on coarse ones the stick "

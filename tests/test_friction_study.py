@@ -70,6 +70,22 @@ def test_the_script_writes_every_declared_output(outputs):
         assert image.ndim == 3 and min(image.shape[:2]) > 200, key
 
 
+def test_tnnmg_rows_split_the_tangential_step_at_its_face(outputs):
+    """TNNMG's solver rows split the tangential step's iterations at the last change of its
+    face (the steps that find it and those on it, summing to the step's iterations); the
+    other solvers leave both empty; the claims report the steps on the face per ratio."""
+    runs = read_csv(outputs["runs"])
+    solved = runs[runs.role == "solver"]
+    tn = solved[solved.solver == "tnnmg"]
+    assert len(tn) > 0
+    assert (tn.steps_tangential_to_face + tn.steps_tangential_on_face
+            == tn.steps_tangential).all()
+    assert solved[solved.solver != "tnnmg"].steps_tangential_on_face.isna().all()
+    table = read_csv(outputs["claims"])
+    on_face = table[table.claim.str.contains("after its face")]
+    assert len(on_face) == len(COMMON["ratios"]) and on_face["pass"].isna().all()
+
+
 def test_the_measured_stick_zone_at_level_1_is_cattaneo_mindlin_within_20_percent(outputs):
     """c/a at level 1 against sqrt(1 - Q/(mu P)); measured -1.5 % at 0.3 and -17 % at 0.7
     on the study's scene (9 contact nodes: the stick zone at 0.7 spans 5 of them; the
