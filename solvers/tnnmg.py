@@ -761,6 +761,19 @@ def _face_state(fine: _Fine, v: np.ndarray) -> np.ndarray:
     return np.concatenate([active, (~term.stick(v) & (term.weight > 0)).astype(np.int64)])
 
 
+def _contraction_on_face(residuals: list, to_face: int) -> float:
+    """The mean contraction per step of the stationarity residual (``residuals``: one per
+    step) from the step at which the face last changed (``to_face``; 0: never, counted
+    from the first step) to the last: ``(res_last / res_face)^(1/steps)``, the multigrid
+    phase's rate, which does not depend on h where the step counts do through finding the
+    face (:func:`_face_state`); NaN without a step on the face."""
+    first = max(to_face, 1)
+    steps = len(residuals) - first
+    if steps <= 0 or not residuals[first - 1] > 0:
+        return float("nan")
+    return float(residuals[-1] / residuals[first - 1]) ** (1.0 / steps)
+
+
 @dataclass
 class _TrescaFaceCG(_FaceCG):
     """:class:`_FaceCG` on a face of a 2D Tresca step (:class:`_TrescaFace`; ``E``: its
@@ -1197,6 +1210,7 @@ def _tresca_solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | 
     stick = term.stick(v)
     stats = {"friction": "tresca_step", "n_steps": k, "n_cg": n_cg, "n_vcycles": k,
              "steps_to_face": to_face, "steps_on_face": k - to_face,
+             "contraction_on_face": _contraction_on_face(log.history["residual"], to_face),
              "presmoothing": opts.presmoothing,
              "truncation_updates": ml.updates, "n_active": int(np.count_nonzero(p > 0)),
              "n_stick": int(np.count_nonzero(stick)),

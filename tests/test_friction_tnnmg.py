@@ -368,3 +368,7 @@ def test_the_steps_split_at_the_last_change_of_the_face():
     assert to_face + on_face == res.iterations and to_face >= 1 and res.stats["n_slip"] > 0
     stuck = np.count_nonzero(tangential.solution.stick)
     assert res.history["n_stick"][to_face - 1:] == [stuck] * (on_face + 1)
+    residual = res.history["residual"]
+    rate = res.stats["contraction_on_face"]
+    assert 0 < rate < 1
+    assert rate ** on_face * residual[to_face - 1] == pytest.approx(residual[-1], rel=1e-9)
