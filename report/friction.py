@@ -112,6 +112,16 @@ CLAIMS = {
                          "{scene}: TNNMG tangential-step iterations from the normal step's "
                          "answer, level {level} over level {coarser} at Q/(mu P) = "
                          "{ratio:g}", "<=", STEPS_GROWTH_BAR),
+    "tnnmg_face_rate": Claim(
+        "Gräser-Kornhuber: on a fixed face a TNNMG step is a linear multigrid step "
+        "(contraction bounded in h)", "{scene}: TNNMG's mean contraction per step of the "
+        "tangential step's stationarity residual, from the normal step's answer, after its "
+        "face (normal active set, stick set, slip signs) last changed, level {level} "
+        "(level {coarser}: {coarse_rate}) at Q/(mu P) = {ratio:g}; steps to the face "
+        "{to_face}, on it {on_face}",
+        unjudged="information: the steps that find the face grow with the nodes whose "
+        "state changes (the slip front's nodes nearest their kink are found last); the "
+        "contraction on it is the multigrid phase the h-independence is about"),
     "tnnmg_steps_cold": Claim("suite figure (the tangential step solved as a problem of its "
                               "own)", "{scene}: TNNMG tangential-step iterations from zero, "
                               "level {level} over level {coarser} at Q/(mu P) = {ratio:g}",
@@ -163,6 +173,8 @@ RUN_COLUMNS = ("scene", "mu", "level", "N", "role", "solver", "start", "status",
                "contact", "contact_nodes", "dev_c_over_a", "traction_l2", "stick_offset",
                "c_over_a",
                "c_over_a_exact", "ratio_reached", "p0", "err_energy", "steps_tangential",
+               "steps_tangential_to_face", "steps_tangential_on_face",
+               "contraction_tangential_on_face",
                "t_setup", "t_solve", "load_step", "tresca_solves", "contraction", "target",
                "t_to_target", "facets", "energy", "energy_gap", "gap_bound", "traction_dev",
                "facet_distance")
@@ -217,6 +229,7 @@ def claims(runs: pd.DataFrame) -> pd.DataFrame:
                               RESOLVED_CONTACT_NODES[kind])
         rows += _tnnmg_growth(solved[solved.start == "cold"], nodes, scene,
                               RESOLVED_CONTACT_NODES[kind], claim="tnnmg_steps_cold")
+        rows += _tnnmg_face_rate(solved[solved.start != "cold"], scene)
         rows += _time_ratio(t[t.role == "timing"], scene)
         rows += _time_ratio(t[t.role == "timing"], scene, "warm", "tnnmg_time_warm")
         rows.append(_coulomb(t[t.role == "coulomb"], scene))
@@ -328,16 +341,14 @@ def _tnnmg_growth(solved: pd.DataFrame, contact_nodes: pd.Series, scene: str,
     (``solved``: the solver rows of one start; ``contact_nodes``: per level, from the
     reference rows; ``resolved_nodes``: the fewest the finer level needs for the bar to
     be judged; ``claim``: the key in :data:`CLAIMS`)."""
-    tn = solved[(solved.solver == "tnnmg") & (solved.status == "converged")]
     rows = []
-    for ratio, g in tn.groupby("ratio", sort=True):
-        g = g.sort_values("N")
-        if len(g) < 2:
+    for ratio, pair in _last_two_levels(solved):
+        if pair is None:
             rows.append(CLAIMS[claim].row(np.nan, judged=False, scene=scene,
                                           ratio=ratio, level="-", coarser="-",
                                           reason="needs two levels"))
             continue
-        fine, coarse = g.iloc[-1], g.iloc[-2]
+        coarse, fine = pair
         resolved = contact_nodes.get(fine.level, 0) >= resolved_nodes
         rows.append(CLAIMS[claim].row(
             float(fine.steps_tangential / coarse.steps_tangential), judged=resolved,
@@ -346,6 +357,36 @@ def _tnnmg_growth(solved: pd.DataFrame, contact_nodes: pd.Series, scene: str,
                    "contact nodes: the bar is about fine levels (on coarse ones the stick "
                    "and slip sets still change from level to level)"))
     return rows
+
+
+def _tnnmg_face_rate(solved: pd.DataFrame, scene: str) -> list[dict]:
+    """TNNMG's contraction on the tangential step's face at the finest level beside the
+    next coarser one's, and the steps to and on the face at both, per ratio
+    (``solved``: the solver rows of one start)."""
+    rows = []
+    for ratio, pair in _last_two_levels(solved):
+        if pair is None:
+            rows.append(CLAIMS["tnnmg_face_rate"].row(
+                np.nan, scene=scene, ratio=ratio, level="-", coarser="-", coarse_rate="-",
+                to_face="-", on_face="-"))
+            continue
+        coarse, fine = pair
+        both = lambda column: " -> ".join(f"{float(r[column]):g}" for r in pair)
+        rows.append(CLAIMS["tnnmg_face_rate"].row(
+            float(fine.contraction_tangential_on_face), scene=scene, ratio=ratio,
+            level=int(fine.level), coarser=int(coarse.level),
+            coarse_rate=f"{float(coarse.contraction_tangential_on_face):.3g}",
+            to_face=both("steps_tangential_to_face"), on_face=both("steps_tangential_on_face")))
+    return rows
+
+
+def _last_two_levels(solved: pd.DataFrame):
+    """Per ratio, TNNMG's converged rows of the last two levels ``(coarser, finer)``, or
+    None where fewer than two levels ran."""
+    tn = solved[(solved.solver == "tnnmg") & (solved.status == "converged")]
+    for ratio, g in tn.groupby("ratio", sort=True):
+        g = g.sort_values("N")
+        yield ratio, ((g.iloc[-2], g.iloc[-1]) if len(g) >= 2 else None)
 
 
 def _coulomb(co: pd.DataFrame, scene: str) -> dict:

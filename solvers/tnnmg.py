@@ -92,7 +92,9 @@ the disc ``|lam_i| <= s_i`` (2D: ``[-s_i, s_i]``, and ``s_i sign(slip_i)`` where
 slips, so that the certified bound follows the energy error closely;
 ``SolveResult.tangential``; :meth:`_TrescaTerm.multipliers`). A Coulomb problem is solved
 as the Tresca step of its given slip bound (the fixed point ``s = mu p`` over Tresca steps
-is the load path's).
+is the load path's). The solve's ``stats`` split its steps at the last change of its face
+(``steps_to_face``, ``steps_on_face``; :func:`_face_state`): the steps that find the
+normal active set and the stick set, and the multigrid steps on the face found.
 """
 from __future__ import annotations
 
@@ -743,6 +745,35 @@ class _TrescaFace:
                 and np.array_equal(self.sign, other.sign))
 
 
+def _face_state(fine: _Fine, v: np.ndarray) -> np.ndarray:
+    """The face of a Tresca step's iterate ``v`` as one integer array: per normal pivot
+    whether it is at its bound; per tangential row its slip sign (2D,
+    :class:`_TrescaFace`) or per node whether it slips (3D: the slip direction is not
+    part of a face, the energy is curved across it). A solve's steps after the last
+    change of its face (``stats["steps_on_face"]``) are its linear phase, where a TNNMG
+    step is a multigrid step on a fixed face (Gräser-Kornhuber: the phase whose
+    contraction is bounded in h); the steps before (``stats["steps_to_face"]``) find
+    the normal active set and the stick set."""
+    term = fine.tresca
+    active = (v[fine.box.pivot] >= fine.box.upper).astype(np.int64)
+    if term.k == 1:
+        return np.concatenate([active, _TrescaFace.of(fine, v).sign])
+    return np.concatenate([active, (~term.stick(v) & (term.weight > 0)).astype(np.int64)])
+
+
+def _contraction_on_face(residuals: list, to_face: int) -> float:
+    """The mean contraction per step of the stationarity residual (``residuals``: one per
+    step) from the step at which the face last changed (``to_face``; 0: never, counted
+    from the first step) to the last: ``(res_last / res_face)^(1/steps)``, the multigrid
+    phase's rate, which does not depend on h where the step counts do through finding the
+    face (:func:`_face_state`); NaN without a step on the face."""
+    first = max(to_face, 1)
+    steps = len(residuals) - first
+    if steps <= 0 or not residuals[first - 1] > 0:
+        return float("nan")
+    return float(residuals[-1] / residuals[first - 1]) ** (1.0 / steps)
+
+
 @dataclass
 class _TrescaFaceCG(_FaceCG):
     """:class:`_FaceCG` on a face of a 2D Tresca step (:class:`_TrescaFace`; ``E``: its
@@ -1116,6 +1147,7 @@ def _tresca_solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | 
     forward = True
     face_cg = opts.krylov == "cg" and term.k == 1   # 3D: TNNMG steps only (docstring)
     cg, n_cg, previous = None, 0, None
+    face_state, to_face = _face_state(fine, v), 0
     for k in range(1, max_iter + 1):
         t0 = t1 = time.perf_counter()
         if cg is None:                            # a TNNMG step
@@ -1149,6 +1181,9 @@ def _tresca_solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | 
             if leave:
                 cg = None
         t3 = time.perf_counter()
+        state = _face_state(fine, v)
+        if not np.array_equal(state, face_state):
+            face_state, to_face = state, k
         bound = v[piv] >= upper
         residual = _tresca_stationarity(fine, r, piv[bound], v)
         log.record(energy=_tresca_energy(fine, v, r), residual=residual,
@@ -1174,6 +1209,8 @@ def _tresca_solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | 
     lam = term.multipliers(r, qp.friction, v)
     stick = term.stick(v)
     stats = {"friction": "tresca_step", "n_steps": k, "n_cg": n_cg, "n_vcycles": k,
+             "steps_to_face": to_face, "steps_on_face": k - to_face,
+             "contraction_on_face": _contraction_on_face(log.history["residual"], to_face),
              "presmoothing": opts.presmoothing,
              "truncation_updates": ml.updates, "n_active": int(np.count_nonzero(p > 0)),
              "n_stick": int(np.count_nonzero(stick)),

@@ -70,6 +70,29 @@ def test_the_script_writes_every_declared_output(outputs):
         assert image.ndim == 3 and min(image.shape[:2]) > 200, key
 
 
+def test_tnnmg_rows_split_the_tangential_step_at_its_face(outputs):
+    """TNNMG's solver rows split the tangential step's iterations at the last change of its
+    face (the steps that find it and those on it, summing to the step's iterations) and
+    give its residual's contraction on the face; the other solvers leave them empty; the
+    claims report the finest level's contraction per ratio."""
+    runs = read_csv(outputs["runs"])
+    solved = runs[runs.role == "solver"]
+    tn = solved[solved.solver == "tnnmg"]
+    assert len(tn) > 0
+    assert (tn.steps_tangential_to_face + tn.steps_tangential_on_face
+            == tn.steps_tangential).all()
+    assert solved[solved.solver != "tnnmg"].steps_tangential_on_face.isna().all()
+    table = read_csv(outputs["claims"])
+    on = tn.steps_tangential_on_face > 0          # the face's last change at the last step:
+    rate = tn.contraction_tangential_on_face      # no step on it, no rate
+    assert on.any() and ((rate[on] > 0) & (rate[on] < 1)).all() and rate[~on].isna().all()
+    on_face = table[table.claim.str.contains("after its face")]
+    assert len(on_face) == len(COMMON["ratios"]) and on_face["pass"].isna().all()
+    finest = tn[(tn.start == "warm") & (tn.level == tn.level.max())].sort_values("ratio")
+    np.testing.assert_allclose(on_face.measured.astype(float),
+                               finest.contraction_tangential_on_face)
+
+
 def test_the_measured_stick_zone_at_level_1_is_cattaneo_mindlin_within_20_percent(outputs):
     """c/a at level 1 against sqrt(1 - Q/(mu P)); measured -1.5 % at 0.3 and -17 % at 0.7
     on the study's scene (9 contact nodes: the stick zone at 0.7 spans 5 of them; the

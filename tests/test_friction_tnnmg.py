@@ -353,3 +353,22 @@ def test_a_run_stopped_short_says_so():
     s = st.qp.friction.slip_bound
     assert res.u.shape == (st.qp.n,) and np.all(np.abs(res.tangential) <= s)
     assert friction_residuals(st.qp, res.u, res.p, res.tangential).max > 1e-10
+
+
+def test_the_steps_split_at_the_last_change_of_the_face():
+    """The tangential step from the normal step's answer (everything sticks there, the
+    answer slips in an annulus): ``steps_to_face`` is the step at which the face last
+    changed, at least the first, and from it on the stick set is the exact one;
+    ``steps_on_face`` are the rest."""
+    normal, tangential = _exact_path(1, 0.7)
+    res = tnnmg.solve(tangential.qp, 1e-10, 500, None, normal.solution.u, None,
+                      tnnmg.SOLVER.options())
+    assert res.claimed_status == "converged", res.message
+    to_face, on_face = res.stats["steps_to_face"], res.stats["steps_on_face"]
+    assert to_face + on_face == res.iterations and to_face >= 1 and res.stats["n_slip"] > 0
+    stuck = np.count_nonzero(tangential.solution.stick)
+    assert res.history["n_stick"][to_face - 1:] == [stuck] * (on_face + 1)
+    residual = res.history["residual"]
+    rate = res.stats["contraction_on_face"]
+    assert 0 < rate < 1
+    assert rate ** on_face * residual[to_face - 1] == pytest.approx(residual[-1], rel=1e-9)

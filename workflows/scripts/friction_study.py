@@ -193,10 +193,17 @@ def solver_row(path_qp, name: str, tol: str, time_limit: float, ref_step,
         per_step.append(calls[k:k + record["tresca_solves"]])
         k += record["tresca_solves"]
     steps = [sum(r.iterations for r in rs) for rs in per_step] + [np.nan, np.nan]
+    # TNNMG's tangential step split at the last change of its face (solvers.tnnmg)
+    tangential = per_step[1] if len(per_step) > 1 else []
+    phases = [sum(r.stats.get(key, np.nan) for r in tangential) if tangential else np.nan
+              for key in ("steps_to_face", "steps_on_face")]
+    rate = tangential[-1].stats.get("contraction_on_face", np.nan) if tangential else np.nan
     row = {"solver": name, "start": "warm" if warm else "cold", "status": res.status,
            "failed_check": res.failed_check or "",
            "message": res.message if res.status != "converged" else "",
            "steps_normal": steps[0], "steps_tangential": steps[1],
+           "steps_tangential_to_face": phases[0], "steps_tangential_on_face": phases[1],
+           "contraction_tangential_on_face": rate,
            "solves": len(calls), "t_setup": sum(r.setup_time for r in calls),
            "t_solve": sum(r.solve_time for r in calls),
            "kkt_max": res.kkt.max if res.kkt is not None else np.nan}
