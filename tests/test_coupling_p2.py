@@ -123,9 +123,8 @@ def _config(**coupling):
 
 
 def test_the_config_orders_default_and_p2_reference():
-    from workflows.settings import study_defaults
-
-    assert study_defaults("coupling")["orders"] == [1] == script.ORDERS
+    assert "--orders" not in coupling_args(_config(), "circle_square")   # the P1 rows
+    assert script.THESIS_ORDER == 1
     config = _config(orders=[1])
     check_config(config)
     assert "--orders 1" in coupling_args(config, "circle_square")

@@ -55,8 +55,7 @@ def test_no_workflow_file_repeats_a_default(study):
 
 #: The script each study with schema defaults runs (its rule's shell command); the test
 #: set's ``levels`` reaches its script as the chosen levels (``--levels``).
-STUDY_SCRIPTS = {"adaptive": "adaptive_study", "test_set": "problem_set_runs",
-                 "coupling": "coupling"}
+STUDY_SCRIPTS = {"adaptive": "adaptive_study", "test_set": "problem_set_runs"}
 
 
 def test_no_script_option_repeats_a_schema_default():

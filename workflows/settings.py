@@ -6,8 +6,7 @@ The Snakefile validates the config against the schema, which fills in every ``de
 (:func:`snakemake.utils.validate`, ``set_default=True``); rules and
 :mod:`workflows.studies` then read the validated settings and never repeat a default.
 A script run by hand takes the same defaults for its options from here
-(:func:`study_defaults`, the sections of the schema file and of the study modules), so a
-default has one home;
+(:func:`study_defaults`, the sections of the schema file), so a default has one home;
 ``tests/test_settings.py`` fails if one is declared a second time.
 """
 from __future__ import annotations
@@ -40,14 +39,9 @@ def section_defaults(section: dict) -> dict:
 
 
 def study_defaults(study: str) -> dict:
-    """``{key: default}`` of a study's settings (:func:`section_defaults`): its section in
-    the schema file, or the one its study module declares (:attr:`Study.settings`, which
-    :func:`workflows.studies.config_schema` adds to the schema)."""
+    """``{key: default}`` of a study's settings whose section is in the schema file
+    (:func:`section_defaults`)."""
     properties = _schema()["properties"]
-    if study not in properties:
-        from workflows.studies import config_schema
-
-        properties = config_schema()["properties"]
     if study not in properties:
         raise ValueError(f"parameter 'study': {study!r} is not allowed; allowed: "
                          f"{', '.join(sorted(properties))}")

@@ -101,15 +101,14 @@ from workflows.io import write_csv
 from workflows.progress import study_progress
 from workflows.scene_args import add_scene_arguments, check_levels, parse_sets, scene_from_args
 from workflows.scripts.adaptive_study import Reference, contact_measures
-from workflows.settings import study_defaults
 
 #: The couplings compared by default: the thesis's nodal and stabilised ones and both
 #: mortar bases.
 COMPARED = ("nodal", "stabilised", "mortar", "mortar_dual")
 #: The exact reference the suite uses: PDAS at its tightest preset, verified.
 SOLVER, TOL = "pdas", "high"
-#: The element orders by default (the study's schema default, declared once).
-ORDERS = study_defaults("coupling")["orders"]
+#: The element order without ``--orders``: P1, the thesis's elements.
+THESIS_ORDER = 1
 
 
 def exact(qp):
@@ -199,9 +198,9 @@ def main(argv=None) -> None:
                         help="mesh level of the reference (above every level)")
     parser.add_argument("--reference-coupling", default="mortar_dual",
                         help=f"coupling of the reference; allowed: {', '.join(COUPLINGS)}")
-    parser.add_argument("--orders", type=int, nargs="+", default=ORDERS,
-                        help=f"element orders compared (default: {' '.join(map(str, ORDERS))}); "
-                             "allowed: 1, 2 (2: the scene's degree=2)")
+    parser.add_argument("--orders", type=int, nargs="+",
+                        help=f"element orders compared (omitted: {THESIS_ORDER}, the thesis's "
+                             "P1); allowed: 1, 2 (2: the scene's degree=2)")
     parser.add_argument("--p2-reference-level", type=int,
                         help="mesh level of the P2 rows' reference (with --orders 2; the P2 "
                              "rows run at the levels below it)")
@@ -210,6 +209,7 @@ def main(argv=None) -> None:
                              "--reference-coupling); one the scene takes at degree=2")
     parser.add_argument("--out", required=True)
     args = parser.parse_args(argv)
+    args.orders = args.orders or [THESIS_ORDER]
     spec, _ = scene_from_args(parser, args)
     params = parse_sets(args.set)
     names = {p.name for p in spec.parameters}

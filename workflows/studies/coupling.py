@@ -195,9 +195,10 @@ def coupling_args(config: dict, scene: str) -> str:
     cs = config["coupling"]
     levels = " ".join(map(str, scenes_of(config, "coupling")[scene]))
     args = (f"--levels {levels} --reference-level {cs['reference_level'][scene]} "
-            f"--couplings {' '.join(cs['couplings'])} "
-            f"--orders {' '.join(map(str, cs['orders']))}")
-    if 2 in cs["orders"]:
+            f"--couplings {' '.join(cs['couplings'])}")
+    if cs.get("orders"):
+        args += f" --orders {' '.join(map(str, cs['orders']))}"
+    if 2 in (cs.get("orders") or ()):
         p2 = cs["p2_reference"][scene]
         args += (f" --p2-reference-level {p2['level']} "
                  f"--p2-reference-coupling {p2['coupling']}")
@@ -296,8 +297,9 @@ STUDY = Study(
                           "description": "the couplings compared (the reference's, "
                                          "mortar_dual, is offered by every scene too)"},
             "orders": {"type": "array", "minItems": 1, "uniqueItems": True,
-                       "items": {"enum": [1, 2]}, "default": [1],
-                       "description": "element orders (the scenes' degree): 1, and 2 for "
+                       "items": {"enum": [1, 2]},
+                       "description": "element orders (the scenes' degree; omitted: P1, "
+                                      "the thesis's elements): 1, and 2 for "
                                       "P2 rows of the couplings a scene takes at degree=2 "
                                       "(the others: skipped rows with the reason), against "
                                       "the P2 reference of p2_reference"},
