@@ -410,9 +410,12 @@ def shared_floating_factor(qp, modes: np.ndarray, backend: str = "auto") -> Floa
 #: above the ~1e-16 at which round-off leaves an exactly dependent row).
 DEPENDENT_RTOL = 1e-12
 
-#: Relative violation ``(B_D u - g_D)_i`` of a dropped row, beside ``|M_i| |g_J| + |g_i|``,
-#: above which the dependent rows are inconsistent at equality (the rows are satisfied
-#: to round-off when the gaps are consistent).
+#: Relative violation ``(B_D u - g_D)_i`` of a dropped row, beside ``|M_i| |g_J| + |g_i|
+#: + max |g_I|``, above which the dependent rows are inconsistent at equality (the rows are
+#: satisfied to round-off when the gaps are consistent). The largest gap of the rows is
+#: in the scale because a gap is computed from coordinates of that size: two coincident
+#: nodes' gaps (1e-17 and 0, say) agree to round-off of the geometry, not of themselves,
+#: and judged by their own size their exchanges would cycle.
 CONSISTENT_RTOL = 1e-10
 
 
@@ -507,7 +510,7 @@ def row_basis(K: np.ndarray, g: np.ndarray | None = None, labels: np.ndarray | N
         M = sla.cho_solve(factor, K[np.ix_(kept, dropped)]).T
         gJ = g[kept]
         r = M @ gJ - g[dropped]
-        scale = np.abs(M) @ np.abs(gJ) + np.abs(g[dropped])
+        scale = np.abs(M) @ np.abs(gJ) + np.abs(g[dropped]) + np.abs(g).max()
         violation = r / np.maximum(scale, 1e-300)
         i = int(np.argmax(violation))
         if violation[i] <= CONSISTENT_RTOL:
