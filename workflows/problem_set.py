@@ -138,7 +138,7 @@ class TestSet:
             entry = self.families[fam]
             params = dict(entry.get("params") or {})
             steps = family_steps(problems()[entry["problem"]].options(**params),
-                                 entry.get("step", "last"))
+                                 step_choice(entry))
             for cls in CLASSES if size_class is None else (size_class,):
                 for level in self.levels(fam, cls):
                     for step in steps:
@@ -212,7 +212,7 @@ def check(ts: TestSet) -> None:
             raise TestSetError(f"test set {ts.id} 'families.{fam}.{wrong[0]}': {wrong[1]}")
         try:
             family_steps(registry[entry["problem"]].options(**(entry.get("params") or {})),
-                         entry.get("step", "last"))
+                         step_choice(entry))
         except ValueError as err:
             raise TestSetError(f"test set {ts.id} 'families.{fam}.step': {err}") from None
         if entry.get("levels") is not None:
@@ -235,6 +235,11 @@ def _check_levels(ts: TestSet, key: str, spec, levels) -> None:
     if bad:
         raise TestSetError(f"test set {ts.id} '{key}': levels {bad} are not allowed; "
                            f"allowed: integers {lo}..{hi}")
+
+
+def step_choice(entry: dict) -> str:
+    """A family's ``step`` (:data:`STEP_CHOICES`; ``last`` where its entry names none)."""
+    return entry.get("step", STEP_CHOICES[0])
 
 
 def family_steps(options, step) -> list:

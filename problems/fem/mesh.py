@@ -87,12 +87,18 @@ def keep_meshes(store: MeshStore | None) -> None:
     _STORE[0] = store
 
 
+@functools.lru_cache(maxsize=None)
+def _identity(generate: Callable) -> str:
+    """The generator's name, source and netgen's version, read once per process."""
+    return repr((generate.__qualname__, inspect.getsource(generate),
+                 metadata.version("netgen-mesher")))
+
+
 def mesh_key(generate: Callable, center: tuple, numbers: tuple) -> str:
     """The key of ``generate(center, *numbers)``'s mesh: the generator's name and a SHA-256
     of its name, its source, netgen's version and the arguments (a changed generator or
     netgen meshes anew)."""
-    digest = hashlib.sha256(repr((generate.__qualname__, inspect.getsource(generate),
-                                  metadata.version("netgen-mesher"), tuple(center),
+    digest = hashlib.sha256(repr((_identity(generate), tuple(center),
                                   tuple(numbers))).encode()).hexdigest()
     return f"{generate.__name__}-{digest[:32]}"
 

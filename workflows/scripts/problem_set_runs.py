@@ -56,7 +56,7 @@ from workflows.isolation import log_traceback, solve_batch_isolated
 from workflows.measure import multiplier_errors
 from workflows.progress import study_progress
 from workflows.settings import study_defaults
-from workflows.problem_set import TestSetError, check_class, load
+from workflows.problem_set import TestSetError, check_class, load, step_choice
 
 #: Largest relative difference between a rebuilt problem and its exported arrays.
 IDENTICAL = 1e-12
@@ -95,7 +95,7 @@ def runs_warm(family: dict, choice: str) -> bool:
     if choice not in WARM_STARTS:
         raise ValueError(f"parameter 'warm_starts': {choice!r} is not allowed; allowed: "
                          f"{', '.join(WARM_STARTS)}")
-    return choice == "all" or (choice == "paths" and family.get("step", "last") == "all")
+    return choice == "all" or (choice == "paths" and step_choice(family) == "all")
 
 
 def warm_guess(folder: Path) -> dict | None:
@@ -126,7 +126,7 @@ def isotropic_twin(ts, item) -> str | None:
     for family, other in ts.families.items():
         if (family != item.family and other["problem"] == item.problem
                 and dict(other.get("params") or {}) == params
-                and other.get("step", "last") == entry.get("step", "last")):
+                and step_choice(other) == step_choice(entry)):
             return item.name.replace(item.family, family, 1)
     return None
 
