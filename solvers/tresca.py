@@ -573,10 +573,11 @@ class _Stopped(Exception):
     """A Tresca solve of the path did not verify: the path ends with its answer."""
 
 
-def warm_start(start: SolveResult | None) -> dict:
+def warm_start(start) -> dict:
     """The initial guess of a load path's next Tresca solve as keyword arguments of
-    :func:`solvers.interface.solve`: ``u0`` and ``p0`` of the path's last verified answer
-    ``start`` (``{}`` for none: the solver starts from zero)."""
+    :func:`solvers.interface.solve`: ``u0`` and ``p0`` of ``start``, the path's last
+    verified answer (a :class:`~solvers.base.SolveResult`) or a nested start
+    (:class:`NestedStart`); ``{}`` for none: the solver starts from zero."""
     return {} if start is None else {"u0": start.u, "p0": start.p}
 
 
@@ -652,6 +653,94 @@ def run_load_path(qp: ContactQP, solve_step, tol: float, max_iter: int = 50,
                            f"partial slip is left); allowed: a smaller tangential load; "
                            f"{res.message}")
     return LoadPathRun(steps=steps, qp=last["qp"], result=res, records=records)
+
+
+@dataclass
+class NestedStart:
+    """The initial guess of one Tresca solve of a nested load path
+    (:func:`run_nested_load_path`), read as a path's last answer is
+    (:func:`warm_start`)."""
+
+    u: np.ndarray
+    p: np.ndarray | None = None
+
+
+def run_nested_load_path(levels: list[ContactQP], solve_step, tol: float,
+                         max_iter: int = 50) -> list[LoadPathRun]:
+    """Run one Tresca load path on consecutive levels of a scene, coarsest first, by
+    nested iteration on every solve of the path (Alg. 8.5 applied per load step).
+
+    The coarsest level runs as :func:`run_load_path` does, each solve started from the
+    path's last answer. On a finer level, solve ``i`` of the path starts from::
+
+        u0 = u_last + P (u_c,i - u_c,i-1),
+
+    ``u_last`` its own path's last answer (zero before the first solve), ``u_c,i`` and
+    ``u_c,i-1`` the coarser level's answers to the same solve and to the one before it
+    (zero before the first), ``P`` the finer level's prolongation
+    (``qp.multilevel.prolongations[-1]``): the coarser level's change over the solve is
+    added to the finer level's own state. The slip of a step is measured from the finer
+    level's own previous state, so only the start comes from below; what it brings is
+    the stick zone's and the slip front's place, which a start from the previous step
+    makes the solver find node by node (:mod:`solvers.tnnmg`, ``steps_to_face``).
+    ``p0`` is the finer path's last answer's (the pressure changes little over a step).
+
+    Parameters
+    ----------
+    levels : list of ContactQP
+        The same scene's frictional problem at consecutive levels, coarsest first, each
+        with the same load path (e.g. :func:`scaled_tangential_step` by one factor) and
+        Tresca's law: Coulomb's fixed point takes a different number of solves on each
+        level, so its solves do not pair up.
+    solve_step : callable
+        ``solve_step(step_qp, start) -> SolveResult`` as for :func:`run_load_path`;
+        ``start`` is the path's last answer on the coarsest level and a
+        :class:`NestedStart` above it (None for the coarsest level's first solve).
+    tol, max_iter
+        As for :func:`run_load_path`.
+
+    Returns
+    -------
+    list of LoadPathRun
+        One per level, coarsest first. A coarser run that stopped short leaves the finer
+        level's later solves started as :func:`run_load_path` starts them.
+    """
+    if not levels:
+        raise ValueError("run_nested_load_path needs at least one level")
+    for qp in levels:
+        if qp.friction is None or qp.friction.law != "tresca":
+            raise ValueError(f"run_nested_load_path: {qp.name} is not allowed; allowed: "
+                             "problems with Tresca friction and a load path (Coulomb's "
+                             "fixed point takes a different number of solves per level)")
+    runs, below = [], None
+    for j, qp in enumerate(levels):
+        answers = []
+        P = qp.multilevel.prolongations[-1] if j else None
+
+        def step(step_qp, start, below=below, answers=answers, P=P):
+            i = len(answers)
+            if below is not None and i < len(below):
+                change = below[i].u - (below[i - 1].u if i else 0.0)
+                u_last = start.u if start is not None else np.zeros(step_qp.n)
+                start = NestedStart(u_last + P @ change, None if start is None else start.p)
+            res = solve_step(step_qp, start)
+            answers.append(res)
+            return res
+
+        runs.append(run_load_path(qp, step, tol, max_iter, warm=True))
+        below = answers
+    return runs
+
+
+def tangential_scale(scaled: ContactQP, qp: ContactQP) -> float:
+    """The factor by which the tangential step of ``scaled``'s load path is
+    :func:`scaled_tangential_step`'s scaling of ``qp``'s (least squares over the step's
+    data, exact: they are affine in the factor)."""
+    (normal, step), (_, base) = scaled.friction.path, qp.friction.path
+    a = np.concatenate([normal.f, normal.g, normal.offset])
+    d = np.concatenate([base.f, base.g, base.offset]) - a
+    x = np.concatenate([step.f, step.g, step.offset]) - a
+    return float(x @ d / (d @ d))
 
 
 def scaled_tangential_step(qp: ContactQP, factor: float) -> ContactQP:

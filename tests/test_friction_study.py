@@ -55,11 +55,20 @@ def test_the_script_writes_every_declared_output(outputs):
         solved = at[at.role == "solver"]
         assert sorted(solved.solver.unique()) == sorted(COMMON["solvers"])
         assert (solved.start == "cold").sum() == (solved.start == "warm").sum() > 0
+        nested = solved[solved.start == "nested"]    # TNNMG alone, from the coarser levels
+        assert list(nested.solver) == ["tnnmg"] * (len(COMMON["ratios"]) if level else 0)
+        coarser = nested.steps_tangential_coarse.astype(str).str.count(r"\+") + 1
+        assert (coarser == min(level, 2)).all()     # a level's two coarser ones at most
+        assert (nested.t_solve_coarse > 0).all()
         assert len(at[at.role == "mu_zero"]) == 2 and len(at[at.role == "coulomb"]) == 2
         timed = at[at.role == "timing"]
+        starts = [("tnnmg", "cold"), ("tnnmg", "warm"), ("linear_floor", "cold")]
+        starts += [("tnnmg", "nested")] if level else []     # level 0 has none below
         assert sorted(zip(timed.solver, timed.start)) == sorted(
-            [("tnnmg", "cold"), ("tnnmg", "warm"), ("linear_floor", "cold")]
-            * len(COMMON["ratios"]))
+            starts * len(COMMON["ratios"]))
+        nested = timed[timed.start == "nested"]      # the coarser levels' time included
+        assert (nested.t_coarse_levels > 0).all()
+        assert (nested.t_to_target > nested.t_coarse_levels).all()
         assert (timed.n_to_target > 0).all() and np.isfinite(timed.t_to_target).all()
         assert (timed.energy_error <= timed.target).all()
     assert (runs[runs.role != "coulomb"].status == "converged").all()
@@ -120,7 +129,8 @@ def test_every_claim_has_a_verdict_or_a_reason(outputs):
     mu0 = table[table.claim.str.contains("mu = 0 path")].iloc[0]
     assert float(mu0.measured) <= 1e-10 and str(mu0["pass"]) == "True"
     verified = table[table.claim.str.contains("verified converged")].iloc[0]
-    assert verified.measured == "16 of 16"     # 2 levels x 2 ratios x 2 solvers x 2 starts
+    # 2 levels x 2 ratios x (2 solvers x 2 starts + TNNMG nested)
+    assert verified.measured == "20 of 20"
     # the tiny levels do not resolve the contact zone: the accuracy bars give their reason
     stick = table[table.claim.str.contains("stick-zone c/a")]
     assert len(stick) == 2 and stick["pass"].isna().all()
@@ -176,13 +186,19 @@ def test_the_time_bar_is_judged_at_the_sizes_it_is_set_for(N, tnnmg, verdict):
     from report.friction import TIME_BAR_MIN_N, _time_ratio
 
     timing = pd.DataFrame([{"ratio": 0.3, "N": N, "level": 4, "target": 1e-6, "status": s,
-                            "solver": solver, "start": "cold", "t_to_target": t}
-                           for solver, t, s in (("tnnmg", tnnmg, "converged"),
-                                                ("linear_floor", 1.0, "converged"))])
-    row = _time_ratio(timing, "circle_square")[0]
+                            "solver": solver, "start": start, "t_to_target": t}
+                           for solver, t, s, start in (
+                               ("tnnmg", tnnmg, "converged", "nested"),
+                               ("tnnmg", 9.0, "converged", "cold"),
+                               ("linear_floor", 1.0, "converged", "cold"))])
+    row = _time_ratio(timing, "circle_square")[0]        # judged: TNNMG nested
     assert row["measured"] == tnnmg and row["pass"] is verdict
     assert (row["reason"] == "") == (verdict is not None)
     assert verdict is not None or f"{TIME_BAR_MIN_N:,}" in row["reason"]
+    cold = _time_ratio(timing, "circle_square", "cold", "tnnmg_time_cold")[0]
+    assert cold["measured"] == 9.0 and cold["pass"] is None   # reported beside it
+    alone = _time_ratio(timing[timing.start != "nested"], "circle_square")[0]
+    assert alone["pass"] is None and "no TNNMG run from this start" in alone["reason"]
 
 
 def test_beyond_the_exact_size_the_reference_is_semismooth_newton(monkeypatch):

@@ -80,7 +80,8 @@ from reference.hertz import moment_estimate
 from solvers import tresca
 from solvers.interface import parse_tolerance, run_load_path, solve, solvers
 from solvers.tresca import (as_tresca_solution, friction_path, path_for_ratio,
-                            scaled_tangential_step, tangential_ratio, warm_start)
+                            run_nested_load_path, scaled_tangential_step,
+                            tangential_ratio, tangential_scale, warm_start)
 from workflows.io import write_csv
 from workflows.measure import (amg_pcg_floor, interleaved_median_runs, linear_solution,
                                tnnmg_run)
@@ -174,66 +175,115 @@ def partial_slip(step, ratio: float) -> tuple[dict, pd.DataFrame]:
     return fields, profile
 
 
+#: The starts of a solver's load path (:func:`solver_row`): each solve from the path's
+#: last answer (``warm``), from zero (``cold``), and for :data:`NESTED_SOLVERS` nested from
+#: the coarser levels (``nested``, :func:`solvers.tresca.run_nested_load_path`).
+STARTS = ("warm", "cold", "nested")
+#: The solvers whose paths run nested too: TNNMG, the multigrid method whose steps on the
+#: finest level the study's growth bar is about.
+NESTED_SOLVERS = ("tnnmg",)
+#: The coarser levels a nested path starts from (Alg. 8.5, as the Alg. 8.4 study nests).
+NESTED_DEPTH = 2
+
+
 def solver_row(path_qp, name: str, tol: str, time_limit: float, ref_step,
-               warm: bool = True) -> dict:
+               start: str = "warm", coarse: tuple = ()) -> tuple[dict, list]:
     """The load path ``path_qp`` run by the registered solver ``name`` against the
     reference's last step ``ref_step``: each solve started from the path's last answer
-    (``warm``, as ``contactbench solve`` runs it) or from zero (``--cold``)."""
+    (``start`` ``warm``, as ``contactbench solve`` runs it), from zero (``cold``, its
+    ``--cold``) or by nested iteration (``nested``, :func:`run_nested_load_path` from the
+    scene's coarser levels ``coarse``, coarsest first, with the same load path). Returns
+    the row (iterations and times of the finest level; a nested row adds the coarser
+    levels' tangential-step iterations and solve time) and, for a nested row, the coarser
+    levels' tangential-step problems (:func:`timing_rows`)."""
     calls = []
 
-    def step(step_qp, start):
-        res = solve(step_qp, name, tol, time_limit=time_limit, **warm_start(start))
+    def step(step_qp, last):
+        res = solve(step_qp, name, tol, time_limit=time_limit, **warm_start(last))
         calls.append(res)
         return res
 
-    run = run_load_path(path_qp, step, tol=parse_tolerance(tol), warm=warm)
+    levels = list(coarse) + [path_qp] if start == "nested" else [path_qp]
+    if start == "nested":
+        runs = run_nested_load_path(levels, step, tol=parse_tolerance(tol))
+    else:
+        runs = [run_load_path(path_qp, step, tol=parse_tolerance(tol), warm=start == "warm")]
+    per_level = []
+    for run in runs:                      # the solves of each level, by load step
+        per_step = []
+        for record in run.records:
+            per_step.append(calls[:record["tresca_solves"]])
+            del calls[:record["tresca_solves"]]
+        per_level.append(per_step)
+    run, per_step = runs[-1], per_level[-1]
     res = run.result
-    per_step, k = [], 0
-    for record in run.records:
-        per_step.append(calls[k:k + record["tresca_solves"]])
-        k += record["tresca_solves"]
     steps = [sum(r.iterations for r in rs) for rs in per_step] + [np.nan, np.nan]
     # TNNMG's tangential step split at the last change of its face (solvers.tnnmg)
     tangential = per_step[1] if len(per_step) > 1 else []
     phases = [sum(r.stats.get(key, np.nan) for r in tangential) if tangential else np.nan
               for key in ("steps_to_face", "steps_on_face")]
     rate = tangential[-1].stats.get("contraction_on_face", np.nan) if tangential else np.nan
-    row = {"solver": name, "start": "warm" if warm else "cold", "status": res.status,
+    row = {"solver": name, "start": start, "status": res.status,
            "failed_check": res.failed_check or "",
            "message": res.message if res.status != "converged" else "",
            "steps_normal": steps[0], "steps_tangential": steps[1],
            "steps_tangential_to_face": phases[0], "steps_tangential_on_face": phases[1],
            "contraction_tangential_on_face": rate,
-           "solves": len(calls), "t_setup": sum(r.setup_time for r in calls),
-           "t_solve": sum(r.solve_time for r in calls),
+           "solves": sum(len(rs) for rs in per_step),
+           "t_setup": sum(r.setup_time for rs in per_step for r in rs),
+           "t_solve": sum(r.solve_time for rs in per_step for r in rs),
            "kkt_max": res.kkt.max if res.kkt is not None else np.nan}
+    if start == "nested":
+        below = [rs[1] if len(rs) > 1 else [] for rs in per_level[:-1]]
+        row.update(steps_tangential_coarse=" + ".join(
+                       str(sum(r.iterations for r in rs)) for rs in below),
+                   t_solve_coarse=sum(r.solve_time + r.setup_time
+                                      for level_steps in per_level[:-1]
+                                      for step_calls in level_steps for r in step_calls))
+        if any(run.result.status != "converged" for run in runs[:-1]):
+            bad = next(run for run in runs[:-1] if run.result.status != "converged")
+            row["message"] = (f"a coarser level stopped short ({bad.result.status}: "
+                              f"{bad.result.message}); " + row["message"])
     if res.status == "converged" and len(run.steps) == len(path_qp.friction.path):
         last_qp = run.steps[-1].qp
         row["err_energy"] = energy_error(last_qp, res.u, ref_step.solution.u)
         e_ref = tresca_energy(ref_step.qp, ref_step.solution.u)
         row["dev_energy"] = abs(tresca_energy(last_qp, res.u) - e_ref) / abs(e_ref)
-    return row
+    complete = [r.qp for r in runs[:-1]
+                if r.result.status == "converged" and len(r.steps) == len(path_qp.friction.path)]
+    return row, (complete if len(complete) == len(runs) - 1 else [])
 
 
 def timing_rows(step_qp, u_ref, target: float, repeats: int, time_limit: float,
-                u_previous=None) -> list[dict]:
+                u_previous=None, coarse: list = ()) -> list[dict]:
     """TNNMG on the Tresca step ``step_qp`` against the linear floor, each the median of
     ``repeats`` timed runs taken in rounds (:func:`workflows.measure.interleaved_median_runs`):
     TNNMG's steps and time
     (setup included) until its energy-norm distance to the reference's ``u_ref`` reaches
     ``target`` (:func:`workflows.measure.tnnmg_run`), then on to its verified stop, from
-    zero (``start`` ``cold``) and, given ``u_previous`` (the previous load step's answer),
-    from it (``warm``, as a load path runs it); the floor from zero, geometric-multigrid
+    zero (``start`` ``cold``); given ``u_previous`` (the previous load step's answer),
+    from it (``warm``, as a load path runs it); given ``coarse`` (the same step on the
+    scene's coarser levels, coarsest first), by nested iteration from zero on the
+    coarsest (``nested``: each coarser step solved to the KKT residuals of
+    :data:`workflows.measure.NESTED_TOL` and prolongated; its ``t_to_target`` includes
+    their time, ``t_coarse_levels``); the floor from zero, geometric-multigrid
     PCG for ``A u = f`` of the same system without contact to the same energy accuracy
     (:func:`workflows.measure.amg_pcg_floor`)."""
     keep = ("status", "message", "n_to_target", "t_to_target", "t_to_target_min",
-            "t_to_target_max", "timing_repeats", "energy_error", "kkt_max")
+            "t_to_target_max", "timing_repeats", "energy_error", "kkt_max",
+            "t_coarse_levels")
     u_lin = linear_solution(step_qp)
     runs = {("tnnmg", "cold"): lambda: tnnmg_run(step_qp, u_ref, target, time_limit),
             ("linear_floor", "cold"): lambda: amg_pcg_floor(step_qp, "gmg", target, u_lin)}
     if u_previous is not None:
         runs[("tnnmg", "warm")] = lambda: tnnmg_run(step_qp, u_ref, target, time_limit,
                                                    start=u_previous)
+    if coarse:
+        def nested():
+            run = tnnmg_run(step_qp, u_ref, target, time_limit, coarse)
+            return {**run, "t_to_target": run["t_to_target"] + run["t_coarse_levels"]}
+
+        runs[("tnnmg", "nested")] = nested
     timed = interleaved_median_runs(runs, repeats)
     return [{"role": "timing", "solver": name, "start": start, "target": target,
              **{k: run[k] for k in keep if k in run}}
@@ -292,6 +342,8 @@ def level_rows(spec, params: dict, level: int, args) -> tuple[list[dict], list[p
     t0 = time.perf_counter()
     qp = spec.make(level, **params, friction="tresca", mu=args.mu, shift=args.shift)
     t_build = time.perf_counter() - t0
+    coarse = [spec.make(k, **params, friction="tresca", mu=args.mu, shift=args.shift)
+              for k in range(max(0, level - NESTED_DEPTH), level)]
     size = {"level": level, "N": qp.n_nodes, "n": qp.n, "NC": qp.m, "t_build": t_build}
     try:
         ref_name, ref_solve = reference_route(qp)
@@ -316,13 +368,20 @@ def level_rows(spec, params: dict, level: int, args) -> tuple[list[dict], list[p
                      "t_solve": time.perf_counter() - t0, **fields})
         profiles.append(profile.assign(level=level, N=qp.n_nodes, ratio=ratio))
         last_path = (ratio, ref.qp)
+        factor = tangential_scale(ref.qp, qp)
+        below = [scaled_tangential_step(q, factor) for q in coarse]
+        coarse_steps = []
         for name in args.solvers:
-            rows += [{**size, "ratio": ratio, "role": "solver",
-                      **solver_row(ref.qp, name, args.tol, args.time_limit, ref, warm)}
-                     for warm in (True, False)]
+            for start in STARTS:
+                if start == "nested" and (name not in NESTED_SOLVERS or not below):
+                    continue
+                row, found = solver_row(ref.qp, name, args.tol, args.time_limit, ref,
+                                        start, below)
+                rows.append({**size, "ratio": ratio, "role": "solver", **row})
+                coarse_steps = coarse_steps or found
         rows += [{**size, "ratio": ratio, **r} for r in
                  timing_rows(ref.qp, ref.solution.u, args.target, args.repeats,
-                             args.time_limit, steps[0].solution.u)]
+                             args.time_limit, steps[0].solution.u, coarse_steps)]
     try:
         rows += [{**size, "role": "mu_zero", "solver": ref_name, **r}
                  for r in mu_zero_rows(qp, ref_solve)]
