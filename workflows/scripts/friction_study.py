@@ -286,7 +286,8 @@ def timing_rows(step_qp, u_ref, target: float, repeats: int, time_limit: float,
         runs[("tnnmg", "nested")] = nested
     timed = interleaved_median_runs(runs, repeats)
     return [{"role": "timing", "solver": name, "start": start, "target": target,
-             **{k: run[k] for k in keep if k in run}}
+             **{k: run[k] for k in keep
+                if k in run and (k != "t_coarse_levels" or start == "nested")}}
             for (name, start), run in timed.items()]
 
 
