@@ -193,7 +193,8 @@ RUN_COLUMNS = ("scene", "mu", "level", "N", "role", "solver", "start", "status",
                "c_over_a_exact", "ratio_reached", "p0", "err_energy", "steps_tangential",
                "steps_tangential_to_face", "steps_tangential_on_face",
                "contraction_tangential_on_face",
-               "t_setup", "t_solve", "t_solve_coarse", "load_step", "tresca_solves", "contraction", "target",
+               "t_setup", "t_solve", "t_solve_coarse", "load_step", "tresca_solves",
+               "contraction", "target",
                "t_to_target", "facets", "energy", "energy_gap", "gap_bound", "traction_dev",
                "facet_distance")
 

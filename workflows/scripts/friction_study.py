@@ -343,8 +343,9 @@ def level_rows(spec, params: dict, level: int, args) -> tuple[list[dict], list[p
     t0 = time.perf_counter()
     qp = spec.make(level, **params, friction="tresca", mu=args.mu, shift=args.shift)
     t_build = time.perf_counter() - t0
+    nested = any(name in NESTED_SOLVERS for name in args.solvers)   # else none built
     coarse = [spec.make(k, **params, friction="tresca", mu=args.mu, shift=args.shift)
-              for k in range(max(0, level - NESTED_DEPTH), level)]
+              for k in range(max(0, level - NESTED_DEPTH), level) if nested]
     size = {"level": level, "N": qp.n_nodes, "n": qp.n, "NC": qp.m, "t_build": t_build}
     try:
         ref_name, ref_solve = reference_route(qp)
