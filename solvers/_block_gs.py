@@ -5,13 +5,13 @@ presmoother (exact minimisation of the energy over one node's unknowns with a bo
 its first unknown: the unconstrained block solve, or, when it crosses the bound, the
 first unknown clamped to it and the others solved again) and the linear smoother of the
 truncated correction (the bounded unknown of an active node held fixed). Blocks have at
-most three unknowns; their inverses come from :func:`block_inverses`. A second kernel,
-:func:`tresca_block_gauss_seidel`, adds 2D Tresca friction: the exact block minimiser with
-the normal bound and the term ``s |x_t - c|`` (:func:`_tresca_block`) and the linear
-smoother with a sticking node's tangential unknown held; both kernels share the block
-residual and the bounded block update. In 3D the same kernel takes the term ``s |x_t - c|``
-with ``x_t`` the node's two tangential unknowns and the Euclidean norm: the exact
-disc-constrained block minimiser :func:`disc_block_minimiser`.
+most three unknowns; their inverses come from :func:`block_inverses`. The sweep
+:func:`tresca_block_gauss_seidel` adds Tresca friction: in 2D the exact block minimiser
+with the normal bound and the term ``s |x_t - c|`` (:func:`_tresca_block`), in 3D, with
+``x_t`` the node's two tangential unknowns and the Euclidean norm, the exact
+disc-constrained block minimiser :func:`disc_block_minimiser`; and the linear smoother with
+a sticking node's tangential unknowns held. :func:`block_gauss_seidel` is the same sweep
+with the frictionless modes only.
 
 Compiled with numba (``cache=True``: compiled once per machine, then read from
 numba's cache beside this file); no Python loop over nodes runs in a sweep.
@@ -135,59 +135,10 @@ def block_gauss_seidel(indptr, indices, data, c_indptr, c_indices, c_data, x, b,
     ``x[first] <= upper[k]``), FIXED (the first unknown kept, the others solved).
     ``forward`` False sweeps the blocks in reverse order (a symmetric pair of sweeps).
     """
-    nb = node_ptr.size - 1
-    r = np.zeros(3)
-    dx = np.zeros(3)
-    start, stop, stride = (0, nb, 1) if forward else (nb - 1, -1, -1)
-    for blk in range(start, stop, stride):
-        s = node_ptr[blk]
-        k = node_ptr[blk + 1] - s
-        _block_residual(indptr, indices, data, c_indptr, c_indices, c_data, x, b, node_dofs,
-                        s, k, r)
-        _block_update(x, r, dx, blk, s, k, node_dofs, diag0, inv_full, inv_sub, mode[blk],
-                      upper)
-
-
-@njit(cache=True, nogil=True)
-def _block_residual(indptr, indices, data, c_indptr, c_indices, c_data, x, b, node_dofs, s,
-                    k, r):   # pragma: no cover (compiled)
-    """``r[:k] = (b - (A + C) x)`` on the block's unknowns ``node_dofs[s:s+k]``."""
-    for a in range(k):
-        i = node_dofs[s + a]
-        acc = b[i]
-        for q in range(indptr[i], indptr[i + 1]):
-            acc -= data[q] * x[indices[q]]
-        for q in range(c_indptr[i], c_indptr[i + 1]):
-            acc -= c_data[q] * x[c_indices[q]]
-        r[a] = acc
-
-
-@njit(cache=True, nogil=True)
-def _block_update(x, r, dx, blk, s, k, node_dofs, diag0, inv_full, inv_sub, md,
-                  upper):   # pragma: no cover (compiled)
-    """One block of :func:`block_gauss_seidel` in mode FREE, BOUNDED or FIXED, from the
-    block's residual ``r``."""
-    i0 = node_dofs[s]
-    if md != FIXED:
-        for a in range(k):
-            acc = 0.0
-            for c in range(k):
-                acc += inv_full[blk, a, c] * r[c]
-            dx[a] = acc
-        if md == BOUNDED and x[i0] + dx[0] > upper[blk]:
-            md = 3
-    if md == FIXED or md == 3:
-        d0 = 0.0 if md == FIXED else upper[blk] - x[i0]
-        dx[0] = d0
-        for a in range(1, k):
-            acc = 0.0
-            for c in range(1, k):
-                acc += inv_sub[blk, a, c] * (r[c] - diag0[blk, c] * d0)
-            dx[a] = acc
-    for a in range(k):
-        x[node_dofs[s + a]] += dx[a]
-    if md == 3:
-        x[i0] = upper[blk]
+    none = np.zeros(0)
+    tresca_block_gauss_seidel(indptr, indices, data, c_indptr, c_indices, c_data, x, b,
+                              node_ptr, node_dofs, diag0, inv_full, inv_sub, mode, upper,
+                              none, none, forward)
 
 
 @njit(cache=True, nogil=True)
@@ -202,14 +153,16 @@ def tresca_block_gauss_seidel(indptr, indices, data, c_indptr, c_indices, c_data
     ``mode[k]``: as :func:`block_gauss_seidel`, and TRESCA (the exact minimiser over the
     block with ``x[first] <= upper[k]`` and the term: :func:`_tresca_block` in 2D,
     :func:`disc_block_minimiser` in 3D), TANGENT_FIXED (the tangential unknowns kept, the
-    first solved), BOTH_FIXED (the block kept). With ``weight`` zero and the modes of
-    :func:`block_gauss_seidel` it is that sweep.
+    first solved), BOTH_FIXED (the block kept). With the modes of
+    :func:`block_gauss_seidel` (``weight`` and ``centre`` then unread) it is that sweep.
+
+    The loop body keeps a block's residual and update in scalars and hands arrays to no
+    helper but :func:`_disc_block` (reached by the bounded blocks of a 3D Tresca step
+    only): numba reference-counts every array a loop body passes through its branches,
+    and where it cannot prune those counts each block pays several atomic operations, five
+    times the sweep's arithmetic (measured on a 2D mesh of 75k nodes).
     """
     nb = node_ptr.size - 1
-    r = np.zeros(3)
-    dx = np.zeros(3)
-    M = np.zeros((3, 3))
-    e = np.zeros(2)
     nt = diag0.shape[1] - 1
     start, stop, stride = (0, nb, 1) if forward else (nb - 1, -1, -1)
     for blk in range(start, stop, stride):
@@ -218,38 +171,95 @@ def tresca_block_gauss_seidel(indptr, indices, data, c_indptr, c_indices, c_data
             continue
         s = node_ptr[blk]
         k = node_ptr[blk + 1] - s
-        _block_residual(indptr, indices, data, c_indptr, c_indices, c_data, x, b, node_dofs,
-                        s, k, r)
+        r0 = r1 = r2 = 0.0                     # b - (A + C) x on the block's unknowns
+        for a in range(k):
+            i = node_dofs[s + a]
+            acc = b[i]
+            for q in range(indptr[i], indptr[i + 1]):
+                acc -= data[q] * x[indices[q]]
+            for q in range(c_indptr[i], c_indptr[i + 1]):
+                acc -= c_data[q] * x[c_indices[q]]
+            if a == 0:
+                r0 = acc
+            elif a == 1:
+                r1 = acc
+            else:
+                r2 = acc
+        i0 = node_dofs[s]
         if md == TRESCA and k == 3:
-            _disc_block(x, r, dx, M, e, blk, s, node_dofs, diag0, inv_sub, upper[blk],
+            _disc_block(x, r0, r1, r2, blk, s, node_dofs, diag0, inv_sub, upper[blk],
                         weight[blk], centre, nt)
-        elif md == TRESCA:
-            _tresca_block(x, r, node_dofs[s], node_dofs[s + 1], diag0[blk, 0],
-                          diag0[blk, 1], 1.0 / inv_sub[blk, 1, 1], inv_full[blk],
-                          upper[blk], weight[blk], centre[blk])
-        elif md == TANGENT_FIXED:
-            x[node_dofs[s]] += r[0] / diag0[blk, 0]
-        else:
-            _block_update(x, r, dx, blk, s, k, node_dofs, diag0, inv_full, inv_sub, md,
-                          upper)
+            continue
+        if md == TRESCA:
+            i1 = node_dofs[s + 1]
+            x[i0], x[i1] = _tresca_block(x[i0], x[i1], r0, r1, diag0[blk, 0], diag0[blk, 1],
+                                         1.0 / inv_sub[blk, 1, 1], inv_full[blk, 0, 0],
+                                         inv_full[blk, 0, 1], inv_full[blk, 1, 0],
+                                         inv_full[blk, 1, 1], upper[blk], weight[blk],
+                                         centre[blk])
+            continue
+        if md == TANGENT_FIXED:
+            x[i0] += r0 / diag0[blk, 0]
+            continue
+        # FREE, BOUNDED or FIXED: the block solve, clamped to the bound where it crosses
+        # it (the first unknown at its bound and the others solved again), or the first
+        # unknown kept
+        d0 = d1 = d2 = 0.0
+        clamp = False
+        if md != FIXED:
+            for a in range(k):
+                acc = 0.0
+                acc += inv_full[blk, a, 0] * r0
+                if k > 1:
+                    acc += inv_full[blk, a, 1] * r1
+                if k > 2:
+                    acc += inv_full[blk, a, 2] * r2
+                if a == 0:
+                    d0 = acc
+                elif a == 1:
+                    d1 = acc
+                else:
+                    d2 = acc
+            clamp = md == BOUNDED and x[i0] + d0 > upper[blk]
+        if md == FIXED or clamp:
+            d0 = 0.0 if md == FIXED else upper[blk] - x[i0]
+            q1 = r1 - diag0[blk, 1] * d0 if k > 1 else 0.0
+            q2 = r2 - diag0[blk, 2] * d0 if k > 2 else 0.0
+            for a in range(1, k):
+                acc = 0.0
+                acc += inv_sub[blk, a, 1] * q1
+                if k > 2:
+                    acc += inv_sub[blk, a, 2] * q2
+                if a == 1:
+                    d1 = acc
+                else:
+                    d2 = acc
+        x[i0] += d0
+        if k > 1:
+            x[node_dofs[s + 1]] += d1
+        if k > 2:
+            x[node_dofs[s + 2]] += d2
+        if clamp:
+            x[i0] = upper[blk]
 
 
 @njit(cache=True, nogil=True)
-def _tresca_block(x, r, i0, i1, m00, m01, m11, inv, upper, weight,
+def _tresca_block(x0, x1, r0, r1, m00, m01, m11, inv00, inv01, inv10, inv11, upper, weight,
                   centre):   # pragma: no cover (compiled)
     """The exact minimiser of one 2D block's energy in its update ``d``::
 
         1/2 d'Md - r'd + weight |x1 + d1 - centre|   subject to   x0 + d0 <= upper
 
-    (``M = [[m00, m01], [m01, m11]]``, ``inv = M^-1``), written into ``x``. The minimiser
-    is one of six points: the normal unknown free or at its bound, times the tangential
-    one sticking (``x1 = centre``) or slipping either way (the term linear); each such
-    point solves its case's stationarity by a 2x2 or 1x1 solve. Of those that keep the
-    bound, the one with the least energy is the minimiser (it is among them, and every
-    one is feasible); the bound and the stick point are written exactly.
+    (``M = [[m00, m01], [m01, m11]]``, ``M^-1`` by its entries ``inv..``): the block's new
+    ``(x0, x1)``. The minimiser is one of six points: the normal unknown free or at its
+    bound, times the tangential one sticking (``x1 = centre``) or slipping either way (the
+    term linear); each such point solves its case's stationarity by a 2x2 or 1x1 solve.
+    Of those that keep the bound, the one with the least energy is the minimiser (it is
+    among them, and every one is feasible); the bound and the stick point are returned
+    exactly.
     """
-    h = upper - x[i0]
-    e = centre - x[i1]
+    h = upper - x0
+    e = centre - x1
     best, best0, best1, at_bound, stick = np.inf, 0.0, 0.0, False, False
     for case in range(6):
         normal_bound = case < 3
@@ -257,29 +267,34 @@ def _tresca_block(x, r, i0, i1, m00, m01, m11, inv, upper, weight,
         sign = 1.0 if side == 1 else -1.0
         if normal_bound:
             d0 = h
-            d1 = e if side == 0 else (r[1] - m01 * h - sign * weight) / m11
+            d1 = e if side == 0 else (r1 - m01 * h - sign * weight) / m11
         elif side == 0:
             d1 = e
-            d0 = (r[0] - m01 * e) / m00
+            d0 = (r0 - m01 * e) / m00
         else:
-            d0 = inv[0, 0] * r[0] + inv[0, 1] * (r[1] - sign * weight)
-            d1 = inv[1, 0] * r[0] + inv[1, 1] * (r[1] - sign * weight)
+            d0 = inv00 * r0 + inv01 * (r1 - sign * weight)
+            d1 = inv10 * r0 + inv11 * (r1 - sign * weight)
         if not normal_bound and d0 > h:
             continue
         energy = (0.5 * (m00 * d0 * d0 + 2.0 * m01 * d0 * d1 + m11 * d1 * d1)
-                  - r[0] * d0 - r[1] * d1 + weight * abs(d1 - e))
+                  - r0 * d0 - r1 * d1 + weight * abs(d1 - e))
         if energy < best:
             best, best0, best1, at_bound, stick = energy, d0, d1, normal_bound, side == 0
-    x[i0] = upper if at_bound else x[i0] + best0
-    x[i1] = centre if stick else x[i1] + best1
+    return (upper if at_bound else x0 + best0), (centre if stick else x1 + best1)
 
 
 @njit(cache=True, nogil=True)
-def _disc_block(x, r, d, M, e, blk, s, node_dofs, diag0, inv_sub, upper, weight, centre,
+def _disc_block(x, r0, r1, r2, blk, s, node_dofs, diag0, inv_sub, upper, weight, centre,
                 nt):   # pragma: no cover (compiled)
-    """One 3D block of :func:`tresca_block_gauss_seidel` in mode TRESCA: the block matrix
-    from its first column and the inverse of its tangential part, the exact minimiser
-    (:func:`disc_block_minimiser`), the bound and the stick point written exactly."""
+    """One 3D block of :func:`tresca_block_gauss_seidel` in mode TRESCA, from its residual
+    ``(r0, r1, r2)``: the block matrix from its first column and the inverse of its
+    tangential part, the exact minimiser (:func:`disc_block_minimiser`), the bound and the
+    stick point written exactly."""
+    r = np.empty(3)
+    d = np.empty(3)
+    M = np.empty((3, 3))
+    e = np.empty(2)
+    r[0], r[1], r[2] = r0, r1, r2
     i0 = node_dofs[s]
     a11, a12, a22 = inv_sub[blk, 1, 1], inv_sub[blk, 1, 2], inv_sub[blk, 2, 2]
     det = a11 * a22 - a12 * a12

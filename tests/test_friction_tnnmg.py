@@ -12,8 +12,8 @@ import scipy.sparse as sp
 from problems.kkt import energy_error, friction_residuals
 from problems.spec import problems
 from solvers import tnnmg
-from solvers._block_gs import (BOUNDED, FIXED, FREE, TRESCA, block_gauss_seidel,
-                               block_inverses, tresca_block_gauss_seidel, unsigned_index)
+from solvers._block_gs import (TRESCA, block_inverses, tresca_block_gauss_seidel,
+                               unsigned_index)
 from solvers.certificate import certify
 from solvers.contact_box import box_transformation
 from solvers.interface import solve
@@ -145,29 +145,6 @@ def test_the_line_search_over_kinks_is_exact():
             assert dphi(a, -1) <= 1e-12
         if a < longest:
             assert dphi(a, +1) >= -1e-12
-
-
-def test_the_tresca_kernel_with_zero_weight_is_the_frictionless_sweep():
-    """Both kernels share the residual and the bounded block update: with zero weights and
-    the frictionless modes the Tresca sweep gives the same iterate, bit for bit."""
-    qp = SCENE.make(1)
-    fine = tnnmg._fine_system(qp)
-    nb = fine.box.node_ptr.size - 1
-    mode = np.full(nb, FREE, dtype=np.int64)
-    mode[fine.bounded_blocks[::2]] = BOUNDED
-    mode[fine.bounded_blocks[1::2]] = FIXED
-    indptr, indices, c_indptr, c_indices, node_dofs = fine.kernel_index
-    x0 = np.random.default_rng(2).normal(size=qp.n)
-    outs = []
-    for kernel, extra in ((block_gauss_seidel, ()), (tresca_block_gauss_seidel,
-                                                     (np.zeros(nb), np.zeros(nb)))):
-        x = x0.copy()
-        for forward in (True, False):
-            kernel(indptr, indices, fine.A.data, c_indptr, c_indices, fine.C.data, x, fine.f,
-                   fine.box.node_ptr, node_dofs, fine.diag0, fine.inv_full, fine.inv_sub,
-                   mode, fine.upper_block, *extra, forward)
-        outs.append(x)
-    assert np.array_equal(outs[0], outs[1])
 
 
 def test_a_frictionless_solve_never_enters_the_tresca_path(monkeypatch):

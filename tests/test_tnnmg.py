@@ -80,17 +80,22 @@ def test_the_transformation_is_exact_on_every_scene(scene):
         assert abs(P_v.T @ fast @ P_v - galerkin).max() <= 1e-12 * abs(galerkin).max()
 
 
-def test_block_smoother_minimises_each_block_exactly():
+@pytest.mark.parametrize("sizes", [(3,), (2,), (1, 3, 2, 3, 1, 2)],
+                         ids=["3d", "2d", "mixed"])
+def test_block_smoother_minimises_each_block_exactly(sizes):
     """One sweep on a random SPD system with bounds: every block ends at its exact
-    constrained minimiser given the others (checked by brute force on each block)."""
+    constrained minimiser given the others (checked by brute force on the last block,
+    of each size in turn); node blocks of one, two and three unknowns, mixed as where a
+    node has Dirichlet components."""
     rng = np.random.default_rng(3)
-    nb, k = 40, 3
-    n = nb * k
+    nb = 42
+    size = np.resize(np.asarray(sizes), nb)
+    node_ptr = np.r_[0, np.cumsum(size)].astype(np.int64)
+    n = int(node_ptr[-1])
     R = sp.random(n, n, density=0.05, random_state=rng)
     A = sp.csr_matrix(R @ R.T + 3 * sp.identity(n))
     A.sort_indices()
     b = rng.normal(size=n)
-    node_ptr = np.arange(0, n + 1, k, dtype=np.int64)
     node_dofs = np.arange(n, dtype=np.int64)
     # the smoother sees A as a matrix plus an update on a few rows (as A~ = A + C)
     C = sp.csr_matrix(sp.random(n, n, density=0.02, random_state=rng).multiply(
@@ -99,39 +104,52 @@ def test_block_smoother_minimises_each_block_exactly():
     A_part = sp.csr_matrix(A - C)
     A_part.sort_indices()
     diag0, inv_full, inv_sub = block_inverses(A_part, node_ptr, node_dofs, C)
-    blocks = np.stack([A[k * i:k * i + k, k * i:k * i + k].toarray() for i in range(nb)])
-    np.testing.assert_allclose(diag0, blocks[:, :, 0], rtol=1e-14, atol=1e-14)
-    np.testing.assert_allclose(inv_full, np.linalg.inv(blocks), rtol=1e-12, atol=1e-14)
-    np.testing.assert_allclose(inv_sub[:, 1:, 1:], np.linalg.inv(blocks[:, 1:, 1:]),
-                               rtol=1e-12, atol=1e-14)
+    w = int(size.max())
+    blocks = [A[node_ptr[i]:node_ptr[i + 1], node_ptr[i]:node_ptr[i + 1]].toarray()
+              for i in range(nb)]
+    for i, D in enumerate(blocks):
+        k = D.shape[0]
+        np.testing.assert_allclose(diag0[i, :k], D[:, 0], rtol=1e-14, atol=1e-14)
+        np.testing.assert_allclose(inv_full[i, :k, :k], np.linalg.inv(D), rtol=1e-12,
+                                   atol=1e-14)
+        if k > 1:
+            np.testing.assert_allclose(inv_sub[i, 1:k, 1:k], np.linalg.inv(D[1:, 1:]),
+                                       rtol=1e-12, atol=1e-14)
+    assert diag0.shape == (nb, w)
     mode = rng.choice([FREE, BOUNDED, FIXED], size=nb).astype(np.int64)
     upper = rng.normal(scale=0.1, size=nb)
-    x = rng.normal(scale=0.1, size=n)
-    x0 = x.copy()
-    block_gauss_seidel(unsigned_index(A_part.indptr), unsigned_index(A_part.indices),
-                       A_part.data, unsigned_index(C.indptr), unsigned_index(C.indices), C.data,
-                       x, b, node_ptr, unsigned_index(node_dofs), diag0, inv_full, inv_sub,
-                       mode, upper, True)
-    # the last block sees the final values of all others: check it exactly
-    blk = nb - 1
-    s = slice(k * blk, k * blk + k)
-    D = A[s, s].toarray()
-    rest = b[s] - A[s] @ x + D @ x[s]
-    if mode[blk] == FREE:
-        want = np.linalg.solve(D, rest)
-    else:
-        first = x0[k * blk] if mode[blk] == FIXED else None
-        free_min = np.linalg.solve(D, rest)
-        if mode[blk] == BOUNDED and free_min[0] <= upper[blk]:
-            want = free_min
-        else:
-            first = upper[blk] if first is None else first
-            tail = np.linalg.solve(D[1:, 1:], rest[1:] - D[1:, 0] * first)
-            want = np.r_[first, tail]
-    np.testing.assert_allclose(x[s], want, rtol=1e-12, atol=1e-12)
-    assert np.all(x[k * np.flatnonzero(mode == BOUNDED)] <= upper[mode == BOUNDED] + 1e-15)
-    np.testing.assert_array_equal(x[k * np.flatnonzero(mode == FIXED)],
-                                  x0[k * np.flatnonzero(mode == FIXED)])
+    first = node_ptr[:-1]
+    for tail in range(min(len(sizes), 3) if len(sizes) > 1 else 1):
+        # the sweep's last block sees the final values of all others: check it exactly,
+        # with the sweep ending at a block of each size in turn
+        last = nb - 1 - tail
+        sweep_mode = mode.copy()
+        for m in (FREE, BOUNDED, FIXED):
+            sweep_mode[last] = m
+            x = rng.normal(scale=0.1, size=n)
+            x0 = x.copy()
+            ptr = node_ptr[:last + 2]               # blocks 0 .. last
+            block_gauss_seidel(unsigned_index(A_part.indptr), unsigned_index(A_part.indices),
+                               A_part.data, unsigned_index(C.indptr),
+                               unsigned_index(C.indices), C.data, x, b, ptr,
+                               unsigned_index(node_dofs), diag0, inv_full, inv_sub,
+                               sweep_mode, upper, True)
+            s = slice(node_ptr[last], node_ptr[last + 1])
+            D = A[s, s].toarray()
+            rest = b[s] - A[s] @ x + D @ x[s]
+            free_min = np.linalg.solve(D, rest)
+            if m == FREE or (m == BOUNDED and free_min[0] <= upper[last]):
+                want = free_min
+            else:
+                x_first = x0[node_ptr[last]] if m == FIXED else upper[last]
+                want = np.r_[x_first, np.linalg.solve(D[1:, 1:], rest[1:] - D[1:, 0] * x_first)
+                             if D.shape[0] > 1 else []]
+            np.testing.assert_allclose(x[s], want, rtol=1e-12, atol=1e-12)
+            swept = np.arange(last + 1)
+            bounded, fixed = swept[sweep_mode[swept] == BOUNDED], swept[sweep_mode[swept] == FIXED]
+            assert np.all(x[first[bounded]] <= upper[bounded] + 1e-15)
+            np.testing.assert_array_equal(x[first[fixed]], x0[first[fixed]])
+            np.testing.assert_array_equal(x[node_ptr[last + 1]:], x0[node_ptr[last + 1]:])
 
 
 @pytest.mark.parametrize("name,level", [("circle_square", 2), ("cube_sphere", 1)])
