@@ -132,6 +132,15 @@ CHECK_FACTOR = 10.0
 #: +18%), V(2,2) keeps it (8 -> 9) at the same time to the target.
 AUTO_SWEEPS = {2: 1, 3: 2}
 
+#: Nonlinear presmoothing sweeps per step (option ``presmoothing=0``): one without
+#: friction; two on a Tresca step, where the sweeps alone move the slip front (the
+#: truncated correction holds every sticking node). Measured on the nested load paths at
+#: Q/(mu P) 0.3 / 0.7 (tangential step to tol 1e-10, :mod:`workflows.scripts.friction_study`'s
+#: scenes): circle-square levels 3 and 4 10 / 10 and 9 / 12 steps with one, 9 / 10 and
+#: 9 / 10 with two; cube-sphere levels 2 and 3 12 / 12 and 15 / 15 with one, 11 / 11 and
+#: 14 / 15 with two. Never more steps, for one sweep more per step.
+AUTO_PRESMOOTHING = {False: 1, True: 2}
+
 #: V-cycle sweeps of the preconditioner of CG on a face of a 2D Tresca step (option
 #: ``sweeps=0``): two a side, as the linear floor's V-cycle smooths (a symmetric
 #: Gauss-Seidel sweep, forward and back, before and after). Measured on circle-square
@@ -1129,6 +1138,7 @@ def _tresca_solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | 
     box, term = fine.box, fine.tresca
     piv, upper, tpiv = box.pivot, box.upper, term.pivot
     curvature = _SlipCurvature.build(fine) if term.k > 1 else None
+    presmoothing = opts.presmoothing or AUTO_PRESMOOTHING[True]
     ml = _hierarchy(qp, fine if curvature is None else curvature.fine,
                     opts.sweeps or AUTO_SWEEPS.get(qp.dim, 2),
                     opts.coarse == "truncated", opts.patch, np.concatenate([piv, tpiv]))
@@ -1151,7 +1161,7 @@ def _tresca_solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | 
     for k in range(1, max_iter + 1):
         t0 = t1 = time.perf_counter()
         if cg is None:                            # a TNNMG step
-            forward = _presmooth(fine, v, mode_nonlinear, forward, opts.presmoothing)
+            forward = _presmooth(fine, v, mode_nonlinear, forward, presmoothing)
             t1 = time.perf_counter()
             face = _TrescaFace.of(fine, v) if face_cg else None
             r = fine.f - fine.matvec(v)
@@ -1211,7 +1221,7 @@ def _tresca_solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | 
     stats = {"friction": "tresca_step", "n_steps": k, "n_cg": n_cg, "n_vcycles": k,
              "steps_to_face": to_face, "steps_on_face": k - to_face,
              "contraction_on_face": _contraction_on_face(log.history["residual"], to_face),
-             "presmoothing": opts.presmoothing,
+             "presmoothing": presmoothing,
              "truncation_updates": ml.updates, "n_active": int(np.count_nonzero(p > 0)),
              "n_stick": int(np.count_nonzero(stick)),
              "n_slip": int(np.count_nonzero(~stick & (term.weight > 0))),
@@ -1251,6 +1261,7 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
         return _tresca_solve(qp, tol, max_iter, time_limit, u0, opts, callback)
     t_start = time.perf_counter()
     fine = _fine_system(qp)
+    presmoothing = opts.presmoothing or AUTO_PRESMOOTHING[False]
     ml = _hierarchy(qp, fine, opts.sweeps or AUTO_SWEEPS.get(qp.dim, 2),
                     opts.coarse == "truncated", opts.patch)
     box = fine.box
@@ -1268,7 +1279,7 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
     for k in range(1, max_iter + 1):
         t0 = t1 = time.perf_counter()
         if cg is None:                            # a TNNMG step
-            forward = _presmooth(fine, v, mode_nonlinear, forward, opts.presmoothing)
+            forward = _presmooth(fine, v, mode_nonlinear, forward, presmoothing)
             t1 = time.perf_counter()
             r = fine.f - fine.matvec(v)
             active = v[piv] >= upper
@@ -1310,7 +1321,7 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
     if k == 0:
         r = fine.f - fine.matvec(v)
     u, p = box.to_u(v), box.multipliers(r, v[piv] >= upper)
-    stats = {"n_steps": k, "n_cg": n_cg, "n_vcycles": k, "presmoothing": opts.presmoothing,
+    stats = {"n_steps": k, "n_cg": n_cg, "n_vcycles": k, "presmoothing": presmoothing,
              "truncation_updates": ml.updates, "n_active": int(np.count_nonzero(p > 0)),
              "n_levels": len(ml.coarse_ops) + 1, **log.timing}
     return SolveResult(u=u, p=p, claimed_status=status, message=message, iterations=k,
@@ -1325,8 +1336,9 @@ SOLVER = SolverSpec(
             "line search on the Krause-Wohlmuth box-transformed problem",
     solve=solve,
     parameters=(
-        Parameter("presmoothing", 1, "nonlinear node-block Gauss-Seidel sweeps per step "
-                  "(alternating direction)", low=1, high=10, kind=int),
+        Parameter("presmoothing", 0, "nonlinear node-block Gauss-Seidel sweeps per step "
+                  "(alternating direction); 0: one, two on a Tresca step "
+                  "(AUTO_PRESMOOTHING)", low=0, high=10, kind=int),
         Parameter("sweeps", 0, "smoothing sweeps of the linear V-cycle: V(sweeps, sweeps); "
                   "0: by dimension (AUTO_SWEEPS: 1 in 2D, 2 in 3D; CG on a 2D Tresca step's "
                   "face: 2, TRESCA_FACE_SWEEPS)", low=0, high=10, kind=int),

@@ -190,7 +190,7 @@ def test_stabilised_and_mortar_problems_are_skipped_with_the_reason(coupling, wh
 def test_bad_options_name_the_parameter():
     qp = _build("circle_square", 0, {})
     with pytest.raises(ParameterError, match="presmoothing"):
-        solve(qp, solver="tnnmg", presmoothing=0)
+        solve(qp, solver="tnnmg", presmoothing=-1)
     with pytest.raises(ParameterError, match="coarse"):
         solve(qp, solver="tnnmg", coarse="none")
 
