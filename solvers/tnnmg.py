@@ -41,8 +41,9 @@ passes: the four KKT residuals and the certified energy bound (:func:`certify`).
 Memory: ``A~`` is the scene's ``A`` (not copied) plus the transformation's update on the
 rows near the contact, which the compiled sweep reads beside it; ``T`` and ``T^{-1}`` are
 kept as their changed rows; each coarse operator is held once (with explicit zeros where
-the truncation's term goes). Measured: 1.34x the peak memory of the multigrid-PCG linear
-solve in 2D (262k nodes) and 1.16x in 3D (135k).
+the truncation's term goes). Measured: 1.16x the peak memory of the multigrid-PCG linear
+solve in 2D (262k nodes) and 0.95x in 3D (135k), the input both hold included (the
+solver comparison's page).
 
 Nested iteration from the coarsest level is the caller's: the scene's coarser problems,
 solved in turn, give ``u0`` (the augmented-projection study does this for every

@@ -122,23 +122,23 @@ The accuracy bars and TNNMG's growth are judged only where the contact zone has 
 25 nodes on circle–square (level 3) or 150 on cube–sphere (level 3, about 240); the coarser
 levels give that reason instead.
 
-Measured at cube–sphere levels 1–2 (the quick scale runs cube–sphere level 1 only, and the
-machine there is shared), the job alone on a quiet 2-core machine, and at
-`circle_square_matched` levels 2–3 on the shared machine, its times not taken
+Measured at cube–sphere levels 1–2 and at `circle_square_matched` levels 2–3
 (`contactbench study friction --problem P --levels L --mu 0.5 --ratios 0.3 0.7 --shift 0.01
 --coulomb-shift 0.02 --solvers tnnmg semismooth_newton --tol high --time-limit 120 --target
 1e-6 --repeats 5 --out F --profiles G`, with `--set square_cells=20` in 2D; cube–sphere
-levels 1–2 in 147 s and 2.1 GB). Iterations are those of the tangential step, started
-from the normal step's answer (in brackets: from zero); the time ratio is TNNMG's time to
-1e-6 over the linear solve's from zero, TNNMG from zero (in brackets: from the normal
-step's answer), medians of five taken in rounds:
+levels 1–2 in 147 s and 2.1 GB); TNNMG's iterations and times by the same command with
+`--solvers tnnmg --coulomb-shift 0`, the job alone on a quiet 2-core machine (AMD EPYC with
+AVX-512; in 2D `--repeats 3`). Iterations are those of the tangential step, started from
+the normal step's answer (in brackets: from zero); the time ratio is TNNMG's time to 1e-6
+over the linear solve's from zero, TNNMG from zero (in brackets: from the normal step's
+answer), medians taken in rounds:
 
 | scene, level | N | contact nodes | c/a deviation (0.3 / 0.7) | traction L2 error (0.3 / 0.7) | TNNMG iterations | SSN iterations | TNNMG time / linear solve | Coulomb: Tresca solves (contraction) |
 | --- | --- | --- | --- | --- | --- | --- | --- | --- |
-| circle–square matched 2 | 18,972 | 15 | −0.5 % / −3.5 % | 12.3 % / 5.8 % | 12 / 11 (16 / 14) | 2 / 4 (7 / 6) | not timed | 2 + 10 (0.060) |
-| circle–square matched 3 | 75,206 | 31 | −0.2 % / −1.0 % | 6.6 % / 2.9 % | 11 / 13 (19 / 19) | 4 / 6 (7 / 7) | not timed | 2 + 10 (0.061) |
-| cube–sphere 1 | 2,691 | 15 | −0.8 % / −0.9 % | 39.8 % / 15.6 % | 10 / 13 (12 / 14) | 6 / 6 (7 / 7) | 5.5 / 6.0 (4.7 / 6.0) | 8 + 8 (0.046) |
-| cube–sphere 2 | 18,360 | 61 | −1.9 % / −6.3 % | 37.4 % / 14.3 % | 12 / 14 (14 / 15) | 6 / 9 (8 / 9) | 3.0 / 3.8 (3.3 / 3.2) | 9 + 10 (0.059) |
+| circle–square matched 2 | 18,972 | 15 | −0.5 % / −3.5 % | 12.3 % / 5.8 % | 11 / 11 (14 / 13) | 2 / 4 (7 / 6) | 2.5 / 2.6 (2.2 / 1.9) | 2 + 10 (0.060) |
+| circle–square matched 3 | 75,206 | 31 | −0.2 % / −1.0 % | 6.6 % / 2.9 % | 11 / 13 (16 / 16) | 4 / 6 (7 / 7) | 2.6 / 2.5 (1.4 / 1.8) | 2 + 10 (0.061) |
+| cube–sphere 1 | 2,691 | 15 | −0.8 % / −0.9 % | 39.8 % / 15.6 % | 10 / 12 (11 / 13) | 6 / 6 (7 / 7) | 5.4 / 6.2 (4.7 / 7.6) | 8 + 8 (0.046) |
+| cube–sphere 2 | 18,360 | 61 | −1.9 % / −6.3 % | 37.4 % / 14.3 % | 12 / 13 (13 / 14) | 6 / 9 (8 / 9) | 3.3 / 11.1 (2.9 / 3.3) | 9 + 10 (0.059) |
 
 On circle–square, c/a meets its 5 % bar at level 3 for both ratios, and its error falls
 with N. The traction meets its 10 % bar at level 3 at both ratios (6.6 % and 2.9 %; 6.1 %
@@ -152,8 +152,9 @@ TNNMG, semismooth Newton and the exact reference agree to 9.4e-10 in relative en
 every level of both scenes, from either start; the μ = 0 path equals `pdas` to 2e-14;
 every solver path is verified `converged`. Started from the normal step's answer, TNNMG's
 tangential step (CG on the face in 2D) takes 11–13 iterations at circle–square levels 2
-and 3, and 10–13 to 12–14 at cube–sphere levels 1 and 2 (8–20 %; from zero 7–17 %). Its
-steps split into a nonsmooth phase, TNNMG steps until the stick set settles, and 5–6 CG
+and 3, and 10–12 to 12–13 at cube–sphere levels 1 and 2 (0–20 %; from zero 8–23 %). With
+one presmoothing sweep (`presmoothing=1`; a Tresca step takes two by default,
+{doc}`/guide/friction`) its steps split into a nonsmooth phase, TNNMG steps until the stick set settles, and 5–6 CG
 steps on the face; the CG phase stays flat, and the nonsmooth phase grows with the number
 of nodes whose state flips (the slip zone's front moves by a few nodes per step, fewer as
 it nears its place: on the default circle–square at Q/(μP) = 0.7, 4, 6 and 8 TNNMG steps
@@ -166,18 +167,23 @@ more TNNMG and 4 CG. After the face's last change the step takes 5 / 7 steps at 
 8 / 5 at level 3 (0.3 / 0.7), its residual contracting by 0.136 / 0.126 and 0.122 / 0.132
 per step (reported beside the bar), and TNNMG steps alone
 (`krylov=none`) take 15 / 15 and 14 / 15: the growth lies in finding the face
-({doc}`/guide/friction` gives the analysis and what else was measured). From zero, TNNMG's time to 1e-6 is 3.0–3.8 linear solves at cube–sphere level
-2, and 3.2–3.3 from the normal step's answer, as the load path runs it. The floor, a
+({doc}`/guide/friction` gives the analysis and what else was measured). From zero, TNNMG's
+time to 1e-6 is 2.5–2.6 linear solves at circle–square level 3 and 3.3 at cube–sphere level
+2, Q/(μP) = 0.3; at 0.7 there 11.1 (7.1–14.3 over the five runs), where the step's
+verification, which factorises `A` for the certificate's dual norms, runs before the error
+reaches 1e-6 and is counted in the time (its first factorisation 1.6 s). From the normal
+step's answer, as the load path runs it: 1.4–1.8 and 2.9–3.3. The floor, a
 sub-second run at these levels, varies by a third between whole runs of the job; the timed
 runs therefore take turns, so that both sides of a ratio see the same machine.
 
 Circle–square level 4: on the matched scene (299,466 nodes; the reference paths alone) c/a
-+0.01 % / 0.00 % and the traction 6.1 % / 2.1 %. On the default scene (262,474 nodes; the
-same command with `--levels 4 --coulomb-shift 0 --solvers tnnmg --time-limit 600`, 4.2 min
-and 6.9 GB alone on the quiet machine) TNNMG's tangential step takes 11 / 13 iterations from
-the normal step's answer (18 / 18 from zero: growth from level 3 10–18 %, from zero
-20–29 %), its time to 1e-6 3.4 / 3.4 linear solves from zero and 2.1 / 2.1 from the normal
-step's answer, μ = 0 equal to `pdas` to 3e-14. Coulomb's fixed point converges at every
++0.01 % / 0.00 % and the traction 6.1 % / 2.1 %. TNNMG there (the same command with
+`--levels 4 --coulomb-shift 0 --solvers tnnmg --time-limit 600 --repeats 3`, 2.2 min and
+9.7 GB alone on the quiet machine): the tangential step takes 13 / 13 iterations from the
+normal step's answer, 16 / 20 from zero and 9 / 10 nested (9 / 10 at level 3: no growth);
+its time to 1e-6 is 2.09 / 2.66 linear solves from zero, 1.44 / 1.66 from the normal step's
+answer and 1.61 / 1.55 nested, the coarser levels' time included. On the default scene
+(262,474 nodes) μ = 0 equals `pdas` to 3e-14. Coulomb's fixed point converges at every
 level in 8–10 Tresca solves of the tangential step, with a contraction ratio of 0.04–0.07.
 
 The faceted law on cube–sphere at Q/(μP) = 0.7 (k = 8, 16, …, 256, `tresca_exact`,
