@@ -142,6 +142,16 @@ AUTO_SWEEPS = {2: 1, 3: 2}
 #: 14 / 15 with two. Never more steps, for one sweep more per step.
 AUTO_PRESMOOTHING = {False: 1, True: 2}
 
+#: V-cycle sweeps of a 3D Tresca step's TNNMG steps (option ``sweeps=0``; 2D as
+#: :data:`AUTO_SWEEPS`). A 3D step takes no CG on its face, so each V-cycle's contraction
+#: is the step's: with V(2,2) it falls with the level, 0.16 per step at cube-sphere level 2
+#: and 0.28 at level 3 (the normal step, where no stick set is found, too: 12 -> 15 steps
+#: to tol 1e-10). Measured on the nested load paths (Q/(mu P) 0.3 / 0.7, tangential step
+#: to tol 1e-10, two presmoothing sweeps): levels 2 and 3 take 11 / 11 and 14 / 15 steps
+#: with V(2,2), 9 / 10 and 11 / 10 with V(3,3), 8 / 9 and 9 / 10 with V(4,4), the sweeps a
+#: compiled pass over the mesh each.
+TRESCA_3D_SWEEPS = 4
+
 #: V-cycle sweeps of the preconditioner of CG on a face of a 2D Tresca step (option
 #: ``sweeps=0``): two a side, as the linear floor's V-cycle smooths (a symmetric
 #: Gauss-Seidel sweep, forward and back, before and after). Measured on circle-square
@@ -1140,8 +1150,8 @@ def _tresca_solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | 
     piv, upper, tpiv = box.pivot, box.upper, term.pivot
     curvature = _SlipCurvature.build(fine) if term.k > 1 else None
     presmoothing = opts.presmoothing or AUTO_PRESMOOTHING[True]
-    ml = _hierarchy(qp, fine if curvature is None else curvature.fine,
-                    opts.sweeps or AUTO_SWEEPS.get(qp.dim, 2),
+    sweeps = opts.sweeps or (TRESCA_3D_SWEEPS if qp.dim == 3 else AUTO_SWEEPS.get(qp.dim, 2))
+    ml = _hierarchy(qp, fine if curvature is None else curvature.fine, sweeps,
                     opts.coarse == "truncated", opts.patch, np.concatenate([piv, tpiv]))
     nb = box.node_ptr.size - 1
     mode_nonlinear = np.full(nb, FREE, dtype=np.int64)
@@ -1341,8 +1351,9 @@ SOLVER = SolverSpec(
                   "(alternating direction); 0: one, two on a Tresca step "
                   "(AUTO_PRESMOOTHING)", low=0, high=10, kind=int),
         Parameter("sweeps", 0, "smoothing sweeps of the linear V-cycle: V(sweeps, sweeps); "
-                  "0: by dimension (AUTO_SWEEPS: 1 in 2D, 2 in 3D; CG on a 2D Tresca step's "
-                  "face: 2, TRESCA_FACE_SWEEPS)", low=0, high=10, kind=int),
+                  "0: by dimension (AUTO_SWEEPS: 1 in 2D, 2 in 3D; a 3D Tresca step: 4, "
+                  "TRESCA_3D_SWEEPS; CG on a 2D Tresca step's face: 2, TRESCA_FACE_SWEEPS)",
+                  low=0, high=10, kind=int),
         Parameter("patch", 0, "graph layers of the contact patch around the constraint "
                   "rows' unknowns, solved exactly in each V-cycle after pre- and before "
                   "post-smoothing (0: none; each change of the active set refactorises it, "

@@ -137,8 +137,8 @@ answer), medians taken in rounds:
 | --- | --- | --- | --- | --- | --- | --- | --- | --- |
 | circle–square matched 2 | 18,972 | 15 | −0.5 % / −3.5 % | 12.3 % / 5.8 % | 11 / 11 (14 / 13) | 2 / 4 (7 / 6) | 2.5 / 2.6 (2.2 / 1.9) | 2 + 10 (0.060) |
 | circle–square matched 3 | 75,206 | 31 | −0.2 % / −1.0 % | 6.6 % / 2.9 % | 11 / 13 (16 / 16) | 4 / 6 (7 / 7) | 2.6 / 2.5 (1.4 / 1.8) | 2 + 10 (0.061) |
-| cube–sphere 1 | 2,691 | 15 | −0.8 % / −0.9 % | 39.8 % / 15.6 % | 10 / 12 (11 / 13) | 6 / 6 (7 / 7) | 5.4 / 6.2 (4.7 / 7.6) | 8 + 8 (0.046) |
-| cube–sphere 2 | 18,360 | 61 | −1.9 % / −6.3 % | 37.4 % / 14.3 % | 12 / 13 (13 / 14) | 6 / 9 (8 / 9) | 3.3 / 11.1 (2.9 / 3.3) | 9 + 10 (0.059) |
+| cube–sphere 1 | 2,691 | 15 | −0.8 % / −0.9 % | 39.8 % / 15.6 % | 9 / 10 (9 / 11) | 6 / 6 (7 / 7) | 4.9 / 5.3 (4.6 / 6.4) | 8 + 8 (0.046) |
+| cube–sphere 2 | 18,360 | 61 | −1.9 % / −6.3 % | 37.4 % / 14.3 % | 9 / 11 (11 / 11) | 6 / 9 (8 / 9) | 3.7 / 3.9 (3.2 / 3.9) | 9 + 10 (0.059) |
 
 On circle–square, c/a meets its 5 % bar at level 3 for both ratios, and its error falls
 with N. The traction meets its 10 % bar at level 3 at both ratios (6.6 % and 2.9 %; 6.1 %
@@ -152,7 +152,7 @@ TNNMG, semismooth Newton and the exact reference agree to 9.4e-10 in relative en
 every level of both scenes, from either start; the μ = 0 path equals `pdas` to 2e-14;
 every solver path is verified `converged`. Started from the normal step's answer, TNNMG's
 tangential step (CG on the face in 2D) takes 11–13 iterations at circle–square levels 2
-and 3, and 10–12 to 12–13 at cube–sphere levels 1 and 2 (0–20 %; from zero 8–23 %). With
+and 3, and 9–10 to 9–11 at cube–sphere levels 1 and 2 (0–18 %; from zero 0–23 %). With
 one presmoothing sweep (`presmoothing=1`; a Tresca step takes two by default,
 {doc}`/guide/friction`) its steps split into a nonsmooth phase, TNNMG steps until the stick set settles, and 5–6 CG
 steps on the face; the CG phase stays flat, and the nonsmooth phase grows with the number
@@ -168,12 +168,9 @@ more TNNMG and 4 CG. After the face's last change the step takes 5 / 7 steps at 
 per step (reported beside the bar), and TNNMG steps alone
 (`krylov=none`) take 15 / 15 and 14 / 15: the growth lies in finding the face
 ({doc}`/guide/friction` gives the analysis and what else was measured). From zero, TNNMG's
-time to 1e-6 is 2.5–2.6 linear solves at circle–square level 3 and 3.3 at cube–sphere level
-2, Q/(μP) = 0.3; at 0.7 there 11.1 (7.1–14.3 over the five runs), where the step's
-verification, which factorises `A` for the certificate's dual norms, runs before the error
-reaches 1e-6 and is counted in the time (its first factorisation 1.6 s). From the normal
-step's answer, as the load path runs it: 1.4–1.8 and 2.9–3.3. The floor, a
-sub-second run at these levels, varies by a third between whole runs of the job; the timed
+time to 1e-6 is 2.5–2.6 linear solves at circle–square level 3 and 3.7–3.9 at cube–sphere
+level 2; from the normal step's answer, as the load path runs it, 1.4–1.8 and 3.2–3.9. The
+floor, a sub-second run at these levels, varies by a third between whole runs of the job; the timed
 runs therefore take turns, so that both sides of a ratio see the same machine.
 
 Circle–square level 4: on the matched scene (299,466 nodes; the reference paths alone) c/a
