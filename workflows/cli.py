@@ -208,6 +208,9 @@ def cmd_solve(args: argparse.Namespace) -> int:
         why = f" (above tolerance: {record['failed_check']})"
     figures = "".join(f", {key} {record[key]:.1e}" for key in ("kkt_max", "energy_bound")
                       if isinstance(record.get(key), float))
+    if isinstance(record.get("energy_bound"), float) and \
+            record["energy_bound"] == record.get("energy_bound_floor"):
+        figures += " (its rounding floor)"
     where = f" -> {args.out}" if args.out is not None else ""
     print(f"{spec.name} level {level}: {record['solver']} {status}{why}{figures}{where}")
     if record.get("traceback"):

@@ -204,7 +204,7 @@ def write_problem(folder: Path, item: SetProblem, set_id: str,
                      "active_rows": int(np.sum(ref.p > 0)), **tight},
         "reference": {"solver": ref.solver, "status": ref.status, "tol": reference_tol,
                       "kkt": ref.kkt.as_dict(prefix="") if ref.kkt is not None else None,
-                      "relative_energy_bound": ref.gap.relative_energy_bound
+                      "relative_energy_bound": ref.gap.certified_bound
                       if ref.gap is not None else None},
         "norms": {"P_max": float(abs(P).max()) if P.nnz else 0.0,
                   "P_fro": float(spla.norm(P)), "q_inf": float(np.max(np.abs(arrays["q"]))),

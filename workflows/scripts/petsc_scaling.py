@@ -80,7 +80,7 @@ def _bound(res) -> float:
     (inf without a certificate)."""
     if res.gap is None or not res.gap.certified:
         return np.inf
-    return max(res.gap.relative_energy_bound, res.gap.floor)
+    return res.gap.certified_bound
 
 
 def scaling_claims(table: pd.DataFrame) -> pd.DataFrame:
