@@ -11,6 +11,7 @@ from Python or from the command line (``--set key=value``) and raises a
 """
 from __future__ import annotations
 
+import functools
 import importlib
 import pkgutil
 from collections.abc import Mapping
@@ -358,6 +359,67 @@ def discover(package: str, attribute: str) -> dict[str, Any]:
     return dict(sorted(found.items()))
 
 
+@dataclass
+class Plugins:
+    """What one entry-point group holds: ``specs`` ``{name: spec}`` and ``packages``
+    ``{name: (distribution, version)}`` of the installed packages that register them."""
+
+    specs: dict[str, Any]
+    packages: dict[str, tuple[str, str | None]]
+
+
+def load_plugins(group: str, attribute: str, spec_type: type, what: str) -> Plugins:
+    """The specs other installed packages register under the entry-point ``group``: each
+    entry point names a ``spec_type`` or a module defining ``attribute``. One that cannot
+    be loaded, is not a ``spec_type``, or repeats another plug-in's name is left out with a
+    warning that says why: a broken plug-in never breaks the suite."""
+    import warnings
+    from importlib.metadata import entry_points
+
+    found, packages = {}, {}
+    for ep in entry_points(group=group):
+        try:
+            obj = ep.load()
+        except Exception as err:                 # whatever the plug-in's import raises
+            warnings.warn(f"{what} plug-in {ep.name!r} ({ep.value}) is left out: it could not "
+                          f"be loaded ({type(err).__name__}: {err})", RuntimeWarning,
+                          stacklevel=3)
+            continue
+        spec = getattr(obj, attribute, obj)
+        if not isinstance(spec, spec_type):
+            warnings.warn(f"{what} plug-in {ep.name!r} ({ep.value}) is left out: it names a "
+                          f"{type(spec).__name__}, not a {spec_type.__module__}."
+                          f"{spec_type.__name__}", RuntimeWarning, stacklevel=3)
+            continue
+        if spec.name in found:
+            warnings.warn(f"{what} plug-in {ep.name!r} ({ep.value}) is left out: another "
+                          f"plug-in registers the name {spec.name!r} already", RuntimeWarning,
+                          stacklevel=3)
+            continue
+        found[spec.name] = spec
+        dist = getattr(ep, "dist", None)
+        packages[spec.name] = (getattr(dist, "name", None) or ep.value.split(":")[0],
+                               getattr(dist, "version", None))
+    return Plugins(found, packages)
+
+
+def with_plugins(built_in: dict[str, Any], plugins: dict[str, Any], what: str) -> dict[str, Any]:
+    """``built_in`` and the plug-ins' specs ``plugins``, sorted by name; a built-in name
+    wins a clash (the plug-in is left out with a warning)."""
+    import warnings
+
+    found = dict(built_in)
+    for name, spec in plugins.items():
+        if name in found:
+            origin = getattr(getattr(spec, "solve", None) or getattr(spec, "build", None),
+                             "__module__", "?")
+            warnings.warn(f"{what} plug-in {name!r} ({origin}) is left out: a built-in {what} "
+                          f"has that name", RuntimeWarning, stacklevel=3)
+        else:
+            found[name] = spec
+    return dict(sorted(found.items()))
+
+
 def lookup(registry: dict[str, Any], name: str, what: str) -> Any:
     """``registry[name]`` or a ParameterError listing the allowed names."""
     try:
@@ -383,6 +445,21 @@ def contact_scene_error(problem: Any, params: dict | None) -> tuple[str, str] | 
     return None
 
 
+#: The entry-point group through which another installed package registers a scene: its
+#: value names a :class:`ProblemSpec` (``"package.module:PROBLEM"``) or a module defining
+#: ``PROBLEM`` (docs/guide/add-a-scene.md).
+SCENE_ENTRY_POINT_GROUP = "contactbench.scenes"
+
+
+@functools.lru_cache(maxsize=1)
+def external_problems() -> dict[str, ProblemSpec]:
+    """The scenes of other installed packages (:data:`SCENE_ENTRY_POINT_GROUP`), read once
+    per process (:func:`load_plugins`)."""
+    return load_plugins(SCENE_ENTRY_POINT_GROUP, "PROBLEM", ProblemSpec, "scene").specs
+
+
 def problems() -> dict[str, ProblemSpec]:
-    """All registered problems, ``{name: ProblemSpec}``."""
-    return discover("problems", "PROBLEM")
+    """All registered problems, ``{name: ProblemSpec}``: the modules of ``problems/`` that
+    define ``PROBLEM``, and the scenes other installed packages register under
+    :data:`SCENE_ENTRY_POINT_GROUP` (a built-in name wins a clash)."""
+    return with_plugins(discover("problems", "PROBLEM"), external_problems(), "scene")

@@ -14,14 +14,14 @@ from __future__ import annotations
 import functools
 import time
 import traceback
-import warnings
 from typing import Any
 
 import numpy as np
 
 from problems.qp import ContactQP
 from problems.slack import slack_form
-from problems.spec import Parameter, ParameterError, discover, lookup
+from problems.spec import (Parameter, ParameterError, discover, load_plugins, lookup,
+                           with_plugins)
 from solvers.base import (CONTRACT, STATUSES, TOLERANCES, Role, SolveResult, SolverSpec,
                           contract_violation, parse_tolerance, tangential_rows)
 from solvers.certificate import broken_contract, certify, linear_solver, verify
@@ -43,49 +43,18 @@ def solvers() -> dict[str, SolverSpec]:
     """All registered solvers, ``{name: SolverSpec}``: the modules of ``solvers/`` that
     define ``SOLVER``, and the solvers other installed packages register under the
     entry-point group :data:`ENTRY_POINT_GROUP` (a built-in name wins a clash)."""
-    found = discover("solvers", "SOLVER")
-    for name, spec in external_solvers().items():
-        if name in found:
-            warnings.warn(f"solver plug-in {name!r} ({spec.solve.__module__}) is left out: "
-                          f"a built-in solver has that name", RuntimeWarning, stacklevel=2)
-        else:
-            found[name] = spec
-    return dict(sorted(found.items()))
+    return with_plugins(discover("solvers", "SOLVER"), external_solvers(), "solver")
 
 
 @functools.lru_cache(maxsize=1)
 def external_solvers() -> dict[str, SolverSpec]:
     """The solvers of other installed packages (entry points :data:`ENTRY_POINT_GROUP`),
-    read once per process. One that cannot be loaded, or is not a :class:`SolverSpec`,
-    is left out with a warning that says why: a broken plug-in never breaks the suite."""
-    from importlib.metadata import entry_points
-
-    found = {}
+    read once per process (:func:`problems.spec.load_plugins`: a broken plug-in is left
+    out with a warning that says why, never breaking the suite)."""
+    plugins = load_plugins(ENTRY_POINT_GROUP, "SOLVER", SolverSpec, "solver")
     _PLUGIN_PACKAGES.clear()
-    for ep in entry_points(group=ENTRY_POINT_GROUP):
-        try:
-            obj = ep.load()
-        except Exception as err:                 # whatever the plug-in's import raises
-            warnings.warn(f"solver plug-in {ep.name!r} ({ep.value}) is left out: it could not "
-                          f"be loaded ({type(err).__name__}: {err})", RuntimeWarning,
-                          stacklevel=2)
-            continue
-        spec = getattr(obj, "SOLVER", obj)
-        if not isinstance(spec, SolverSpec):
-            warnings.warn(f"solver plug-in {ep.name!r} ({ep.value}) is left out: it names a "
-                          f"{type(spec).__name__}, not a solvers.base.SolverSpec",
-                          RuntimeWarning, stacklevel=2)
-            continue
-        if spec.name in found:
-            warnings.warn(f"solver plug-in {ep.name!r} ({ep.value}) is left out: another "
-                          f"plug-in registers the name {spec.name!r} already", RuntimeWarning,
-                          stacklevel=2)
-            continue
-        found[spec.name] = spec
-        dist = getattr(ep, "dist", None)
-        _PLUGIN_PACKAGES[spec.name] = (getattr(dist, "name", None) or spec.solve.__module__,
-                                       getattr(dist, "version", None))
-    return found
+    _PLUGIN_PACKAGES.update(plugins.packages)
+    return plugins.specs
 
 
 #: ``{solver name: (package, version)}`` of the plug-ins :func:`external_solvers` loaded.

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 from problems.kkt import energy_error
+from solvers.certificate import certifiable
 from solvers.interface import solve
 
 #: Relative energy-norm distance two verified answers of the same problem may have.
@@ -19,3 +20,12 @@ def assert_solvers_agree(qp, names, reference: str = "pdas", tol: str = "high"):
         assert res.status == "converged", (name, res.message)
         assert energy_error(qp, res.u, ref.u) <= AGREEMENT, name
     return ref
+
+
+def within_certificate(err: float, bound: float, floor: float) -> bool:
+    """Whether a true relative energy error ``err`` lies within what a certificate with
+    relative bound ``bound`` and floating-point floor ``floor`` certifies: the accuracy it
+    can certify (:func:`solvers.certificate.certifiable`: the bound, or four times its
+    floor), plus the floor itself, the bound's own rounding (a sharp bound equals the error
+    up to it). Never a raw bound alone, which below the floor can read 0."""
+    return bool(err <= certifiable(bound, floor) + floor)

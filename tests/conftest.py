@@ -16,23 +16,51 @@ import pytest
 os.environ.setdefault("CONTACTBENCH_CACHE_DIR", tempfile.mkdtemp(prefix="contactbench-meshes-"))
 atexit.register(shutil.rmtree, os.environ["CONTACTBENCH_CACHE_DIR"], ignore_errors=True)
 
-#: The template of a solver in a package of its own (entry-point group contactbench.solvers).
+#: The templates of a solver and of a scene in a package of their own (entry-point groups
+#: contactbench.solvers and contactbench.scenes).
 EXAMPLE_SOLVER = Path(__file__).resolve().parent / "example_solver"
+EXAMPLE_SCENE = Path(__file__).resolve().parent / "example_scene"
 
 
-@pytest.fixture(scope="session")
-def plugin_env(tmp_path_factory) -> dict:
-    """The environment of a user who has installed the example package."""
+def install_example(example: Path, tmp_path_factory) -> Path:
+    """``pip install`` the example package ``example`` into a folder of its own (as a user
+    installs a plug-in; nothing of the suite's environment changes) and return it."""
     target = tmp_path_factory.mktemp("site")
-    source = tmp_path_factory.mktemp("src") / "example_solver"    # pip builds in the tree
-    shutil.copytree(EXAMPLE_SOLVER, source, ignore=shutil.ignore_patterns("build", "*.egg-info"))
+    source = tmp_path_factory.mktemp("src") / example.name      # pip builds in the tree
+    shutil.copytree(example, source, ignore=shutil.ignore_patterns("build", "*.egg-info"))
     out = subprocess.run([sys.executable, "-m", "pip", "install", "--quiet", "--no-deps",
                           "--no-build-isolation", "--target", str(target), str(source)],
                          capture_output=True, text=True, timeout=600, cwd=source)
     assert out.returncode == 0, out.stdout[-2000:] + out.stderr[-3000:]
-    assert list(target.glob("contactbench_example_solver-*.dist-info"))
+    assert list(target.glob("contactbench_example_*.dist-info"))
+    return target
+
+
+@pytest.fixture(scope="session")
+def plugin_env(tmp_path_factory) -> dict:
+    """The environment of a user who has installed the example solver's package."""
+    target = install_example(EXAMPLE_SOLVER, tmp_path_factory)
     path = os.pathsep.join(filter(None, [str(target), os.environ.get("PYTHONPATH")]))
     return {**os.environ, "PYTHONPATH": path}
+
+
+@pytest.fixture(scope="session")
+def example_scene_site(tmp_path_factory) -> Path:
+    """The folder the example scene's package is installed into."""
+    return install_example(EXAMPLE_SCENE, tmp_path_factory)
+
+
+@pytest.fixture(scope="module")
+def with_example_scene(example_scene_site):
+    """The example scene registered in this process for one test module (as if its package
+    were installed): ``problems()`` lists ``cylinder_pair`` until the module ends."""
+    from problems.spec import external_problems
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.syspath_prepend(str(example_scene_site))
+        external_problems.cache_clear()
+        yield
+    external_problems.cache_clear()
 
 
 @pytest.fixture
