@@ -19,6 +19,7 @@ from solvers.contact_box import box_transformation
 from solvers.interface import solve
 from solvers.tresca import as_tresca_solution, friction_path, tangential_ratio
 from test_friction_tnnmg import _one_block, _random_block_system
+from agreement import within_certificate
 
 
 def _block_energy(M, r, weight, e, d):
@@ -285,8 +286,10 @@ def test_the_certified_bound_of_a_3d_tresca_answer_is_near_its_error():
         fr.slip_bound[slipping, None] * slip[slipping] / length[slipping, None],
         rtol=0, atol=1e-12 * fr.slip_bound.max())
     err = energy_error(st.qp, res.u, _socp_answer(st.qp))
-    bound = certify(st.qp, res.u, res.p, None, lam=res.tangential).relative_energy_bound
-    assert 1e-9 < err <= bound <= min(3.0 * err, 1e-6), (err, bound)
+    gap = certify(st.qp, res.u, res.p, None, lam=res.tangential)
+    bound = gap.relative_energy_bound
+    assert 1e-9 < err and within_certificate(err, bound, gap.floor), (err, bound)
+    assert bound <= min(max(3.0 * err, 4 * gap.floor), 1e-6), (err, bound, gap.floor)
 
 
 def test_mu_zero_is_the_frictionless_tnnmg_answer():

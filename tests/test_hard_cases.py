@@ -17,7 +17,7 @@ def test_tolerances_are_scale_free(solver):
     plain, si = PROBLEM.make(1), PROBLEM.make(1, **SI)
     a, b = solve(plain, solver, tol="mid"), solve(si, solver, tol="mid")
     assert a.status == b.status and a.claimed_status == b.claimed_status
-    assert abs(a.iterations - b.iterations) <= (1 if solver == "clarabel" else 0)
+    assert abs(a.iterations - b.iterations) <= 1       # the data agree to ~1e-15, not bit for bit
     np.testing.assert_allclose(b.u, a.u, rtol=1e-4, atol=1e-6 * np.abs(a.u).max())
     np.testing.assert_allclose(b.p / 2.1e11, a.p, rtol=1e-4, atol=1e-6 * np.abs(a.p).max())
 

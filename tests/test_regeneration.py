@@ -136,6 +136,22 @@ def test_tiny_regeneration_makes_every_target(tiny_run):
     assert out.returncode == 0 and "Nothing to be done" in out.stdout + out.stderr
 
 
+def test_no_result_reports_a_bound_below_its_floor(tiny_run):
+    """Every result table that reports a certified energy bound has its floor beside it,
+    and no row's bound lies below that floor (a gap known only to rounding certifies
+    nothing smaller)."""
+    tables = 0
+    for path in sorted((tiny_run / "results").rglob("*.csv")):
+        t = pd.read_csv(path)
+        if "energy_bound" not in t:
+            continue
+        tables += 1
+        assert "energy_bound_floor" in t, path
+        both = t[["energy_bound", "energy_bound_floor"]].dropna()
+        assert (both["energy_bound"] >= both["energy_bound_floor"]).all(), path
+    assert tables >= 3
+
+
 def job_events(log: str) -> list[tuple[str, int, str]]:
     """``("start" | "finish", jobid, rule)`` in the order Snakemake's ``log`` reports them."""
     events, rule = [], None
