@@ -567,6 +567,11 @@ class SharedWork:
     dual_operators: dict = field(default_factory=dict)
     contact_schur: dict = field(default_factory=dict)
 
+    def problem_only(self) -> "SharedWork":
+        """The problem's own data (its floating modes) without any solver's work: what a
+        timed run starts from, so that it pays its own factorisations."""
+        return SharedWork(floating_modes=dict(self.floating_modes))
+
 
 @dataclass
 class ContactQP:

@@ -26,7 +26,7 @@ from matplotlib.colors import ListedColormap  # noqa: E402
 from report.claims import Claim  # noqa: E402
 from report.figures import save_figure  # noqa: E402
 from workflows.io import read_csv, write_csv  # noqa: E402
-from workflows.scripts.problem_set_runs import cold_rows  # noqa: E402
+from workflows.problem_set import plain_rows  # noqa: E402
 
 STATUS_ORDER = ("converged", "inaccurate", "max_iter", "time_limit", "failed", "skipped")
 STATUS_COLORS = ("#2ca02c", "#ff7f0e", "#9467bd", "#8c564b", "#d62728", "#c7c7c7")
@@ -36,7 +36,7 @@ def table(inputs: list[str], cases: list[str] | None = None,
           preset: str | None = None) -> pd.DataFrame:
     """The rows of ``cases`` (``family:level``) at ``preset`` (all rows if None), with the
     two promises checked per row."""
-    t = cold_rows(pd.concat([read_csv(f) for f in inputs], ignore_index=True)).copy()
+    t = plain_rows(pd.concat([read_csv(f) for f in inputs], ignore_index=True)).copy()
     if "case" not in t:
         t["case"] = t["family"]
     if "wall_time" not in t:

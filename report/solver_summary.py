@@ -6,7 +6,13 @@ exact reference exported beside it). Broken down overall, by size class and by
 scene (the registered problem behind a family); one work-precision figure per
 family (energy error against time, every solver, one panel per level).
 
-Per solver and preset (qpbenchmark's conventions, adapted to the suite's verification):
+The leaderboards (:mod:`report.leaderboard`): one per problem class, size class and preset,
+each solver timed at matched accuracy over its tolerance ladder, the exact references
+apart; a Markdown results page per class with the settings beside the tables.
+
+The tables below read each solver's plain run (rung 0 of its ladder, the preset's own
+mapping), per problem class (``problem_class``) and solver and preset
+(qpbenchmark's conventions, adapted to the suite's verification):
 
 * ``success_rate``: share of runs verified ``converged`` (the KKT residuals and
   the certified energy bound meet the preset's tolerance);
@@ -16,11 +22,12 @@ Per solver and preset (qpbenchmark's conventions, adapted to the suite's verific
   the certified bound's floating-point floor where that is higher, ~1e-7 relative at
   ``high``; :func:`accurate_runs`), or a non-convergence the solver admitted (a
   solver that claims success and is wrong is not "correct");
-* shifted geometric means (shift 10, over all runs) of the wall time, a failed or
-  unverified run counting as the time limit (qpbenchmark's penalty), and of the
-  worst KKT residual and the certified energy bound in units of the preset's
-  tolerance (so that the shift 10 separates "within 10x of the target" from far
-  off), a run without a solution counting as 1/tol;
+* shifted geometric means (shift 10, over all runs) of the plain run's wall time, a
+  failed or unverified run counting as the time limit (qpbenchmark's penalty: its
+  numbers, the leaderboards rank the time at matched accuracy), and of the worst KKT
+  residual and the certified energy bound in units of the preset's tolerance (so that
+  the shift 10 separates "within 10x of the target" from far off), a run without a
+  solution counting as 1/tol;
 * failures are counted, never dropped.
 
 Cold against warm starts (:func:`warm_frame`): the tables above read the runs started
@@ -32,10 +39,12 @@ used the guess. The faceted friction law's trade-off (:func:`facet_frame`): per 
 step beside its isotropic twin, the model error of the k-gon law and per solver the
 status and time on the faceted QP against the isotropic cone program.
 
-Performance profiles (Dolan and Moré, Math. Program. 91, 2002): for each
-problem the ratio of a solver's time to the best
-verified time; a run that is not verified converged has an infinite ratio; the
-curve is the share of problems solved within a factor tau of the best.
+Performance profiles (Dolan and Moré, Math. Program. 91, 2002), one panel per problem
+class and preset: for each problem the ratio of a contestant's time at matched accuracy
+to the best contestant's; a problem its ladder did not verify has an infinite ratio; the
+curve is the share of problems solved within a factor tau of the best. The work-precision
+figures draw each solver's ladder on a family's problem as a line (energy error against
+time, one point per rung; the counted rung's time the median of its repeats).
 """
 from __future__ import annotations
 
@@ -48,32 +57,35 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from report import charts  # noqa: E402
+from report import charts, leaderboard  # noqa: E402
 from report.claims import COLUMNS, Claim  # noqa: E402
 from report.figures import (nothing_to_draw, save_figure, solver_legend,  # noqa: E402
                             solver_style)
 from solvers.base import GUESS_NOT_USED  # noqa: E402
-from solvers.certificate import certifiable  # noqa: E402
-from solvers.interface import TOLERANCES  # noqa: E402
-from workflows.io import read_csv, write_csv  # noqa: E402
-from workflows.scripts.problem_set_runs import cold_rows  # noqa: E402
+from solvers.interface import TOLERANCES, solvers  # noqa: E402
+from workflows.io import read_csv, write_csv, write_text  # noqa: E402
+from workflows.problem_set import PROBLEM_CLASSES, cold_rows, plain_rows  # noqa: E402
+
+#: The problem classes' order in the figures and tables.
+CLASS_ORDER = {c: i for i, c in enumerate(PROBLEM_CLASSES)}
 
 SHIFT = 10.0
 SKIP = ("reference", "linear_floor")
-#: A claimed convergence is correct if its energy error is within this factor of what the
-#: verification certifies at its tol (:func:`accurate_runs`).
-ACCURATE = 1.001
-
-
 def runs(inputs: list[str], time_limit: float) -> pd.DataFrame:
     """Every solver run of the test set's run tables, cold and warm (``start``; a table
-    without the column is all cold), with the penalised time and whether the claim is
-    correct against the reference."""
+    without the column is all cold), every rung of the ladders (a table without the
+    column: rung 0 only), with the penalised time and whether the claim is correct
+    against the reference."""
     t = pd.concat([read_csv(path) for path in inputs], ignore_index=True)
     t = t[~t.solver.isin(SKIP)].copy()
     if "start" not in t:
         t["start"] = "cold"
     t["start"] = t["start"].fillna("cold")
+    for column, default in (("rung", 0), ("counted", False), ("time_median", np.nan),
+                            ("time_min", np.nan), ("time_max", np.nan)):
+        if column not in t:
+            t[column] = default
+    t["rung"] = t["rung"].fillna(0).astype(int)
     t["scene"] = t["scene_problem"]
     t["time"] = t["total_time"]
     verified = t["status"] == "converged"
@@ -84,19 +96,11 @@ def runs(inputs: list[str], time_limit: float) -> pd.DataFrame:
     return t
 
 
-def accurate_runs(t: pd.DataFrame) -> pd.Series:
-    """Runs whose energy error against the exact reference is within what the verification
-    certifies at their tolerance: ``tol``, or the certified bound's floating-point floor
-    where that is higher (~1e-7 relative at the ``high`` preset;
-    :func:`solvers.certificate.certifiable`)."""
-    floor = t["energy_bound_floor"].fillna(0.0) if "energy_bound_floor" in t else 0.0
-    return t["energy_error"].fillna(np.inf) <= certifiable(t["tol"], floor) * ACCURATE
-
-
-def sgm(values, shift: float = SHIFT) -> float:
-    """Shifted geometric mean ``exp(mean(log(v + shift))) - shift``."""
-    v = np.asarray(values, dtype=float)
-    return float(np.exp(np.mean(np.log(v + shift))) - shift) if v.size else float("nan")
+#: Runs whose energy error against the exact reference is within what the verification
+#: certifies at their tolerance: ``tol``, or the certified bound's floating-point floor
+#: where that is higher (~1e-7 relative at the ``high`` preset;
+#: :func:`solvers.certificate.certifiable`).
+accurate_runs = leaderboard.accurate
 
 
 def summary(t: pd.DataFrame, by: tuple[str, ...] = ()) -> pd.DataFrame:
@@ -120,8 +124,9 @@ def summary(t: pd.DataFrame, by: tuple[str, ...] = ()) -> pd.DataFrame:
                      "skipped": int((g.status == "skipped").sum()),
                      "success_rate": float((g.status == "converged").mean()),
                      "correct_rate": float(g["correct"].mean()),
-                     "sgm_time": sgm(g["penalised_time"]),
-                     "sgm_kkt_over_tol": sgm(kkt), "sgm_energy_bound_over_tol": sgm(bound)})
+                     "sgm_time": leaderboard.sgm(g["penalised_time"], SHIFT),
+                     "sgm_kkt_over_tol": leaderboard.sgm(kkt, SHIFT),
+                     "sgm_energy_bound_over_tol": leaderboard.sgm(bound, SHIFT)})
     out = pd.DataFrame(rows)
     # qpbenchmark reports the time SGM relative to the best solver of the preset
     best = out.groupby([*by, "preset"])["sgm_time"].transform("min")
@@ -133,77 +138,92 @@ def summary(t: pd.DataFrame, by: tuple[str, ...] = ()) -> pd.DataFrame:
 TAU_MAX = 1e3
 
 
-def profile_frame(t: pd.DataFrame) -> pd.DataFrame:
-    """The performance profiles as data (preset, solver, tau, share, problems): per preset
-    and solver, the share of problems verified converged within ``tau`` x the best
-    verified time, at tau = 1, at every finite ratio up to :data:`TAU_MAX` and at
-    :data:`TAU_MAX` (a step curve: the share holds until the next tau)."""
+def profile_frame(t: pd.DataFrame, roles: dict[str, str]) -> pd.DataFrame:
+    """The performance profiles as data (problem_class, preset, solver, tau, share,
+    problems): per class, preset and contestant (the exact references are the baseline,
+    not profiled), the share of problems verified within ``tau`` x the best contestant's
+    time at matched accuracy (:func:`report.leaderboard.matched_times`), at tau = 1, at
+    every finite ratio up to :data:`TAU_MAX` and at :data:`TAU_MAX` (a step curve: the
+    share holds until the next tau). ``t``: cold runs."""
     rows = []
-    for preset in [p for p in TOLERANCES if p in set(t.preset)]:
-        g = t[t.preset == preset]
-        times = g.pivot_table(index="problem", columns="solver", values="time", aggfunc="first")
-        ok = g.pivot_table(index="problem", columns="solver", values="status",
-                           aggfunc="first") == "converged"
-        times = times.where(ok.reindex_like(times).fillna(False))
-        ratio = times.div(times.min(axis=1), axis=0).fillna(np.inf)
+    times = leaderboard.matched_times(t)
+    times = times[~times["solver"].map(lambda s: leaderboard.is_reference(s, roles))]
+    order = {p: i for i, p in enumerate(TOLERANCES)}
+    for (cls, preset), g in sorted(times.groupby(["problem_class", "preset"]),
+                                   key=lambda kv: (CLASS_ORDER[kv[0][0]], order[kv[0][1]])):
+        pivot = g.pivot_table(index="problem", columns="solver", values="time",
+                              aggfunc="first", dropna=False)
+        ratio = pivot.div(pivot.min(axis=1), axis=0).fillna(np.inf)
         for solver in sorted(ratio.columns):
             r = ratio[solver].to_numpy(float)
             taus = np.unique([1.0, *r[np.isfinite(r) & (r <= TAU_MAX)], TAU_MAX])
-            rows += [{"preset": preset, "solver": solver, "tau": float(tau),
-                      "share": float((r <= tau).mean()), "problems": len(r)} for tau in taus]
-    return pd.DataFrame(rows, columns=["preset", "solver", "tau", "share", "problems"])
+            rows += [{"problem_class": cls, "preset": preset, "solver": solver,
+                      "tau": float(tau), "share": float((r <= tau).mean()),
+                      "problems": len(r)} for tau in taus]
+    return pd.DataFrame(rows, columns=["problem_class", "preset", "solver", "tau", "share",
+                                       "problems"])
 
 
 def performance_profiles(profiles: pd.DataFrame, path: str) -> None:
-    """One panel per preset: share of problems solved (verified) within tau x the best
-    (``profiles``: :func:`profile_frame`)."""
-    presets = [p for p in TOLERANCES if p in set(profiles.preset)]
-    if not presets:
+    """One panel per problem class and preset: share of problems verified within tau x the
+    best contestant's time at matched accuracy (``profiles``: :func:`profile_frame`)."""
+    panels = profiles[["problem_class", "preset"]].drop_duplicates().values.tolist()
+    if not panels:
         nothing_to_draw(path, "Performance profiles over the contact QP test set",
                         "no solver ran on the test set")
         return
-    fig, axes = plt.subplots(1, len(presets), figsize=(5.2 * len(presets), 4.4), squeeze=False)
-    for ax, preset in zip(axes[0], presets):
-        g = profiles[profiles.preset == preset]
+    cols = min(len(panels), 2)
+    rows_ = -(-len(panels) // cols)
+    fig, axes = plt.subplots(rows_, cols, figsize=(5.6 * cols, 4.2 * rows_), squeeze=False)
+    for ax, (cls, preset) in zip(axes.flat, panels):
+        g = profiles[(profiles.problem_class == cls) & (profiles.preset == preset)]
         for solver, curve in g.groupby("solver"):
             style = solver_style(solver)
             ax.semilogx(curve.tau, curve.share, lw=1.5, color=style["color"],
                         drawstyle="steps-post")
             ax.semilogx(curve.tau.iloc[:-1], curve.share.iloc[:-1], style["marker"],
                         color=style["color"], ms=4, ls="none")
-        ax.set_xlabel("tau: time within this factor of the best verified")
+        ax.set_xlabel("tau: time within this factor of the best (matched accuracy)")
         ax.set_ylabel("share of problems")
-        ax.set_title(f"preset {preset} ({int(g.problems.max())} problems)", fontsize=9)
+        ax.set_title(f"{PROBLEM_CLASSES[cls]}\npreset {preset} "
+                     f"({int(g.problems.max())} problems)", fontsize=9)
         ax.set_xlim(1.0, TAU_MAX)
         ax.set_ylim(0, 1.02)
         ax.grid(True, which="both", alpha=0.3)
-    solver_legend(axes[0][-1], sorted(profiles.solver.unique()), status=False)
-    fig.suptitle("Performance profiles (Dolan-Moré) over the contact QP test set; "
-                 "only verified runs count", fontsize=10)
+    for ax in list(axes.flat)[len(panels):]:
+        ax.set_visible(False)
+    solver_legend(axes.flat[0], sorted(profiles.solver.unique()), status=False)
+    fig.suptitle("Performance profiles (Dolan-Moré) per problem class: time at matched "
+                 "accuracy (tolerance ladder), only verified runs count; the exact references "
+                 "are the baseline, not profiled", fontsize=10)
     save_figure(fig, path)
 
 
 def profiles_chart(profiles: pd.DataFrame) -> tuple[str, dict]:
     """The performance profiles as an interactive chart (note, Vega-Lite spec)."""
     spec = charts.solver_chart(
-        profiles, ("tau", "tau: time within this factor of the best verified", True),
+        profiles.assign(panel=profiles.problem_class + ", " + profiles.preset),
+        ("tau", "tau: time within this factor of the best (matched accuracy)", True),
         ("share", "share of problems", False),
-        "Performance profiles (Dolan-Moré) over the contact QP test set",
-        tooltip=("preset", "problems"), facet="preset", interpolate="step-after")
-    return ("One panel per preset: the share of problems each solver solves, verified "
-            "converged, within tau times the best verified time.", spec)
+        "Performance profiles (Dolan-Moré) per problem class",
+        tooltip=("preset", "problems"), facet="panel", interpolate="step-after")
+    return ("One panel per problem class and preset: the share of problems each contestant "
+            "solves, verified converged over its tolerance ladder, within tau times the "
+            "best contestant's time at matched accuracy.", spec)
 
 
 def work_frame(t: pd.DataFrame, family: str) -> pd.DataFrame:
-    """The work-precision data of one family: every run with an energy error against the
-    exact reference (level, n, solver, preset, time, energy_error floored at 1e-16,
-    verified, status, problem), presets in their order low, mid, high."""
+    """The work-precision data of one family: every cold run with an energy error against
+    the exact reference, every rung of every ladder (level, n, solver, preset, rung, time:
+    the median of the repeats on the counted rung, else the one run's; energy_error floored
+    at 1e-16, verified, status, problem), sorted by level, solver, preset and rung."""
     g = t[(t.family == family) & np.isfinite(t.energy_error.astype(float))]
     g = g.assign(order=g.preset.map({p: k for k, p in enumerate(TOLERANCES)}))
-    g = g.sort_values(["level", "solver", "order"])
+    g = g.sort_values(["level", "solver", "order", "rung"])
+    time = np.where(g["counted"].fillna(False).astype(bool), g["time_median"], g["time"])
     return pd.DataFrame({"family": family, "level": g.level.astype(int),
                          "n": g.n.astype(int), "solver": g.solver, "preset": g.preset,
-                         "time": g.time.astype(float),
+                         "rung": g.rung.astype(int), "time": time.astype(float),
                          "energy_error": np.maximum(g.energy_error.astype(float), 1e-16),
                          "verified": g.status == "converged", "status": g.status,
                          "problem": g.problem}).reset_index(drop=True)
@@ -215,17 +235,17 @@ def work_chart(work: pd.DataFrame, family: str) -> tuple[str, dict]:
         work, ("time", "solver time (s)", True),
         ("energy_error", "energy error ||u - u_ref||_A / ||u_ref||_A", True),
         f"Work-precision, family {family}",
-        tooltip=("preset", "status", "level", "n", "problem"), facet="level",
+        tooltip=("preset", "rung", "status", "level", "n", "problem"), facet="level",
         filled="verified")
-    return ("One panel per level, one line per solver through its presets low, mid, high; "
-            "hollow: not verified converged.", spec)
+    return ("One panel per level, one line per solver and preset through the rungs of its "
+            "tolerance ladder; hollow: not verified converged.", spec)
 
 
 def work_precision(work: pd.DataFrame, family: str, path: str) -> None:
     """Energy error against time for every solver on one family (``work``:
     :func:`work_frame`): one panel per level, one line per solver through its presets
-    (runs without a solution left out; a run that is not verified converged drawn
-    hollow). A family without any such run gets no axes, only the reason
+    and rungs (its tolerance ladder; runs without a solution left out; a run that is not
+    verified converged drawn hollow). A family without any such run gets no axes, only the reason
     (:func:`report.figures.nothing_to_draw`)."""
     g = work
     levels = sorted(g.level.unique())
@@ -239,9 +259,9 @@ def work_precision(work: pd.DataFrame, family: str, path: str) -> None:
                              squeeze=False)
     for ax, level in zip(axes[0], levels):
         gl = g[g.level == level]
-        for solver in sorted(gl.solver.unique()):
-            r = gl[gl.solver == solver]
+        for (solver, _), r in gl.groupby(["solver", "preset"], sort=True):
             style = solver_style(solver)
+            r = r.sort_values("rung")
             err = r.energy_error
             ax.loglog(r.time, err, "-", color=style["color"], lw=1.2)
             ok = r.verified
@@ -258,8 +278,8 @@ def work_precision(work: pd.DataFrame, family: str, path: str) -> None:
         ax.set_ylabel("energy error ||u - u_ref||_A / ||u_ref||_A")
         ax.grid(True, which="both", alpha=0.3)
         solver_legend(axes[0][-1], sorted(g.solver.unique()))
-    fig.suptitle(f"Work-precision, family {family}: presets low, mid, high along each line",
-                 fontsize=10)
+    fig.suptitle(f"Work-precision, family {family}: each solver's tolerance ladder along its "
+                 "line (hollow: not verified)", fontsize=10)
     save_figure(fig, path, scene=family)
 
 
@@ -392,6 +412,48 @@ CLAIMS = {
 }
 
 
+BOARD_CLAIMS = {
+    "fastest": Claim("suite figure (time at matched accuracy, report/leaderboard.py)",
+                     "test set, {label}, {size} class, preset {preset}: fastest verified "
+                     "solver ({problems} problems)",
+                     unjudged="information: a ranking, no bar"),
+    "independent": Claim("suite bar (an exact reference is checked by another route, not by "
+                         "itself)", "test set, {label}, {size} class, preset {preset}: the "
+                         "exact references agree with the closest independent verified "
+                         "answer ({problems} problems)", "given",
+                         "within tol (or its floor)"),
+}
+
+
+def board_claims(all_boards: list[tuple]) -> list[dict]:
+    """Per leaderboard: its fastest verified solver (information) and whether its exact
+    references agree with an independent verified answer within the preset's tolerance
+    (:func:`report.leaderboard.independent_agreement`; the bound's floor where higher)."""
+    rows = []
+    for (cls, size, preset), b in all_boards:
+        words = dict(label=PROBLEM_CLASSES[cls], size=size, preset=preset,
+                     problems=len(b["problems"]))
+        table = b["table"]
+        if b["fastest"] is not None:
+            r = table[table["solver"] == b["fastest"]].iloc[0]
+            text = (f"{b['fastest']}: median time {r['median_ratio']:.3g} x the best, "
+                    f"verified on {r['verified']} of {r['problems']}")
+        else:
+            text = f"none verified on {leaderboard.COVERAGE:.0%} of the class"
+        rows.append(BOARD_CLAIMS["fastest"].row(text, **words))
+        refs = b["references"]
+        if len(refs):
+            checked = refs["independent_agreement"].notna()
+            rows.append(BOARD_CLAIMS["independent"].row(
+                ", ".join(f"{r.solver}: {r.independent_agreement:.2g}"
+                          for r in refs.itertuples()),
+                judged=bool(checked.any()),
+                passed=bool(refs.loc[checked, "independent_within"].all()),
+                reason="no other solver was verified on a problem the reference solved",
+                **words))
+    return rows
+
+
 def claims(t: pd.DataFrame) -> pd.DataFrame:
     """The verification's promises over the whole test set (claim, thesis, measured, bar,
     pass), and the count of problems and runs."""
@@ -429,6 +491,34 @@ def warm_facet_claims(t: pd.DataFrame, warm: pd.DataFrame, facets: pd.DataFrame)
     return rows
 
 
+def page_settings(inputs: list[str], t: pd.DataFrame, time_limit: float, scale: str,
+                  load: str) -> dict:
+    """What a results page states beside its tables: the test set, scale, ladder,
+    repeats, time limit, load, and the machine, commit and solver packages of the runs
+    (their provenance sidecars)."""
+    from workflows.io import META, PACKAGES, read_json
+    from workflows.ladder import LOOSEST, REPEATS, TIGHTEST
+
+    try:
+        prov = read_json(str(inputs[0]) + META)["provenance"]
+    except (OSError, KeyError, ValueError):
+        prov = {}
+    versions = prov.get("packages") or {}
+    shown = [f"{name} {versions[name]}" for name in PACKAGES if versions.get(name)
+             and name not in ("numpy", "scipy", "pandas", "meshio", "matplotlib", "snakemake",
+                              "scikit-fem", "ngsolve")]
+    return {"test_set": ", ".join(sorted(t["set"].astype(str).unique())) if "set" in t
+            else "?", "scale": scale,
+            "ladder": f"{LOOSEST} to {TIGHTEST} (a factor 10 apart)", "repeats": REPEATS,
+            "time_limit": time_limit,
+            "load": ("taken beside one other job (this scale's `shared`: the two cores are "
+                     "shared, so absolute times are slower than alone; every solver ran under "
+                     "the same conditions)" if load == "shared" else
+                     "taken alone: no other job ran beside the runs"),
+            "machine": f"{prov.get('cpu_model', '?')}, {prov.get('cpu_count', '?')} cores",
+            "commit": prov.get("commit", "?"), "versions": ", ".join(shown) or "?"}
+
+
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -436,10 +526,19 @@ def main(argv=None) -> None:
                     help="the test set's run tables (workflows/scripts/problem_set_runs.py)")
     ap.add_argument("--time-limit", type=float, required=True,
                     help="the penalty time of an unverified run (the runs' time limit)")
-    ap.add_argument("--summary", required=True, help="CSV: per solver and preset")
-    ap.add_argument("--by-class", required=True, help="CSV: per size class, solver, preset")
+    ap.add_argument("--summary", required=True,
+                    help="CSV: per problem class, solver and preset (plain runs)")
+    ap.add_argument("--by-class", required=True,
+                    help="CSV: per problem class, size class, solver, preset (plain runs)")
     ap.add_argument("--by-scene", required=True, help="CSV: per scene, solver, preset")
     ap.add_argument("--claims", required=True, help="CSV: the verification's promises")
+    ap.add_argument("--leaderboards", default=None,
+                    help="CSV: every leaderboard (problem class, size class, preset)")
+    ap.add_argument("--pages", nargs="*", default=[], metavar="CLASS=MD",
+                    help="Markdown results pages, one per problem class")
+    ap.add_argument("--scale", default="?", help="the configuration's scale, for the pages")
+    ap.add_argument("--load", choices=("alone", "shared"), default="alone",
+                    help="whether the runs were timed alone or beside another job")
     ap.add_argument("--warm-starts", default=None,
                     help="CSV: cold against warm starts per solver and preset")
     ap.add_argument("--facets", default=None,
@@ -451,23 +550,34 @@ def main(argv=None) -> None:
                     help="HTML: the profiles and work-precision as interactive charts")
     args = ap.parse_args(argv)
     every = runs(args.inputs, args.time_limit)
-    t = cold_rows(every)
-    write_csv(args.summary, summary(t))
-    write_csv(args.by_class, summary(t, ("size_class",)))
-    write_csv(args.by_scene, summary(t, ("scene",)))
-    warm, facets = warm_frame(every), facet_frame(t)
+    cold, plain = cold_rows(every), plain_rows(every)
+    write_csv(args.summary, summary(plain, ("problem_class",)))
+    write_csv(args.by_class, summary(plain, ("problem_class", "size_class")))
+    write_csv(args.by_scene, summary(plain, ("scene",)))
+    warm, facets = warm_frame(every[every["rung"] == 0]), facet_frame(plain)
     if args.warm_starts:
         write_csv(args.warm_starts, warm)
     if args.facets:
         write_csv(args.facets, facets)
-    write_csv(args.claims, pd.concat([claims(t), pd.DataFrame(
-        warm_facet_claims(every, warm, facets), columns=COLUMNS)], ignore_index=True))
-    profiles = profile_frame(t)
+    roles = {name: str(spec.role) for name, spec in solvers().items()}
+    all_boards = leaderboard.boards(cold, roles, args.time_limit)
+    settings = page_settings(args.inputs, every, args.time_limit, args.scale, args.load)
+    if args.leaderboards:
+        write_csv(args.leaderboards, leaderboard.board_frame(all_boards).assign(
+            time_limit=args.time_limit, repeats=settings["repeats"], load=settings["load"]))
+    for item in args.pages:
+        cls, _, path = item.partition("=")
+        write_text(path, leaderboard.markdown_page(
+            cls, [(k, b) for k, b in all_boards if k[0] == cls], settings))
+    write_csv(args.claims, pd.concat([claims(plain), pd.DataFrame(
+        warm_facet_claims(every[every["rung"] == 0], warm, facets) + board_claims(all_boards),
+        columns=COLUMNS)], ignore_index=True))
+    profiles = profile_frame(cold, roles)
     performance_profiles(profiles, args.profiles)
     pages = [profiles_chart(profiles)] if len(profiles) else []
     for item in args.work_precision:
         family, _, path = item.partition("=")
-        work = work_frame(t, family)
+        work = work_frame(cold, family)
         work_precision(work, family, path)
         if len(work):
             pages.append(work_chart(work, family))

@@ -29,7 +29,9 @@ import pandas as pd
 
 from report import adaptive, contact, hard_cases, laplace
 from report.claims import NOT_REACHED
+from report.leaderboard import COVERAGE
 from solvers.interface import TOLERANCES
+from workflows.problem_set import PROBLEM_CLASSES
 from workflows.io import META, provenance, read_csv, read_json, write_csv, write_text
 from workflows.studies import HEAVY_RULES, PATHS, STUDIES, THESIS_ITEMS, claim_keys
 
@@ -130,10 +132,17 @@ NOTES = {
                 "Alg. 8.4 by (8.25) instead, and stop_8_25 says whether our run met that "
                 "criterion. thesis_* columns: the thesis's values at the same level, beside "
                 "ours.",
-    "solver_summary": "success_rate: share of runs verified converged; correct_rate: share "
-                      "whose claim is true against the exact reference; sgm_time: shifted "
-                      "geometric mean (shift 10 s) of the time, an unverified run counting as "
-                      "the time limit; sgm_time_relative: over the preset's best.",
+    "leaderboard": "Time at matched accuracy: each solver's loosest rung of its tolerance "
+                   "ladder verified at the preset's tol, the median of repeated runs (repeat "
+                   "spread: the largest (max - min) / median). verified: problems of the "
+                   "class verified over the ladder (a skip counts against it); at rung 0: "
+                   "at the preset's own mapping; correct %: share of rung-0 claims true "
+                   "against the exact reference; median time / best: over the class's "
+                   "problems, the solver's time over the best contestant's (inf: fewer "
+                   "than half verified), by which the table is ranked; sgm time: the shifted "
+                   "geometric mean over the problems attempted, shift {shift:.3g} s (the "
+                   "class's median best time), an attempted problem not verified counting "
+                   "as the time limit {limit:g} s. Load: {load}.",
 }
 
 
@@ -355,14 +364,6 @@ def thesis_rows(items, scale: str) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-def failing_scenes(by_scene: pd.DataFrame | None) -> dict[tuple[str, str], list[str]]:
-    """(preset, solver) -> the scenes (the test set's problems' scenes) where some run was
-    not verified converged."""
-    bad = failures(by_scene)
-    return {key: sorted(g["scene"]) for key, g in bad.groupby(["preset", "solver"])}
-
-
-#: The columns of the failures table (:func:`failures`).
 FAILURE_COLUMNS = ("scene", "preset", "solver", "runs", "converged", "inaccurate", "max_iter",
                    "time_limit", "failed", "skipped")
 
@@ -385,65 +386,89 @@ def failure_anchor(scene: str) -> str:
     return f"failures-{scene}"
 
 
-def link_failing_scenes(text: str) -> str:
-    """A leaderboard cell's ``(on a, b)`` with each scene linked to its rows in the
-    failures table (``text`` already escaped)."""
-    head, on, scenes = text.partition(" (on ")
-    if not on:
-        return text
-    names = scenes.rstrip(")").split(", ")
-    return head + on + ", ".join(f"<a href='#{failure_anchor(n)}'>{n}</a>" for n in names) + ")"
+#: A leaderboard's columns on the summary page: ``{column in leaderboards.csv: header}``.
+BOARD_COLUMNS = {"rank": "rank", "solver": "solver", "verified": "verified",
+                 "skipped": "skipped", "plain_verified": "at rung 0", "correct_share": "correct %",
+                 "median_ratio": "median time / best", "sgm_time": "sgm time [s]",
+                 "spread": "repeat spread", "not_verified": "not verified"}
 
 
-def leaderboard(summary: pd.DataFrame, by_scene: pd.DataFrame | None = None) -> pd.DataFrame:
-    """Per preset, the solvers ranked by their shifted geometric mean time: success and
-    correct rates in per cent, the time, and the failures counted by kind with the scenes
-    they happened on (``by_scene``: the summary per scene)."""
-    where = failing_scenes(by_scene)
-    kinds = [k for k in ("inaccurate", "max_iter", "time_limit", "failed", "skipped")
-             if k in summary]
-    rows = []
-    order = {p: i for i, p in enumerate(TOLERANCES)}
-    for _, r in summary.sort_values(["preset", "sgm_time"],
-                                    key=lambda c: c.map(order) if c.name == "preset" else c
-                                    ).iterrows():
-        fails = ", ".join(f"{int(r[k])} {k}" for k in kinds if r[k] > 0)
-        if fails and (r["preset"], r["solver"]) in where:
-            fails += f" (on {', '.join(where[r['preset'], r['solver']])})"
-        rows.append({"preset": r["preset"], "solver": r["solver"], "runs": int(r["runs"]),
-                     "success %": round(100 * r["success_rate"], 1),
-                     "correct %": round(100 * r["correct_rate"], 1),
-                     "sgm time [s]": r["sgm_time"], "x best": r["sgm_time_relative"],
-                     "not converged": fails or "0"})
-    return pd.DataFrame(rows)
-
-
-def leaderboard_words(summary: pd.DataFrame) -> list[str]:
-    """Per preset, in words: the fastest solver whose every claim was correct, the most
-    reliable one, and the solvers that claimed a wrong answer."""
-    out = []
-    for preset in [p for p in TOLERANCES if p in set(summary["preset"])]:
-        g = summary[summary.preset == preset]
-        honest = g[(g.correct_rate >= 1.0) & (g.success_rate > 0)]
-        text = f"<b>preset {html.escape(preset)}</b> (tol {TOLERANCES[preset]:g}, " \
-               f"{int(g['problems'].max())} problems): "
-        if len(honest):
-            fast = honest.sort_values("sgm_time").iloc[0]
-            text += (f"fastest verified solver <b>{html.escape(fast.solver)}</b> (shifted "
-                     f"geometric mean {fast.sgm_time:.3g} s, {100 * fast.success_rate:.0f} % "
-                     f"verified converged, every claim correct); ")
-        else:
-            text += "no solver verified converged with every claim correct; "
-        best = g.sort_values(["success_rate", "sgm_time"], ascending=[False, True]).iloc[0]
-        text += (f"most reliable <b>{html.escape(best.solver)}</b> "
-                 f"({100 * best.success_rate:.0f} % verified converged)")
-        wrong = g[g.correct_rate < 1.0]
-        if len(wrong):
-            text += ("; claimed a wrong answer: " + ", ".join(
-                f"{html.escape(r.solver)} ({100 * (1 - r.correct_rate):.0f} % of runs)"
-                for r in wrong.itertuples()))
-        out.append(text + ".")
+def leaderboard(board: pd.DataFrame) -> pd.DataFrame:
+    """One board's ranked solvers, then its references (rank ``baseline``), as shown on the
+    summary page (:data:`BOARD_COLUMNS`; ``board``: its rows of ``leaderboards.csv``)."""
+    shown = board[board["standing"].isin(["ranked", "reference"])].copy()
+    shown["rank"] = [("baseline" if st == "reference" else int(r))
+                     for st, r in zip(shown["standing"], shown["rank"])]
+    shown["correct_share"] = (100 * shown["correct_share"]).round(1)
+    shown["solver"] = [s + (" (fastest verified)" if f else "") + (" (exact reference)"
+                                                                   if st == "reference" else "")
+                       for s, f, st in zip(shown["solver"], shown["fastest"],
+                                           shown["standing"])]
+    out = shown[list(BOARD_COLUMNS)].rename(columns=BOARD_COLUMNS)
+    out["verified"] = [f"{int(v)} of {int(n)}" for v, n in zip(shown["verified"],
+                                                               shown["problems"])]
     return out
+
+
+def board_words(board: pd.DataFrame) -> str:
+    """A board's verdict in words: its fastest verified solver with its coverage, its
+    references' independent check, the solvers that declined the class."""
+    first = board.iloc[0]
+    cls, size, preset = first["problem_class"], first["size_class"], first["preset"]
+    ranked = board[board["standing"] == "ranked"]
+    fast = ranked[ranked["fastest"].astype(bool)]
+    head = (f"<b>{html.escape(PROBLEM_CLASSES.get(cls, cls))}</b>, {html.escape(str(size))} "
+            f"class, preset {html.escape(preset)} (tol {TOLERANCES[preset]:g}, "
+            f"{int(first['problems'])} problems): ")
+    if len(fast):
+        r = fast.iloc[0]
+        head += (f"fastest verified <b>{html.escape(r.solver)}</b> (median time "
+                 f"{r.median_ratio:.3g} x the best, verified on {int(r.verified)} of "
+                 f"{int(r.problems)})")
+    else:
+        head += f"no solver verified on {COVERAGE:.0%} of the class"
+    refs = board[board["standing"] == "reference"]
+    if len(refs):
+        head += "; exact reference " + ", ".join(
+            f"{html.escape(r.solver)} within {r.independent_agreement:.2g} of the closest "
+            "independent verified answer" if np.isfinite(r.independent_agreement) else
+            f"{html.escape(r.solver)} (no independent verified answer)"
+            for r in refs.itertuples())
+    declined = board[board["standing"] == "declined"]
+    if len(declined):
+        head += ("; not ranked, declining the class: "
+                 + ", ".join(html.escape(s) for s in declined["solver"]))
+    return head + "."
+
+
+def leaderboards_html(frame: pd.DataFrame) -> list[str]:
+    """The leaderboards of ``leaderboards.csv`` in words and as tables, one per problem
+    class, size class and preset, each with its settings and the load it was timed under."""
+    parts = []
+    keys = ["problem_class", "size_class", "preset"]
+    order = {c: i for i, c in enumerate(PROBLEM_CLASSES)}
+    boards = sorted(frame.groupby(keys, sort=False),
+                    key=lambda kv: (order.get(kv[0][0], 99), kv[0][1],
+                                    list(TOLERANCES).index(kv[0][2])))
+    parts.append("<ul class='lead'>" + "".join(f"<li>{board_words(b)}</li>"
+                                               for _, b in boards) + "</ul>")
+    for (cls, size, preset), b in boards:
+        first = b.iloc[0]
+        anchor = f"leaderboard-{cls}-{size}-{preset}"
+        parts.append(f"<h3 id='{html.escape(anchor)}'>Leaderboard: "
+                     f"{html.escape(PROBLEM_CLASSES.get(cls, cls))}, {html.escape(str(size))} "
+                     f"class, preset {html.escape(preset)}</h3><p class='small'>"
+                     + html.escape(NOTES["leaderboard"].format(
+                         shift=first["shift"], limit=first["time_limit"], load=first["load"]))
+                     + "</p>")
+        parts.append(table_html(leaderboard(b), left=("solver", "not verified"),
+                                name="leaderboard", max_rows=200, filter_box=False))
+        declined = b[b["standing"] == "declined"]
+        if len(declined):
+            parts.append("<p class='small'>Declined the class (not ranked): " + "; ".join(
+                f"{html.escape(r.solver)}: {html.escape(str(r.note))}"
+                for r in declined.itertuples()) + "</p>")
+    return parts
 
 
 def thumbnail(path: str, width: int = 160) -> str:
@@ -521,26 +546,20 @@ def headline(items, claims: pd.DataFrame, th: pd.DataFrame, scale: str) -> list[
              f"<a class='miss' href='#claims-miss'>{counts.get('miss', 0)} miss</a>"
              f"<a class='na' href='#claims-unjudged'>{counts.get('n/a', 0)} not judged at "
              "this scale (each with its reason)</a></span></li>"]
-    solver = [p for k, _, p in items if k == "solver_summary"]
+    boards = [p for k, _, p in items if k == "solver_leaderboards"]
     by_scene = [p for k, _, p in items if k == "solver_summary_by_scene"]
-    if solver:
-        summary = read_csv(solver[0])
-        parts += [f"<li>{w}</li>" for w in leaderboard_words(summary)]
-        parts.append("</ul><h3 id='leaderboard'>Solver leaderboard over the contact QP test "
-                     "set</h3><p class='small'>" + html.escape(NOTES["solver_summary"]) +
-                     "</p>")
+    if boards:
+        parts.append("</ul><h3 id='leaderboard'>Solver leaderboards over the contact QP test "
+                     "set, one per problem class</h3>")
+        parts += leaderboards_html(read_csv(boards[0]))
         scenes = read_csv(by_scene[0]) if by_scene else None
-        parts.append(table_html(leaderboard(summary, scenes),
-                                left=("preset", "solver", "not converged"),
-                                name="leaderboard", max_rows=200,
-                                cell_html={"not converged": link_failing_scenes}))
         fails = failures(scenes)
-        parts.append("<h3 id='failures'>Where runs were not verified converged, by scene "
+        parts.append("<h3 id='failures'>Where plain runs were not verified converged, by scene "
                      f"({len(fails)} row{'' if len(fails) == 1 else 's'})</h3>")
         if len(fails):
             parts.append("<p class='small'>Per scene of the test set, solver and preset: the "
-                         "runs and how each ended (the leaderboard's scenes link here; every "
-                         "run is in the report's test-set tables).</p>")
+                         "plain runs (rung 0 of each ladder) and how each ended (every run is "
+                         "in the report's test-set tables).</p>")
             parts.append(table_html(fails, left=("scene", "preset", "solver"), name="failures",
                                     max_rows=500,
                                     row_id=lambda r: failure_anchor(str(r["scene"]))))

@@ -27,8 +27,9 @@ from solvers.base import (CONTRACT, STATUSES, TOLERANCES, Role, SolveResult, Sol
 from solvers.certificate import broken_contract, certify, linear_solver, verify
 from solvers.tresca import LoadPathRun, run_load_path
 
-__all__ = ["CONTRACT", "ENTRY_POINT_GROUP", "STATUSES", "TOLERANCES", "LoadPathRun", "Role",
-           "SolveResult", "SolverSpec", "certify", "check_limits", "external_solvers",
+__all__ = ["CONTRACT", "ENTRY_POINT_GROUP", "STATUSES", "STOP_FACTOR", "TOLERANCES",
+           "LoadPathRun", "Role", "SolveResult", "SolverSpec", "certify", "check_limits",
+           "external_solvers",
            "linear_solver", "parse_tolerance", "run_load_path", "solve", "solver_set",
            "solvers", "verify"]
 
@@ -96,10 +97,17 @@ def check_limits(spec: SolverSpec, tol: float | str, max_iter: int | None,
     return tol, max_iter, time_limit
 
 
+#: The range of ``stop_factor`` (:func:`solve`): a tolerance ladder's rungs, from a
+#: hundred times looser than the target to a thousand times tighter (the comparison's
+#: ladder, :mod:`workflows.ladder`) and a decade beyond either way.
+STOP_FACTOR = Parameter("stop_factor", 1.0, "the solver's own tolerance = tol * stop_factor "
+                        "(the verification judges at tol)", low=1e-4, high=1e3)
+
+
 def solve(qp: ContactQP, solver: str = "pdas", tol: float | str = "mid",
           max_iter: int | None = None, time_limit: float | None = None,
           u0: np.ndarray | None = None, p0: np.ndarray | None = None,
-          **options: Any) -> SolveResult:
+          stop_factor: float = 1.0, **options: Any) -> SolveResult:
     """Run a registered solver, check its answer against the contract and verify it.
 
     Parameters
@@ -115,6 +123,10 @@ def solve(qp: ContactQP, solver: str = "pdas", tol: float | str = "mid",
         Wall seconds; ``None`` means none.
     u0, p0 : arrays, optional
         Initial guess.
+    stop_factor : float
+        The solver is asked for ``tol * stop_factor`` (its own stopping rule, a library's
+        mapping of it), the verification judges at ``tol``: a rung of a tolerance ladder
+        (:mod:`workflows.ladder`). 1 (the default) is the plain run.
     **options
         Solver options, validated against its ``parameters``.
 
@@ -129,6 +141,10 @@ def solve(qp: ContactQP, solver: str = "pdas", tol: float | str = "mid",
     """
     spec = lookup(solvers(), solver, "solver")
     tol, max_iter, time_limit = check_limits(spec, tol, max_iter, time_limit)
+    stop_factor = STOP_FACTOR.validate(stop_factor)
+    if tol * stop_factor >= 1.0:
+        raise ParameterError(f"parameter 'stop_factor': {stop_factor!r} makes the solver's "
+                             f"tolerance {tol * stop_factor:g}; allowed: tol * stop_factor < 1")
     for name, guess, size in (("u0", u0, qp.n), ("p0", p0, qp.m)):
         if guess is not None and np.shape(guess) != (size,):
             raise ParameterError(f"parameter '{name}': shape {np.shape(guess)} is not allowed; "
@@ -148,7 +164,7 @@ def solve(qp: ContactQP, solver: str = "pdas", tol: float | str = "mid",
         result.options = opts.flat()
         return result
     try:
-        result = spec.solve(target, tol, max_iter, time_limit, u0, p0, opts)
+        result = spec.solve(target, tol * stop_factor, max_iter, time_limit, u0, p0, opts)
     except ParameterError:
         raise
     except Exception as err:       # noqa: BLE001 -- whatever a solver raises is its row

@@ -266,32 +266,52 @@ def test_runs_script_on_one_family(small, tmp_path):
     runs_main(["--set", CURRENT, "--class", "small", "--family", "flat_blocks_stabilised",
                "--export", str(small), "--solvers", "pdas", "osqp", "semismooth_newton",
                "--time-limit", "20", "--out", str(out)])
-    t = pd.read_csv(out)
+    every = pd.read_csv(out)
+    t = every[every.rung == 0]
     assert len(t) == 2 * 3 * 3                      # levels x solvers x presets
     conv = t[t.status == "converged"]
     assert len(conv) >= 12
     assert (conv.energy_error <= conv.tol * 1.001).all()
     assert (t[t.solver == "pdas"].objective_error <= 1e-10).all()
-    files = {k: tmp_path / f"{k}.csv" for k in ("summary", "by_class", "by_scene", "claims")}
+    # each ladder: at least three rungs, the counted one the loosest verified, repeated
+    for _, ladder in every.groupby(["problem", "solver", "preset"]):
+        assert len(ladder) >= 3 and ladder.rung.is_unique
+        counted = ladder[ladder.counted.astype(bool)]
+        verified = ladder[ladder.status == "converged"]
+        assert len(counted) == (1 if len(verified) else 0)
+        if len(counted):
+            c = counted.iloc[0]
+            assert c.rung == verified.rung.min() and c.repeats == 3
+            assert c.time_min <= c.time_median <= c.time_max
+    files = {k: tmp_path / f"{k}.csv" for k in ("summary", "by_class", "by_scene", "claims",
+                                                 "boards")}
     summary_main(["--inputs", str(out), "--time-limit", "20", "--summary", str(files["summary"]),
                   "--by-class", str(files["by_class"]), "--by-scene", str(files["by_scene"]),
                   "--claims", str(files["claims"]), "--profiles", str(tmp_path / "p.png"),
+                  "--leaderboards", str(files["boards"]),
+                  "--pages", f"frictionless={tmp_path / 'frictionless.md'}",
                   "--charts", str(tmp_path / "p.html"),
                   "--work-precision", f"flat_blocks_stabilised={tmp_path / 'w.png'}"])
     s = pd.read_csv(files["summary"])
     assert set(s.solver) == {"pdas", "osqp", "semismooth_newton"} and (s.problems == 2).all()
+    assert (s.problem_class == "frictionless").all()
+    boards = pd.read_csv(files["boards"])
+    assert set(boards[boards.standing == "reference"].solver) == {"pdas"}
+    assert set(boards[boards.standing == "ranked"].solver) == {"osqp", "semismooth_newton"}
+    assert "# Leaderboard: frictionless contact QP" in (tmp_path / "frictionless.md").read_text()
     assert (pd.read_csv(files["by_scene"]).scene == "flat_blocks").all()
     assert pd.read_csv(files["claims"])["pass"].iloc[0]
     assert (tmp_path / "w.png").read_bytes()[:4] == b"\x89PNG"
     from report.charts import page_specs, spec_problems
     profiles, work = page_specs((tmp_path / "p.html").read_text())
     assert spec_problems(profiles) == [] and spec_problems(work) == []
-    assert {r["solver"] for r in profiles["data"]["values"]} == set(s.solver)
+    assert {r["solver"] for r in profiles["data"]["values"]} == set(s.solver) - {"pdas"}
     shares = pd.DataFrame(profiles["data"]["values"])
     assert shares["share"].between(0, 1).all() and (shares.groupby(
-        ["preset", "solver"])["share"].apply(lambda x: x.is_monotonic_increasing)).all()
-    # the work-precision chart has the runs the PNG draws: one per run with an energy error
-    solved = t[~t.solver.isin(["reference", "linear_floor"])]
+        ["problem_class", "preset", "solver"])["share"].apply(
+            lambda x: x.is_monotonic_increasing)).all()
+    # the work-precision chart has the runs the PNG draws: one per rung with an energy error
+    solved = every[~every.solver.isin(["reference", "linear_floor"])]
     assert len(work["data"]["values"]) == int(solved.energy_error.notna().sum())
 
 
@@ -307,7 +327,7 @@ def test_runs_script_on_the_mortar_families_tnnmg_takes_dual_rows_only(small, tm
         runs_main(["--set", CURRENT, "--class", "small", "--family", family, "--levels", "0",
                    "--export", str(small), "--solvers", "tnnmg", "--presets", "mid",
                    "--time-limit", "20", "--out", str(out)])
-        tables.append(pd.read_csv(out))
+        tables.append(pd.read_csv(out).query("rung == 0"))     # the plain runs
     t = pd.concat(tables).set_index("family")
     standard, dual = t.loc["cube_sphere_mortar"], t.loc["cube_sphere_mortar_dual"]
     assert standard.status == "skipped" and "one per constrained node" in standard.message

@@ -152,6 +152,42 @@ def test_no_result_reports_a_bound_below_its_floor(tiny_run):
     assert tables >= 3
 
 
+def test_the_leaderboards_read_without_running_anything(tiny_run):
+    """A Markdown results page per problem class with its settings beside it, and the
+    solver named fastest verified the one a reader computes from the runs table: the
+    best median time ratio among the solvers verified on at least 90 % of the class."""
+    import numpy as np
+
+    from workflows.problem_set import PROBLEM_CLASSES
+    folder = tiny_run / "results/solver_summary"
+    for cls in PROBLEM_CLASSES:
+        text = (folder / f"leaderboard_{cls}.md").read_text()
+        assert text.startswith(f"# Leaderboard: {PROBLEM_CLASSES[cls]}")
+        for words in ("**Shift**", "**Time limit** 20 s", "**Repeats**: the counted rung is "
+                      "run 3 times", "**Load**", "**Machine**", "**Versions**"):
+            assert words in text, (cls, words)
+    runs = pd.concat([pd.read_csv(p) for p in
+                      (tiny_run / "results/test_set").rglob("runs/*/*.csv")])
+    cold = runs[(runs.start == "cold") & (runs.problem_class == "frictionless")
+                & (runs.preset == "mid")]
+    counted = cold[cold.counted.astype(bool)].set_index(["problem", "solver"])["time_median"]
+    problems = sorted(cold.problem.unique())
+    contest = [s for s in cold.solver.unique() if s != "pdas"]
+    best = {p: min(counted[p, s] for s in contest if (p, s) in counted) for p in problems}
+    ratio = {s: np.median([counted[p, s] / best[p] if (p, s) in counted else np.inf
+                           for p in problems]) for s in contest}
+    covering = [s for s in contest
+                if sum((p, s) in counted for p in problems) >= 0.9 * len(problems)]
+    boards = pd.read_csv(folder / "leaderboards.csv")
+    board = boards[(boards.problem_class == "frictionless") & (boards.preset == "mid")]
+    assert board[board.fastest.astype(bool)].solver.tolist() == [min(covering, key=ratio.get)]
+    assert board[board.standing == "reference"].solver.tolist() == ["pdas"]
+    # each ladder that goes on draws a line: at least three rungs
+    taken = cold.groupby(["problem", "solver"]).filter(
+        lambda g: g.loc[g.rung == 0, "status"].isin(["converged", "inaccurate"]).all())
+    assert (taken.groupby(["problem", "solver"]).rung.nunique() >= 3).all()
+
+
 def job_events(log: str) -> list[tuple[str, int, str]]:
     """``("start" | "finish", jobid, rule)`` in the order Snakemake's ``log`` reports them."""
     events, rule = [], None

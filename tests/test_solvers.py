@@ -283,7 +283,6 @@ def test_ecos_through_its_epigraph_cone(references):
     ``converged`` at ``low`` on every one and on the unconstrained problem (answer 1/2):
     KKT and certified bound within 1e-3 (measured <= 2.5e-4, the 1D obstacle of condition
     ~N^2; <= 4.9e-5 on the others), the energy-norm error too."""
-    tol = TOLERANCES["mid"]
     for name, (qp, ref) in references.items():
         res = solve(qp, "ecos", "mid")
         assert res.claimed_status == "converged", res.message

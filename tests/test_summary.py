@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 
+import numpy as np
 import pandas as pd
 import pytest
 
@@ -98,35 +99,36 @@ def test_main_rejects_a_bad_item(tmp_path, capsys):
     assert "summary_html" in PATHS
 
 
-def _solver_summary():
+def _boards():
+    """leaderboards.csv of a run: one frictionless board with a reference and a solver
+    declining the class."""
     import pandas as pd
-    rows = [("low", "pdas", 1.0, 1.0, 0.2, 0), ("low", "osqp", 0.75, 0.75, 3.0, 1),
-            ("mid", "osqp", 1.0, 1.0, 0.3, 0), ("mid", "pdas", 0.5, 1.0, 0.1, 2)]
-    return pd.DataFrame([{"preset": p, "solver": s, "success_rate": sr, "correct_rate": cr,
-                          "sgm_time": t, "sgm_time_relative": 1.0, "runs": 4, "problems": 4,
-                          "inaccurate": f, "max_iter": 0, "time_limit": 0, "failed": 0,
-                          "skipped": 0} for p, s, sr, cr, t, f in rows])
+    rows = [("ranked", 1, "osqp", 2, 2, 1.0, 1.0, True, ""),
+            ("ranked", 2, "scs", 1, 0, 0.5, np.inf, False, "1 inaccurate (energy_bound)"),
+            ("reference", np.nan, "pdas", 2, 2, 1.0, 0.5, False, ""),
+            ("declined", np.nan, "tresca_exact", np.nan, np.nan, np.nan, np.nan, False, "")]
+    return pd.DataFrame([{"problem_class": "frictionless", "size_class": "small",
+                          "preset": "mid", "standing": st, "rank": r, "solver": s,
+                          "problems": 2, "verified": v, "skipped": 0, "plain_verified": pv,
+                          "correct_share": c, "median_ratio": m, "sgm_time": 0.1,
+                          "spread": 0.05, "not_verified": nv, "fastest": f, "shift": 0.01,
+                          "independent_agreement": 1e-9 if st == "reference" else np.nan,
+                          "note": "a frictionless problem" if st == "declined" else "",
+                          "time_limit": 20.0, "load": "taken alone"}
+                         for st, r, s, v, pv, c, m, f, nv in rows])
 
 
-def test_leaderboard_names_the_fastest_verified_and_the_wrong_claims():
-    import pandas as pd
-
-    from report.summary import leaderboard, leaderboard_words
-    words = leaderboard_words(_solver_summary())
-    assert "fastest verified solver <b>pdas</b>" in words[0]
-    assert "claimed a wrong answer: osqp (25 % of runs)" in words[0]
-    # mid: pdas is faster but verified on half the problems only; osqp is most reliable
-    assert "fastest verified solver <b>pdas</b>" in words[1]
-    assert "most reliable <b>osqp</b> (100 % verified converged)" in words[1]
-    board = leaderboard(_solver_summary())
-    assert list(board["solver"]) == ["pdas", "osqp", "pdas", "osqp"]
-    assert list(board["not converged"]) == ["0", "1 inaccurate", "2 inaccurate", "0"]
-    by_scene = pd.DataFrame({"preset": ["low", "low", "mid"], "solver": ["osqp", "osqp", "pdas"],
-                             "scene": ["cube_sphere", "circle_square", "roll_stack"],
-                             "runs": [2, 2, 2], "converged": [1, 2, 0]})
-    board = leaderboard(_solver_summary(), by_scene)
-    assert list(board["not converged"]) == ["0", "1 inaccurate (on cube_sphere)",
-                                            "2 inaccurate (on roll_stack)", "0"]
+def test_the_summary_shows_one_leaderboard_per_class_with_the_references_apart():
+    from report.summary import leaderboard, leaderboards_html
+    board = leaderboard(_boards())
+    assert list(board["rank"]) == [1, 2, "baseline"]
+    assert list(board["solver"]) == ["osqp (fastest verified)", "scs", "pdas (exact reference)"]
+    assert list(board["verified"]) == ["2 of 2", "1 of 2", "2 of 2"]
+    page = "".join(leaderboards_html(_boards()))
+    assert "fastest verified <b>osqp</b>" in page and "taken alone" in page
+    assert "exact reference pdas within 1e-09 of the closest independent" in page
+    assert "Declined the class (not ranked): tresca_exact: a frictionless problem" in page
+    assert "shift 0.01 s" in page and "time limit 20 s" in page
 
 
 def test_tables_put_the_thesis_beside_ours_and_explain_empty_cells():
@@ -142,10 +144,10 @@ def test_tables_put_the_thesis_beside_ours_and_explain_empty_cells():
     assert html.count(f'title="{EMPTY_THESIS}"') == 2 and EMPTY_THESIS in html
 
 
-def test_leaderboard_links_each_failing_scene_to_its_rows():
+def test_failures_link_each_failing_scene_to_its_rows():
     import pandas as pd
 
-    from report.summary import failure_anchor, failures, leaderboard, link_failing_scenes
+    from report.summary import failure_anchor, failures
     by_scene = pd.DataFrame({"preset": ["mid", "low", "low", "low"],
                              "solver": ["pdas", "osqp", "osqp", "pdas"],
                              "scene": ["roll_stack", "cube_sphere", "circle_square", "flat"],
@@ -153,10 +155,6 @@ def test_leaderboard_links_each_failing_scene_to_its_rows():
                              "inaccurate": [2, 1, 0, 0]})
     fails = failures(by_scene)
     assert list(fails["scene"]) == ["cube_sphere", "roll_stack"]     # converged < runs only
-    board = leaderboard(_solver_summary(), by_scene)
-    cell = link_failing_scenes(board["not converged"].iloc[1])
-    assert cell == f"1 inaccurate (on <a href='#{failure_anchor('cube_sphere')}'>cube_sphere</a>)"
-    assert link_failing_scenes("0") == "0"
     page = summary.table_html(fails, name="failures",
                               row_id=lambda r: failure_anchor(r["scene"]))
     assert page.count("id='failures-cube_sphere'") == 1 and "id='failures-roll_stack'" in page

@@ -25,12 +25,17 @@ from workflows.measure import peak_rss
 GRACE_FACTOR, GRACE_SECONDS = 1.25, 30.0
 
 
-def _child(conn, qp, solver, tols, time_limit, options):
-    """Solve at every tolerance of ``tols`` in turn, sending each result at once."""
-    for tol in tols:
+def _child(conn, qp, solver, time_limit, options):
+    """Solve each request ``(tol, extra)`` the parent sends, sending each result at once,
+    until the parent sends None. Each run starts without the work of the runs before it
+    (``qp.cache``: factorisations, the verification's solver): every run pays its own."""
+    while (request := conn.recv()) is not None:
+        tol, extra = request
+        qp.cache = qp.cache.problem_only()
         try:
             with peak_rss() as mem:
-                res = solve(qp, solver=solver, tol=tol, time_limit=time_limit, **options)
+                res = solve(qp, solver=solver, tol=tol, time_limit=time_limit,
+                            **options, **extra)
             res.stats["peak_mem_mb"] = mem["peak_mb"]
             conn.send(("ok", res))
         except BaseException as err:  # noqa: BLE001 -- anything the parent must turn into a row
@@ -69,65 +74,97 @@ def solve_isolated(qp: ContactQP, solver: str, tol, time_limit: float | None,
     a row are zeros; its ``kkt`` and ``gap`` are None. Without a ``time_limit`` the
     child is never killed.
     """
-    return solve_batch_isolated(qp, solver, [tol], time_limit, **options)[0]
+    with IsolatedSolver(qp, solver, time_limit, **options) as child:
+        return child.solve(tol)
 
 
 def solve_batch_isolated(qp: ContactQP, solver: str, tols: list, time_limit: float | None,
                          **options) -> list[SolveResult]:
-    """:func:`solve_isolated` at several tolerances, in as few child processes as can be.
+    """:func:`solve_isolated` at several tolerances, in one child process where it lives
+    through them (:class:`IsolatedSolver`); one result per tolerance, in order."""
+    with IsolatedSolver(qp, solver, time_limit, **options) as child:
+        return [child.solve(tol) for tol in tols]
 
-    One child solves at every tolerance in turn; each run has its own hard limit
-    ``GRACE_FACTOR * time_limit + GRACE_SECONDS``. A run past it is killed (a
-    ``time_limit`` row) and a child that dies takes only its current run with it (a
-    ``failed`` row): the remaining tolerances go to a fresh child. One result per
-    tolerance, in order.
+
+class IsolatedSolver:
+    """Runs of one solver on one problem, each in a forked child with a hard limit.
+
+    One child serves the runs in turn (a fork, the problem and its caches shared), each
+    run with its own hard limit ``GRACE_FACTOR * time_limit + GRACE_SECONDS``. A run
+    past it is killed (a ``time_limit`` row) and a child that dies takes only its
+    current run with it (a ``failed`` row): the next run starts a fresh child. Use as a
+    context manager; :meth:`solve` takes the arguments of
+    :func:`solvers.interface.solve` beyond the problem, solver, time limit and the
+    options given here.
     """
-    from solvers.interface import parse_tolerance
 
-    values = [parse_tolerance(t) for t in tols]
-    hard = hard_limit(time_limit)
-    ctx = mp.get_context("fork")
-    results: list[SolveResult] = []
-    while len(results) < len(tols):
-        todo = tols[len(results):]
-        receive, send = ctx.Pipe(duplex=False)
-        proc = ctx.Process(target=_child, args=(send, qp, solver, todo, time_limit, options),
-                           daemon=True)
-        proc.start()
-        send.close()
-        clean = False                    # every result of this child received
+    def __init__(self, qp: ContactQP, solver: str, time_limit: float | None, **options):
+        self.qp, self.solver, self.time_limit, self.options = qp, solver, time_limit, options
+        self.hard = hard_limit(time_limit)
+        self._proc = self._conn = None
+
+    def __enter__(self) -> "IsolatedSolver":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def _start(self) -> None:
+        ctx = mp.get_context("fork")
+        self._conn, theirs = ctx.Pipe(duplex=True)
+        self._proc = ctx.Process(target=_child, args=(theirs, self.qp, self.solver,
+                                                      self.time_limit, self.options),
+                                 daemon=True)
+        self._proc.start()
+        theirs.close()
+
+    def _stop(self, clean: bool) -> None:
+        if self._proc is None:
+            return
         try:
-            while len(results) < len(tols):
-                tol_value = values[len(results)]
-                t0 = time.perf_counter()
-                try:
-                    if not receive.poll(hard):
-                        results.append(_row(
-                            qp, solver, tol_value, "time_limit",
-                            f"killed after the hard wall-clock limit of {hard:.0f} s "
-                            f"(solver time limit {time_limit:g} s)", time.perf_counter() - t0,
-                            "hard_time_limit"))
-                        break
-                    kind, payload = receive.recv()
-                except EOFError:   # the child died before sending (killed, segfault, memory)
-                    proc.join(10.0)
-                    code = proc.exitcode
-                    name = (signal.Signals(-code).name if code is not None and code < 0
-                            else f"exit code {code}")
-                    results.append(_row(qp, solver, tol_value, "failed",
-                                        f"solver process died ({name})",
-                                        time.perf_counter() - t0, "process"))
-                    break
-                results.append(payload if kind == "ok" else _row(
-                    qp, solver, tol_value, "failed", f"failed: {payload[0]}",
-                    time.perf_counter() - t0, "exception", payload[1]))
-            else:
-                clean = True
-        finally:
-            receive.close()
             if clean:
-                proc.join(10.0)
-            if proc.is_alive():
-                proc.kill()
-                proc.join(10.0)
-    return results
+                self._conn.send(None)
+                self._proc.join(10.0)
+        except (BrokenPipeError, OSError):
+            pass
+        finally:
+            self._conn.close()
+            if self._proc.is_alive():
+                self._proc.kill()
+                self._proc.join(10.0)
+            self._proc = self._conn = None
+
+    def close(self) -> None:
+        """End the child (if one lives)."""
+        self._stop(clean=True)
+
+    def solve(self, tol, **extra) -> SolveResult:
+        """One verified run at ``tol`` (and ``extra``, e.g. ``stop_factor``, ``u0``,
+        ``p0``) in the child, or the row of its kill, death or exception."""
+        from solvers.interface import parse_tolerance
+
+        tol_value = parse_tolerance(tol)
+        if self._proc is None:
+            self._start()
+        t0 = time.perf_counter()
+        try:
+            self._conn.send((tol, extra))
+            if not self._conn.poll(self.hard):
+                self._stop(clean=False)
+                return _row(self.qp, self.solver, tol_value, "time_limit",
+                            f"killed after the hard wall-clock limit of {self.hard:.0f} s "
+                            f"(solver time limit {self.time_limit:g} s)",
+                            time.perf_counter() - t0, "hard_time_limit")
+            kind, payload = self._conn.recv()
+        except (EOFError, BrokenPipeError, OSError):  # the child died (killed, segfault, memory)
+            self._proc.join(10.0)
+            code = self._proc.exitcode
+            name = (signal.Signals(-code).name if code is not None and code < 0
+                    else f"exit code {code}")
+            self._stop(clean=False)
+            return _row(self.qp, self.solver, tol_value, "failed",
+                        f"solver process died ({name})", time.perf_counter() - t0, "process")
+        if kind == "ok":
+            return payload
+        return _row(self.qp, self.solver, tol_value, "failed", f"failed: {payload[0]}",
+                    time.perf_counter() - t0, "exception", payload[1])

@@ -54,6 +54,38 @@ STEP_CHOICES = ("last", "all")
 DEFINITION_DIGITS = 8
 
 
+#: The problem classes a comparison ranks apart (:func:`problem_class`): a solver is
+#: ranked among the solvers that take the class, never across classes.
+PROBLEM_CLASSES = {
+    "frictionless": "frictionless contact QP",
+    "friction_2d": "2D frictional step (QP in (u, t))",
+    "friction_3d_cone": "3D frictional step (second-order cone program)",
+    "friction_3d_facets": "3D faceted frictional step (QP)",
+}
+
+
+def problem_class(meta: dict) -> str:
+    """The class of an exported problem (its ``meta.json``; :data:`PROBLEM_CLASSES`)."""
+    if not meta.get("friction"):
+        return "frictionless"
+    if int(meta["dim"]) == 2:
+        return "friction_2d"
+    return "friction_3d_cone" if meta["form"] == "cone" else "friction_3d_facets"
+
+
+def cold_rows(t):
+    """The rows of run tables started from zero (``start`` ``cold``; a table written before
+    the column existed is all cold): what every table but the warm-start comparison reads."""
+    return t if "start" not in t else t[t["start"].fillna("cold") == "cold"]
+
+
+def plain_rows(t):
+    """The cold rows at rung 0 of each tolerance ladder (:mod:`workflows.ladder`; a table
+    without the column is all rung 0): each solver's plain run at a preset's own mapping."""
+    t = cold_rows(t)
+    return t if "rung" not in t else t[t["rung"].fillna(0) == 0]
+
+
 class TestSetError(ValueError):
     """A test set name, class or definition that is not allowed (the message says which)."""
 

@@ -2,6 +2,7 @@
 # size class, every registered solver on every problem at every preset, and the summary
 # over it. Paths: workflows/studies/.
 from report.charts import chart_path
+from workflows.problem_set import PROBLEM_CLASSES
 from workflows.studies.problem_set import problem_set_runs, run_levels, warm_starts
 TS = config.get("test_set", {})
 TS_ID = problem_set_of(config).id if TS else ""
@@ -50,6 +51,13 @@ rule solver_summary:
                         caption="../report/captions/solver_summary_table.rst",
                         category="solvers", subcategory="test set summary"),
         claims=PATHS["solver_summary_claims"],
+        leaderboards=report(PATHS["solver_leaderboards"],
+                            caption="../report/captions/solver_leaderboards.rst",
+                            category="solvers", subcategory="test set summary"),
+        pages=[report(PATHS["solver_leaderboard_page"].format(case=c),
+                      caption="../report/captions/solver_leaderboards.rst",
+                      category="solvers", subcategory="leaderboards")
+               for c in PROBLEM_CLASSES],
         warm=report(PATHS["solver_warm_starts"], caption="../report/captions/solver_warm_starts.rst",
                     category="solvers", subcategory="test set summary"),
         facets=report(PATHS["solver_facets"], caption="../report/captions/solver_facets.rst",
@@ -66,12 +74,17 @@ rule solver_summary:
     log: log_path("solver_summary", "all")
     conda: ENV
     params:
-        py=PY, limit=TS.get("time_limit"),
+        py=PY, limit=TS.get("time_limit"), scale=config.get("scale", "?"),
+        load="shared" if "test_set_runs" in config.get("shared", []) else "alone",
+        pages=" ".join(f"{c}={PATHS['solver_leaderboard_page'].format(case=c)}"
+                       for c in PROBLEM_CLASSES),
         work=" ".join(f"{f}={PATHS['solver_work_precision'].format(scene=f)}"
                       for f in TS_FAMILIES)
     shell:
         "{params.py} -m report.solver_summary --inputs {input} --time-limit {params.limit} "
         "--summary {output.summary} --by-class {output.by_class} --by-scene {output.by_scene} "
-        "--claims {output.claims} --warm-starts {output.warm} --facets {output.facets} "
+        "--claims {output.claims} --leaderboards {output.leaderboards} "
+        "--pages {params.pages} --scale {params.scale} --load {params.load} "
+        "--warm-starts {output.warm} --facets {output.facets} "
         "--profiles {output.profiles} "
         "--charts {output.charts} --work-precision {params.work} > {log} 2>&1"

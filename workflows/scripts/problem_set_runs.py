@@ -6,9 +6,17 @@ Each problem is rebuilt from its definition (the solvers need its mesh hierarchy
 and checked against the exported ``P, q, G, h`` (a 3D frictional step's ``P, q, A,
 b``; relative difference <= 1e-12),
 so every solver sees the problem a QP user downloads. Per solver, one child
-process runs the presets in turn, each with a hard wall-clock limit
-(:func:`workflows.isolation.solve_batch_isolated`): a hung or crashed run is a
-row. A frictional problem is one Tresca step, handed to each solver as it takes
+process runs the presets in turn, each run with a hard wall-clock limit
+(:class:`workflows.isolation.IsolatedSolver`): a hung or crashed run is a
+row. At each preset a solver climbs its tolerance ladder (:mod:`workflows.ladder`: its own
+tolerance ``tol * 10^-rung``, every rung verified at the preset's ``tol``): a row per rung
+(``rung``, ``stop_factor``), rung 0 the plain run; the counted rung (``counted``: the
+loosest verified) is repeated, its time's median, min and max over the ``repeats`` runs in
+``time_median``, ``time_min``, ``time_max``. Before its first timed run a solver's process
+solves the problem once at the loosest rung, untimed: a library's first call in a process
+loads it (imports, compiled kernels), which no later call pays; and each run starts without
+the factorisations of the runs before it (:class:`workflows.isolation.IsolatedSolver`). ``problem_class`` is the problem's class
+(:func:`workflows.problem_set.problem_class`). A frictional problem is one Tresca step, handed to each solver as it takes
 friction (a solver without friction: ``skipped`` with its reason). A row per run:
 verified and claimed status, KKT residuals, certified energy
 bound, time, the energy error ``||u - u_ref||_A / ||u_ref||_A``, the objective (a Tresca
@@ -52,11 +60,12 @@ from solvers.interface import TOLERANCES, solvers
 from workflows.export import load_problem, objective, qp_arrays
 from problems.spec import ParameterError
 from workflows.io import read_json, run_solvers, write_csv
-from workflows.isolation import log_traceback, solve_batch_isolated
+from workflows.isolation import IsolatedSolver, log_traceback
+from workflows.ladder import LOOSEST, climb, stop_factor
 from workflows.measure import multiplier_errors
 from workflows.progress import study_progress
 from workflows.settings import study_defaults
-from workflows.problem_set import TestSetError, check_class, load, step_choice
+from workflows.problem_set import TestSetError, check_class, load, problem_class, step_choice
 
 #: Largest relative difference between a rebuilt problem and its exported arrays.
 IDENTICAL = 1e-12
@@ -81,12 +90,6 @@ def check_identical(qp, folder: Path) -> None:
         if diff > IDENTICAL * max(size, np.finfo(float).tiny):
             raise RuntimeError(f"{folder.name}: the rebuilt {key} differs from the exported "
                                f"one by {diff / size:.2e} (relative); re-export the set")
-
-
-def cold_rows(t: pd.DataFrame) -> pd.DataFrame:
-    """The rows of run tables started from zero (``start`` ``cold``; a table written before
-    the column existed is all cold): what every table but the warm-start comparison reads."""
-    return t if "start" not in t else t[t["start"].fillna("cold") == "cold"]
 
 
 def runs_warm(family: dict, choice: str) -> bool:
@@ -163,34 +166,42 @@ def run_problem(item, folder: Path, names: list[str], presets: list[str],
     scale = max(abs(J_ref), np.finfo(float).tiny)
     base = {"set": meta["set"], "problem": item.name, "family": item.family,
             "scene_problem": item.problem, "level": item.level, "size_class": item.size_class,
-            "n": meta["n"], "m": meta["m"], "objective_ref": J_ref,
+            "problem_class": problem_class(meta), "n": meta["n"], "m": meta["m"],
+            "objective_ref": J_ref,
             "dropped_rows": qp.contact.dropped if qp.contact is not None else 0,
             **facet_columns(qp, item, twin, u_ref, folder.parent)}
     guess = warm_guess(folder) if warm else None
 
-    def rows_of(solver, start, run_presets, **guess_kw):
-        out = []
-        results = solve_batch_isolated(qp, solver, run_presets, time_limit=time_limit,
-                                       **guess_kw)
-        for preset, res in zip(run_presets, results):
-            log_traceback(res, f"{item.name} ({preset}, {start})")
-            row = {**base, "preset": preset, "start": start, **res.summary(),
-                   "used_guess": used_guess(res, start == "warm")}
-            if res.kkt is not None:
-                J = objective(qp, res.u, res.p)
-                row.update(objective=J, objective_error=abs(J - J_ref) / scale,
-                           energy_error=energy_error(qp, res.u, u_ref),
-                           **multiplier_errors(qp, res.p, p_ref, u_ref))
-            out.append(row)
-        return out
+    def row_of(res, preset, start, rung=0, extra=None):
+        log_traceback(res, f"{item.name} ({preset}, {start}, rung {rung})")
+        row = {**base, "preset": preset, "start": start, "rung": rung,
+               "stop_factor": stop_factor(rung), **res.summary(),
+               "used_guess": used_guess(res, start == "warm"), **(extra or {})}
+        if res.kkt is not None:
+            J = objective(qp, res.u, res.p)
+            row.update(objective=J, objective_error=abs(J - J_ref) / scale,
+                       energy_error=energy_error(qp, res.u, u_ref),
+                       **multiplier_errors(qp, res.p, p_ref, u_ref))
+        return row
 
     rows = []
     for solver in names:
-        cold = rows_of(solver, "cold", presets)
-        rows += cold
-        taken = [r["preset"] for r in cold if r["status"] != "skipped"]
-        if guess is not None and taken:
-            rows += rows_of(solver, "warm", taken, **guess)
+        with IsolatedSolver(qp, solver, time_limit) as child:
+            taken = []
+            for preset in presets:              # cold: the tolerance ladder (workflows.ladder)
+                if preset == presets[0]:        # the process's first call, not timed
+                    child.solve(preset, stop_factor=stop_factor(LOOSEST))
+                ladder = climb(lambda k: child.solve(preset, stop_factor=stop_factor(k)))
+                for k, res in ladder.results.items():
+                    counted = k == ladder.counted
+                    rows.append(row_of(res, preset, "cold", k, {
+                        "counted": counted, **(ladder.time_stats() if counted else
+                                               {"repeats": 1})}))
+                if ladder.results[0].status != "skipped":
+                    taken.append(preset)
+            if guess is not None:               # warm: the plain run from the guess
+                rows += [row_of(child.solve(preset, **guess), preset, "warm")
+                         for preset in taken]
     return rows
 
 

@@ -126,6 +126,9 @@ class Study:
     captions : str
         Its captions file, ``report/captions/<captions>``: one ``.. caption:: KEY``
         section per output its rules show in the report (:func:`captions_of`).
+    cases : callable, optional
+        ``cases(config) -> [case]``: what its ``{case}`` outputs run over (default: its
+        config section's ``cases``, :func:`cases_of`).
     """
 
     name: str
@@ -148,6 +151,7 @@ class Study:
     planned_jobs: Callable[[dict, str], list] | None = None
     proxies: dict = field(default_factory=dict)
     captions: str = ""
+    cases: Callable[[dict], list[str]] | None = None
 
     def __post_init__(self):
         unknown = sorted(set(self.scales) - set(SCALES))
@@ -172,13 +176,17 @@ class Study:
             if "{scene}" in template:
                 out += [(key, s, template.format(scene=s)) for s in scenes_of(config, self.name)]
             elif "{case}" in template:
-                out += [(key, None, template.format(case=c)) for c in cases_of(config, self.name)]
+                out += [(key, None, template.format(case=c)) for c in self.case_list(config)]
             else:
                 out.append((key, None, template))
         for extra, outputs in self.extra:
             scenes = config[self.name].get(extra, {}).get("scenes", {})
             out += [(k, s, self.paths[k].format(scene=s)) for s in scenes for k in outputs]
         return out
+
+    def case_list(self, config: dict) -> list[str]:
+        """What the study's ``{case}`` outputs run over under ``config``."""
+        return self.cases(config) if self.cases is not None else cases_of(config, self.name)
 
     def targets(self, config: dict) -> list[str]:
         """The files this study produces under ``config``."""
@@ -194,7 +202,7 @@ class Study:
             return []
         template = self.paths[item.key]
         if "{case}" in template:
-            return [template.format(case=c) for c in cases_of(config, self.name)]
+            return [template.format(case=c) for c in self.case_list(config)]
         if "{scene}" not in template:
             return [template]
         return [template.format(scene=item.problem)] if item.problem in scenes_of(

@@ -1,5 +1,7 @@
 """The contact QP test set: every family at the configured size classes exported and run by
-every registered solver; qpbenchmark's summary over the runs."""
+every registered solver over its tolerance ladder; one leaderboard per problem class (the
+``{case}`` of the results pages) and qpbenchmark's summary over the runs."""
+from workflows.problem_set import PROBLEM_CLASSES
 from workflows.studies._base import (ConfigError, Study, check_registered_solvers, scenes_of,
                                      problem_set_of)
 
@@ -10,6 +12,8 @@ PATHS = {
     "solver_summary_by_class": "results/solver_summary/summary_by_class.csv",
     "solver_summary_by_scene": "results/solver_summary/summary_by_scene.csv",
     "solver_summary_claims": "results/solver_summary/claims.csv",
+    "solver_leaderboards": "results/solver_summary/leaderboards.csv",
+    "solver_leaderboard_page": "results/solver_summary/leaderboard_{case}.md",
     "solver_warm_starts": "results/solver_summary/warm_starts.csv",
     "solver_facets": "results/solver_summary/facets.csv",
     "solver_profiles": "results/solver_summary/performance_profiles.png",
@@ -122,10 +126,12 @@ STUDY = Study(
     scripts={"test_set": "workflows.scripts.problem_set_runs"},
     paths=PATHS,
     outputs=("solver_summary", "solver_summary_by_class", "solver_summary_by_scene",
-             "solver_summary_claims", "solver_warm_starts", "solver_facets", "solver_profiles",
+             "solver_summary_claims", "solver_leaderboards", "solver_leaderboard_page",
+             "solver_warm_starts", "solver_facets", "solver_profiles",
              "solver_work_precision"),
     heavy_rules=("test_set_export", "test_set_runs"),
     runs_alone=("test_set_runs",),
     launches_mpi=("test_set_runs",),
     check=check,
+    cases=lambda config: list(PROBLEM_CLASSES),
 )
