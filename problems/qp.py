@@ -572,6 +572,17 @@ class SharedWork:
         timed run starts from, so that it pays its own factorisations."""
         return SharedWork(floating_modes=dict(self.floating_modes))
 
+    def fill_from(self, other: "SharedWork") -> None:
+        """Take ``other``'s work wherever this holds none (after a timed run: the
+        verification reuses what earlier verifications of the problem computed)."""
+        for name in ("floating_modes", "dual_operators", "contact_schur"):
+            mine = getattr(self, name)
+            for key, value in getattr(other, name).items():
+                mine.setdefault(key, value)
+        for name in ("floating_factor", "linear_solver", "certificate"):
+            if getattr(self, name) is None:
+                setattr(self, name, getattr(other, name))
+
 
 @dataclass
 class ContactQP:

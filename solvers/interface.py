@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from problems.qp import ContactQP
+from problems.qp import ContactQP, SharedWork
 from problems.slack import slack_form
 from problems.spec import (Parameter, ParameterError, discover, load_plugins, lookup,
                            with_plugins)
@@ -107,7 +107,8 @@ STOP_FACTOR = Parameter("stop_factor", 1.0, "the solver's own tolerance = tol * 
 def solve(qp: ContactQP, solver: str = "pdas", tol: float | str = "mid",
           max_iter: int | None = None, time_limit: float | None = None,
           u0: np.ndarray | None = None, p0: np.ndarray | None = None,
-          stop_factor: float = 1.0, **options: Any) -> SolveResult:
+          stop_factor: float = 1.0, verification_work: SharedWork | None = None,
+          **options: Any) -> SolveResult:
     """Run a registered solver, check its answer against the contract and verify it.
 
     Parameters
@@ -127,6 +128,11 @@ def solve(qp: ContactQP, solver: str = "pdas", tol: float | str = "mid",
         The solver is asked for ``tol * stop_factor`` (its own stopping rule, a library's
         mapping of it), the verification judges at ``tol``: a rung of a tolerance ladder
         (:mod:`workflows.ladder`). 1 (the default) is the plain run.
+    verification_work : SharedWork, optional
+        What earlier verifications of ``qp`` computed (factorisations, the last
+        certificate), taken into ``qp.cache`` after the solver's run and before its
+        verification: a benchmark that starts each timed run without the work of the runs
+        before it (``qp.cache`` emptied) verifies without redoing it.
     **options
         Solver options, validated against its ``parameters``.
 
@@ -185,4 +191,6 @@ def solve(qp: ContactQP, solver: str = "pdas", tol: float | str = "mid",
     result.solver = spec.name
     result.tol = tol
     result.options = opts.flat()
+    if verification_work is not None:
+        qp.cache.fill_from(verification_work)
     return verify(qp, result, tol)

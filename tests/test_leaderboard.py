@@ -10,7 +10,8 @@ import pytest
 from problems.spec import ParameterError, problems
 from report import leaderboard
 from solvers.interface import solve
-from workflows.ladder import LOOSEST, MIN_RUNGS, TIGHTEST, climb, counted_rung, next_rung
+from workflows.ladder import (LOOSEST, MIN_RUNGS, TIGHTEST, Outcome, climb, counted_rung,
+                              next_rung)
 
 
 def _climb(outcome) -> dict[int, str]:
@@ -22,9 +23,10 @@ def _climb(outcome) -> dict[int, str]:
 
 @pytest.mark.parametrize("outcome, rungs, counted", [
     (lambda k: "converged", [0, -1, -2], -2),                       # overshooting rule
-    (lambda k: "converged" if k >= 0 else "inaccurate", [0, -1, 1], 0),
+    (lambda k: "converged" if k >= 0 else "inaccurate", [0, -1, -2], 0),
     (lambda k: "converged" if k >= 2 else "inaccurate", [0, 1, 2], 2),   # stops short
-    (lambda k: "inaccurate", [0, 1, 2, 3], None),                   # the cap
+    (lambda k: Outcome("inaccurate", 10 + k, 10.0 ** -k), [0, 1, 2, 3], None),  # the cap
+    (lambda k: Outcome("inaccurate", 5, 1e-5), [0, 1, -1], None),   # tighter changes nothing
     (lambda k: "max_iter" if k >= 0 else "converged", [0, -1, -2], -2),
     (lambda k: "skipped", [0], None),
     (lambda k: "time_limit", [0], None),
@@ -33,8 +35,8 @@ def test_the_ladder_climbs_until_verified_and_keeps_a_front(outcome, rungs, coun
     statuses = _climb(outcome)
     assert sorted(statuses) == sorted(rungs) and list(statuses)[0] == 0
     assert all(LOOSEST <= k <= TIGHTEST for k in statuses)
-    assert counted_rung(statuses) == counted
-    if outcome(0) in ("converged", "inaccurate"):
+    assert counted_rung({k: getattr(v, "status", v) for k, v in statuses.items()}) == counted
+    if getattr(outcome(0), "status", outcome(0)) in ("converged", "inaccurate"):
         assert len(statuses) >= MIN_RUNGS                  # a line, not a point
 
 
@@ -45,7 +47,7 @@ def test_climb_repeats_the_counted_rung():
 
     times = iter([5.0, 1.0, 2.0, 3.0, 9.0])
     ladder = climb(lambda k: Run("converged" if k >= 0 else "inaccurate", next(times)))
-    assert ladder.counted == 0 and list(ladder.results) == [0, -1, 1]
+    assert ladder.counted == 0 and list(ladder.results) == [0, -1, -2]
     assert ladder.times == [5.0, 3.0, 9.0]
     assert ladder.time_stats() == {"time_median": 5.0, "time_min": 3.0, "time_max": 9.0,
                                    "repeats": 3}

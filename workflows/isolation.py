@@ -28,14 +28,17 @@ GRACE_FACTOR, GRACE_SECONDS = 1.25, 30.0
 def _child(conn, qp, solver, time_limit, options):
     """Solve each request ``(tol, extra)`` the parent sends, sending each result at once,
     until the parent sends None. Each run starts without the work of the runs before it
-    (``qp.cache``: factorisations, the verification's solver): every run pays its own."""
+    (``qp.cache``: factorisations, the verification's solver): every run pays its own;
+    its verification, after the run, reuses the earlier verifications' work."""
+    kept = qp.cache
     while (request := conn.recv()) is not None:
         tol, extra = request
-        qp.cache = qp.cache.problem_only()
+        qp.cache = kept.problem_only()
         try:
             with peak_rss() as mem:
                 res = solve(qp, solver=solver, tol=tol, time_limit=time_limit,
-                            **options, **extra)
+                            verification_work=kept, **options, **extra)
+            kept = qp.cache
             res.stats["peak_mem_mb"] = mem["peak_mb"]
             conn.send(("ok", res))
         except BaseException as err:  # noqa: BLE001 -- anything the parent must turn into a row

@@ -11,13 +11,16 @@ runs each solver on a ladder of its own tolerances, ``tol * 10^-k`` for rungs ``
 * verified there: the looser rungs -1, -2 while they still verify (a solver whose own
   rule overshoots reaches the target sooner); one not verified ends the descent;
 * not verified (``inaccurate``: its claim refuted, or its tolerance too loose): the
-  tighter rungs 1, 2, 3 until one verifies (the cap: rung 3, a thousand times tighter);
+  tighter rungs 1, 2, 3 until one verifies (the cap: rung 3, a thousand times tighter),
+  unless a tighter rung changed nothing (the same iterations and the same certified
+  bound: the solver's tolerance is not what limits it);
 * stopped at its iteration limit (``max_iter``): the looser rungs, which may finish (a
   tighter one would not);
 * a run that fails, is skipped or reaches its time limit ends the ladder.
 
-At least :data:`MIN_RUNGS` rungs are run where the ladder goes on (the next tighter ones),
-so that each solver's work-precision front over its ladder is a line, not a point. The
+At least :data:`MIN_RUNGS` rungs are run where the ladder goes on (looser ones first, which
+cost less), so that each solver's work-precision front over its ladder is a line, not a
+point. The
 *counted* rung is the loosest verified one (:func:`counted_rung`); its run is repeated to
 :data:`REPEATS` runs and its time is their median, with the min and max beside it.
 """
@@ -45,21 +48,53 @@ def stop_factor(rung: int) -> float:
     return STEP ** -rung
 
 
-def next_rung(statuses: dict[int, str]) -> int | None:
-    """The rung to run next given the verified ``statuses`` of the rungs run so far
-    (``{rung: status}``), or None when the ladder is done (the module docstring)."""
-    if 0 not in statuses:
+@dataclass(frozen=True)
+class Outcome:
+    """What the ladder reads of a rung's verified run: ``status``, ``iterations`` and the
+    certified relative energy ``bound``."""
+
+    status: str
+    iterations: int = 0
+    bound: float = float("inf")
+
+    @classmethod
+    def of(cls, result) -> "Outcome":
+        gap = getattr(result, "gap", None)
+        return cls(result.status, int(getattr(result, "iterations", 0) or 0),
+                   gap.certified_bound if gap is not None else float("inf"))
+
+
+def _stalled(runs: dict[int, Outcome], rung: int) -> bool:
+    """Whether ``rung`` changed nothing against the rung before it (the same iterations
+    and certified bound to 1e-9 relative)."""
+    a, b = runs.get(rung - 1), runs.get(rung)
+    return (a is not None and b is not None and a.iterations == b.iterations
+            and abs(a.bound - b.bound) <= 1e-9 * max(abs(a.bound), abs(b.bound)))
+
+
+def next_rung(runs: dict[int, Outcome | str]) -> int | None:
+    """The rung to run next given the outcomes of the rungs run so far (``{rung:
+    Outcome}``, or ``{rung: status}``), or None when the ladder is done (the module
+    docstring)."""
+    runs = {k: v if isinstance(v, Outcome) else Outcome(v) for k, v in runs.items()}
+    if 0 not in runs:
         return 0
-    if any(s in ENDS for s in statuses.values()):
+    status = {k: r.status for k, r in runs.items()}
+    if any(s in ENDS for s in status.values()):
         return None
-    loosest, tightest = min(statuses), max(statuses)
-    if loosest > LOOSEST and statuses[loosest] in ("converged", "max_iter") and \
-            statuses[0] in ("converged", "max_iter"):
+    loosest, tightest = min(runs), max(runs)
+    going_on = ("converged", "max_iter")
+    if loosest > LOOSEST and status[loosest] in going_on and status[0] in going_on:
         return loosest - 1
-    verified = any(s == "converged" for s in statuses.values())
-    if tightest < TIGHTEST and statuses[tightest] != "max_iter" and \
-            (not verified or len(statuses) < MIN_RUNGS):
+    verified = "converged" in status.values()
+    if (not verified and tightest < TIGHTEST and status[tightest] == "inaccurate"
+            and not _stalled(runs, tightest)):
         return tightest + 1
+    if len(runs) < MIN_RUNGS:                  # the front: looser first, which costs less
+        if loosest > LOOSEST:
+            return loosest - 1
+        if tightest < TIGHTEST and status[tightest] != "max_iter":
+            return tightest + 1
     return None
 
 
@@ -98,7 +133,7 @@ def climb(run: Callable[[int], object], repeats: int = REPEATS) -> LadderRun:
     times of the runs that end as the first did are kept (one stopped by the machine,
     e.g. at its time limit, is not a repeat of a verified run)."""
     results: dict = {}
-    while (rung := next_rung({k: r.status for k, r in results.items()})) is not None:
+    while (rung := next_rung({k: Outcome.of(r) for k, r in results.items()})) is not None:
         results[rung] = run(rung)
     counted = counted_rung({k: r.status for k, r in results.items()})
     times = []

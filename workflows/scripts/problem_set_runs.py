@@ -2,27 +2,26 @@
 
 Reads the exported class folder (``contactbench export``; rule ``test_set_export``):
 each problem's exact reference (``solution.npz``) and objective (``meta.json``).
-Each problem is rebuilt from its definition (the solvers need its mesh hierarchy)
-and checked against the exported ``P, q, G, h`` (a 3D frictional step's ``P, q, A,
-b``; relative difference <= 1e-12),
-so every solver sees the problem a QP user downloads. Per solver, one child
-process runs the presets in turn, each run with a hard wall-clock limit
-(:class:`workflows.isolation.IsolatedSolver`): a hung or crashed run is a
-row. At each preset a solver climbs its tolerance ladder (:mod:`workflows.ladder`: its own
-tolerance ``tol * 10^-rung``, every rung verified at the preset's ``tol``): a row per rung
-(``rung``, ``stop_factor``), rung 0 the plain run; the counted rung (``counted``: the
-loosest verified) is repeated, its time's median, min and max over the ``repeats`` runs in
-``time_median``, ``time_min``, ``time_max``. Before its first timed run a solver's process
-solves the problem once at the loosest rung, untimed: a library's first call in a process
-loads it (imports, compiled kernels), which no later call pays; and each run starts without
-the factorisations of the runs before it (:class:`workflows.isolation.IsolatedSolver`). ``problem_class`` is the problem's class
-(:func:`workflows.problem_set.problem_class`). A frictional problem is one Tresca step, handed to each solver as it takes
-friction (a solver without friction: ``skipped`` with its reason). A row per run:
-verified and claimed status, KKT residuals, certified energy
-bound, time, the energy error ``||u - u_ref||_A / ||u_ref||_A``, the objective (a Tresca
-step's energy) and
-its error relative to the reference's, the multipliers' errors and the total-force
-error. Called by the rule ``test_set_runs``.
+Each problem is rebuilt from its definition (the solvers need its mesh hierarchy) and
+checked against the exported ``P, q, G, h`` (a 3D frictional step's ``P, q, A, b``;
+relative difference <= 1e-12), so every solver sees the problem a QP user downloads.
+Per solver, one child process runs the presets in turn, each run with a hard wall-clock
+limit (:class:`workflows.isolation.IsolatedSolver`): a hung or crashed run is a row. At
+each preset a solver climbs its tolerance ladder (:mod:`workflows.ladder`: its own
+tolerance ``tol * 10^-rung``, every rung verified at the preset's ``tol``): a row per
+rung (``rung``, ``stop_factor``), rung 0 the plain run; the counted rung (``counted``:
+the loosest verified) is repeated, its time's median, min and max over the ``repeats``
+runs in ``time_median``, ``time_min``, ``time_max``. Before its first timed run a
+solver's process solves the problem once, untimed (one iteration at the loosest rung): a
+library's first call in a process loads it (imports, compiled kernels), which no later
+call pays; and each run starts without the factorisations of the runs before it (its
+verification, after the timed run, reuses them). ``problem_class`` is the problem's
+class (:func:`workflows.problem_set.problem_class`). A frictional problem is one Tresca
+step, handed to each solver as it takes friction (a solver without friction: ``skipped``
+with its reason). A row per run: verified and claimed status, KKT residuals, certified
+energy bound, time, the energy error ``||u - u_ref||_A / ||u_ref||_A``, the objective (a
+Tresca step's energy) and its error relative to the reference's, the multipliers' errors
+and the total-force error. Called by the rule ``test_set_runs``.
 
 Cold and warm starts: every row has ``start`` ``cold`` (the solver starts from zero,
 as every other table of the test set reads it). A frictional step has a recorded warm
@@ -190,7 +189,7 @@ def run_problem(item, folder: Path, names: list[str], presets: list[str],
             taken = []
             for preset in presets:              # cold: the tolerance ladder (workflows.ladder)
                 if preset == presets[0]:        # the process's first call, not timed
-                    child.solve(preset, stop_factor=stop_factor(LOOSEST))
+                    child.solve(preset, stop_factor=stop_factor(LOOSEST), max_iter=1)
                 ladder = climb(lambda k: child.solve(preset, stop_factor=stop_factor(k)))
                 for k, res in ladder.results.items():
                     counted = k == ladder.counted
