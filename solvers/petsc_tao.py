@@ -160,13 +160,14 @@ class Runtime:
 
     def environment(self) -> dict:
         """The job's environment: PETSc's directory, OpenMPI allowed to run as root and to
-        place more ranks than cores, one thread per rank, and none of the suite's Python
-        settings (the interpreter has its own numpy)."""
+        place more ranks than cores, its ranks not pinned to cores (OpenMPI pins rank 0 of
+        every job to core 0: two jobs side by side would share one core), one thread per
+        rank, and none of the suite's Python settings (the interpreter has its own numpy)."""
         env = {k: v for k, v in os.environ.items()
                if k not in ("PYTHONPATH", "PYTHONHOME", "VIRTUAL_ENV")}
         env.update({"PETSC_DIR": self.petsc_dir, "OMP_NUM_THREADS": "1",
                     "OPENBLAS_NUM_THREADS": "1", "OMPI_MCA_rmaps_base_oversubscribe": "1",
-                    "PYTHONNOUSERSITE": "1"})
+                    "OMPI_MCA_hwloc_base_binding_policy": "none", "PYTHONNOUSERSITE": "1"})
         if os.geteuid() == 0:
             env.update({"OMPI_ALLOW_RUN_AS_ROOT": "1", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1"})
         return env

@@ -77,11 +77,6 @@ PATHS = _collect(STUDIES)
 HEAVY_RULES = {rule: s.name for s in STUDIES.values() for rule in s.heavy_rules}
 #: The heavy rules that time solvers, so that nothing may run beside them on the machine.
 RUNS_ALONE = frozenset(rule for s in STUDIES.values() for rule in s.runs_alone)
-#: The heavy rules whose jobs may launch MPI jobs: they take the local profile's single
-#: ``mpi_launch``, so that two such jobs never run side by side (where one shares the
-#: machine at a scale, :func:`rule_resources`).
-LAUNCHES_MPI = frozenset(rule for s in STUDIES.values() for rule in s.launches_mpi)
-MPI_LAUNCH = "mpi_launch"
 #: Every table and figure of the thesis's numerical chapters, and what regenerates it
 #: (the summary page lists them with their status), in the thesis's order.
 THESIS_ITEMS = tuple(sorted((item for s in STUDIES.values() for item in s.thesis_items),
@@ -178,16 +173,13 @@ def rule_resources(config: dict, rule: str) -> dict:
     (``check_config`` requires them for every configured study; empty otherwise), and
     for a rule of :data:`RUNS_ALONE` the whole :data:`MACHINE_SHARE` and
     ``cpus_per_task`` (the Slurm executor's CPUs per job), unless the config's ``shared``
-    lets it share the machine at this scale; for a rule of :data:`LAUNCHES_MPI` one
-    ``mpi_launch`` (the local profile has one)."""
+    lets it share the machine at this scale."""
     if rule not in HEAVY_RULES:
         raise KeyError(f"rule {rule!r} is not a heavy rule; allowed: {sorted(HEAVY_RULES)}")
     declared = dict(config.get("resources", {}).get(rule, {}))
     if rule in RUNS_ALONE and rule not in (config.get("shared") or ()):
         name, whole = MACHINE_SHARE
         declared.update({name: whole, "cpus_per_task": ALONE_CPUS})
-    if rule in LAUNCHES_MPI:
-        declared[MPI_LAUNCH] = 1
     return declared
 
 

@@ -90,9 +90,6 @@ class Study:
         Its rules that carry a benchmark file and measured ``resources:``.
     runs_alone : tuple of str
         Those of them that time solvers, so that nothing may run beside them.
-    launches_mpi : tuple of str
-        Those of them whose jobs may start MPI jobs (every registered solver, petsc_tao
-        among them): one such job at a time on a machine.
     thesis_items : tuple of ThesisItem
         The thesis's tables and figures it regenerates (the summary page lists them).
     check : callable, optional
@@ -140,7 +137,6 @@ class Study:
     extra: tuple = ()
     heavy_rules: tuple[str, ...] = ()
     runs_alone: tuple[str, ...] = ()
-    launches_mpi: tuple[str, ...] = ()
     thesis_items: tuple[ThesisItem, ...] = ()
     check: Callable[[dict, dict], None] | None = None
     scripts: dict = field(default_factory=dict)

@@ -75,7 +75,6 @@ STUDY = Study(
     outputs=("ps_runs", "ps_claims", "ps_figure"),
     heavy_rules=(RULE,),
     runs_alone=(RULE,),
-    launches_mpi=(RULE,),
     check=check,
     claims=("ps_claims",),
 )

@@ -131,7 +131,6 @@ STUDY = Study(
              "solver_work_precision"),
     heavy_rules=("test_set_export", "test_set_runs"),
     runs_alone=("test_set_runs",),
-    launches_mpi=("test_set_runs",),
     check=check,
     cases=lambda config: list(PROBLEM_CLASSES),
 )

@@ -100,7 +100,6 @@ STUDY = Study(
              "roll_stress", "roll_line_load", "roll_sag", "roll_strip"),
     heavy_rules=("roll_stack_study",),
     runs_alone=("roll_stack_study",),
-    launches_mpi=("roll_stack_study",),   # its solvers may include petsc_tao
     thesis_items=(
         ThesisItem("Fig. 9.10", "roll stack: strip pressure along the work roll",
                    "roll_pressure", "roll_stack"),

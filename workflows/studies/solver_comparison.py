@@ -27,6 +27,5 @@ STUDY = Study(
     outputs=("solver_table", "solver_presets", "solver_times", "solver_work", "solver_costs"),
     heavy_rules=("solver_comparison",),
     runs_alone=("solver_comparison",),
-    launches_mpi=("solver_comparison",),
     check=check,
 )
