@@ -1,9 +1,9 @@
 # Regenerates every table and figure of the suite.
 #   snakemake --cores 2                                           (quick scale, minutes)
 #   snakemake --cores 2 --configfile workflows/config/full.yaml   (the thesis's sizes, ~1.5 h)
-# A study is one module of workflows/studies/ (its paths, outputs, thesis items, config
-# checks), discovered; its rules live in the rule file it names (workflows/<study>.smk),
-# included below, and run on the scenes its config lists.
+# A study is one folder of workflows/studies/ (its declaration, settings, run steps, rules,
+# captions and docs page), discovered; its rules (workflows/studies/<study>/rules.smk) are
+# included below and run on the scenes its config lists.
 import atexit
 import hashlib
 import json
@@ -71,7 +71,7 @@ SCALE = "+".join(os.path.splitext(os.path.basename(str(f)))[0]
                  for f in workflow.configfiles) or "command-line"
 
 PY = sys.executable  # the interpreter snakemake runs under (the venv's, via `make run`)
-ENV = "envs/contactbench.yaml"
+ENV = os.path.join(workflow.basedir, "workflows/envs/contactbench.yaml")
 
 
 # each study's captions file split into one file per output, for report(caption=...)
@@ -79,10 +79,10 @@ _CAPTION_DIR = tempfile.mkdtemp(prefix="contactbench-captions-")
 atexit.register(shutil.rmtree, _CAPTION_DIR, ignore_errors=True)
 CAPTIONS = caption_files(_CAPTION_DIR)
 
-# every study's rule file (its own helpers it imports from its study module), then the
-# summary page over them
+# every study's rules (its folder's rules.smk, which imports its own helpers from the
+# folder's declaration), then the summary page over them
 for _study in STUDIES.values():
-    include: os.path.join("workflows", _study.rule_file)
+    include: os.path.join(_study.folder, "rules.smk")
 include: "workflows/summary.smk"
 
 rule all:

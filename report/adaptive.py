@@ -1,7 +1,7 @@
 """Tables and figures of the adaptive study (Sect. 7.4, Tables 9.2/9.4, Figs. 7.3/7.4,
 9.2/9.4/9.7) and of the contact patch test.
 
-``tables`` reads ``adaptive_steps.csv`` of one scene (``workflows/scripts/adaptive_study.py``)
+``tables`` reads ``adaptive_steps.csv`` of one scene (``workflows/studies/adaptive/run.py``)
 and, when the scene runs with the thesis's parameters, the thesis's table
 (``--thesis reference/table_9_2.csv`` or ``table_9_4.csv``), and writes
 
@@ -693,6 +693,21 @@ def main(argv=None) -> None:
         runs = pd.read_csv(args.runs)
         write_csv(args.table, patch_table(runs))
         patch_figure(runs, pd.read_csv(args.pressure), args.figure)
+
+
+def accuracy_claims(accuracy: pd.DataFrame) -> pd.DataFrame:
+    """The claims of the accuracy table alone (:func:`claims`)."""
+    return claims(accuracy=accuracy)
+
+
+def pileup_claims(pileup: pd.DataFrame) -> pd.DataFrame:
+    """The claims of the pile-up table alone (:func:`claims`)."""
+    return claims(pileup=pileup)
+
+
+def patch_claims(patch: pd.DataFrame) -> pd.DataFrame:
+    """The claims of the contact patch test's table alone (:func:`claims`)."""
+    return claims(patch=patch)
 
 
 if __name__ == "__main__":

@@ -1,6 +1,6 @@
 """The thesis's solver table regenerated and the complexity claims of Ch. 8 checked.
 
-Reads the tidy study CSV of ``workflows/scripts/augmented_projection_study.py``
+Reads the tidy study CSV of ``workflows/studies/augmented_projection/run.py``
 for one scene and, when the scene runs with the thesis's parameters, the
 thesis's table (``--thesis reference/table_9_1.csv`` for circle-square,
 Table 9.3 for cube-sphere); writes our table beside the thesis's, a claims

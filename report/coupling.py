@@ -1,5 +1,5 @@
 """Nodal, stabilised and mortar couplings on a contact scene: the claims and the figures
-from ``workflows/scripts/coupling.py``'s tables (one per scene).
+from ``workflows/studies/coupling/run.py``'s tables (one per scene).
 
 The optimal rate: with the contact's pressure edge the solution is in ``H^{5/2-eps}`` at
 best, so P1's energy error is ``O(h)`` at best (Hüeber, Wohlmuth, SIAM J. Numer. Anal.

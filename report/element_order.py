@@ -1,5 +1,5 @@
 """P1 against P2 on a contact problem (thesis Remark 7.11): the claims and the figure from
-``workflows/scripts/element_order.py``'s tables (one per scene).
+``workflows/studies/element_order/run.py``'s tables (one per scene).
 
 Claims, per scene: every compared solve converged; the fitted energy-error rates of P1
 and P2 against N (reported, not judged: the contact's square-root edge and the polygonal

@@ -1,6 +1,6 @@
 """The exact reference two ways: the dual route (A factorised once) against the KKT-LU PDAS.
 
-Reads the runs of ``workflows/scripts/exact_reference.py`` for one scene and writes
+Reads the runs of ``workflows/studies/exact_reference/run.py`` for one scene and writes
 the side-by-side table (per level: times, speedup, factorisation, memory, agreement),
 the claims (agreement to 1e-10 in the multipliers; at least 10x faster at
 262k nodes) and a figure of time against N with fitted exponents.

@@ -1,4 +1,4 @@
-"""Friction: the claims and figures from ``workflows/scripts/friction_study.py``'s tables
+"""Friction: the claims and figures from ``workflows/studies/friction/run.py``'s tables
 (its runs and its traction profiles, one scene, 2D or 3D).
 
 Claims, per scene: Cattaneo-Mindlin's stick zone c/a at the finest level, for each load

@@ -2,13 +2,27 @@
 status, the worst KKT residual, the energy error against the reference and the time.
 
 The hard cases are families of the contact QP test set; their rows come from the
-test set's runs (``workflows/scripts/problem_set_runs.py``), filtered to the configured
+test set's runs (``workflows/studies/test_set/run.py``), filtered to the configured
 cases, levels and preset.
 
 The table also checks the study's two promises on every row: a ``converged`` run
 has KKT residuals and a certified energy bound within the tolerance
 (``claim_ok``), and its answer is accurate against the reference
 (``accurate``: energy error and S-norm multiplier error <= tolerance).
+
+Alg. 8.4 towards incompressibility (``incompressibility``): the claims and the figure from
+``workflows/studies/hard_cases/run.py``'s table. Claims, per scene: every run of the
+solver's defaults (``robust``) converged and was verified; ``n_o`` at the largest ``nu`` is
+at most twice ``n_o`` at the smallest (the suite's bar: Theorem 8.8's bounded n_o, allowing
+a factor two over the whole range). The figure shows ``n_o`` and the V-cycles of a solve
+against ``1 - 2 nu`` for both configurations, the plain V-cycle's ``kappa(V A)`` beside it.
+
+Example::
+
+    python -m report.hard_cases table --inputs runs/*.csv --cases hard_grazing:0 \
+        --preset mid --table t.csv --heatmap h.png
+    python -m report.hard_cases incompressibility \
+        --table results/hard_cases/incompressibility.csv --claims c.csv --figure f.png
 """
 from __future__ import annotations
 
@@ -23,10 +37,14 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 from matplotlib.colors import ListedColormap  # noqa: E402
 
-from report.claims import Claim  # noqa: E402
+from report.claims import COLUMNS, Claim  # noqa: E402
 from report.figures import save_figure  # noqa: E402
 from workflows.io import read_csv, write_csv  # noqa: E402
 from workflows.problem_set import plain_rows  # noqa: E402
+
+#: n_o at the largest nu over n_o at the smallest, at most (Theorem 8.8's bounded n_o, with
+#: a factor two of room over the whole range of nu).
+GROWTH_BAR = 2.0
 
 STATUS_ORDER = ("converged", "inaccurate", "max_iter", "time_limit", "failed", "skipped")
 STATUS_COLORS = ("#2ca02c", "#ff7f0e", "#9467bd", "#8c564b", "#d62728", "#c7c7c7")
@@ -64,6 +82,12 @@ CLAIMS = {
                                 "hard cases: every verified-converged run is accurate against "
                                 "the reference (energy and S-norm multiplier errors <= tol)",
                                 "given", "0"),
+    # Alg. 8.4 towards incompressibility
+    "nu_converged": Claim("suite bar (every run of the defaults must count)",
+                          "{scene}: Alg. 8.4 verified converged at every nu ({nus})", "given",
+                          "all"),
+    "nu_growth": Claim("Theorem 8.8 (n_o bounded by the spectral equivalence of A-hat)",
+                       "{scene}: n_o at nu = {hi:g} over n_o at nu = {lo:g}", "<=", GROWTH_BAR),
 }
 
 
@@ -171,16 +195,78 @@ def blank_columns(t: pd.DataFrame) -> list[str]:
     return out
 
 
+# ------------------------------------------------- Alg. 8.4 towards incompressibility
+def incompressibility_claims(t: pd.DataFrame) -> pd.DataFrame:
+    """Per scene: the robust runs all converged, and their n_o grows at most 2x over nu."""
+    rows = []
+    for scene, g in t[t.variant == "robust"].groupby("scene", sort=True):
+        g = g.sort_values("nu")
+        ok = int((g.status == "converged").sum())
+        rows.append(CLAIMS["nu_converged"].row(f"{ok} of {len(g)}", passed=ok == len(g),
+                                            scene=scene, nus=", ".join(f"{v:g}" for v in g.nu)))
+        lo, hi = g.iloc[0], g.iloc[-1]
+        judged = lo.status == hi.status == "converged" and len(g) > 1
+        growth = hi.n_outer / lo.n_outer if judged else np.nan
+        rows.append(CLAIMS["nu_growth"].row(growth, judged=bool(judged), scene=scene, hi=hi.nu,
+                                         lo=lo.nu, reason="needs converged runs at the "
+                                         "smallest and the largest nu"))
+    return pd.DataFrame(rows, columns=COLUMNS)
+
+
+def incompressibility_figure(t: pd.DataFrame, path: str) -> None:
+    """n_o, V-cycles per solve and kappa(V A) against 1 - 2 nu, per scene and variant."""
+    fig, ax = plt.subplots(1, 3, figsize=(14, 4.2))
+    styles = {"robust": "o-", "vcycle": "s--"}
+    for i, (scene, g) in enumerate(t.groupby("scene", sort=True)):
+        for variant, h in g.groupby("variant"):
+            h = h.sort_values("nu")
+            x = 1.0 - 2.0 * h.nu
+            done = h.status == "converged"
+            label = f"{scene}, {variant}"
+            ax[0].loglog(x, h.n_outer, styles.get(variant, "o-"), color=f"C{i}", label=label)
+            ax[0].loglog(x[~done], h.n_outer[~done], "x", color="k", ms=9)
+            ax[1].loglog(x, h.n_vcycles, styles.get(variant, "o-"), color=f"C{i}", label=label)
+            if variant == "robust":
+                ax[2].loglog(x, h.kappa_vcycle, "o-", color=f"C{i}",
+                             label=f"{scene}: kappa(V A), one V-cycle")
+                ax[2].loglog(x, h.gamma_bar, "^:", color=f"C{i}",
+                             label=f"{scene}: gamma_bar of A-hat (Chebyshev)")
+    ax[0].plot([], [], "x", color="k", label="not converged (max_iter)")
+    for a, ylabel in zip(ax, ("outer steps n_o to KKT 1e-6", "V-cycles in the solve",
+                              "spectral ratio")):
+        a.set_xlabel("1 - 2 nu  (towards incompressibility ->)")
+        a.set_ylabel(ylabel)
+        a.invert_xaxis()
+        a.grid(True, which="both", alpha=0.3)
+        a.legend(fontsize=7)
+    ax[0].set_title("Alg. 8.4: outer steps")
+    ax[1].set_title("work per solve")
+    ax[2].set_title("the V-cycle loses its equivalence")
+    save_figure(fig, path)
+
+
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--inputs", nargs="+", required=True, help="the test set's run tables")
-    ap.add_argument("--cases", nargs="*", default=None, metavar="FAMILY:LEVEL",
-                    help="the hard cases (default: every row)")
-    ap.add_argument("--preset", default=None, help="the preset shown (default: every row)")
-    ap.add_argument("--table", required=True)
-    ap.add_argument("--heatmap", required=True)
+    steps = ap.add_subparsers(dest="step", required=True)
+    cases = steps.add_parser("table", help="the hard-case table and heat map")
+    cases.add_argument("--inputs", nargs="+", required=True, help="the test set's run tables")
+    cases.add_argument("--cases", nargs="*", default=None, metavar="FAMILY:LEVEL",
+                       help="the hard cases (default: every row)")
+    cases.add_argument("--preset", default=None, help="the preset shown (default: every row)")
+    cases.add_argument("--table", required=True)
+    cases.add_argument("--heatmap", required=True)
+    nu = steps.add_parser("incompressibility",
+                          help="Alg. 8.4 towards incompressibility: claims and figure")
+    nu.add_argument("--table", required=True, help="the incompressibility runs")
+    nu.add_argument("--claims", required=True)
+    nu.add_argument("--figure", required=True)
     args = ap.parse_args(argv)
+    if args.step == "incompressibility":
+        t = read_csv(args.table)
+        write_csv(args.claims, incompressibility_claims(t))
+        incompressibility_figure(t, args.figure)
+        return
     t = table(args.inputs, args.cases, args.preset)
     if t.empty:
         raise SystemExit(f"no rows of the cases {args.cases} at preset {args.preset} in "

@@ -1,9 +1,9 @@
 """Strong scaling of the distributed solver: the claims and the figure from
-``workflows/scripts/petsc_scaling.py``'s runs (one table per scene).
+``workflows/studies/petsc_scaling/run.py``'s runs (one table per scene).
 
 Claims, per scene: every run verified converged (petsc_tao at each rank count, TNNMG in
 one process); the answers at more ranks agree with the one-rank answer within the sum of
-the two runs' certified energy-error bounds (:func:`workflows.scripts.petsc_scaling.agreement`:
+the two runs' certified energy-error bounds (:func:`workflows.studies.petsc_scaling.run.agreement`:
 two correct answers always do); the parallel efficiency at the most ranks on the largest
 level and TNNMG's time over PETSc's best there, both reported and not judged (see
 :data:`REPORTED`). Where PETSc and MPI are not installed every petsc_tao row is

@@ -1,6 +1,6 @@
 """The roll stack (thesis Sect. 9.3, Figs. 9.10-9.16): tables, claims and figures.
 
-Reads the outputs of ``workflows/scripts/roll_stack_study.py`` for one scene and writes
+Reads the outputs of ``workflows/studies/roll_stack/run.py`` for one scene and writes
 
 * ``table``: per strip force and crown, the FE values beside plane-strain Hertz (at the FE
   line load at the barrel centre) and the beam model (sag of both axes, the work roll's

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import argparse
 import html
+import importlib
 from collections import Counter
 from pathlib import Path
 from typing import Callable
@@ -27,43 +28,34 @@ from typing import Callable
 import numpy as np
 import pandas as pd
 
-from report import adaptive, contact, hard_cases, laplace
 from report.claims import NOT_REACHED
-from report.leaderboard import COVERAGE
-from solvers.interface import TOLERANCES
-from workflows.problem_set import PROBLEM_CLASSES
+from report.tables import new_page, table_html
 from workflows.io import META, provenance, read_csv, read_json, write_csv, write_text
 from workflows.studies import HEAVY_RULES, PATHS, STUDIES, THESIS_ITEMS, claim_keys
 
-#: PATHS key -> claims of that output (a frame with claim, measured, bar, pass): the
-#: tables derived here, and every study's claims tables as they are (``Study.claims``).
+
+def resolve(ref: str) -> Callable:
+    """The function a study's declaration names as ``"module:function"``."""
+    module, _, name = ref.partition(":")
+    return getattr(importlib.import_module(module), name)
+
+
+#: PATHS key -> claims of that output (a frame with claim, measured, bar, pass): every
+#: study's claims tables as they are (``Study.claims``) and the claims its report step
+#: derives from a table (``Study.derived_claims``).
 CLAIMS: dict[str, Callable[[pd.DataFrame], pd.DataFrame]] = {
     **{key: lambda t: t for key in claim_keys()},
-    "laplace_rates": laplace.claims,
-    "hertz": contact.claims,
-    "adaptive_accuracy": lambda t: adaptive.claims(accuracy=t),
-    "adaptive_pileup": lambda t: adaptive.claims(pileup=t),
-    "patch_table": lambda t: adaptive.claims(patch=t),
-    "hard_table": hard_cases.claims,
-}
-
+    **{key: resolve(ref) for study in STUDIES.values()
+       for key, ref in study.derived_claims.items()}}
 #: Tables shown inline (ours beside the thesis's where it has values), each with the
-#: columns a reader compares (None: all); every column with a thesis value is shown
-#: too, and the rest are named under the table (the full file is in the report).
-INLINE = {
-    "ap_table": ("level", "N", "NC", "kappa_S", "energy_error", "stop_8_25", "status"),
-    "adaptive_table": ("source", "step", "N", "NC", "n_outer_1e-03", "n_inner_mean_1e-03",
-                       "t_solve_1e-03", "t_proj_1e-03", "kappa_S", "kkt_max"),
-    "hertz": ("level", "nodes", "status", "force", "a_hertz", "a_moment", "dev_a_moment",
-              "p0_hertz", "p0_moment", "dev_p0_moment", "a_over_h"),
-    "laplace_rates": None,
-    "exact_table": ("level", "N", "backend", "status_schur", "total_time_schur", "status_kkt",
-                    "total_time_kkt", "speedup", "p_difference"),
-    "roll_table": ("force_MN", "crown_um", "level", "N", "status", "q0_MN_per_m",
-                   "q0_beam_MN_per_m", "b0_mm", "b0_hertz_mm", "p0_nodal_GPa",
-                   "p0_hertz_GPa", "cells_across_2b", "sag_work_axis_um",
-                   "sag_work_axis_beam_um", "strip_crown_um", "strip_crown_beam_um"),
-}
+#: columns a reader compares (None: all; ``Study.inline``); every column with a thesis
+#: value is shown too, and the rest are named under the table (the file is in the report).
+INLINE = {key: cols for study in STUDIES.values() for key, cols in study.inline.items()}
+#: What a table's columns mean where a name alone would mislead (``Study.notes``).
+NOTES = {key: text for study in STUDIES.values() for key, text in study.notes.items()}
+#: The outputs the headline shows and what renders each (``Study.front``), in the order of
+#: the studies.
+FRONT = [(key, resolve(ref)) for study in STUDIES.values() for key, ref in study.front.items()]
 
 STYLE = """
 body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;margin:1.2em 1.5em;
@@ -107,45 +99,6 @@ document.addEventListener('input',e=>{if(e.target.classList.contains('filter'))c
 
 #: Why a cell is empty, by the kind of column (shown as the cell's tooltip and under
 #: each table).
-EMPTY_THESIS = "the thesis prints no value for this row"
-EMPTY_OURS = ("not measured in this run: a level or quantity this scale does not reach, or "
-              "a run without a solution (its status and message say why)")
-#: Columns whose empty cells have a reason of their own.
-EMPTY_BY_COLUMN = {
-    "rate_h1": "no rate: the errors are at round-off (the method reproduces this solution "
-               "exactly)",
-    "rate_l2": "no rate: the errors are at round-off (the method reproduces this solution "
-               "exactly)",
-}
-
-
-def empty_reason(column: str, row) -> str:
-    """Why the cell of ``column`` in ``row`` is empty."""
-    if str(column).startswith("thesis_") or str(row.get("source", "")) == "thesis":
-        return EMPTY_THESIS
-    return EMPTY_BY_COLUMN.get(str(column), EMPTY_OURS)
-
-#: What a table's columns mean where a name alone would mislead.
-NOTES = {
-    "ap_table": "status: the suite's verification of the run at the study's tolerance (all "
-                "four scaled KKT residuals and the certified energy bound); the thesis stops "
-                "Alg. 8.4 by (8.25) instead, and stop_8_25 says whether our run met that "
-                "criterion. thesis_* columns: the thesis's values at the same level, beside "
-                "ours.",
-    "leaderboard": "Time at matched accuracy: each solver's loosest rung of its tolerance "
-                   "ladder verified at the preset's tol, the median of repeated runs (repeat "
-                   "spread: the largest (max - min) / median). verified: problems of the "
-                   "class verified over the ladder (a skip counts against it); at rung 0: "
-                   "at the preset's own mapping; correct %: share of rung-0 claims true "
-                   "against the exact reference; median time / best: over the class's "
-                   "problems, the solver's time over the best contestant's (inf: fewer "
-                   "than half verified), by which the table is ranked; sgm time: the shifted "
-                   "geometric mean over the problems attempted, shift {shift:.3g} s (the "
-                   "class's median best time), an attempted problem not verified counting "
-                   "as the time limit {limit:g} s. Load: {load}.",
-}
-
-
 def parse_items(items: list[str]) -> list[tuple[str, str | None, str]]:
     """``key@scene=path`` -> ``(key, scene or None, path)``; raises ValueError on a bad item."""
     out = []
@@ -253,29 +206,6 @@ def resources(bench_dir: str | None) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-def _fmt(x) -> str:
-    """A cell's text: numbers to 4 significant digits without a hyphen to wrap at
-    (``1e-09`` is written ``1e−09``), text escaped; empty for a missing value."""
-    if isinstance(x, (bool, np.bool_)):
-        return str(bool(x))
-    if isinstance(x, (int, np.integer)):
-        return str(int(x))
-    if isinstance(x, (float, np.floating)):
-        if np.isnan(x):
-            return ""
-        return f"{x:.4g}".replace("-", "\u2212")
-    text = str(x).strip()
-    if text.lower() in ("", "nan", "none"):
-        return ""
-    try:                      # numbers read back as text (mixed columns)
-        if text.lower() not in ("inf", "-inf") and not text.isdigit():
-            return f"{float(text):.4g}".replace("-", "\u2212")
-    except ValueError:
-        pass
-    return html.escape(text)
-
-
-#: Our column -> the thesis's, where the names differ.
 THESIS_MATE = {"N": "thesis_nodes"}
 
 
@@ -296,55 +226,6 @@ def beside_thesis(frame: pd.DataFrame, keep=None) -> pd.DataFrame:
 
 
 #: How many tables of each name the page being written has (their ids: ``name-k``).
-_TABLE_IDS = Counter()
-
-
-def table_html(frame: pd.DataFrame, left: tuple[str, ...] = (), classes: dict | None = None,
-               max_rows: int = 60, name: str = "t", filter_box: bool = True,
-               cell_html: dict[str, Callable[[str], str]] | None = None,
-               row_id: Callable[[pd.Series], str | None] | None = None) -> str:
-    """A compact sortable HTML table (numbers to 4 digits; ``classes``: column -> value ->
-    class; ``cell_html``: column -> a function of the escaped cell text returning the
-    cell's HTML, e.g. with links; ``row_id``: a row's anchor, or None). An empty cell
-    reads "--" with its reason as tooltip (:data:`EMPTY_THESIS`, :data:`EMPTY_OURS`);
-    the reasons are listed under the table."""
-    _TABLE_IDS[name] += 1
-    tid = f"{name}-{_TABLE_IDS[name]}"
-    head = "".join(f'<th class="{"l" if c in left else ""}">'
-                   f'{html.escape(str(c)).replace("_", "_<wbr>")}</th>' for c in frame.columns)
-    body, empty, seen_ids = [], set(), set()
-    for _, row in frame.head(max_rows).iterrows():
-        cells = []
-        for c in frame.columns:
-            cls = ["l"] if c in left else []
-            if classes and c in classes:
-                cls.append(classes[c].get(str(row[c]), ""))
-            text = _fmt(row[c])
-            if text == "":
-                why = empty_reason(c, row)
-                empty.add(why)
-                cells.append(f'<td class="na" title="{html.escape(why)}">--</td>')
-                continue
-            value = row[c]
-            data = (f' data-v="{float(value)!r}"' if isinstance(value, (int, float, np.integer,
-                                                                        np.floating))
-                    and not isinstance(value, (bool, np.bool_)) else "")
-            if cell_html and c in cell_html:
-                text = cell_html[c](text)
-            cells.append(f'<td class="{" ".join(cls)}"{data}>{text}</td>')
-        rid = row_id(row) if row_id else None
-        attr = f" id='{html.escape(rid)}'" if rid and rid not in seen_ids else ""
-        seen_ids.add(rid)
-        body.append(f"<tr{attr}>" + "".join(cells) + "</tr>")
-    more = (f'<p class="small">{len(frame) - max_rows} more rows in the file.</p>'
-            if len(frame) > max_rows else "")
-    notes = "".join(f'<p class="small">--: {html.escape(w)}.</p>' for w in sorted(empty))
-    box = (f'<input class="filter" data-table="{tid}" placeholder="filter rows">'
-           if filter_box and len(frame) > 8 else "")
-    return (f"{box}<div class='wide'><table class='sortable' id='{tid}'><tr>{head}</tr>"
-            f"{''.join(body)}</table></div>{notes}{more}")
-
-
 def thesis_rows(items, scale: str) -> pd.DataFrame:
     """Every thesis item, its output files and whether this run (at ``scale``) regenerated
     them."""
@@ -362,113 +243,6 @@ def thesis_rows(items, scale: str) -> pd.DataFrame:
             where = f"{PATHS[t.key]}: not at the {scale} scale (a larger one regenerates it)"
         rows.append({"thesis": t.item, "what": t.what, "status": status, "output": where})
     return pd.DataFrame(rows)
-
-
-FAILURE_COLUMNS = ("scene", "preset", "solver", "runs", "converged", "inaccurate", "max_iter",
-                   "time_limit", "failed", "skipped")
-
-
-def failures(by_scene: pd.DataFrame | None) -> pd.DataFrame:
-    """The rows of the per-scene solver summary with a run not verified converged: scene,
-    preset, solver, the runs and how each ended, sorted by scene, preset, solver."""
-    if by_scene is None or not len(by_scene):
-        return pd.DataFrame(columns=FAILURE_COLUMNS)
-    bad = by_scene[by_scene["converged"] < by_scene["runs"]]
-    bad = bad[[c for c in FAILURE_COLUMNS if c in bad]]
-    order = {p: i for i, p in enumerate(TOLERANCES)}
-    return bad.sort_values(["scene", "preset", "solver"],
-                           key=lambda c: c.map(order) if c.name == "preset" else c
-                           ).reset_index(drop=True)
-
-
-def failure_anchor(scene: str) -> str:
-    """The id of a scene's first row in the failures table."""
-    return f"failures-{scene}"
-
-
-#: A leaderboard's columns on the summary page: ``{column in leaderboards.csv: header}``.
-BOARD_COLUMNS = {"rank": "rank", "solver": "solver", "verified": "verified",
-                 "skipped": "skipped", "plain_verified": "at rung 0", "correct_share": "correct %",
-                 "median_ratio": "median time / best", "sgm_time": "sgm time [s]",
-                 "spread": "repeat spread", "not_verified": "not verified"}
-
-
-def leaderboard(board: pd.DataFrame) -> pd.DataFrame:
-    """One board's ranked solvers, then its references (rank ``baseline``), as shown on the
-    summary page (:data:`BOARD_COLUMNS`; ``board``: its rows of ``leaderboards.csv``)."""
-    shown = board[board["standing"].isin(["ranked", "reference"])].copy()
-    shown["rank"] = [("baseline" if st == "reference" else int(r))
-                     for st, r in zip(shown["standing"], shown["rank"])]
-    shown["correct_share"] = (100 * shown["correct_share"]).round(1)
-    shown["solver"] = [s + (" (fastest verified)" if f else "") + (" (exact reference)"
-                                                                   if st == "reference" else "")
-                       for s, f, st in zip(shown["solver"], shown["fastest"],
-                                           shown["standing"])]
-    out = shown[list(BOARD_COLUMNS)].rename(columns=BOARD_COLUMNS)
-    out["verified"] = [f"{int(v)} of {int(n)}" for v, n in zip(shown["verified"],
-                                                               shown["problems"])]
-    return out
-
-
-def board_words(board: pd.DataFrame) -> str:
-    """A board's verdict in words: its fastest verified solver with its coverage, its
-    references' independent check, the solvers that declined the class."""
-    first = board.iloc[0]
-    cls, size, preset = first["problem_class"], first["size_class"], first["preset"]
-    ranked = board[board["standing"] == "ranked"]
-    fast = ranked[ranked["fastest"].astype(bool)]
-    head = (f"<b>{html.escape(PROBLEM_CLASSES.get(cls, cls))}</b>, {html.escape(str(size))} "
-            f"class, preset {html.escape(preset)} (tol {TOLERANCES[preset]:g}, "
-            f"{int(first['problems'])} problems): ")
-    if len(fast):
-        r = fast.iloc[0]
-        head += (f"fastest verified <b>{html.escape(r.solver)}</b> (median time "
-                 f"{r.median_ratio:.3g} x the best, verified on {int(r.verified)} of "
-                 f"{int(r.problems)})")
-    else:
-        head += f"no solver verified on {COVERAGE:.0%} of the class"
-    refs = board[board["standing"] == "reference"]
-    if len(refs):
-        head += "; exact reference " + ", ".join(
-            f"{html.escape(r.solver)} within {r.independent_agreement:.2g} of the closest "
-            "independent verified answer" if np.isfinite(r.independent_agreement) else
-            f"{html.escape(r.solver)} (no independent verified answer)"
-            for r in refs.itertuples())
-    declined = board[board["standing"] == "declined"]
-    if len(declined):
-        head += ("; not ranked, declining the class: "
-                 + ", ".join(html.escape(s) for s in declined["solver"]))
-    return head + "."
-
-
-def leaderboards_html(frame: pd.DataFrame) -> list[str]:
-    """The leaderboards of ``leaderboards.csv`` in words and as tables, one per problem
-    class, size class and preset, each with its settings and the load it was timed under."""
-    parts = []
-    keys = ["problem_class", "size_class", "preset"]
-    order = {c: i for i, c in enumerate(PROBLEM_CLASSES)}
-    boards = sorted(frame.groupby(keys, sort=False),
-                    key=lambda kv: (order.get(kv[0][0], 99), kv[0][1],
-                                    list(TOLERANCES).index(kv[0][2])))
-    parts.append("<ul class='lead'>" + "".join(f"<li>{board_words(b)}</li>"
-                                               for _, b in boards) + "</ul>")
-    for (cls, size, preset), b in boards:
-        first = b.iloc[0]
-        anchor = f"leaderboard-{cls}-{size}-{preset}"
-        parts.append(f"<h3 id='{html.escape(anchor)}'>Leaderboard: "
-                     f"{html.escape(PROBLEM_CLASSES.get(cls, cls))}, {html.escape(str(size))} "
-                     f"class, preset {html.escape(preset)}</h3><p class='small'>"
-                     + html.escape(NOTES["leaderboard"].format(
-                         shift=first["shift"], limit=first["time_limit"], load=first["load"]))
-                     + "</p>")
-        parts.append(table_html(leaderboard(b), left=("solver", "not verified"),
-                                name="leaderboard", max_rows=200, filter_box=False))
-        declined = b[b["standing"] == "declined"]
-        if len(declined):
-            parts.append("<p class='small'>Declined the class (not ranked): " + "; ".join(
-                f"{html.escape(r.solver)}: {html.escape(str(r.note))}"
-                for r in declined.itertuples()) + "</p>")
-    return parts
 
 
 def thumbnail(path: str, width: int = 160) -> str:
@@ -546,29 +320,11 @@ def headline(items, claims: pd.DataFrame, th: pd.DataFrame, scale: str) -> list[
              f"<a class='miss' href='#claims-miss'>{counts.get('miss', 0)} miss</a>"
              f"<a class='na' href='#claims-unjudged'>{counts.get('n/a', 0)} not judged at "
              "this scale (each with its reason)</a></span></li>"]
-    boards = [p for k, _, p in items if k == "solver_leaderboards"]
-    by_scene = [p for k, _, p in items if k == "solver_summary_by_scene"]
-    if boards:
-        parts.append("</ul><h3 id='leaderboard'>Solver leaderboards over the contact QP test "
-                     "set, one per problem class</h3>")
-        parts += leaderboards_html(read_csv(boards[0]))
-        scenes = read_csv(by_scene[0]) if by_scene else None
-        fails = failures(scenes)
-        parts.append("<h3 id='failures'>Where plain runs were not verified converged, by scene "
-                     f"({len(fails)} row{'' if len(fails) == 1 else 's'})</h3>")
-        if len(fails):
-            parts.append("<p class='small'>Per scene of the test set, solver and preset: the "
-                         "plain runs (rung 0 of each ladder) and how each ended (every run is "
-                         "in the report's test-set tables).</p>")
-            parts.append(table_html(fails, left=("scene", "preset", "solver"), name="failures",
-                                    max_rows=500,
-                                    row_id=lambda r: failure_anchor(str(r["scene"]))))
-        else:
-            parts.append("<p class='small'>Every run of every solver was verified "
-                         "converged.</p>")
-    else:
-        parts.append("<li>No solver leaderboard: the test set is not in this "
-                     "configuration.</li></ul>")
+    fronts = [(render, path) for key, render in FRONT
+              for k, _, path in items if k == key]
+    parts.append("</ul>")
+    for render, path in fronts:
+        parts += render(read_csv(path))
     return parts
 
 
@@ -596,7 +352,7 @@ def page(items, claims: pd.DataFrame, prov: dict, varying: dict, res: pd.DataFra
     """The summary page as one self-contained HTML document: the headline first, then
     the claims, the thesis's items, the tables beside the thesis's, the provenance and
     the resources."""
-    _TABLE_IDS.clear()                  # table ids count from 1 on every page
+    new_page()                          # table ids count from 1 on every page
     th = thesis_rows(items, scale)
     parts = [f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>contactbench summary "
              f"({html.escape(scale)})</title><style>{STYLE}</style></head><body>",

@@ -44,7 +44,7 @@ COULOMB_MONOLITHIC = "coulomb_monolithic"
 
 #: The note a solver appends to its message when it was given an initial guess
 #: (``u0``, ``p0``) and did not start from it (:func:`guess_not_used`); a run table reads
-#: it as "ignores the guess" (``workflows.scripts.problem_set_runs``).
+#: it as "ignores the guess" (``workflows.studies.test_set.run``).
 GUESS_NOT_USED = "initial guess not used"
 
 

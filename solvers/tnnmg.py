@@ -136,7 +136,7 @@ AUTO_SWEEPS = {2: 1, 3: 2}
 #: Nonlinear presmoothing sweeps per step (option ``presmoothing=0``): one without
 #: friction; two on a Tresca step, where the sweeps alone move the slip front (the
 #: truncated correction holds every sticking node). Measured on the nested load paths at
-#: Q/(mu P) 0.3 / 0.7 (tangential step to tol 1e-10, :mod:`workflows.scripts.friction_study`'s
+#: Q/(mu P) 0.3 / 0.7 (tangential step to tol 1e-10, :mod:`workflows.studies.friction.run`'s
 #: scenes): circle-square levels 3 and 4 10 / 10 and 9 / 12 steps with one, 9 / 10 and
 #: 9 / 10 with two; cube-sphere levels 2 and 3 12 / 12 and 15 / 15 with one, 11 / 11 and
 #: 14 / 15 with two. Never more steps, for one sweep more per step.

@@ -178,7 +178,7 @@ def test_eta2_weight_chosen_by_the_run(start):
 # --------------------------------------------------------------------------- the script
 @pytest.fixture(scope="module")
 def study(tmp_path_factory):
-    from workflows.scripts import adaptive_study
+    from workflows.studies.adaptive import run as adaptive_study
 
     out = tmp_path_factory.mktemp("adaptive")
     files = {"steps": out / "steps.csv",
@@ -284,7 +284,7 @@ def test_reference_error_estimate_recovers_a_known_error():
 
 def test_patch_scripts(tmp_path):
     from report import adaptive as rep
-    from workflows.scripts import patch_test
+    from workflows.studies.adaptive import patch_test
 
     runs, pressure = tmp_path / "runs.csv", tmp_path / "p.csv"
     patch_test.main(["--problem", "flat_blocks", "--levels", "0", "1", "--out", str(runs),
@@ -308,7 +308,7 @@ def test_patch_scripts(tmp_path):
 
 def test_bound_weight_follows_the_thesis_bound(tmp_path):
     """--eta2-weight bound: c sum eta_T2^2 = E^(3/2) ||p||_* (sum eta_T2^2)^(1/2) per step."""
-    from workflows.scripts import adaptive_study
+    from workflows.studies.adaptive import run as adaptive_study
 
     steps = tmp_path / "s.csv"
     adaptive_study.main(["--problem", "circle_square", "--start-level", "0", "--max-nodes",
@@ -335,7 +335,7 @@ def test_the_iterative_exact_solve_is_verified_and_agrees_with_the_direct_one(
     from problems.fem.stabilised import stabilise
     from problems.kkt import energy_error
     from problems.spec import problems
-    from workflows.scripts import adaptive_study as ad
+    from workflows.studies.adaptive import run as ad
 
     qp = problems()[problem].make(1)
     if coupling == "stabilised":

@@ -124,7 +124,7 @@ def test_reference_solve_takes_the_dual_route(scene_qp):
 def test_exact_reference_script_and_report(tmp_path, capsys):
     from report import exact_reference as report
     from workflows.io import read_csv
-    from workflows.scripts import exact_reference
+    from workflows.studies.exact_reference import run as exact_reference
 
     runs = tmp_path / "runs.csv"
     exact_reference.main(["--problem", "circle_square", "--levels", "0", "1", "--out", str(runs)])

@@ -15,7 +15,7 @@ import pytest
 
 from report import coupling as report
 from workflows.io import read_csv
-from workflows.scripts import coupling as script
+from workflows.studies.coupling import run as script
 from workflows.studies import ConfigError, check_config, load_config
 from workflows.studies.coupling import coupling_args
 
@@ -87,11 +87,11 @@ def test_the_p1_rows_are_the_same_with_and_without_p2(tables):
 
 def test_the_p2_energy_error_is_the_element_order_studys():
     """The P2 comparison (P2 field at the reference's P2 nodes, the reference's P2
-    stiffness) against :mod:`workflows.scripts.element_order`'s, built apart; 0 for the
+    stiffness) against :mod:`workflows.studies.element_order.run`'s, built apart; 0 for the
     reference itself."""
     from problems.spec import problems
-    from workflows.scripts import element_order as eo
-    from workflows.scripts.adaptive_study import Reference
+    from workflows.studies.element_order import run as eo
+    from workflows.reference_solution import Reference
 
     spec = problems()["circle_square"]
     qp0, qp1 = (spec.make(level, degree=2, coupling="mortar") for level in (0, 1))

@@ -14,7 +14,7 @@ from PIL import Image
 
 from report import coupling as report
 from workflows.io import read_csv
-from workflows.scripts import coupling as script
+from workflows.studies.coupling import run as script
 from workflows.studies import ConfigError, check_config, load_config
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -167,7 +167,7 @@ def circle_square_pair():
     """circle_square levels 0 and 1 (mortar_dual), solved exactly, and level 1 as the
     reference."""
     from problems.spec import problems
-    from workflows.scripts.adaptive_study import Reference
+    from workflows.reference_solution import Reference
 
     spec = problems()["circle_square"]
     qp0, qp1 = (spec.make(level, coupling="mortar_dual") for level in (0, 1))
@@ -212,7 +212,7 @@ def test_the_dual_norm_of_the_pressure_error(circle_square_pair):
 def cube_sphere():
     """cube_sphere levels 0 and 1 (mortar_dual) and the level-1 solution as a reference."""
     from problems.spec import problems
-    from workflows.scripts.adaptive_study import Reference
+    from workflows.reference_solution import Reference
 
     spec = problems()["cube_sphere"]
     qp0, qp1 = (spec.make(level, coupling="mortar_dual") for level in (0, 1))

@@ -101,17 +101,13 @@ PAGES = [ROOT / "README.md", *sorted(p for p in DOCS.rglob("*.md")
 
 
 def page_texts() -> dict[str, str]:
-    """``{page: text}`` of :data:`PAGES` and of the study pages generated from a study
-    module's docstring (a study without a hand-written page)."""
-    import inspect
-
-    from workflows.studies import STUDIES, study_module
+    """``{page: text}`` of :data:`PAGES` and of every study's page text (its folder's
+    ``page.md``)."""
+    from workflows.studies import STUDIES
 
     texts = {page.name: page.read_text(encoding="utf-8") for page in PAGES}
     for name, study in STUDIES.items():
-        if not (DOCS / "studies" / f"{name}.md").is_file():
-            module = study_module(study)
-            texts[module.__name__] = inspect.getdoc(module) or ""
+        texts[f"{name}/page.md"] = (study.folder / "page.md").read_text(encoding="utf-8")
     return texts
 
 
@@ -200,9 +196,8 @@ def test_the_study_commands_quoted_with_a_measurement_name_real_options(capsys):
 
 
 def study_page(site: Path, name: str) -> Path:
-    """A study's page: hand-written, or generated from its module alone."""
-    page = site / "studies" / f"{name}.html"
-    return page if page.is_file() else site / "generated" / "studies" / f"{name}.html"
+    """A study's page, generated from its folder."""
+    return site / "generated" / "studies" / f"{name}.html"
 
 
 @pytest.mark.slow
@@ -216,7 +211,7 @@ def test_each_study_page_shows_what_its_declaration_and_rules_say(site):
         for item in study.thesis_items:
             assert item.item in page, (name, item.item)
     page = plain_text_of(study_page(site, "element_order"))
-    assert "Remark 7.11" in page and "κ(Ŝ⁻¹S_in)" in page      # the module's docstring
+    assert "Remark 7.11" in page and "κ(Ŝ⁻¹S_in)" in page      # its page.md
     for claim in CLAIMS.values():                   # the report module's declared claims
         assert claim.thesis in page
     assert "P1 (circles) against P2 (squares)" in page         # the figure's caption

@@ -26,7 +26,7 @@ from report.friction import FACET_ENERGY_EXPONENT, FACET_FIT_LAST, complete, fac
 from report.rates import fitted_slope
 from solvers.tresca import facet_convergence, friction_path
 from workflows.cli import main
-from workflows.scripts.friction_study import facet_rows
+from workflows.studies.friction.run import facet_rows
 from agreement import within_certificate
 
 SCENE = problems()["cube_sphere"]

@@ -1,4 +1,4 @@
-"""The friction study (workflows/studies/friction.py) at the tiny scale: its script and its
+"""The friction study (workflows/studies/friction/__init__.py) at the tiny scale: its script and its
 report module end to end, its claims, its figures, the reference's fallback beyond the
 exact reference's size, and its argument checks."""
 from __future__ import annotations
@@ -17,16 +17,18 @@ from report.friction import CLAIMS, claims
 from report.friction import main as report_main
 from solvers import tresca_exact
 from workflows.io import read_csv
-from workflows.scripts.friction_study import level_rows
-from workflows.scripts.friction_study import main as script
+from workflows.studies.friction.run import level_rows
+from workflows.studies.friction.run import main as script
 from workflows.studies import STUDIES, ConfigError, check_config, load_config
 from workflows.studies._base import set_args
-from workflows.studies.friction import COMMON, friction_args
+from workflows.studies.friction import friction_args
 
 ROOT = Path(__file__).resolve().parents[1]
 TINY = STUDIES["friction"].scales["tiny"].settings
+#: The settings every scale shares (the tiny ones; workflows/studies/friction/settings.yaml).
+COMMON = {k: v for k, v in TINY.items() if k != "scenes"}
 FIGURES = ("traction", "stick", "map", "cost")
-#: The study's 2D scene (workflows/studies/friction.py: circle-square, nodes matched).
+#: The study's 2D scene (workflows/studies/friction/settings.yaml: circle-square, nodes matched).
 SCENE_2D = "circle_square_matched"
 
 

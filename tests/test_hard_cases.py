@@ -38,7 +38,7 @@ def test_initial_penetration_is_pushed_apart():
 def test_hard_case_report_from_the_test_set_runs(tmp_path):
     from report.hard_cases import main as report_main
     from workflows.cli import main as cli
-    from workflows.scripts.problem_set_runs import main as runs_main
+    from workflows.studies.test_set.run import main as runs_main
     export = tmp_path / "export"
     assert cli(["export", "--class", "small", "--families", "hard_thin_body", "hard_grazing",
                 "--out", str(export), "--quiet"]) == 0
@@ -49,7 +49,7 @@ def test_hard_case_report_from_the_test_set_runs(tmp_path):
                    "--export", str(export), "--presets", "mid", "--levels", "0",
                    "--time-limit", "30",
                    "--out", out[-1]])
-    report_main(["--inputs", *out, "--cases", "hard_thin_body:0", "hard_grazing:0",
+    report_main(["table", "--inputs", *out, "--cases", "hard_thin_body:0", "hard_grazing:0",
                  "--preset", "mid", "--table", str(tmp_path / "t.csv"),
                  "--heatmap", str(tmp_path / "h.png")])
     t = pd.read_csv(tmp_path / "t.csv")
@@ -64,8 +64,8 @@ def test_hard_case_report_from_the_test_set_runs(tmp_path):
 def test_incompressibility_table_script_and_report(tmp_path):
     """The incompressibility table of the hard-case study: Alg. 8.4 with its defaults against the
     thesis's V-cycle pair over nu, and its claims (robust n_o bounded, all verified)."""
-    from report.incompressibility import claims, main as report_main
-    from workflows.scripts.incompressibility import main as script
+    from report.hard_cases import incompressibility_claims as claims, main as report_main
+    from workflows.studies.hard_cases.run import main as script
 
     out = tmp_path / "inc.csv"
     script(["--scenes", "circle_square", "--level", "0", "--nus", "0.3", "0.499",
@@ -75,7 +75,7 @@ def test_incompressibility_table_script_and_report(tmp_path):
     assert t.loc[(0.499, "robust"), "ahat_degree"] > 1
     assert t.loc[(0.499, "robust"), "gamma_bar"] < t.loc[(0.499, "vcycle"), "gamma_bar"] / 3
     assert (t.xs("robust", level="variant").status == "converged").all()
-    report_main(["--table", str(out), "--claims", str(tmp_path / "c.csv"),
+    report_main(["incompressibility", "--table", str(out), "--claims", str(tmp_path / "c.csv"),
                  "--figure", str(tmp_path / "f.png")])
     c = pd.read_csv(tmp_path / "c.csv")
     assert len(c) == 2 and c["pass"].astype(bool).all() and (tmp_path / "f.png").stat().st_size
@@ -89,7 +89,7 @@ def test_incompressibility_table_script_and_report(tmp_path):
 
 
 def test_incompressibility_script_refuses_bad_arguments(capsys):
-    from workflows.scripts.incompressibility import main as script
+    from workflows.studies.hard_cases.run import main as script
 
     with pytest.raises(SystemExit):
         script(["--scenes", "laplace_nonmatching", "--level", "0", "--nus", "0.3",

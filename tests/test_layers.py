@@ -128,3 +128,51 @@ def test_no_solver_module_imports_another_or_is_imported_from_below():
     helpers = {m for m in graph.modules if m.startswith("solvers.")} - solver_modules - above
     for h in helpers:
         assert not graph.find_modules_directly_imported_by(h) & solver_modules, h
+
+
+def test_every_study_is_one_folder_and_one_report_step():
+    """A study's files sit in its folder, ``workflows/studies/<name>/`` (declaration,
+    settings, run steps, rules, captions, page), and its report step is
+    ``report/<name>.py``; its rules run nothing else, and the summary page names no study."""
+    import re
+
+    from workflows.studies import STUDIES
+
+    shared = {"report.summary", "workflows.cli"}      # the summary page; the export command
+    for name, study in STUDIES.items():
+        folder = ROOT / "workflows" / "studies" / name
+        assert study.folder == folder, name
+        for part in ("__init__.py", "settings.yaml", "rules.smk", "captions.rst", "page.md"):
+            assert (folder / part).is_file(), (name, part)
+        assert all(m.startswith(f"workflows.studies.{name}.") for m in study.scripts.values())
+        rules = (folder / "rules.smk").read_text()
+        steps = set(re.findall(r"-m ([\w.]+)", rules))
+        allowed = {f"report.{name}", *study.scripts.values()}
+        assert steps <= allowed | shared, (name, steps - allowed)
+        assert not re.search(r"workflows\.studies\.(?!_base\b)(?!" + name + r"\b)\w+", rules), name
+    assert {p.stem for p in (ROOT / "workflows").glob("*.smk")} == {"summary"}
+    summary = (ROOT / "report" / "summary.py").read_text()
+    named = [n for n in STUDIES if re.search(rf"\b{n}\b", summary)]
+    assert not named, named
+
+
+def test_the_studies_are_independent_of_each_other(tmp_path):
+    """No study's folder imports another study's folder, nor its report step another's
+    (an import-linter independence contract over every registered study)."""
+    from workflows.studies import STUDIES
+
+    modules = [f"workflows.studies.{n}" for n in STUDIES]
+    modules += [f"report.{n}" for n in STUDIES if (ROOT / "report" / f"{n}.py").is_file()]
+    assert len(modules) >= 2 * len(STUDIES) - 1
+    config = tmp_path / "independence.toml"
+    config.write_text("[tool.importlinter]\n"
+                      'root_packages = ["problems", "solvers", "workflows", "report", '
+                      '"reference"]\ninclude_external_packages = true\n\n'
+                      "[[tool.importlinter.contracts]]\n"
+                      'name = "Studies are independent of each other"\n'
+                      'type = "independence"\n'
+                      "modules = [" + ", ".join(f'"{m}"' for m in modules) + "]\n")
+    lint = Path(sys.executable).parent / "lint-imports"
+    out = subprocess.run([str(lint), "--config", str(config)], cwd=ROOT, capture_output=True,
+                         text=True, timeout=120)
+    assert out.returncode == 0 and "1 kept" in out.stdout, out.stdout[-3000:] + out.stderr[-2000:]

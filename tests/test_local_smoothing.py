@@ -25,7 +25,7 @@ def adaptive_qp():
     """circle-square after eight adaptive steps from level 0 (eta_1 + eta_2, 10 % of the
     cells at least): a graded hierarchy of nine levels, each adding 10-30 % nodes."""
     import problems.circle_square as cs
-    from workflows.scripts.adaptive_study import circle_projection
+    from workflows.studies.adaptive.run import circle_projection
     scene0 = cs.scene(0, problems()["circle_square"].options())
     make, start = adaptive_start(scene0, 0)
     run = adaptive_loop(make, start, lambda qp, u0, p0: solve(qp, "pdas", tol=1e-10, u0=u0, p0=p0),

@@ -95,8 +95,11 @@ def test_netgen_meshes_the_ball_identically_each_time(store):
         np.testing.assert_array_equal(a, c)
 
 
-def test_the_scripts_keep_meshes_where_the_environment_says(tmp_path):
-    code = ("import workflows.scripts; from problems.fem import mesh; "
+@pytest.mark.parametrize("package", ["workflows.studies", "workflows.scripts"])
+def test_the_steps_keep_meshes_where_the_environment_says(tmp_path, package):
+    """A study's run step (any module of the studies' package) and a benchmark script keep
+    netgen's meshes where $CONTACTBENCH_CACHE_DIR says."""
+    code = (f"import {package}; from problems.fem import mesh; "
             "print(mesh._STORE[0].folder)")
     env = {**os.environ, CACHE_VARIABLE: str(tmp_path / "kept")}
     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,

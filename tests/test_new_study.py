@@ -1,10 +1,10 @@
-"""A new study is five files: its module, its script, its rule file, its report module and
-its captions (docs/design.md, "Add a study"). A toy study declared in exactly these five
+"""A new study is one folder, ``workflows/studies/<name>/``, and its report step,
+``report/<name>.py`` (docs/design.md, "Add a study"). A toy study declared in exactly these
 files, in a copy of the suite, is discovered: ``snakemake -n`` at the tiny scale plans its
-jobs with the resources its module declares, its jobs run and the HTML report shows its
-caption, the validation takes its config section from the module, ``contactbench study``
-knows its command, and the docs give it its page and an entry in the studies' table of
-contents."""
+jobs with the resources its ``settings.yaml`` declares, its jobs run and the HTML report
+shows its caption, the validation takes its config section from its folder, ``contactbench
+study`` knows its command, and the docs give it its page and an entry in the studies' table
+of contents."""
 from __future__ import annotations
 
 import os
@@ -18,19 +18,16 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 BIN = Path(sys.executable).parent
 
-#: The five files of the toy study: {path: text}.
+#: The toy study: its folder's files and its report step, ``{path: text}``.
 TOY = {
-    "workflows/studies/toy_count.py": '''"""Grid sizes per level (a toy study)
-
-The number of nodes of a uniform grid at each configured level, as a table and one claim.
-"""
-from workflows.studies._base import AtScale, Study, scenes_of
+    "workflows/studies/toy_count/__init__.py": '''"""The toy_count study: grid sizes per level."""
+from workflows.studies._base import Study, scenes_of
 
 RULE = "toy_count_study"
 
 
 def toy_args(config: dict, scene: str) -> str:
-    """A scene's settings as arguments of ``workflows/scripts/toy_count.py``."""
+    """A scene's settings as arguments of the study's run step."""
     return " ".join(["--levels", *map(str, scenes_of(config, "toy_count")[scene])])
 
 
@@ -39,21 +36,28 @@ STUDY = Study(
     summary="the number of nodes per level of a scene",
     thesis="none (a toy)",
     order=999,
-    rule_file="toy_count.smk",
-    scripts={"toy_count": "workflows.scripts.toy_count"},
+    scripts={"toy_count": "workflows.studies.toy_count.run"},
     paths={"toy_runs": "results/{scene}/toy_count.csv",
            "toy_claims": "results/{scene}/toy_count_claims.csv"},
     outputs=("toy_runs", "toy_claims"),
     claims=("toy_claims",),
     heavy_rules=(RULE,),
-    captions="toy_count.rst",
-    settings={"type": "object", "additionalProperties": False, "required": ["scenes"],
-              "properties": {"scenes": {"$ref": "#/definitions/scene_levels"}}},
-    scales={"tiny": AtScale({"scenes": {"circle_square": [0, 1]}},
-                            {RULE: {"mem_mb": 300, "runtime": 1}})},
 )
 ''',
-    "workflows/scripts/toy_count.py": '''"""The nodes of a uniform grid on the unit square at each level (a toy study)."""
+    "workflows/studies/toy_count/settings.yaml": '''schema:
+  type: object
+  additionalProperties: false
+  required: [scenes]
+  properties:
+    scenes: {$ref: "#/definitions/scene_levels"}
+scales:
+  tiny:
+    settings:
+      scenes: {circle_square: [0, 1]}
+    resources:
+      toy_count_study: {mem_mb: 300, runtime: 1}
+''',
+    "workflows/studies/toy_count/run.py": '''"""The nodes of a uniform grid on the unit square at each level (a toy study)."""
 import argparse
 
 import pandas as pd
@@ -75,7 +79,7 @@ def main(argv=None) -> None:
 if __name__ == "__main__":
     main()
 ''',
-    "workflows/toy_count.smk": '''from workflows.studies.toy_count import toy_args
+    "workflows/studies/toy_count/rules.smk": '''from workflows.studies.toy_count import toy_args
 rule toy_count_study:
     output: PATHS["toy_runs"]
     log: log_path("toy_count_study")
@@ -83,7 +87,7 @@ rule toy_count_study:
     resources: **rule_resources(config, "toy_count_study")
     params: py=PY, scene=lambda w: set_args(config, w.scene),
             settings=lambda w: toy_args(config, w.scene)
-    shell: "{params.py} -m workflows.scripts.toy_count {params.scene} {params.settings} "
+    shell: "{params.py} -m workflows.studies.toy_count.run {params.scene} {params.settings} "
            "--out {output} > {log} 2>&1"
 
 rule toy_count_report:
@@ -92,6 +96,14 @@ rule toy_count_report:
     log: log_path("toy_count_report")
     params: py=PY
     shell: "{params.py} -m report.toy_count --runs {input} --claims {output} > {log} 2>&1"
+''',
+    "workflows/studies/toy_count/captions.rst": '''.. caption: toy_claims
+
+Whether the number of nodes grows with the level on this scene.
+''',
+    "workflows/studies/toy_count/page.md": '''# `toy_count`: Grid sizes per level (a toy study)
+
+The number of nodes of a uniform grid at each configured level, as a table and one claim.
 ''',
     "report/toy_count.py": '''"""The toy study's claim: the mesh grows with the level."""
 import argparse
@@ -115,16 +127,12 @@ def main(argv=None) -> None:
 if __name__ == "__main__":
     main()
 ''',
-    "report/captions/toy_count.rst": '''.. caption: toy_claims
-
-Whether the number of nodes grows with the level on this scene.
-''',
 }
 
 
 @pytest.fixture(scope="module")
 def suite(tmp_path_factory) -> Path:
-    """A copy of the suite's tracked files with the toy study's five files added."""
+    """A copy of the suite's tracked files with the toy study's files added."""
     copy = tmp_path_factory.mktemp("suite")
     tracked = subprocess.run(["git", "ls-files", "-z"], cwd=ROOT, check=True,
                              capture_output=True).stdout.decode().split("\0")
@@ -133,7 +141,8 @@ def suite(tmp_path_factory) -> Path:
             (copy / name).parent.mkdir(parents=True, exist_ok=True)
             shutil.copy2(ROOT / name, copy / name)
     for name, text in TOY.items():
-        assert not (copy / name).exists(), name          # five new files, nothing changed
+        assert not (copy / name).exists(), name          # new files only, nothing changed
+        (copy / name).parent.mkdir(parents=True, exist_ok=True)
         (copy / name).write_text(text, encoding="utf-8")
     return copy
 
@@ -144,7 +153,7 @@ def run(suite: Path, *argv: str) -> subprocess.CompletedProcess:
                           timeout=600)
 
 
-def test_a_study_in_five_files_is_planned_at_the_tiny_scale(suite):
+def test_a_study_in_its_folder_is_planned_at_the_tiny_scale(suite):
     out = run(suite, str(BIN / "snakemake"), "-n", "-p", "--forceall", "--configfile",
               "workflows/config/tiny.yaml")
     assert out.returncode == 0, (out.stdout + out.stderr)[-3000:]
@@ -152,11 +161,11 @@ def test_a_study_in_five_files_is_planned_at_the_tiny_scale(suite):
                        "results/circle_square/toy_count_claims.csv"):
         assert level_file in out.stdout
     block = out.stdout.split("rule toy_count_study:")[1].split("\n\n")[0]
-    assert "mem_mb=300" in block and "runtime=1" in block      # the module's resources
+    assert "mem_mb=300" in block and "runtime=1" in block      # its settings.yaml's resources
     assert "--problem circle_square --levels 0 1" in out.stdout  # its section, its args
 
 
-def test_its_config_section_is_validated_from_its_module(suite, tmp_path):
+def test_its_config_section_is_validated_from_its_folder(suite, tmp_path):
     config = tmp_path / "typo.yaml"
     config.write_text("scale: tiny\nscenes: {}\ntoy_count: {scene: {circle_square: [0]}}\n")
     out = run(suite, str(BIN / "snakemake"), "-n", "--configfile", str(config))
@@ -172,7 +181,7 @@ def test_its_command_and_its_docs_page(suite):
     assert out.returncode == 0, out.stderr[-3000:]
     page = (suite / "docs/generated/studies/toy_count.md").read_text(encoding="utf-8")
     assert page.startswith("# `toy_count`: Grid sizes per level (a toy study)")
-    assert "The number of nodes of a uniform grid at each" in page       # the docstring
+    assert "The number of nodes of a uniform grid at each" in page       # its page.md
     assert "Whether the number of nodes grows" in page                   # its caption
     assert "`contactbench study toy_count`" in page
     toctree = (suite / "docs/generated/studies/toctree.inc").read_text(encoding="utf-8")
@@ -218,33 +227,36 @@ def test_a_scale_file_gets_the_sections_and_resources_its_studies_declare():
         at_scale({"scale": "medium"})
 
 
-def test_the_schema_takes_each_section_from_one_place(monkeypatch):
-    """A study's section joins the schema from its module; declared in the schema file
-    too, it is refused."""
-    import dataclasses
+def test_the_schema_takes_each_section_from_one_place(monkeypatch, tmp_path):
+    """A study's section joins the schema from its folder's ``settings.yaml``; declared in
+    the schema file too, it is refused."""
+    import yaml
 
     from workflows import studies
 
     schema = studies.config_schema()
     assert schema["properties"]["element_order"] == studies.STUDIES["element_order"].settings
     assert schema["properties"]["scale"]["enum"] == list(studies.SCALES)
-    twice = dataclasses.replace(studies.STUDIES["element_order"], name="adaptive")
-    monkeypatch.setitem(studies.STUDIES, "adaptive", twice)
-    with pytest.raises(RuntimeError, match="'adaptive' is declared in its module and again"):
+    shared = yaml.safe_load(studies.SCHEMA.read_text())
+    shared["properties"]["element_order"] = {"type": "object"}
+    twice = tmp_path / "schema.yaml"
+    twice.write_text(yaml.safe_dump(shared))
+    monkeypatch.setattr(studies, "SCHEMA", twice)
+    with pytest.raises(RuntimeError, match="'element_order' is declared in its folder and "
+                                           "again"):
         studies.config_schema()
 
 
 def test_a_captions_file_has_one_section_per_declared_key(tmp_path):
-    import dataclasses
-
     from workflows.studies import STUDIES, captions_of
 
     study = STUDIES["element_order"]
     captions = captions_of(study)
     assert set(captions) == {"eo_claims", "eo_figure"}
     assert captions["eo_figure"].startswith("P1 (circles) against P2 (squares)")
-    (tmp_path / "report" / "captions").mkdir(parents=True)
-    (tmp_path / "report" / "captions" / "bad.rst").write_text(
+    (tmp_path / "captions.rst").write_text(
         ".. caption: eo_claims\n\ntext\n\n.. caption: eo_typo\n\ntext\n")
     with pytest.raises(ValueError, match=r"sections \['eo_typo'\] are not allowed"):
-        captions_of(dataclasses.replace(study, captions="bad.rst"), tmp_path)
+        captions_of(study, tmp_path)
+    (tmp_path / "captions.rst").write_text(".. caption: eo_claims eo_figure\n\nshared\n")
+    assert captions_of(study, tmp_path) == {"eo_claims": "shared", "eo_figure": "shared"}

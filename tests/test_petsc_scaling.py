@@ -1,4 +1,4 @@
-"""The strong-scaling study of the distributed solver (workflows/scripts/petsc_scaling.py):
+"""The strong-scaling study of the distributed solver (workflows/studies/petsc_scaling/run.py):
 speed-up, efficiency and the comparison with TNNMG computed right, and the script's rows
 on a small scene (where PETSc and MPI are installed)."""
 from __future__ import annotations
@@ -13,7 +13,7 @@ from PIL import Image
 
 from report import petsc_scaling as report_scaling
 from solvers import petsc_tao
-from workflows.scripts import petsc_scaling
+from workflows.studies.petsc_scaling import run as petsc_scaling
 from workflows.studies import ConfigError, check_config, load_config
 from workflows.studies import petsc_scaling as study
 

@@ -259,8 +259,8 @@ def test_qpbenchmark_runner_agrees_with_the_suite(small, tmp_path, qpbenchmark_s
 
 
 def test_runs_script_on_one_family(small, tmp_path):
-    from workflows.scripts.problem_set_runs import main as runs_main
-    from report.solver_summary import main as summary_main
+    from workflows.studies.test_set.run import main as runs_main
+    from report.test_set import main as summary_main
 
     out = tmp_path / "runs.csv"
     runs_main(["--set", CURRENT, "--class", "small", "--family", "flat_blocks_stabilised",
@@ -319,7 +319,7 @@ def test_runs_script_on_the_mortar_families_tnnmg_takes_dual_rows_only(small, tm
     """TNNMG's box transformation needs one constrained node per row: on the exported
     3D mortar problems it takes the dual rows (verified, within tol of the exact
     reference in the energy norm) and skips the standard ones, saying why."""
-    from workflows.scripts.problem_set_runs import main as runs_main
+    from workflows.studies.test_set.run import main as runs_main
 
     tables = []
     for family in ("cube_sphere_mortar", "cube_sphere_mortar_dual"):
@@ -337,7 +337,7 @@ def test_runs_script_on_the_mortar_families_tnnmg_takes_dual_rows_only(small, tm
 def test_a_rebuilt_problem_that_differs_from_its_export_is_refused(small, tmp_path):
     import shutil
 
-    from workflows.scripts.problem_set_runs import check_identical
+    from workflows.studies.test_set.run import check_identical
     folder = tmp_path / "hard_no_contact_L0"
     shutil.copytree(small / "hard_no_contact_L0", folder)
     item = next(p for p in load().problems("small") if p.name == folder.name)
@@ -356,7 +356,7 @@ def test_a_run_is_correct_to_what_the_verification_certifies():
     """At the high preset the certified bound bottoms out at its floating-point floor
     (~1e-7 relative): a verified run there is correct up to that floor, not to 1e-9;
     below the floor the tolerance itself is the bar."""
-    from report.solver_summary import accurate_runs
+    from report.test_set import accurate_runs
 
     t = pd.DataFrame({"tol": [1e-9, 1e-9, 1e-6, 1e-6],
                       "energy_bound_floor": [8e-8, 8e-8, 8e-8, np.nan],

@@ -219,7 +219,7 @@ def test_a_library_and_the_exact_reference_solve_an_exported_frictional_problem(
     import scipy.sparse as sp
 
     from solvers.interface import solve
-    from workflows.scripts.problem_set_runs import check_identical
+    from workflows.studies.test_set.run import check_identical
 
     folder = exported / "circle_square_tresca_q05_L1"
     item = next(p for p in load().problems("small", ["circle_square_tresca_q05"])
@@ -246,7 +246,7 @@ def test_runs_script_on_a_frictional_family(exported, tmp_path):
     converged, a solver without friction skipped with its reason, and a library whose
     claim the verification does not confirm (Clarabel's interior point) reported as
     such: no row is converged beyond its tolerance."""
-    from workflows.scripts.problem_set_runs import main as runs_main
+    from workflows.studies.test_set.run import main as runs_main
 
     out = tmp_path / "runs.csv"
     runs_main(["--set", CURRENT, "--class", "small", "--family", "circle_square_tresca_q05",

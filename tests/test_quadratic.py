@@ -182,7 +182,7 @@ def test_element_order_study_script_and_report(tmp_path, capsys):
     import pandas as pd
 
     from report.element_order import claims, main as report_main
-    from workflows.scripts.element_order import main as script
+    from workflows.studies.element_order.run import main as script
 
     out = tmp_path / "eo.csv"
     script(["--problem", "circle_square", "--levels", "0", "--reference-level", "1",

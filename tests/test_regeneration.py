@@ -50,12 +50,12 @@ def regenerate(cwd: Path, *extra: str, popen: bool = False, env: dict | None = N
     return subprocess.run(cmd, cwd=cwd, capture_output=True, text=True, timeout=1800, env=env)
 
 
-#: The job the interrupted run holds: ``report.laplace tables`` (rule laplace_summary),
+#: The job the interrupted run holds: ``report.laplace_nonmatching tables`` (rule laplace_summary),
 #: which starts only after its four ``laplace_errors`` jobs have finished and has jobs
 #: after it. A ``sitecustomize`` on the jobs' PYTHONPATH (test-only, nothing in the
 #: workflow knows of it) marks the job as started and keeps it running until the test's
 #: SIGINT ends it: the interrupt lands inside a job whatever the machine's speed.
-HELD_JOB = ("report.laplace", "tables")
+HELD_JOB = ("report.laplace_nonmatching", "tables")
 GATE = f"""
 import os, sys, time
 from pathlib import Path

@@ -84,7 +84,7 @@ def test_claims_ignore_runs_that_stopped_short():
 def test_hertz_claims_ask_for_a_falling_deviation_only_above_the_model_floor():
     import pandas as pd
 
-    from report.contact import HERTZ_MODEL_FLOOR, claims as hertz_claims
+    from report.contact_solution import HERTZ_MODEL_FLOOR, claims as hertz_claims
 
     def table(devs):
         return pd.DataFrame({"level": range(len(devs)), "a_over_h": 10.0,

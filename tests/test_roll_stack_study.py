@@ -23,7 +23,7 @@ from problems.roll_stack import PROBLEM
 from report import roll_stack as report
 from solvers.cholesky import FloatingCholesky
 from solvers.interface import solve
-from workflows.scripts import roll_stack_study as study
+from workflows.studies.roll_stack import run as study
 from workflows.studies import ConfigError, all_targets, check_config, load_config, schema_file
 from workflows.studies.roll_stack import roll_args
 

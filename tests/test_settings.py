@@ -14,9 +14,12 @@ from workflows.studies import config_schema, load_config, schema_file
 from workflows.studies.adaptive import adaptive_args
 
 ROOT = Path(__file__).resolve().parent.parent
-WORKFLOW_FILES = [ROOT / "Snakefile", *sorted((ROOT / "workflows" / "studies").glob("*.py")),
+STUDIES_DIR = ROOT / "workflows" / "studies"
+#: The files that read the validated settings: the Snakefile, the studies' declarations and
+#: their rules (their run steps take options: :func:`test_no_step_option_repeats_a_schema_default`).
+WORKFLOW_FILES = [ROOT / "Snakefile", *sorted(STUDIES_DIR.glob("*.py")),
+                  *sorted(STUDIES_DIR.glob("*/__init__.py")), *sorted(STUDIES_DIR.glob("*/rules.smk")),
                   *sorted((ROOT / "workflows").glob("*.smk"))]
-SCRIPTS = sorted((ROOT / "workflows" / "scripts").glob("*.py"))
 #: ``.get("key", <something that is not an empty container or None>)``: a default
 GET_DEFAULT = r"""\.get\(\s*["']{key}["']\s*,(?!\s*(?:\{{\}}|\[\]|\(\)|None\b))"""
 
@@ -53,28 +56,25 @@ def test_no_workflow_file_repeats_a_default(study):
             assert hit is None, f"{path.name}: {hit.group(0)!r} repeats the default of {study}.{key}"
 
 
-#: The script each study with schema defaults runs (its rule's shell command); the test
-#: set's ``levels`` reaches its script as the chosen levels (``--levels``).
-STUDY_SCRIPTS = {"adaptive": "adaptive_study", "test_set": "problem_set_runs"}
-
-
-def test_no_script_option_repeats_a_schema_default():
-    """A script's option for a setting with a schema default takes it from
-    :func:`workflows.settings.study_defaults`, never as a literal."""
+def test_no_step_option_repeats_a_schema_default():
+    """A run step's option for a setting with a schema default takes it from
+    :func:`workflows.settings.study_defaults`, never as a literal (the test set's ``levels``
+    reaches its step as the chosen levels, ``--levels``)."""
     studies = {s for s, (defaulted, _) in _settings().items() if defaulted}
-    assert studies <= set(STUDY_SCRIPTS), f"add the scripts of {studies - set(STUDY_SCRIPTS)}"
+    assert studies == {"adaptive", "test_set"}
     for study in sorted(studies):
         defaults = study_defaults(study)
         keys = {k for k, v in defaults.items() if not isinstance(v, dict)} | \
             {k for v in defaults.values() if isinstance(v, dict) for k in v}
-        text = (ROOT / "workflows" / "scripts" / f"{STUDY_SCRIPTS[study]}.py").read_text()
+        keys -= {"levels"} if study == "test_set" else set()
+        text = (STUDIES_DIR / study / "run.py").read_text()
         for key in sorted(keys):
             flag = "--" + key.replace("_", "-")
             calls = re.findall(r'add_argument\(\s*"' + re.escape(flag) + r'"[^)]*\)', text)
-            assert calls, f"{STUDY_SCRIPTS[study]}.py has no option {flag}"
+            assert calls, f"{study}/run.py has no option {flag}"
             for call in calls:
                 assert not re.search(r"default=\s*[-0-9.\"'\[(]", call), \
-                    f"{STUDY_SCRIPTS[study]}.py: {flag} declares a literal default"
+                    f"{study}/run.py: {flag} declares a literal default"
 
 
 def test_validation_fills_the_defaults_in():

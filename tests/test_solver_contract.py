@@ -234,7 +234,7 @@ def _check_rows(table: pd.DataFrame) -> None:
 
 def test_the_solver_comparison_has_a_row_for_every_broken_case(broken_plugins, tmp_path,
                                                                capsys):
-    from workflows.scripts.solver_comparison import main
+    from workflows.studies.solver_comparison.run import main
 
     out = tmp_path / "solvers.csv"
     main(["--problem", "circle_square", "--level", "0", "--solvers", *BROKEN, "osqp",
@@ -261,7 +261,7 @@ def small_circle_square(tmp_path_factory):
 
 def test_the_test_set_runs_have_a_row_for_every_broken_case(broken_plugins, tmp_path,
                                                             small_circle_square, capsys):
-    from workflows.scripts.problem_set_runs import main
+    from workflows.studies.test_set.run import main
     from workflows.problem_set import CURRENT
 
     out = tmp_path / "runs.csv"

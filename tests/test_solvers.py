@@ -515,7 +515,7 @@ def test_an_unknown_role_is_refused_by_name():
 def test_a_solver_that_gave_up_at_a_coarser_level_is_skipped_there():
     import pandas as pd
 
-    from workflows.scripts.solver_comparison import gave_up_at_coarser_levels, skipped_result
+    from workflows.studies.solver_comparison.run import gave_up_at_coarser_levels, skipped_result
 
     level1 = pd.DataFrame({"level": [1, 1, 1], "solver": ["osqp", "osqp", "piqp"],
                            "preset": ["mid", "high", "mid"],
@@ -538,7 +538,7 @@ def test_a_solver_predicted_beyond_the_time_limit_is_skipped():
     predicts the next level's; beyond the limit the run is skipped with the prediction."""
     import pandas as pd
 
-    from workflows.scripts.solver_comparison import predicted_beyond_the_limit
+    from workflows.studies.solver_comparison.run import predicted_beyond_the_limit
 
     t = pd.DataFrame({"level": [0, 1, 2, 1, 2, 2], "n": [1e3, 4e3, 1.6e4, 4e3, 1.6e4, 1.6e4],
                       "solver": ["osqp"] * 3 + ["pdas"] * 2 + ["piqp"],

@@ -119,7 +119,7 @@ def _boards():
 
 
 def test_the_summary_shows_one_leaderboard_per_class_with_the_references_apart():
-    from report.summary import leaderboard, leaderboards_html
+    from report.leaderboard import leaderboard, leaderboards_html
     board = leaderboard(_boards())
     assert list(board["rank"]) == [1, 2, "baseline"]
     assert list(board["solver"]) == ["osqp (fastest verified)", "scs", "pdas (exact reference)"]
@@ -134,12 +134,13 @@ def test_the_summary_shows_one_leaderboard_per_class_with_the_references_apart()
 def test_tables_put_the_thesis_beside_ours_and_explain_empty_cells():
     import pandas as pd
 
-    from report.summary import EMPTY_THESIS, _fmt, beside_thesis, table_html
+    from report.summary import beside_thesis
+    from report.tables import EMPTY_THESIS, cell_text, table_html
     frame = pd.DataFrame({"level": [0, 1], "N": [10, 40], "n_outer": [7, 8], "t": [1.0, 2.0],
                           "thesis_nodes": [None, 42], "thesis_n_outer": [None, 19]})
     assert list(beside_thesis(frame, keep=("level",)).columns) == [
         "level", "N", "thesis_nodes", "n_outer", "thesis_n_outer"]
-    assert "-" not in _fmt(1e-9) and _fmt(float("nan")) == ""
+    assert "-" not in cell_text(1e-9) and cell_text(float("nan")) == ""
     html = table_html(beside_thesis(frame), name="x")
     assert html.count(f'title="{EMPTY_THESIS}"') == 2 and EMPTY_THESIS in html
 
@@ -147,7 +148,8 @@ def test_tables_put_the_thesis_beside_ours_and_explain_empty_cells():
 def test_failures_link_each_failing_scene_to_its_rows():
     import pandas as pd
 
-    from report.summary import failure_anchor, failures
+    from report.leaderboard import failure_anchor, failures
+    from report.tables import table_html
     by_scene = pd.DataFrame({"preset": ["mid", "low", "low", "low"],
                              "solver": ["pdas", "osqp", "osqp", "pdas"],
                              "scene": ["roll_stack", "cube_sphere", "circle_square", "flat"],
@@ -155,6 +157,6 @@ def test_failures_link_each_failing_scene_to_its_rows():
                              "inaccurate": [2, 1, 0, 0]})
     fails = failures(by_scene)
     assert list(fails["scene"]) == ["cube_sphere", "roll_stack"]     # converged < runs only
-    page = summary.table_html(fails, name="failures",
+    page = table_html(fails, name="failures",
                               row_id=lambda r: failure_anchor(r["scene"]))
     assert page.count("id='failures-cube_sphere'") == 1 and "id='failures-roll_stack'" in page

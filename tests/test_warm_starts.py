@@ -1,6 +1,6 @@
 """Cold against warm starts on the test set's frictional steps and the faceted law's
-trade-off: the runs script's warm rows and ``used_guess`` (workflows/scripts/
-problem_set_runs.py) and the summary's two tables and claims (report/solver_summary.py),
+trade-off: the runs step's warm rows and ``used_guess`` (workflows/studies/test_set/run.py)
+and the summary's two tables and claims (report/test_set.py),
 on level-0 problems of contact-qp-5 exported into a temporary folder."""
 from __future__ import annotations
 
@@ -9,12 +9,12 @@ import shutil
 import pandas as pd
 import pytest
 
-from report.solver_summary import (facet_frame, ignored_guess_mismatches,
+from report.test_set import (facet_frame, ignored_guess_mismatches,
                                    main as summary_main, warm_facet_claims, warm_frame)
 from solvers.base import GUESS_NOT_USED
 from workflows.export import write_problem
 from workflows.problem_set import CURRENT, cold_rows, load, plain_rows
-from workflows.scripts.problem_set_runs import WARM_FILE, isotropic_twin, run_problem, runs_warm
+from workflows.studies.test_set.run import WARM_FILE, isotropic_twin, run_problem, runs_warm
 
 PATH = ("circle_square_tresca_path_L0_s1", "circle_square_tresca_path_L0_s2")
 FACETED = ("cube_sphere_tresca_q05_L0", "cube_sphere_tresca_q05_facets8_L0",

@@ -27,7 +27,7 @@ def run(module: str, *argv: str) -> None:
 def contact(tmp_path_factory):
     out = tmp_path_factory.mktemp("contact")
     for level in ("0", "1"):
-        run("workflows.scripts.contact_solution", *SCENE, "--level", level, "--outdir", str(out))
+        run("workflows.studies.contact_solution.run", *SCENE, "--level", level, "--outdir", str(out))
     return out
 
 
@@ -37,16 +37,16 @@ def test_contact_solution_and_its_report(contact, tmp_path):
         assert {"x0", "x1", "s0", "p", "pressure", "gap", "active"} <= set(c.columns)
         assert (contact / f"fields_L{level}.vtu").stat().st_size > 0
     rows = [str(contact / f"hertz_L{k}.csv") for k in (0, 1)]
-    run("report.contact", "hertz", "--inputs", *rows, "--out", str(tmp_path / "hertz.csv"))
+    run("report.contact_solution", "hertz", "--inputs", *rows, "--out", str(tmp_path / "hertz.csv"))
     h = pd.read_csv(tmp_path / "hertz.csv")
     assert list(h["level"]) == [0, 1] and (h["status"] == "converged").all()
     assert (h[["dev_a_moment", "dev_p0_moment"]].abs() < 0.1).all().all()
-    run("report.contact", "fields", "--vtu", str(contact / "fields_L1.vtu"),
+    run("report.contact_solution", "fields", "--vtu", str(contact / "fields_L1.vtu"),
         "--out", str(tmp_path / "fields.png"))
-    run("report.contact", "pressure", "--contacts", *[str(contact / f"contact_L{k}.csv")
+    run("report.contact_solution", "pressure", "--contacts", *[str(contact / f"contact_L{k}.csv")
                                                       for k in (0, 1)],
         "--hertz", *rows, "--out", str(tmp_path / "pressure.png"))
-    run("report.contact", "surface", "--vtu", str(contact / "fields_L1.vtu"),
+    run("report.contact_solution", "surface", "--vtu", str(contact / "fields_L1.vtu"),
         "--out", str(tmp_path / "surface.png"))
     for name in ("fields.png", "pressure.png", "surface.png"):
         assert (tmp_path / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
@@ -55,19 +55,19 @@ def test_contact_solution_and_its_report(contact, tmp_path):
 def test_contact_solution_in_3d(tmp_path):
     """The same script and builders on the cube-sphere scene (3D cut, point-contact Hertz)."""
     for level in ("0", "1"):
-        run("workflows.scripts.contact_solution", "--problem", "cube_sphere", "--level", level,
+        run("workflows.studies.contact_solution.run", "--problem", "cube_sphere", "--level", level,
             "--outdir", str(tmp_path))
     c = pd.read_csv(tmp_path / "contact_L1.csv")
     assert {"x0", "x1", "x2", "s0", "s1"} <= set(c.columns) and len(c) == 81
     rows = [str(tmp_path / f"hertz_L{k}.csv") for k in (0, 1)]
-    run("report.contact", "hertz", "--inputs", *rows, "--out", str(tmp_path / "hertz.csv"))
+    run("report.contact_solution", "hertz", "--inputs", *rows, "--out", str(tmp_path / "hertz.csv"))
     h = pd.read_csv(tmp_path / "hertz.csv")
     assert (h["status"] == "converged").all() and (h["a_hertz"] > 0.2).all()
-    run("report.contact", "pressure", "--contacts", *[str(tmp_path / f"contact_L{k}.csv")
+    run("report.contact_solution", "pressure", "--contacts", *[str(tmp_path / f"contact_L{k}.csv")
                                                       for k in (0, 1)],
         "--hertz", *rows, "--out", str(tmp_path / "pressure.png"))
     for what in ("fields", "surface"):
-        run("report.contact", what, "--vtu", str(tmp_path / "fields_L1.vtu"),
+        run("report.contact_solution", what, "--vtu", str(tmp_path / "fields_L1.vtu"),
             "--out", str(tmp_path / f"{what}.png"))
     for name in ("fields.png", "pressure.png", "surface.png"):
         assert (tmp_path / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
@@ -83,7 +83,7 @@ def test_solver_comparison_skips_by_the_coarser_levels(tmp_path):
             "level": level, "n": n[level], "solver": ["osqp", "piqp"], "preset": "mid",
             "status": ["converged", "time_limit" if level else "converged"],
             "total_time": [0.5 * 16 ** level, 1.0], "message": ""}))
-    run("workflows.scripts.solver_comparison", *SCENE, "--level", "2", "--presets", "mid",
+    run("workflows.studies.solver_comparison.run", *SCENE, "--level", "2", "--presets", "mid",
         "--solvers", "osqp", "piqp", "pdas", "--time-limit", "60",
         "--coarser", str(tmp_path / "L0.csv"), str(tmp_path / "L1.csv"),
         "--out", str(tmp_path / "L2.csv"))
@@ -96,7 +96,7 @@ def test_solver_comparison_skips_by_the_coarser_levels(tmp_path):
 
 
 def test_solver_comparison_and_its_report(tmp_path):
-    run("workflows.scripts.solver_comparison", *SCENE, "--level", "0", "--presets", "mid",
+    run("workflows.studies.solver_comparison.run", *SCENE, "--level", "0", "--presets", "mid",
         "--time-limit", "60", "--out", str(tmp_path / "solvers_L0.csv"))
     t = pd.read_csv(tmp_path / "solvers_L0.csv")
     from solvers.interface import solvers
@@ -111,7 +111,7 @@ def test_solver_comparison_and_its_report(tmp_path):
     outs = {k: str(tmp_path / f"{k}.{'csv' if k in ('table', 'presets', 'costs') else 'png'}")
             for k in ("table", "presets", "times", "work", "costs")}
     outs["charts"] = str(tmp_path / "times.html")
-    run("report.solvers", "--inputs", str(tmp_path / "solvers_L0.csv"),
+    run("report.solver_comparison", "--inputs", str(tmp_path / "solvers_L0.csv"),
         *[a for k, v in outs.items() for a in (f"--{k}", v)])
     assert len(pd.read_csv(outs["table"])) == len(t)
     presets = pd.read_csv(outs["presets"])
@@ -133,7 +133,7 @@ def test_solver_comparison_and_its_report(tmp_path):
 
 def test_augmented_projection_study_and_its_report(tmp_path):
     study = tmp_path / "study.csv"
-    run("workflows.scripts.augmented_projection_study", *SCENE, "--levels", "0", "1",
+    run("workflows.studies.augmented_projection.run", *SCENE, "--levels", "0", "1",
         "--configs", "alg84", "nested_face_cg", "--kappa-exact", "--time-limit", "60",
         "--out", str(study))
     s = pd.read_csv(study)
@@ -221,7 +221,7 @@ def test_augmented_projection_study_beyond_a_factorisation(tmp_path):
     """The route for sizes no Cholesky reaches: TNNMG to 1e-10, verified, as the reference,
     and no Alg. 8.4 configuration; its energy error agrees with the exact reference's."""
     study = tmp_path / "study.csv"
-    run("workflows.scripts.augmented_projection_study", *SCENE, "--levels", "1", "--configs",
+    run("workflows.studies.augmented_projection.run", *SCENE, "--levels", "1", "--configs",
         "--no-newton", "--reference", "tnnmg", "--ref-cache", str(tmp_path), "--out",
         str(study))
     s = pd.read_csv(study).set_index("config")
@@ -243,18 +243,18 @@ def test_laplace_scripts_and_reports(tmp_path):
     for case in ("sin10x", "linear"):
         for side in ("coarse", "fine"):
             runs.append(str(tmp_path / f"{case}_{side}.csv"))
-            run("workflows.scripts.laplace_errors", "--case", case, "--constrained", side,
+            run("workflows.studies.laplace_nonmatching.run", "--case", case, "--constrained", side,
                 "--levels", "0", "1", "2", "--out", runs[-1])
     outs = {k: str(tmp_path / f"{k}.csv") for k in ("errors", "by-side", "rates")}
-    run("report.laplace", "tables", "--inputs", *runs, "--default-side", "coarse",
+    run("report.laplace_nonmatching", "tables", "--inputs", *runs, "--default-side", "coarse",
         *[a for k, v in outs.items() for a in (f"--{k}", v)])
     rates = pd.read_csv(outs["rates"])
     row = rates[(rates.case == "linear") & (rates.variant == "nodal")
                 & (rates.constrained == "coarse")]
     assert abs(row["rate_h1"].iloc[0] - 0.5) < 0.1      # Theorem 6.17's O(h^1/2), patch test
-    run("report.laplace", "convergence", "--errors", outs["by-side"], "--rates", outs["rates"],
+    run("report.laplace_nonmatching", "convergence", "--errors", outs["by-side"], "--rates", outs["rates"],
         "--case", "sin10x", "--out", str(tmp_path / "conv.png"))
-    run("report.laplace", "mesh", "--level", "0", "--ratio", "2:3", "--out", str(tmp_path / "m.png"))
+    run("report.laplace_nonmatching", "mesh", "--level", "0", "--ratio", "2:3", "--out", str(tmp_path / "m.png"))
     assert (tmp_path / "conv.png").stat().st_size > 0 and (tmp_path / "m.png").stat().st_size > 0
 
 
@@ -269,11 +269,11 @@ def test_assembly_benchmark_script(tmp_path, capsys):
 
 def test_scripts_reject_bad_arguments(capsys):
     with pytest.raises(SystemExit) as err:
-        run("workflows.scripts.contact_solution", "--problem", "circle_square", "--set", "E1=-1",
+        run("workflows.studies.contact_solution.run", "--problem", "circle_square", "--set", "E1=-1",
             "--level", "0", "--outdir", "/nonexistent")
     assert err.value.code == 2 and "'E1'" in capsys.readouterr().err
     with pytest.raises(SystemExit) as err:
-        run("workflows.scripts.solver_comparison", "--problem", "laplace_nonmatching",
+        run("workflows.studies.solver_comparison.run", "--problem", "laplace_nonmatching",
             "--level", "0", "--out", "x.csv")
     assert err.value.code == 2 and "not a contact problem" in capsys.readouterr().err
 
@@ -375,7 +375,7 @@ def test_studies_declare_their_outputs_once():
     assert "results/circle_square/adaptive_table.csv" in targets
     assert "results/flat_blocks/patch_test.png" in targets          # the patch test's extra
     assert not any(t.startswith("results/flat_blocks/adaptive") for t in targets)
-    smk = "".join(p.read_text() for p in (ROOT / "workflows").glob("*.smk"))
+    smk = "".join(p.read_text() for p in (ROOT / "workflows").rglob("*.smk"))
     assert "results/" not in smk          # every path comes from workflows/studies/
 
 
@@ -415,7 +415,7 @@ def test_slurm_profile_dry_run_plans_every_job_with_its_resources(scale):
 def test_every_heavy_rule_has_a_benchmark_and_measured_resources():
     from workflows.studies import HEAVY_RULES
 
-    smk = {p.name: p.read_text() for p in (ROOT / "workflows").glob("*.smk")}
+    smk = {str(p): p.read_text() for p in (ROOT / "workflows").rglob("*.smk")}
     for rule in HEAVY_RULES:
         text = next(t for t in smk.values() if f"rule {rule}:" in t)
         block = text.split(f"rule {rule}:")[1].split("\nrule ")[0]
@@ -449,4 +449,4 @@ def test_timing_rules_take_the_whole_machine_share():
     assert shared and shared < RUNS_ALONE
     alone = RUNS_ALONE - shared
     assert all((share == whole) == (rule in alone) for rule, share in shares.items()), shares
-    assert not any("threads:" in p.read_text() for p in (ROOT / "workflows").glob("*.smk"))
+    assert not any("threads:" in p.read_text() for p in (ROOT / "workflows").rglob("*.smk"))

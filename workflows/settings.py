@@ -1,29 +1,22 @@
 """Study settings' defaults, declared once: in the config schema, assembled from
-``workflows/config.schema.yaml`` and each study module's ``settings`` section
-(:func:`workflows.studies.config_schema`).
+``workflows/config.schema.yaml`` (what the studies share) and each study's section schema
+(``workflows/studies/<name>/settings.yaml``; :func:`workflows.studies.config_schema`).
 
 The Snakefile validates the config against the schema, which fills in every ``default``
 (:func:`snakemake.utils.validate`, ``set_default=True``); rules and
 :mod:`workflows.studies` then read the validated settings and never repeat a default.
-A script run by hand takes the same defaults for its options from here
-(:func:`study_defaults`, the sections of the schema file), so a default has one home;
+A step run by hand takes the same defaults for its options from here
+(:func:`study_defaults`, the study's section schema), so a default has one home;
 ``tests/test_settings.py`` fails if one is declared a second time.
 """
 from __future__ import annotations
 
-import functools
 from pathlib import Path
 
 import yaml
 
 #: The config schema (its ``default`` entries are the study defaults).
 SCHEMA = Path(__file__).resolve().parent / "config.schema.yaml"
-
-
-@functools.lru_cache(maxsize=None)
-def _schema() -> dict:
-    with open(SCHEMA, encoding="utf-8") as f:
-        return yaml.safe_load(f)
 
 
 def section_defaults(section: dict) -> dict:
@@ -38,11 +31,17 @@ def section_defaults(section: dict) -> dict:
     return out
 
 
+#: The studies' folders (``<name>/settings.yaml`` holds a study's section schema).
+STUDIES_DIR = Path(__file__).resolve().parent / "studies"
+
+
 def study_defaults(study: str) -> dict:
-    """``{key: default}`` of a study's settings whose section is in the schema file
-    (:func:`section_defaults`)."""
-    properties = _schema()["properties"]
-    if study not in properties:
+    """``{key: default}`` of a study's settings (:func:`section_defaults` of the schema in
+    its folder's ``settings.yaml``)."""
+    path = STUDIES_DIR / study / "settings.yaml"
+    if not path.is_file():
+        known = sorted(p.parent.name for p in STUDIES_DIR.glob("*/settings.yaml"))
         raise ValueError(f"parameter 'study': {study!r} is not allowed; allowed: "
-                         f"{', '.join(sorted(properties))}")
-    return section_defaults(properties[study])
+                         f"{', '.join(known)}")
+    with open(path, encoding="utf-8") as f:
+        return section_defaults(yaml.safe_load(f).get("schema") or {})

@@ -6,13 +6,11 @@ At every build, before Sphinx reads the sources, it writes
   (:func:`problems.spec.problems`);
 * ``generated/solvers/<name>.md``: one page per registered solver
   (:func:`solvers.interface.solvers`), an installed plug-in solver included;
-* ``generated/studies/<name>.md``: each study's page, from its module alone: the
-  module's docstring, then what it regenerates: its thesis items, its outputs with the
-  captions the report shows beside them, the claims its report modules check, its
-  commands (the study's module, :mod:`workflows.studies`, its captions file and the
-  report modules its rule file names); for a study with a hand-written page
-  ``studies/<name>.md``, the part after the docstring as ``<name>.inc``, which the page
-  includes; and ``toctree.inc``, the studies' table of contents;
+* ``generated/studies/<name>.md``: each study's page, from its folder
+  (``workflows/studies/<name>/``): its ``page.md``, then what it regenerates: its thesis
+  items, its outputs with the captions the report shows beside them (``captions.rst``),
+  the claims its report step checks, its commands; and ``toctree.inc``, the studies'
+  table of contents;
 * ``generated/cli.md``: the command line, from :func:`workflows.cli.build_parser`;
 * ``generated/api/<module>.md``: the API reference of :data:`API_MODULES` (autodoc).
 
@@ -27,6 +25,8 @@ import os
 import re
 import shutil
 from pathlib import Path
+
+from workflows.studies._base import CHART
 
 GENERATED = "generated"
 #: The modules a user of the suite calls from Python, one API page each.
@@ -153,21 +153,18 @@ def cli_page(parser: argparse.ArgumentParser) -> str:
     return "\n".join(lines)
 
 
-def study_facts(study, root: Path) -> str:
-    """What a study regenerates, from its declaration and its rule file."""
+def study_facts(study) -> str:
+    """What a study regenerates, from its folder: its declaration, rules and captions."""
     import importlib
 
     from workflows.studies import captions_of
 
-    rules = (root / "workflows" / study.rule_file).read_text(encoding="utf-8")
-    captions = captions_of(study, root) or {
-        key: (root / "report" / "captions" / name).read_text(encoding="utf-8").strip()
-        for key, name in re.findall(r'report\(PATHS\["(\w+)"\],\s*caption="\.\./report/'
-                                    r'captions/([\w.]+)"', rules)}
+    rules = (study.folder / "rules.smk").read_text(encoding="utf-8")
+    captions = captions_of(study)
     modules = sorted(set(re.findall(r"-m (report\.\w+)", rules)))
     lines = ["## What the workflow regenerates", "",
-             f"Generated from the study's module, `workflows/studies/{study.name}.py`, and its "
-             f"rules, `workflows/{study.rule_file}`.", "",
+             f"Generated from the study's folder, `workflows/studies/{study.name}/` (its "
+             "declaration, `rules.smk` and `captions.rst`).", "",
              f"- thesis: {study.thesis}",
              "- by hand: " + ", ".join(f"`contactbench study {c}`" for c in study.scripts)
              + " (`--help` lists the arguments)",
@@ -181,7 +178,9 @@ def study_facts(study, root: Path) -> str:
                     f"({i.problem or 'every scene'}) |" for i in study.thesis_items)]
     lines += ["", "### Outputs and how to read them", ""]
     for key, text in captions.items():
-        lines += [f"**`{study.paths.get(key, key)}`**", "", "```{eval-rst}", text, "```", ""]
+        shown = (study.paths[key] if key in study.paths else
+                 f"{study.paths[key.removesuffix(CHART)]} (its interactive chart page)")
+        lines += [f"**`{shown}`**", "", "```{eval-rst}", text, "```", ""]
     claims = [(name, c) for module in modules
               for name, c in getattr(importlib.import_module(module), "CLAIMS", {}).items()]
     if claims:
@@ -194,23 +193,16 @@ def study_facts(study, root: Path) -> str:
     return "\n".join(lines) + "\n"
 
 
-def study_page(study, root: Path) -> str:
-    """A study's page from its module alone: the module's docstring (Markdown: its first
-    line the title, then what the thesis says, what the study runs, its measurements),
-    then :func:`study_facts`."""
-    from workflows.studies import study_module
-
-    doc = inspect.getdoc(study_module(study)) or ""
-    title, _, narrative = doc.partition("\n")
-    return "\n".join([f"# `{study.name}`: {title.strip()}", "", narrative.strip(), "",
-                      study_facts(study, root)])
+def study_page(study) -> str:
+    """A study's page: its folder's ``page.md`` (what the thesis says, what the study runs,
+    its measurements), then :func:`study_facts`."""
+    text = (study.folder / "page.md").read_text(encoding="utf-8").rstrip()
+    return text + "\n\n" + study_facts(study)
 
 
-def study_toctree(studies, srcdir: Path) -> str:
-    """The studies' table of contents, in the order of the report: a study's hand-written
-    page ``studies/<name>.md`` where it has one, else its generated page."""
-    entries = [name if (srcdir / "studies" / f"{name}.md").is_file()
-               else f"/{GENERATED}/studies/{name}" for name in studies]
+def study_toctree(studies) -> str:
+    """The studies' table of contents, in the order of the report."""
+    entries = [f"/{GENERATED}/studies/{name}" for name in studies]
     return "\n".join(["```{toctree}", ":maxdepth: 1", "", *entries, "```", ""])
 
 
@@ -241,13 +233,8 @@ def write_pages(srcdir: Path) -> None:
     (out / "studies").mkdir(parents=True)
     from workflows.studies import STUDIES
     for name, study in STUDIES.items():
-        if (srcdir / "studies" / f"{name}.md").is_file():     # a hand-written page
-            text, page = study_facts(study, SUITE), f"{name}.inc"
-        else:
-            text, page = study_page(study, SUITE), f"{name}.md"
-        (out / "studies" / page).write_text(text, encoding="utf-8")
-    (out / "studies" / "toctree.inc").write_text(study_toctree(STUDIES, srcdir),
-                                                 encoding="utf-8")
+        (out / "studies" / f"{name}.md").write_text(study_page(study), encoding="utf-8")
+    (out / "studies" / "toctree.inc").write_text(study_toctree(STUDIES), encoding="utf-8")
     for module in API_MODULES:
         (out / "api" / f"{module}.md").write_text(api_page(module), encoding="utf-8")
     plugins = external_solvers()

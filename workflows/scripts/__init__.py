@@ -1,7 +1,7 @@
-"""The workflow's scripts, one per rule (``python -m workflows.scripts.<name>``).
+"""The suite's benchmark scripts (``python workflows/scripts/bench_*.py``; ``make bench``).
 
 Importing the package keeps netgen's meshes where ``$CONTACTBENCH_CACHE_DIR`` names
-(:mod:`workflows.mesh_store`): the Snakefile sets it, so a run meshes each geometry once.
+(:mod:`workflows.mesh_store`).
 """
 from workflows.mesh_store import keep_meshes_from_environment
 

@@ -1,13 +1,14 @@
-"""The studies the Snakefile regenerates: one module each, discovered.
+"""The studies the Snakefile regenerates: one folder each, discovered.
 
-A study is one module of this package defining ``STUDY = Study(...)``
-(:class:`workflows.studies._base.Study`): what it shows, the thesis items it regenerates,
-every path template its rules write, its final outputs, its heavy rules, its config
-section (schema, settings and resources per scale), the config checks the schema cannot
-make, its claims tables, its captions file, and the scripts that run it by hand. The
-package finds the modules like the solvers and scenes (:func:`problems.spec.discover`)
-and builds the views the Snakefile, the config validation, the report, the docs and the
-command line read: :data:`STUDIES`, :data:`PATHS`, :data:`HEAVY_RULES`,
+A study is one folder of this package, named after it (:mod:`workflows.studies._base`):
+its declaration ``STUDY = Study(...)`` in the folder's ``__init__.py`` (what it shows, the
+thesis items it regenerates, every path template its rules write, its final outputs, its
+heavy rules, the config checks the schema cannot make, its claims tables), its config
+section in ``settings.yaml`` (the schema, and its settings and resources per scale), its
+run steps, ``rules.smk``, ``captions.rst`` and the docs page ``page.md``; its report step
+is ``report/<name>.py``. The package finds the folders like the registries find solvers
+and scenes (:func:`workflows.studies._base.discover_studies`) and builds the views the
+Snakefile, the config validation, the report, the docs and the command line read: :data:`STUDIES`, :data:`PATHS`, :data:`HEAVY_RULES`,
 :data:`RUNS_ALONE`, :data:`THESIS_ITEMS`, :func:`config_schema`, :func:`at_scale`,
 :func:`claim_keys`, :func:`caption_files`. A study runs on the scenes its config entry
 lists::
@@ -19,6 +20,9 @@ lists::
       scenes: {circle_square: [1, 2, 3], circle_square_stiff: [1, 2]}
 
 so a new scene joins a study by a config line; results land under ``results/<scene>/``.
+
+Importing the package in a job the Snakefile started (``$CONTACTBENCH_CACHE_DIR`` set) keeps
+netgen's meshes there (:mod:`workflows.mesh_store`): a run meshes each geometry once.
 """
 from __future__ import annotations
 
@@ -33,17 +37,21 @@ from types import ModuleType
 
 import yaml
 
-from problems.spec import discover
 from workflows.settings import SCHEMA
-from workflows.studies._base import (COMMON_PATHS, REFERENCE, RESULTS, SCALES, AtScale,
+from workflows.studies._base import (CHART, COMMON_PATHS, REFERENCE, RESULTS, SCALES, AtScale,
                                      ConfigError, Study, ThesisItem, bench_path, captions_of,
-                                     coarser_levels, log_path, problem_set_of,
-                                     scene_problem, scenes_of, scenes_with_families,
-                                     set_args, thesis_table)
+                                     coarser_levels, discover_studies, log_path,
+                                     problem_set_of, scene_problem, scenes_of,
+                                     scenes_with_families, set_args, thesis_table)
+
+if os.environ.get("CONTACTBENCH_CACHE_DIR"):
+    from workflows.mesh_store import keep_meshes_from_environment
+
+    keep_meshes_from_environment()
 
 __all__ = ["ALONE_CPUS", "COMMON_PATHS", "HEAVY_RULES", "MACHINE_SHARE", "PATHS", "REFERENCE",
            "RESULTS", "RUNS_ALONE", "SCALES", "STUDIES", "THESIS_ITEMS", "AtScale", "ConfigError",
-           "Study", "ThesisItem", "all_targets", "at_scale", "bench_path", "caption_files",
+           "Study", "ThesisItem", "all_targets", "at_scale", "bench_path", "caption_files", "CHART",
            "captions_of", "check_config", "claim_keys", "coarser_levels", "config_schema",
            "load_config", "log_path", "problem_set_of", "rule_resources", "scene_problem",
            "scenes_of", "scenes_with_families", "schema_file", "set_args", "study_commands",
@@ -68,8 +76,7 @@ def _collect(studies: dict[str, Study]) -> dict[str, str]:
 
 
 #: Every study, ``{name: Study}``, in the order of the report.
-STUDIES = dict(sorted(discover("workflows.studies", "STUDY").items(),
-                      key=lambda item: item[1].order))
+STUDIES = dict(sorted(discover_studies().items(), key=lambda item: item[1].order))
 #: Path templates of every file the workflow writes ({scene}, {level}, {case} wildcards).
 PATHS = _collect(STUDIES)
 #: The rules whose jobs carry a ``benchmark:`` file and measured ``resources:`` (the
@@ -104,9 +111,8 @@ def study_commands() -> dict[str, str]:
 
 
 def study_module(study: Study) -> ModuleType:
-    """The module that declares ``study`` (its docstring is the study's page)."""
-    return next(module for name, module in sorted(sys.modules.items())
-                if name.startswith(f"{__name__}.") and getattr(module, "STUDY", None) is study)
+    """The module that declares ``study`` (its folder's ``__init__.py``)."""
+    return sys.modules[f"{__name__}.{study.name}"]
 
 
 def study_of(key: str) -> Study:
@@ -195,15 +201,14 @@ def all_targets(config: dict) -> list[str]:
 
 
 def config_schema() -> dict:
-    """The workflow's config schema: ``workflows/config.schema.yaml`` (the scenes, the
-    resources, the shared definitions, and the sections of the studies configured in the
-    scale files) with every study's own ``settings`` section added, and ``scale`` naming
-    one of :data:`SCALES`.
+    """The workflow's config schema: ``workflows/config.schema.yaml`` (what the studies
+    share: the scenes, the resources, the shared definitions) with every study's section
+    from its folder's ``settings.yaml`` added, and ``scale`` naming one of :data:`SCALES`.
 
     Raises
     ------
     RuntimeError
-        If a study's section is declared both in its module and in the file.
+        If a study's section is declared both in its folder and in the file.
     """
     with open(SCHEMA, encoding="utf-8") as f:
         schema = yaml.safe_load(f)
@@ -213,11 +218,11 @@ def config_schema() -> dict:
             continue
         if study.name in properties:
             raise RuntimeError(f"the config section of study {study.name!r} is declared in "
-                               f"its module and again in {SCHEMA.name}")
+                               f"its folder and again in {SCHEMA.name}")
         properties[study.name] = copy.deepcopy(study.settings)
     properties["scale"] = {"enum": list(SCALES), "description":
                            "the scale whose study sections and resources the studies "
-                           "declare (workflows/studies/); a section the file gives wins"}
+                           "declare (workflows/studies/); a setting the file gives wins"}
     return schema
 
 
@@ -235,8 +240,10 @@ def schema_file():
 
 
 def at_scale(config: dict) -> dict:
-    """``config`` with the sections and resources the studies declare at its ``scale``
-    (:attr:`Study.scales`) that it does not give itself (a config without ``scale`` is
+    """``config`` with the sections, resources and scenes the studies declare at its
+    ``scale`` (:attr:`Study.scales`): a key of a study's section the config gives wins over
+    the declared one (``solver_comparison: {solvers: [mine, osqp]}`` changes that setting
+    alone), as does a rule's resources or a scene it gives (a config without ``scale`` is
     returned as it is)."""
     scale = config.get("scale")
     if scale is None:
@@ -249,11 +256,13 @@ def at_scale(config: dict) -> dict:
         declared = study.scales.get(scale)
         if declared is None:
             continue
-        if study.name not in config:
-            out[study.name] = copy.deepcopy(declared.settings)
+        out[study.name] = {**copy.deepcopy(declared.settings), **config.get(study.name, {})}
         resources = out.setdefault("resources", {})
         for rule, measured in declared.resources.items():
             resources.setdefault(rule, dict(measured))
+        scenes = out.setdefault("scenes", {})
+        for scene, entry in declared.scenes.items():
+            scenes.setdefault(scene, copy.deepcopy(entry))
     return out
 
 
@@ -269,8 +278,8 @@ def claim_keys() -> tuple[str, ...]:
 
 
 def caption_files(folder) -> dict[str, str]:
-    """``{path key: caption file}``: each study's captions file split into one file per
-    output under ``folder`` (Snakemake's ``report(..., caption=FILE)`` takes a file)."""
+    """``{key: caption file}``: each study's ``captions.rst`` split into one file per output
+    under ``folder`` (Snakemake's ``report(..., caption=FILE)`` takes a file)."""
     out = {}
     for study in STUDIES.values():
         for key, text in captions_of(study).items():

@@ -1,18 +1,22 @@
-"""What every study module declares, and the scene helpers the studies share.
+"""What every study declares, and the scene helpers the studies share.
 
-A study is one module of :mod:`workflows.studies` defining ``STUDY = Study(...)``: its
-path templates, final outputs, heavy rules, the thesis items it regenerates, its config
-section (schema, and its settings and resources per scale), the config checks the JSON
-schema cannot make, its claims tables and captions file; its docstring is its page in
-the docs. The package discovers it like the solvers and scenes
-(:func:`problems.spec.discover`).
+A study is one folder of :mod:`workflows.studies`, named after it, holding everything of
+it: its declaration (``__init__.py``, ``STUDY = Study(...)``: path templates, final
+outputs, heavy rules, the thesis items it regenerates, the config checks the JSON schema
+cannot make, its claims tables), its config section (``settings.yaml``: the schema, and
+its settings and resources per scale), its run steps (``run.py``, ...), its rules
+(``rules.smk``), its captions (``captions.rst``) and its page in the docs
+(``page.md``); its report step is ``report/<name>.py``. The package discovers the
+folders like the registries discover solvers and scenes (:func:`discover_studies`).
 """
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Callable
+
+import yaml
 
 RESULTS = "results"
 #: The scales a study declares its config section at (``workflows/config/<scale>.yaml``
@@ -57,11 +61,14 @@ class AtScale:
 
     ``settings`` is the section (validated against the study's ``settings`` schema, which
     fills in its defaults); ``resources`` is ``{heavy rule: {"mem_mb": MB, "runtime":
-    minutes}}``, the rule's largest job at this scale as measured, with headroom.
+    minutes}}``, the rule's largest job at this scale as measured, with headroom;
+    ``scenes`` the scenes it defines for itself at this scale (``{name: {problem,
+    params}}``, joining the config's ``scenes`` where the config has no such name).
     """
 
     settings: dict
     resources: dict = field(default_factory=dict)
+    scenes: dict = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -97,19 +104,18 @@ class Study:
         (``config`` with the test set's families among its scenes, ``registry`` the
         problems); raises :class:`ConfigError` naming the config key.
     scripts : dict
-        ``{command: module}``: the scripts whose ``main(argv)`` run the study's heavy
-        steps by hand (``contactbench study COMMAND ...``; the rules call the same
-        scripts). The first command is the study's name.
-    rule_file : str
-        Its Snakemake rules, ``workflows/<rule_file>``.
+        ``{command: module}``: its run steps (modules of its folder) whose ``main(argv)``
+        run its heavy steps by hand (``contactbench study COMMAND ...``; the rules call
+        the same steps). The first command is the study's name.
     settings : dict, optional
-        The JSON schema of its config section (``config[name]``); the workflow's schema
-        is assembled from the studies' (:func:`workflows.studies.config_schema`).
+        The JSON schema of its config section (``config[name]``), read from its
+        ``settings.yaml`` (:func:`read_settings`); the workflow's schema is assembled from
+        the studies' (:func:`workflows.studies.config_schema`).
     scales : dict
-        ``{scale: AtScale}``: its config section and resources at each scale of
-        :data:`SCALES` it runs at; a config naming the scale (``scale: quick``) gets them
-        unless it gives the section itself. A study without ``scales`` is configured in
-        the scale files.
+        ``{scale: AtScale}``: its config section, resources and own scenes at each scale
+        of :data:`SCALES` it runs at, from its ``settings.yaml``; a config naming the
+        scale (``scale: quick``) gets them, a setting it gives winning
+        (:func:`workflows.studies.at_scale`).
     claims : tuple of str
         Keys of ``paths``: its checked-claims tables (columns claim, measured, bar, pass),
         collected by the summary page.
@@ -120,12 +126,26 @@ class Study:
     proxies : dict
         ``{heavy rule: rule}``: a rule whose jobs keep their size between the measured
         scales borrows the other rule's fitted exponents in the plan.
-    captions : str
-        Its captions file, ``report/captions/<captions>``: one ``.. caption:: KEY``
-        section per output its rules show in the report (:func:`captions_of`).
     cases : callable, optional
         ``cases(config) -> [case]``: what its ``{case}`` outputs run over (default: its
         config section's ``cases``, :func:`cases_of`).
+    scenes : callable, optional
+        ``scenes(config) -> {scene: levels}``: the scenes it runs (default: its config
+        section's ``scenes``; :func:`scenes_of`).
+    inline : dict
+        ``{path key: columns or None}``: its tables the summary page shows inline, with the
+        columns a reader compares (None: all).
+    derived_claims : dict
+        ``{path key: "module:function"}``: claims the summary page derives from one of its
+        tables, by a function of its report step (``function(table) -> claims frame``).
+    front : dict
+        ``{path key: "module:function"}``: its outputs the summary page's headline shows,
+        rendered by a function of the report (``function(table) -> [html]``).
+    notes : dict
+        ``{path key: text}``: what a table's columns mean where a name alone would mislead
+        (shown under it on the summary page).
+    folder : Path
+        Its folder (set by the registry when it discovers the study).
     """
 
     name: str
@@ -140,14 +160,18 @@ class Study:
     thesis_items: tuple[ThesisItem, ...] = ()
     check: Callable[[dict, dict], None] | None = None
     scripts: dict = field(default_factory=dict)
-    rule_file: str = ""
     settings: dict | None = None
     scales: dict = field(default_factory=dict)
     claims: tuple[str, ...] = ()
     planned_jobs: Callable[[dict, str], list] | None = None
     proxies: dict = field(default_factory=dict)
-    captions: str = ""
     cases: Callable[[dict], list[str]] | None = None
+    scenes: Callable[[dict], dict] | None = None
+    inline: dict = field(default_factory=dict)
+    derived_claims: dict = field(default_factory=dict)
+    front: dict = field(default_factory=dict)
+    notes: dict = field(default_factory=dict)
+    folder: Path | None = None
 
     def __post_init__(self):
         unknown = sorted(set(self.scales) - set(SCALES))
@@ -205,31 +229,104 @@ class Study:
             config, self.name) else []
 
 
-#: A section of a captions file: ``.. caption: KEY`` on a line of its own (an RST
-#: comment), then the caption of the output ``KEY`` up to the next section.
-CAPTION_SECTION = re.compile(r"^\.\. caption: (\w+)[ \t]*$", flags=re.M)
+#: A section of a captions file: ``.. caption: KEY [KEY ...]`` on a line of its own (an
+#: RST comment), then the caption of those outputs up to the next section.
+CAPTION_SECTION = re.compile(r"^\.\. caption: (\w+(?:[ \t]+\w+)*)[ \t]*$", flags=re.M)
+#: The suffix of the caption key of an output's interactive chart page
+#: (:func:`report.charts.chart_path` of the output ``KEY``: ``KEY_chart``).
+CHART = "_chart"
 
 
-def captions_of(study: Study, root: Path = REFERENCE.parent) -> dict[str, str]:
-    """``{path key: caption}`` of the study's captions file (empty if it declares none).
+def captions_of(study: Study, folder: Path | None = None) -> dict[str, str]:
+    """``{key: caption}`` of the study's ``captions.rst`` (empty if it has none): a key is
+    a path key of the study, or one followed by :data:`CHART` (its chart page).
 
     Raises
     ------
     ValueError
         If a section names a key the study does not declare, or a key twice.
     """
-    if not study.captions:
+    path = (folder or study.folder) / "captions.rst"
+    if not path.is_file():
         return {}
-    text = (root / "report" / "captions" / study.captions).read_text(encoding="utf-8")
-    parts = CAPTION_SECTION.split(text)
-    keys, bodies = parts[1::2], [body.strip() for body in parts[2::2]]
-    wrong = sorted({k for k in keys if k not in study.paths} | {k for k in keys
-                                                                 if keys.count(k) > 1})
+    parts = CAPTION_SECTION.split(path.read_text(encoding="utf-8"))
+    heads, bodies = parts[1::2], [body.strip() for body in parts[2::2]]
+    keys = [k for head in heads for k in head.split()]
+    allowed = set(study.paths) | {k + CHART for k in study.paths}
+    wrong = sorted({k for k in keys if k not in allowed} | {k for k in keys
+                                                             if keys.count(k) > 1})
     if wrong or parts[0].strip():
-        raise ValueError(f"report/captions/{study.captions}: sections {wrong} are not "
-                         f"allowed; allowed: '.. caption: KEY' once per key of "
-                         f"{', '.join(study.paths)}, the first line a section")
-    return dict(zip(keys, bodies))
+        raise ValueError(f"{path}: sections {wrong} are not allowed; allowed: "
+                         f"'.. caption: KEY' once per key of {', '.join(study.paths)} (or "
+                         f"KEY{CHART}), the first line a section")
+    return {k: body for head, body in zip(heads, bodies) for k in head.split()}
+
+
+def read_settings(folder: Path) -> tuple[dict | None, dict]:
+    """A study folder's ``settings.yaml``: the schema of its config section and
+    ``{scale: AtScale}`` (``None, {}`` without the file).
+
+    Raises
+    ------
+    ValueError
+        If the file names a scale not in :data:`SCALES` or keys other than ``schema`` and
+        ``scales`` (and ``settings``, ``resources``, ``scenes`` per scale).
+    """
+    path = folder / "settings.yaml"
+    if not path.is_file():
+        return None, {}
+    raw = yaml.safe_load(path.read_text(encoding="utf-8")) or {}
+    wrong = sorted(set(raw) - {"schema", "scales"}) + sorted(
+        f"scales.{s}" for s in raw.get("scales") or {} if s not in SCALES) + sorted(
+        f"scales.{s}.{k}" for s, at in (raw.get("scales") or {}).items()
+        for k in at or {} if k not in ("settings", "resources", "scenes"))
+    if wrong:
+        raise ValueError(f"{path}: keys {wrong} are not allowed; allowed: schema, "
+                         f"scales.<{'|'.join(SCALES)}>.<settings|resources|scenes>")
+    scales = {s: AtScale(at.get("settings") or {}, at.get("resources") or {},
+                         at.get("scenes") or {}) for s, at in (raw.get("scales") or {}).items()}
+    return raw.get("schema"), scales
+
+
+def discover_studies(package: str = "workflows.studies") -> dict[str, Study]:
+    """Every study of ``package``: each sub-package (a folder) defining ``STUDY``, with its
+    folder, schema and scales (:func:`read_settings`) filled in, ``{name: Study}``.
+
+    Raises
+    ------
+    RuntimeError
+        If a folder's study is named otherwise than the folder, or a study declares its
+        settings both in its module and in its folder.
+    """
+    import importlib
+    import pkgutil
+
+    pkg = importlib.import_module(package)
+    found = {}
+    for info in pkgutil.iter_modules(pkg.__path__):
+        if not info.ispkg or info.name.startswith("_"):
+            continue
+        module = importlib.import_module(f"{package}.{info.name}")
+        study = getattr(module, "STUDY", None)
+        if study is None:
+            continue
+        if study.name != info.name:
+            raise RuntimeError(f"the study in {package}.{info.name} is named {study.name!r}; "
+                               f"allowed: the folder's name, {info.name!r}")
+        folder = Path(module.__file__).parent
+        schema, scales = read_settings(folder)
+        if schema is not None and (study.settings is not None or study.scales):
+            raise RuntimeError(f"study {study.name!r} declares its settings in its module and "
+                               f"again in {folder / 'settings.yaml'}")
+        found[study.name] = replace(study, folder=folder, settings=study.settings or schema,
+                                    scales=study.scales or scales)
+    global _REGISTRY
+    _REGISTRY = found
+    return found
+
+
+#: The discovered studies (:func:`discover_studies`), for :func:`scenes_of`'s hooks.
+_REGISTRY: dict[str, Study] = {}
 
 
 def cases_of(config: dict, study: str) -> list[str]:
@@ -245,16 +342,11 @@ def coarser_levels(config: dict, study: str, scene: str, level) -> list[int]:
 
 
 def scenes_of(config: dict, study: str) -> dict[str, list[int]]:
-    """``{scene: levels}`` a per-scene study runs (empty if the study is not configured);
-    for the test set its families run (``families``, else every one, less
-    ``exclude_families``; levels by size class:
-    :func:`workflows.studies.problem_set.problem_set_runs`)."""
-    if study == "test_set":
-        if study not in config:
-            return {}
-        skip = set(config[study].get("exclude_families") or ())
-        return {f: [] for f in config[study].get("families") or problem_set_of(config).families
-                if f not in skip}
+    """``{scene: levels}`` a per-scene study runs: its section's ``scenes``, or what its
+    :attr:`Study.scenes` hook says (empty if the study is not configured)."""
+    declared = _REGISTRY.get(study)
+    if declared is not None and declared.scenes is not None:
+        return declared.scenes(config) if study in config else {}
     return dict(config.get(study, {}).get("scenes", {}))
 
 
@@ -280,6 +372,25 @@ def problem_set_of(config: dict):
     from workflows.problem_set import CURRENT, load
 
     return load(config.get("test_set", {}).get("name", CURRENT))
+
+
+def levels_choice(config: dict) -> str:
+    """``test_set.levels`` (``all`` or ``smallest``), the schema's default if unset."""
+    from workflows.settings import study_defaults
+
+    return config["test_set"].get("levels") or study_defaults("test_set")["levels"]
+
+
+def run_levels(config: dict, size_class: str, family: str, ts=None) -> list[int]:
+    """The levels of ``family`` in ``size_class`` that the test_set study runs: every one,
+    or with ``test_set.levels: smallest`` only the smallest (the quick scale's choice:
+    one problem per family keeps every family and solver in the quick regeneration).
+    ``ts``: the config's test set if the caller has it loaded already."""
+    ts = ts or problem_set_of(config)
+    levels = sorted({p.level for p in ts.problems(size_class, [family])})
+    if levels_choice(config) == "smallest":
+        return levels[:1]
+    return levels
 
 
 def scenes_with_families(config: dict) -> dict:
