@@ -61,8 +61,8 @@ from __future__ import annotations
 import numpy as np
 
 from problems.fem.contact import RENAMED_SEARCHES, SEARCHES
-from problems.fem.mesh import (Hierarchy, nested_prolongation, netgen_disk, project_to_circle,
-                               structured_rectangle, uniform_hierarchy)
+from problems.fem.mesh import (Hierarchy, disk_hierarchy, nested_prolongation,
+                               structured_rectangle)
 from problems.fem.stabilised import COUPLING_PARAMETERS, check_coupling, couple
 from problems.fem.surface import tensor_coarsening
 from problems.fem.two_body import (ELEMENT_DEGREE, Body, TwoBodyScene, assemble_two_body,
@@ -88,19 +88,13 @@ def square_meshes(level: int, cells: int = 16, height: float = 1.0) -> Hierarchy
     return Hierarchy(list(pts), list(cells), P)
 
 
-def disk_meshes(level: int, center, radius: float) -> Hierarchy:
-    """Netgen disk (maxh 0.05 R / 0.707: ~810 nodes whatever the radius) refined
-    ``level`` times, boundary on the circle."""
-    return uniform_hierarchy(*netgen_disk(center, radius, DISK_MAXH * radius / 0.707),
-                             level, project_to_circle(center, radius))
-
-
 def scene(level: int, p: Options) -> TwoBodyScene:
     """The circle-square scene up to mesh level ``level`` (see the module docstring)."""
     H = p.height
     center = np.array([p.offset, H + p.radius + p.gap])
     square = Body("square", square_meshes(level, p.square_cells, H), p.E1, p.nu1, np.zeros(2))
-    circle = Body("circle", disk_meshes(level, center, p.radius), p.E2, p.nu2,
+    circle = Body("circle", disk_hierarchy(center, p.radius, level,   # ~810 nodes at level 0
+                                           DISK_MAXH * p.radius / 0.707), p.E2, p.nu2,
                   np.array([0.0, -p.load]))
     bodies = (square, circle) if p.order == "square_first" else (circle, square)
     sq = bodies.index(square)

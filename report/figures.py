@@ -128,7 +128,8 @@ def save_figure(fig, path: str, dpi: int = 130, scene: str | None = None) -> Non
     its audit text (:data:`AUDIT_KEYS`), close the figure."""
     scene = scene or scene_of(path)
     name_scene(fig, scene)
-    panels = [ax for ax in fig.axes if ax.axison and not _is_colorbar(ax)]
+    panels = [ax for ax in fig.axes
+              if ax.axison and ax.get_visible() and not _is_colorbar(ax)]
     for ax in panels:
         for axis in ("x", "y"):
             if (ax.get_xscale() if axis == "x" else ax.get_yscale()) == "log":

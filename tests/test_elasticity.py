@@ -278,3 +278,34 @@ def test_dirichlet_split_semantics():
 def test_bad_input_names_the_parameter(call, name, mesh2d):
     with pytest.raises(ValueError, match=name):
         call(mesh2d)
+
+
+def test_a_half_disk_hierarchy_keeps_its_chord_and_puts_its_arc_on_the_circle():
+    """The shared half-disk mesher (problems.fem.mesh): every level's boundary nodes lie on
+    the arc or on the chord, the chord's new nodes stay on it, and each level's first nodes
+    are the coarser level's (nested, up to rounding)."""
+    from problems.fem.mesh import half_disk_hierarchy
+
+    center, radius = np.array([0.0, 1.0]), 0.5
+    h = half_disk_hierarchy(center, radius, 2, 0.15, side="upper")
+    for k, (points, cells) in enumerate(zip(h.points, h.cells)):
+        assert points[:, 1].min() >= center[1] - 1e-12            # the upper half
+        boundary = np.unique(boundary_facets(cells))
+        x = points[boundary]
+        on_arc = np.isclose(np.linalg.norm(x - center, axis=1), radius, rtol=1e-12)
+        on_chord = np.isclose(x[:, 1], center[1], atol=1e-12)
+        assert (on_arc | on_chord).all(), k
+        if k:
+            np.testing.assert_allclose(points[:len(h.points[k - 1])], h.points[k - 1], rtol=0,
+                                       atol=1e-14)     # the arc's old nodes projected again
+    with pytest.raises(ValueError, match="parameter 'side': 'left' is not allowed"):
+        half_disk_hierarchy(center, radius, 0, 0.15, side="left")
+
+
+def test_a_scene_narrows_the_couplings_it_offers():
+    from problems.fem.stabilised import COUPLINGS, coupling_parameters
+
+    coupling = coupling_parameters(("nodal", "two_pass"))[0]
+    assert coupling.choices == ("nodal", "two_pass") and coupling_parameters()[0].choices == COUPLINGS
+    with pytest.raises(ValueError, match="parameter 'choices'"):
+        coupling_parameters(("nodal", "glued"))

@@ -170,3 +170,67 @@ def test_a_broken_or_clashing_plugin_is_left_out_with_a_warning(monkeypatch):
         monkeypatch.undo()
         interface.external_solvers.cache_clear()
     assert "mine" not in solvers()
+
+
+# ------------------------------------------------------------------ a scene of its own
+@pytest.fixture(scope="module")
+def scene_env(example_scene_site) -> dict:
+    """The environment of a user who has installed the example scene's package."""
+    path = os.pathsep.join(filter(None, [str(example_scene_site), os.environ.get("PYTHONPATH")]))
+    return {**os.environ, "PYTHONPATH": path}
+
+
+def test_the_scene_plugin_is_listed_with_the_couplings_it_offers(scene_env, tmp_path):
+    out = run([str(BIN / "contactbench"), "list"], scene_env, tmp_path)
+    assert out.returncode == 0, out.stderr
+    assert "cylinder_pair" in out.stdout
+    block = out.stdout.split("cylinder_pair", 1)[1].split("\n\n")[0]
+    assert "--set coupling=...  (default 'nodal'; one of nodal, stabilised, two_pass)" in block
+    bare = run([str(BIN / "contactbench"), "list"], dict(os.environ), tmp_path)
+    assert "cylinder_pair" not in bare.stdout
+
+
+def test_the_scene_plugin_gets_its_page_and_solves(scene_env, tmp_path):
+    code = ("import sys; from pathlib import Path; sys.path.insert(0, 'docs/_ext'); "
+            "import registry_pages; registry_pages.write_pages(Path(sys.argv[1]))")
+    out = run([sys.executable, "-c", code, str(tmp_path / "docs")], scene_env, ROOT)
+    assert out.returncode == 0, out.stderr[-3000:]
+    page = (tmp_path / "docs/generated/scenes/cylinder_pair.md").read_text()
+    assert "two parallel cylinders" in page and "`held_arc`" in page
+    out = run([str(BIN / "contactbench"), "solve", "--problem", "cylinder_pair", "--level", "1",
+               "--solver", "tnnmg", "--out", str(tmp_path / "r.json")], scene_env, tmp_path)
+    assert out.returncode == 0, out.stderr[-3000:]
+    data = json.loads((tmp_path / "r.json").read_text())
+    assert data["status"] == "converged" and data["kkt_max"] <= 1e-6
+
+
+def test_the_scene_plugin_joins_a_study_and_a_test_set_extending_the_suites(scene_env,
+                                                                           tmp_path):
+    """With no file of the suite changed: a config overlay puts the scene into a study
+    (``contact_solution``, its Hertz table) and a test set of the user's that extends the
+    current one (``extends: contact-qp-5``) runs solvers on it."""
+    import yaml
+
+    (tmp_path / "my-set-1.yaml").write_text(yaml.safe_dump({
+        "name": "my-set", "version": 1, "extends": "contact-qp-5",
+        "description": "the suite's set and two cylinders",
+        "families": {"cylinders": {"problem": "cylinder_pair", "levels": {"small": [0]}}}}))
+    config = {"scale": "tiny", "scenes": {"cylinders": {"problem": "cylinder_pair"}},
+              "contact_solution": {"scenes": {"cylinders": [0, 1]}},
+              "test_set": {"name": str(tmp_path / "my-set-1.yaml"),
+                           "families": ["cylinders", "hard_no_contact"],
+                           "presets": ["mid"], "solvers": ["pdas", "osqp", "tnnmg"]}}
+    (tmp_path / "mine.yaml").write_text(yaml.safe_dump(config))
+    hertz = "results/cylinders/hertz.csv"
+    runs = "results/test_set/my-set-1/runs/small/cylinders.csv"
+    out = run([str(BIN / "snakemake"), "-s", str(ROOT / "Snakefile"), "--configfile",
+               str(tmp_path / "mine.yaml"), "--profile", str(ROOT / "workflows/profiles/default"),
+               "--cores", "2", hertz, runs], scene_env, tmp_path)
+    assert out.returncode == 0, (out.stdout + out.stderr)[-4000:]
+    table = pd.read_csv(tmp_path / hertz)
+    assert list(table.level) == [0, 1] and (table.status == "converged").all()
+    assert table.dev_a_moment.abs().iloc[-1] < 0.1          # Hertz line contact, level 1
+    t = pd.read_csv(tmp_path / runs)
+    plain = t[t.rung == 0]
+    assert set(plain.solver) == {"pdas", "osqp", "tnnmg"} and (plain.status == "converged").all()
+    assert (t.problem == "cylinders_L0").all() and (t.set == "my-set-1").all()

@@ -362,3 +362,30 @@ def test_a_run_is_correct_to_what_the_verification_certifies():
                       "energy_bound_floor": [8e-8, 8e-8, 8e-8, np.nan],
                       "energy_error": [5e-9, 4e-7, 9e-7, 2e-6]})
     assert accurate_runs(t).tolist() == [True, False, True, False]
+
+
+def test_a_set_file_of_your_own_extends_the_suites(tmp_path):
+    """A set file outside the suite, loaded by its path, holds the set it extends and its
+    own families after them; it may not define a family of that set again, and a file
+    that is not there is named."""
+    import yaml
+
+    base = load(CURRENT)
+    mine = tmp_path / "mine.yaml"
+    mine.write_text(yaml.safe_dump({
+        "name": "mine", "version": 2, "extends": CURRENT,
+        "families": {"circle_square_soft": {"problem": "circle_square",
+                                            "params": {"E2": 0.5}, "levels": {"small": [0]}}}}))
+    ts = load(mine)
+    assert ts.id == "mine-2" and list(ts.families)[:len(base.families)] == list(base.families)
+    assert list(ts.families)[-1] == "circle_square_soft" and ts.classes == base.classes
+    assert [p.name for p in ts.problems("small", ["circle_square_soft"])] == [
+        "circle_square_soft_L0"]
+    again = tmp_path / "again.yaml"
+    again.write_text(yaml.safe_dump({"name": "again", "version": 1, "extends": "mine.yaml",
+                                     "families": {"circle_square": {"problem": "circle_square"}}}))
+    with pytest.raises(TestSetError, match=r"\['circle_square'\] are families of the set it "
+                                           r"extends, mine-2"):
+        load(again)
+    with pytest.raises(TestSetError, match="'nowhere.yaml' does not exist"):
+        load("nowhere.yaml")

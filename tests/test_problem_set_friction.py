@@ -12,8 +12,8 @@ import pytest
 
 from workflows.cli import main as cli
 from workflows.export import load_problem, objective as suite_objective, write_problem
-from workflows.problem_set import (CURRENT, TestSet, TestSetError, check, definition_digits,
-                                   frictional_steps, load)
+from workflows.problem_set import (CURRENT, TestSet, TestSetError, check, cold_rows,
+                                   definition_digits, frictional_steps, load, plain_rows)
 
 
 def frictional(p) -> bool:
@@ -253,12 +253,15 @@ def test_runs_script_on_a_frictional_family(exported, tmp_path):
                "--levels", "0", "--export", str(exported), "--solvers", "tresca_exact",
                "osqp", "clarabel", "pdas", "--presets", "mid", "--time-limit", "20",
                "--out", str(out)])
-    t = pd.read_csv(out)
-    t = t[t.start == "cold"].set_index("solver")
+    runs = cold_rows(pd.read_csv(out))
+    t = plain_rows(runs).set_index("solver")
+    assert t.index.is_unique
     assert t.loc["pdas", "status"] == "skipped" and "friction" in t.loc["pdas", "message"]
     for name in ("tresca_exact", "osqp"):
         assert t.loc[name, "status"] == "converged"
-    conv = t[t.status == "converged"]
+        counted = runs[(runs.solver == name) & runs.counted.fillna(False).astype(bool)]
+        assert len(counted) == 1 and counted.status.iloc[0] == "converged", name
+    conv = runs[runs.status == "converged"]
     assert (conv.energy_error <= conv.tol).all()
     assert set(t.status) <= {"converged", "inaccurate", "max_iter", "time_limit", "skipped"}
     assert t.loc["tresca_exact", "objective_error"] <= 1e-10

@@ -21,6 +21,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
+from compare_results import differences, tables
 from workflows.io import META, PARTIAL, check_result
 from workflows.studies import PATHS, all_targets, load_config
 
@@ -28,16 +29,6 @@ ROOT = Path(__file__).resolve().parent.parent
 SNAKEMAKE = Path(sys.executable).parent / "snakemake"
 TINY = ROOT / "workflows/config/tiny.yaml"
 PROFILE = ROOT / "workflows/profiles/default"
-
-#: Columns that measure time, memory or the machine, not the mathematics (the only
-#: ones two runs may disagree in).
-TIMING = re.compile(r"(^|_)(t|s|cpu|wall|rss|mb|peak|memory|created)($|_)|time|seconds|speedup|"
-                    r"floor_ratio|ratio_to_floor|efficiency|tnnmg_over_petsc")
-
-
-#: Claims whose measured value is a time ratio or a time's growth, or a memory ratio.
-TIMING_CLAIM = re.compile(r"T_solve|time|faster|speed|memory|efficiency")
-
 
 def regenerate(cwd: Path, *extra: str, popen: bool = False, env: dict | None = None):
     cmd = [str(SNAKEMAKE), "-s", str(ROOT / "Snakefile"), "--configfile", str(TINY),
@@ -500,32 +491,8 @@ def test_interrupted_run_resumes_without_redoing_finished_jobs(resumed_run):
     assert not [t for t in targets() if not (cwd / t).exists()]
 
 
-def comparable(frame: pd.DataFrame) -> pd.DataFrame:
-    """``frame`` without what measures time or memory: timing columns, claims about time
-    (their measured value is a time ratio or slope), and the row order (tables sorted
-    by a time)."""
-    frame = frame[[c for c in frame.columns if not TIMING.search(str(c))]]
-    if "claim" in frame.columns:
-        frame = frame[~frame["claim"].astype(str).str.contains(TIMING_CLAIM)]
-    return frame.sort_values(list(frame.columns), key=lambda c: c.astype(str)).reset_index(
-        drop=True)
-
-
 def test_two_runs_agree_apart_from_timing_columns(tiny_run, resumed_run):
     """Seeded and deterministic: every CSV of the plain run equals the resumed run's,
-    bit for bit, except what measures time or memory (:func:`comparable`)."""
-    other = resumed_run[0]
-    csvs = sorted(p.relative_to(tiny_run) for p in (tiny_run / "results").rglob("*.csv")
-                  if "benchmarks" not in p.parts)
-    assert len(csvs) >= 20
-    differing = {}
-    for rel in csvs:
-        a, b = (pd.read_csv(root / rel, keep_default_na=False) for root in (tiny_run, other))
-        assert list(a.columns) == list(b.columns) and len(a) == len(b), rel
-        a, b = comparable(a), comparable(b)
-        if a.empty and b.empty:     # only timing rows (their blanks may change a dtype)
-            continue
-        cols = [c for c in a.columns if not a[c].equals(b[c])]
-        if cols:
-            differing[str(rel)] = cols
-    assert not differing, differing
+    bit for bit, except what measures time or memory (tests/compare_results.py)."""
+    assert len(tables(tiny_run)) >= 20
+    assert not differences(tiny_run, resumed_run[0])

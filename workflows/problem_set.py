@@ -200,26 +200,58 @@ def check_class(size_class: str) -> str:
     return size_class
 
 
-def load(name: str = CURRENT) -> TestSet:
-    """The test set ``name`` (a file stem under :data:`SETS_DIR`), checked.
+def set_file(name: str | Path, relative_to: Path | None = None) -> Path:
+    """The file of the test set ``name``: a set of the suite (a file stem under
+    :data:`SETS_DIR`, e.g. ``contact-qp-5``), or a path to a set file of your own
+    (``.yaml``; relative to ``relative_to``, the file that names it, else the working
+    directory)."""
+    text = str(name)
+    if text.endswith((".yaml", ".yml")):
+        path = Path(text)
+        if not path.is_absolute() and relative_to is not None:
+            path = relative_to.parent / path
+        if not path.is_file():
+            raise TestSetError(f"test set file {text!r} does not exist; allowed: a set of the "
+                               f"suite ({', '.join(available())}) or a set file")
+        return path
+    names = available()
+    if text not in names:
+        raise TestSetError(f"test set {text!r} is not allowed; allowed: {', '.join(names)} or "
+                           "the path of a set file (.yaml)")
+    return SETS_DIR / f"{text}.yaml"
+
+
+def load(name: str | Path = CURRENT) -> TestSet:
+    """The test set ``name`` (:func:`set_file`: a set of the suite or a set file of your
+    own), checked. A set file may name another set as ``extends:`` (a set of the suite or
+    a path relative to it): it then holds that set's classes and families, and its own
+    families after them (a family of the set it extends may not be defined again).
 
     Raises
     ------
     TestSetError
-        An unknown set name, or a definition that names an unknown problem,
-        parameter, level or class.
+        An unknown set name or file, or a definition that names an unknown problem,
+        parameter, level or class, or a family twice.
     """
-    names = available()
-    if name not in names:
-        raise TestSetError(f"test set {name!r} is not allowed; allowed: {', '.join(names)}")
-    with open(SETS_DIR / f"{name}.yaml", encoding="utf-8") as fh:
+    path = set_file(name)
+    with open(path, encoding="utf-8") as fh:
         raw = yaml.safe_load(fh)
+    classes, families = dict(raw.get("classes") or {}), dict(raw.get("families") or {})
+    if raw.get("extends"):
+        base = load(set_file(raw["extends"], relative_to=path))
+        again = sorted(set(families) & set(base.families))
+        if again:
+            raise TestSetError(f"test set file {path.name} 'families': {again} are families of "
+                               f"the set it extends, {base.id}; allowed: new names")
+        classes = {c: {**base.classes.get(c, {}), **classes.get(c, {})}
+                   for c in {*base.classes, *classes}}
+        families = {**base.families, **families}
     ts = TestSet(name=str(raw["name"]), version=int(raw["version"]),
                  description=" ".join(str(raw.get("description", "")).split()),
-                 classes=dict(raw.get("classes") or {}), families=dict(raw["families"]))
-    if ts.id != name:
-        raise TestSetError(f"test set file {name}.yaml declares name-version {ts.id!r}; "
-                           f"allowed: {name!r}")
+                 classes=classes, families=families)
+    if path.parent == SETS_DIR and ts.id != path.stem:
+        raise TestSetError(f"test set file {path.name} declares name-version {ts.id!r}; "
+                           f"allowed: {path.stem!r}")
     check(ts)
     return ts
 

@@ -152,6 +152,35 @@ def netgen_disk(center: tuple[float, float], radius: float, maxh: float):
     return points, _counter_clockwise(points, cells)
 
 
+def netgen_half_disk(center: tuple[float, float], radius: float, maxh: float,
+                     side: str = "lower"):
+    """Unstructured triangulation of a half disk by netgen (OCC geometry), the half below
+    (``side="lower"``) or above (``"upper"``) the horizontal chord through ``center``:
+    ``(points, cells)``."""
+    if not (radius > 0 and maxh > 0):
+        raise ValueError("parameters 'radius' and 'maxh' must be positive")
+    if side not in ("lower", "upper"):
+        raise ValueError(f"parameter 'side': {side!r} is not allowed; allowed: lower, upper")
+    return _netgen_half_disk(center, radius, maxh, 1.0 if side == "upper" else -1.0)
+
+
+@_generated_once
+def _netgen_half_disk(center: tuple[float, float], radius: float, maxh: float,
+                      sign: float):
+    """:func:`netgen_half_disk` with ``sign`` +1 (upper) or -1 (lower)."""
+    from netgen.occ import Circle, OCCGeometry, Rectangle
+
+    cx, cy = map(float, center)
+    r = float(radius)
+    box = Rectangle(2.2 * r, 1.1 * r).Face()
+    box = box.Move((cx - 1.1 * r, cy if sign > 0 else cy - 1.1 * r, 0))
+    geo = OCCGeometry(Circle((cx, cy), r).Face() * box, dim=2)
+    ngmesh = geo.GenerateMesh(maxh=maxh)
+    points = np.array([p.p[:2] for p in ngmesh.Points()], dtype=float)
+    cells = np.array([[v.nr - 1 for v in el.vertices] for el in ngmesh.Elements2D()], dtype=np.int64)
+    return points, _counter_clockwise(points, cells)
+
+
 def _counter_clockwise(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
     a, b, c = (points[cells[:, i]] for i in range(3))
     det = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
@@ -225,6 +254,38 @@ def project_to_circle(center, radius: float):
         return out
 
     return project
+
+
+def project_to_arc(center, radius: float):
+    """A ``project`` callback for :func:`refine` that puts the boundary nodes off the
+    horizontal chord through ``center`` on the circle (a half disk's arc): the chord's
+    nodes stay on it."""
+    c = np.asarray(center, dtype=float)
+
+    def project(points: np.ndarray, is_boundary: np.ndarray) -> np.ndarray:
+        out = points.copy()
+        on_arc = is_boundary & (np.abs(out[:, 1] - c[1]) > 1e-12 * radius)
+        v = out[on_arc] - c
+        out[on_arc] = c + v * (radius / np.linalg.norm(v, axis=1))[:, None]
+        return out
+
+    return project
+
+
+def disk_hierarchy(center, radius: float, level: int, maxh: float) -> Hierarchy:
+    """A netgen disk (:func:`netgen_disk`) refined ``level`` times, the new boundary nodes
+    put on the circle (:func:`project_to_circle`): at every level the boundary nodes lie on
+    the circle, and a node of a level is a node of every finer one."""
+    return uniform_hierarchy(*netgen_disk(center, radius, maxh), level,
+                             project_to_circle(center, radius))
+
+
+def half_disk_hierarchy(center, radius: float, level: int, maxh: float,
+                        side: str = "lower") -> Hierarchy:
+    """A netgen half disk (:func:`netgen_half_disk`) refined ``level`` times, the new nodes
+    of its arc put on the circle and those of its chord left on it (:func:`project_to_arc`)."""
+    return uniform_hierarchy(*netgen_half_disk(center, radius, maxh, side), level,
+                             project_to_arc(center, radius))
 
 
 def dof_prolongation(node_prolongation: sp.spmatrix, dim: int, free_fine: np.ndarray,

@@ -195,13 +195,27 @@ COUPLING_HELP = ("nodal constraints (Alg. 7.1), the stabilised two-sided nodal c
                  "surfaces' nodes, hard; not in the thesis), or the mortar weighted gaps "
                  "(Sect. 6.1, Remark 6.8) with standard or dual (Wohlmuth) multipliers")
 
-COUPLING_PARAMETERS = (
-    Parameter("coupling", "nodal", COUPLING_HELP, choices=COUPLINGS),
-    Parameter("alpha", 1.0, "stabilised coupling: exponent alpha of h^(-2 alpha) in (7.10)",
-              low=0.0, high=2.0),
-    Parameter("penalty", 1.0, "stabilised coupling: penalty factor (k = penalty E* "
-              "l^(2 alpha - 1), problems/fem/stabilised.py)", low=0.0, low_open=True),
-)
+def coupling_parameters(choices: tuple[str, ...] = COUPLINGS) -> tuple[Parameter, ...]:
+    """A scene's ``coupling`` parameter and the stabilised coupling's two, the couplings
+    narrowed to ``choices`` (a subset of :data:`COUPLINGS`): a scene offers only what it
+    can build (the mortar couplings project the surfaces onto a straight edge or a flat
+    face; a curved constrained surface refuses them), and ``contactbench list`` and its
+    page show just those."""
+    wrong = sorted(set(choices) - set(COUPLINGS))
+    if wrong or "nodal" not in choices:
+        raise ValueError(f"parameter 'choices': {wrong or choices} is not allowed; allowed: "
+                         f"a subset of {COUPLINGS} with 'nodal'")
+    return (
+        Parameter("coupling", "nodal", COUPLING_HELP, choices=tuple(choices)),
+        Parameter("alpha", 1.0, "stabilised coupling: exponent alpha of h^(-2 alpha) in (7.10)",
+                  low=0.0, high=2.0),
+        Parameter("penalty", 1.0, "stabilised coupling: penalty factor (k = penalty E* "
+                  "l^(2 alpha - 1), problems/fem/stabilised.py)", low=0.0, low_open=True),
+    )
+
+
+#: Every coupling, as the scenes with a straight or flat constrained surface offer them.
+COUPLING_PARAMETERS = coupling_parameters()
 
 
 #: The couplings built for P2 elements too (the stabilised and two-pass rows are built for P1).

@@ -2,11 +2,15 @@
 # size class, every registered solver on every problem at every preset, and the summary
 # over it. Paths: workflows/studies/.
 from report.charts import chart_path
-from workflows.problem_set import PROBLEM_CLASSES
+import shlex
+
+from workflows.problem_set import CURRENT, PROBLEM_CLASSES
 from workflows.studies._base import run_levels
 from workflows.studies.test_set import problem_set_runs, warm_starts
 TS = config.get("test_set", {})
 TS_ID = problem_set_of(config).id if TS else ""
+# the set as the config names it: a set of the suite or a set file of your own
+TS_NAME = shlex.quote(str(TS.get("name") or CURRENT))
 TS_FAMILIES = list(scenes_of(config, "test_set"))
 
 rule test_set_export:
@@ -19,7 +23,7 @@ rule test_set_export:
         py=PY,
         families=" ".join(["--families", *TS["families"]]) if TS.get("families") else ""
     shell:
-        "{params.py} -m workflows.cli export --set {wildcards.set} --class {wildcards.size_class} "
+        f"{{params.py}} -m workflows.cli export --set {TS_NAME} --class {{wildcards.size_class}} "
         "{params.families} --out {output} --quiet > {log} 2>&1"
 
 rule test_set_runs:
@@ -35,7 +39,7 @@ rule test_set_runs:
         levels=lambda w: " ".join(map(str, run_levels(config, w.size_class, w.scene))),
         warm=warm_starts(config) if TS else ""
     shell:
-        "{params.py} -m workflows.studies.test_set.run --set {wildcards.set} "
+        f"{{params.py}} -m workflows.studies.test_set.run --set {TS_NAME} "
         "--class {wildcards.size_class} --family {wildcards.scene} --export {input} "
         "--presets {params.presets} --time-limit {params.limit} {params.solvers} "
         "--levels {params.levels} --warm-starts {params.warm} --out {output} > {log} 2>&1"
