@@ -39,7 +39,7 @@ boundary nodes lie on the circle at every level. Total nodes: 1099, 4237, 16636,
 Friction (``friction``, ``mu``, ``shift``; beyond the thesis, which is frictionless): each
 constrained node gets a tangential row, the same interpolation (Alg. 7.1) as its normal
 row along its unit tangent ((1, 0) for n = (0, 1)), and Tresca or Coulomb friction on it
-(:class:`problems.qp.Friction`). The load path is the normal load (the press) and then the
+(:class:`problems.friction.data.Friction`). The load path is the normal load (the press) and then the
 tangential step, the held arc moved along x by ``shift``
 (:func:`problems.fem.two_body.frictional_two_body`); nodal P1 rows only.
 

@@ -43,7 +43,7 @@ Table 9.3 and every solver sees the thesis's problem.
 Friction (``friction``, ``mu``, ``shift``; beyond the thesis, which is frictionless): each
 constrained node gets two tangential rows, the same interpolation (Alg. 7.1) as its normal
 row along an orthonormal frame with the normal (the x and y axes for n = (0, 0, 1)), and
-isotropic Tresca or Coulomb friction on them (:class:`problems.qp.Friction`). The load
+isotropic Tresca or Coulomb friction on them (:class:`problems.friction.data.Friction`). The load
 path is the normal load (the press) and then the tangential step, the held cap moved
 along x by ``shift`` (:func:`problems.fem.two_body.frictional_two_body`); nodal P1 rows
 only. A tangential load along x keeps the plane y = 1/2 a symmetry plane (a half model

@@ -405,7 +405,7 @@ CLAIMS = {
                              unjudged="information: no method here promises fewer iterations "
                              "from the previous step's solution, no bar"),
     "facets": Claim("suite figure (the k-gon friction law approximates the disc, "
-                    "problems/qp.py)", "test set: model error ||u_k - u_iso||_A / "
+                    "problems/friction/data.py)", "test set: model error ||u_k - u_iso||_A / "
                     "||u_iso||_A of the faceted references",
                     unjudged="information: the faceted law's distance to the isotropic one "
                     "at this k, no bar"),

@@ -2,7 +2,7 @@
 
 :func:`verify` fills in a :class:`~solvers.base.SolveResult`'s four KKT residuals
 (:func:`problems.kkt.kkt_residuals`; on a frictional problem the six of
-:func:`problems.kkt.friction_residuals`) and a certified bound on its energy error
+:func:`problems.friction.residuals.friction_residuals`) and a certified bound on its energy error
 (:func:`duality_gap`, weak duality; for a Tresca step with the tangential multipliers),
 and decides the verified status. :func:`certify`
 computes the bound (kept per problem, ``qp.cache.certificate``) with the linear solver
@@ -21,8 +21,10 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 
 from problems.floating import floating_modes
-from problems.kkt import KKTResiduals, friction_residuals, kkt_residuals, tresca_energy
-from problems.qp import ContactQP, polygon_normals, polygon_vertices
+from problems.friction.polygon import polygon_normals, polygon_vertices
+from problems.friction.residuals import friction_residuals, tresca_energy
+from problems.kkt import KKTResiduals, kkt_residuals
+from problems.qp import ContactQP
 from solvers.base import (CONTRACT, COULOMB_MONOLITHIC, SolveResult, contract_violation,
                           tangential_rows)
 
@@ -179,7 +181,7 @@ def duality_gap(qp: ContactQP, u: np.ndarray, p: np.ndarray,
     each node's 2-vector scaled back radially into its disc, isotropic friction) and
     any feasible ``u_f``: ``J(u_f) >= L(u_f, p~, l~) >= q(p~, l~) = min_v L``, the
     minimiser ``x = A^{-1}(f - B'p~ - T'l~)``. The faceted law (``s_i h_Pk(t) =
-    max_{l in s_i P_k} l . t``, :class:`problems.qp.Friction`) is the same with ``l~``
+    max_{l in s_i P_k} l . t``, :class:`problems.friction.data.Friction`) is the same with ``l~``
     projected onto the ``k``-gons ``s_i P_k`` and ``s_i h_Pk(slip_i)`` in place of
     ``s_i |slip_i|`` in ``J`` and in the gap. The dual is the box problem of
     :mod:`solvers.tresca` (``p >= 0``, ``|lam| <= s``), so weak duality holds as
@@ -575,7 +577,7 @@ def verify(qp: ContactQP, result: SolveResult, tol: float) -> SolveResult:
     frictional problem of ``tangential``, ...)
     becomes a ``failed`` row without residuals, ``failed_check = "contract:<rule>"``.
     On a frictional problem (``qp.friction``: one Tresca step) the residuals are the six
-    of :func:`problems.kkt.friction_residuals` with ``result.tangential`` and the bound
+    of :func:`problems.friction.residuals.friction_residuals` with ``result.tangential`` and the bound
     is that of the Tresca step (:func:`duality_gap` with ``lam``); an answer that solved
     a Coulomb step itself is judged on the Tresca step of its own bound
     (:func:`judged_step`).

@@ -9,17 +9,17 @@ mapping of the library's own status onto the suite's, the note on an initial gue
 library ignores, and the result. A row (:class:`Library`) says only what differs: how
 a preset maps onto the library's options, its status strings, and how it is called.
 
-Friction (one Tresca step, :mod:`problems.friction_forms`; the load path and Coulomb's
+Friction (one Tresca step, :mod:`problems.friction.forms`; the load path and Coulomb's
 fixed point run around it, :func:`solvers.tresca.run_load_path`): a 2D step is handed to
 every library as a QP in ``(u, t)``, the slip split into two nonnegative parts
-(:func:`problems.friction_forms.split_program`); a 3D step, isotropic, as a second-order
-cone program (:func:`problems.friction_forms.cone_program`) to the libraries whose own API
+(:func:`problems.friction.forms.split_program`); a 3D step, isotropic, as a second-order
+cone program (:func:`problems.friction.forms.cone_program`) to the libraries whose own API
 takes such cones, Clarabel (``SecondOrderConeT``), SCS and ECOS (the cone sizes ``q``,
 called directly: qpsolvers passes no cones); the QP-only libraries skip it. A 3D step of
 the faceted law (the disc replaced by a ``k``-gon) is a QP
-(:func:`problems.friction_forms.facet_program`) handed to every library. ECOS minimises
+(:func:`problems.friction.forms.facet_program`) handed to every library. ECOS minimises
 a linear objective only: it is handed every form with the quadratic term as
-second-order cones, one per row of ``F`` (:func:`problems.friction_forms.epigraph_program`,
+second-order cones, one per row of ``F`` (:func:`problems.friction.forms.epigraph_program`,
 ``P = F'F`` with ``F`` the sparse Cholesky factor of ``A``), which leaves the multipliers
 unchanged. The step is rescaled like the frictionless problem, the tangential rows by one
 factor per node
@@ -65,7 +65,7 @@ from typing import Any, Callable
 import numpy as np
 import scipy.sparse as sp
 
-from problems.friction_forms import (ConeProgram, epigraph_program, lift, standard_program,
+from problems.friction.forms import (ConeProgram, epigraph_program, lift, standard_program,
                                      step_multipliers)
 from problems.qp import ContactQP
 from problems.spec import Options, Parameter, resolve_parameters
@@ -116,7 +116,7 @@ class Library:
         The library's status strings -> the suite's (unknown ones are ``failed``).
     call : callable
         ``call(program, settings, x0, z0) -> Outcome`` on the rescaled problem
-        (:class:`problems.friction_forms.ConeProgram` with a nonnegative cone only).
+        (:class:`problems.friction.forms.ConeProgram` with a nonnegative cone only).
     cone_call : callable or None
         The same with second-order cones (a 3D Tresca step), through the library's own
         cone API; ``None``: a QP library, which skips such a step.
@@ -297,7 +297,7 @@ def _scs_cone_call(program: ConeProgram, settings: dict, x0, z0) -> Outcome:
 def _ecos_call(program: ConeProgram, settings: dict, x0, z0) -> Outcome:
     """Direct (``ecos.solve(c, G, h, dims)``): ECOS minimises a linear objective only, so
     it is handed the program's epigraph form
-    (:func:`problems.friction_forms.epigraph_program`): ``1/2 (F_j x)^2 <= w_j``, a
+    (:func:`problems.friction.forms.epigraph_program`): ``1/2 (F_j x)^2 <= w_j``, a
     second-order cone of size 3 per row of ``F``, ``P = F'F``. ``P`` is ``A`` on ``u``
     and zero on ``t``, so ``F = (F_A, 0)`` with ``F_A`` the sparse Cholesky factor of
     ``A`` (:func:`solvers.cholesky.cholesky_factor`, a fill-reducing ordering): its

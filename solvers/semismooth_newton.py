@@ -63,7 +63,8 @@ import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
 
-from problems.kkt import friction_residuals, kkt_residuals
+from problems.friction.residuals import friction_residuals
+from problems.kkt import kkt_residuals
 from problems.qp import ContactQP
 from problems.spec import ComponentParameter, Options, Parameter, ParameterError
 from solvers.face import FACE_PROJECTION, FaceProjector, face_hops, face_projector
@@ -535,7 +536,7 @@ def tangential_update(state: np.ndarray, v: np.ndarray, bound: np.ndarray,
     ``sign_i v_i >= s_i - eps``, so that a row on the stick/slip boundary (a weakly
     slipping node) cannot flip forever on rounding.
 
-    3D: called with the per-node norm ``|v_i|`` (:meth:`problems.qp.Friction.magnitude`)
+    3D: called with the per-node norm ``|v_i|`` (:meth:`problems.friction.data.Friction.magnitude`)
     as ``v``; a slipping node is then ``+1``.
     """
     new = np.where(np.abs(v) <= bound, STICK, np.sign(v)).astype(int)
@@ -692,7 +693,7 @@ def solve_friction(qp: ContactQP, tol: float, max_iter: int, time_limit: float |
     round-off. 3D: the slipping nodes' condition is not linear (the disc's edge is
     curved), so on repeated sets the Newton steps go on until the friction KKT residual is
     at :data:`FRICTION_ROUNDOFF` or stalls (:data:`FRICTION_STALL`). The answer is judged by
-    :func:`problems.kkt.friction_residuals`.
+    :func:`problems.friction.residuals.friction_residuals`.
 
     Tresca: ``s = qp.friction.slip_bound``. Coulomb, monolithic (the quasi-variational
     inequality, ``s = mu p`` of the iterate): the stick/slip sets use the bound
@@ -834,7 +835,7 @@ def solve_friction(qp: ContactQP, tol: float, max_iter: int, time_limit: float |
 
 
 def _friction_kkt(qp: ContactQP, u, p, lam, mu: float | None) -> float:
-    """The friction KKT residual (:func:`problems.kkt.friction_residuals`) of the step;
+    """The friction KKT residual (:func:`problems.friction.residuals.friction_residuals`) of the step;
     Coulomb (``mu``): of the Tresca step with ``s = mu p``."""
     if mu is not None:
         qp = replace(qp, friction=replace(qp.friction, slip_bound=mu * np.maximum(p, 0.0)))

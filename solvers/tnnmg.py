@@ -54,7 +54,7 @@ so are mortar rows with standard multipliers (a non-diagonal ``D``), while morta
 with dual multipliers (``D`` diagonal, :mod:`problems.fem.mortar`) are one row per
 constrained node and are taken.
 
-Tresca friction (one step of a load path, :class:`problems.qp.Friction`; Gräser and
+Tresca friction (one step of a load path, :class:`problems.friction.data.Friction`; Gräser and
 Kornhuber's setting of a block-separable nonsmooth energy). The tangential rows become
 coordinates too (:mod:`solvers.contact_box`: ``T_i u = theta_i R_i v_t,i``, ``v_t,i`` the
 node's one (2D) or two (3D) unknowns after ``v_s[0]``, ``R_i`` orthogonal), so the energy
@@ -86,7 +86,7 @@ norm, the isotropic disc) is separable by node blocks with the normal bound on
    the slip direction), so CG's conjugacy does not hold there.
 
 It stops when the suite's verification passes: the friction KKT residuals
-(:func:`problems.kkt.friction_residuals`) and the certified energy bound of the Tresca step
+(:func:`problems.friction.residuals.friction_residuals`) and the certified energy bound of the Tresca step
 (:func:`certify` with ``lam``) meet tol, with the tangential multipliers
 ``lam_i = R_i r[v_t,i] / theta_i`` from the stationarity of the tangential unknowns, in
 the disc ``|lam_i| <= s_i`` (2D: ``[-s_i, s_i]``, and ``s_i sign(slip_i)`` where the row
@@ -108,8 +108,10 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from pyamg.relaxation.relaxation import gauss_seidel
 
-from problems.kkt import friction_residuals, kkt_residuals
-from problems.qp import ContactQP, Friction
+from problems.friction.data import Friction
+from problems.friction.residuals import friction_residuals
+from problems.kkt import kkt_residuals
+from problems.qp import ContactQP
 from problems.spec import Options, Parameter
 from solvers._block_gs import (BOTH_FIXED, BOUNDED, FIXED, FREE, TANGENT_FIXED, TRESCA,
                                block_gauss_seidel, block_inverses, tresca_block_gauss_seidel,
@@ -268,7 +270,7 @@ class _TrescaTerm:
         """The tangential multipliers ``lam`` (``A u + B'p + T'lam = f``) from the residual
         ``f~ - A~v`` of the transformed problem: ``R_i r[pivot_i] / theta_i`` (the
         stationarity of the tangential unknowns), in the friction discs ``|lam_i| <= s_i``
-        (:meth:`problems.qp.Friction.clip`; as ``p >= 0``: what is left over stays in the
+        (:meth:`problems.friction.data.Friction.clip`; as ``p >= 0``: what is left over stays in the
         stationarity residual).
 
         A slipping node's multiplier is the one its slip demands, ``s_i sign(slip_i)``

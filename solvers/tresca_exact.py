@@ -1,6 +1,6 @@
 """The exact reference of one Tresca step, registered as a solver (``tresca_exact``).
 
-One Tresca step (:class:`problems.qp.Friction`, its ``slip_bound`` given) is solved by
+One Tresca step (:class:`problems.friction.data.Friction`, its ``slip_bound`` given) is solved by
 :func:`solvers.tresca.tresca_exact`: the dual problem in ``y = (p, lam)``
 (``p >= 0``, ``|lam_i| <= s_i``) with the dense Hessian ``S = G A^-1 G'``, ``G = [B; T]``,
 ``u = A^-1 (f - G'y)``. 2D: a box, by a primal active-set method that ends on the exact

@@ -9,7 +9,8 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from problems.kkt import energy_error, tresca_energy
+from problems.friction.residuals import tresca_energy
+from problems.kkt import energy_error
 from problems.qp import ContactQP, QPValidationError
 from problems.spec import ParameterError, problems
 from reference.cattaneo_mindlin import (partial_slip_reference, relative_l2, stick_zone_ratio,

@@ -8,7 +8,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from problems.kkt import energy_error, friction_residuals, tresca_energy
+from problems.friction.residuals import friction_residuals, tresca_energy
+from problems.kkt import energy_error
 from problems.spec import problems
 from reference.cattaneo_mindlin import stick_zone_ratio, stick_zone_size
 from solvers import semismooth_newton, tresca

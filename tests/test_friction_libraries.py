@@ -12,11 +12,13 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from problems.friction_forms import (cone_program, contact_program, epigraph_program, lift,
+from problems.friction.forms import (cone_program, contact_program, epigraph_program, lift,
                                      program_multipliers, split_program, step_multipliers,
                                      tresca_step)
-from problems.kkt import energy_error, tresca_energy
-from problems.qp import ContactQP, Friction
+from problems.friction.data import Friction
+from problems.friction.residuals import tresca_energy
+from problems.kkt import energy_error
+from problems.qp import ContactQP
 from problems.spec import problems
 from solvers._scaling import scale_qp
 from solvers.base import TOLERANCES

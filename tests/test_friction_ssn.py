@@ -7,7 +7,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from problems.kkt import energy_error, friction_residuals
+from problems.friction.residuals import friction_residuals
+from problems.kkt import energy_error
 from problems.spec import problems
 from solvers import semismooth_newton
 from solvers.interface import solve

@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from problems.kkt import energy_error, friction_residuals
+from problems.friction.residuals import friction_residuals
+from problems.kkt import energy_error
 from problems.spec import problems
 from solvers import tnnmg
 from solvers._block_gs import (TRESCA, block_inverses, tresca_block_gauss_seidel,

@@ -10,7 +10,8 @@ import pytest
 import scipy.sparse as sp
 from scipy.optimize import minimize_scalar
 
-from problems.kkt import energy_error, friction_residuals
+from problems.friction.residuals import friction_residuals
+from problems.kkt import energy_error
 from problems.spec import problems
 from solvers import tnnmg
 from solvers._block_gs import disc_block_minimiser

@@ -28,7 +28,7 @@ from agreement import within_certificate
 REFERENCE_SOLVERS = tuple(sorted(n for n, s in solvers().items() if s.role == "library"))
 ALL_SOLVERS = ("pdas", "semismooth_newton") + REFERENCE_SOLVERS
 #: The libraries that take the QP through an epigraph cone (ECOS: a linear objective only,
-#: problems.friction_forms.epigraph_program): the stationarity of their answer goes with the
+#: problems.friction.forms.epigraph_program): the stationarity of their answer goes with the
 #: square root of their duality gap, so the accuracy bars at a preset's own tolerance
 #: (KKT within 10 tol, ``A u + B'p = f`` to 1e-6, the unconstrained answer to 1e-5) do not
 #: hold for them; test_ecos_through_its_epigraph_cone states what does

@@ -41,8 +41,8 @@ from problems.fem.quadratic import (FACET_EDGES, body_force_vector_p2, edge_look
                                     stiffness_matrix_p2, surface_mass_p2, traction_vector_p2)
 from problems.fem.surface import facet_sizes, surface_levels
 from problems.spec import Options, Parameter, ParameterError
-from problems.qp import (FRICTION_LAWS, ContactQP, ContactSurface, Friction, HertzSetup, LoadStep,
-                         Mesh, Multilevel, check_facets)
+from problems.friction.data import FRICTION_LAWS, Friction, LoadStep, check_facets
+from problems.qp import ContactQP, ContactSurface, HertzSetup, Mesh, Multilevel
 
 #: The scenes' element order (one declaration, every two-body scene lists it).
 ELEMENT_DEGREE = Parameter(

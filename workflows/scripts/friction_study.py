@@ -71,8 +71,9 @@ import numpy as np
 import pandas as pd
 
 from problems.fem.fields import in_plane
-from problems.kkt import energy_error, tresca_energy
-from problems.qp import MIN_FRICTION_FACETS
+from problems.friction.data import MIN_FRICTION_FACETS
+from problems.friction.residuals import tresca_energy
+from problems.kkt import energy_error
 from problems.spec import ParameterError
 from reference.cattaneo_mindlin import (partial_slip_reference, relative_l2, stick_zone_ratio,
                                         stick_zone_size)
