@@ -152,7 +152,7 @@ class Extrusion:
     and is the copy of one unknown of its body's section.
 
     What a semicoarsening multigrid needs when the levels are separate meshes
-    (:func:`solvers.multigrid.layered_hierarchy`).
+    (:func:`solvers.kernels.multigrid.layered_hierarchy`).
 
     Attributes
     ----------
@@ -277,7 +277,7 @@ class SharedWork:
         ``{threshold: (n, k) array}`` (:func:`problems.floating.floating_modes`).
     floating_factor : object or None
         ``A^{-1}`` with the floating modes removed
-        (:func:`solvers.cholesky.shared_floating_factor`), shared by the exact solver and
+        (:func:`solvers.kernels.cholesky.shared_floating_factor`), shared by the exact solver and
         the verification's linear solver (a factorisation of the roll stack's level 3
         takes ~25 s).
     linear_solver : callable or None
@@ -287,7 +287,7 @@ class SharedWork:
         ``(digest of (u, p, tol), DualityGap)``: the last certificate
         (:func:`solvers.certificate.certify`).
     dual_operators : dict
-        ``{frictional: DualOperators}`` (:func:`solvers.tresca.dual_operators`): ``A``
+        ``{frictional: DualOperators}`` (:func:`solvers.kernels.tresca.dual_operators`): ``A``
         factorised and the dense dual Hessian, shared by the steps of a load path (with
         and without the tangential rows).
     contact_schur : dict

@@ -1,7 +1,7 @@
 """PETSc/Tao under MPI: the box-transformed contact problem solved by Tao's bound-constrained
 solvers, in a separate MPI job (the suite's path beyond one process).
 
-After the change of variables of Krause and Wohlmuth (:mod:`solvers.contact_box`,
+After the change of variables of Krause and Wohlmuth (:mod:`solvers.kernels.contact_box`,
 ``u = T v``) a nodal contact problem is the bound-constrained QP::
 
     minimise 1/2 v'A~v - f~'v   subject to   v[pivot] <= upper,    A~ = T'AT, f~ = T'f,
@@ -28,7 +28,7 @@ suite). The problem goes to rank 0's standard input as a stream in PETSc's binar
 output; no file is written. ``u = T v``, and the multipliers are the transformed
 problem's residual at the pivots at their bounds (``p_i = max(r[pivot_i], 0) / beta_i``,
 :func:`at_bound`,
-:meth:`~solvers.contact_box.BoxTransformation.multipliers`); the suite verifies both
+:meth:`~solvers.kernels.contact_box.BoxTransformation.multipliers`); the suite verifies both
 like any solver's.
 
 Where it runs: the interpreter with petsc4py is ``CONTACTBENCH_PETSC_PYTHON`` (default
@@ -62,7 +62,7 @@ import scipy.sparse as sp
 from problems.qp import ContactQP
 from problems.spec import Options, Parameter
 from solvers.base import TOLERANCES, Role, SolveResult, SolverSpec
-from solvers.contact_box import box_transformation, check_structure
+from solvers.kernels.contact_box import box_transformation, check_structure
 
 #: PETSc's binary class ids (petscmat.h, petscvec.h)
 MAT_FILE_CLASSID, VEC_FILE_CLASSID = 1211216, 1211214

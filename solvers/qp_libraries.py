@@ -1,6 +1,6 @@
 """The general QP libraries, one row of a table each, run by one adapter.
 
-Every library solves the same rescaled problem (:mod:`solvers._scaling`):
+Every library solves the same rescaled problem (:mod:`solvers.kernels.scaling`):
 ``min 1/2 x'Px + q'x  s.t.  Gx <= h`` with ``P = A~``, ``q = -f~``, ``G = B~``,
 ``h = g~``; its inequality multipliers are our ``p`` (``Px + q + G'z = 0``, ``z >= 0``)
 without a sign change. :func:`run` does the steps every library shares, once: the
@@ -10,7 +10,7 @@ library ignores, and the result. A row (:class:`Library`) says only what differs
 a preset maps onto the library's options, its status strings, and how it is called.
 
 Friction (one Tresca step, :mod:`problems.friction.forms`; the load path and Coulomb's
-fixed point run around it, :func:`solvers.tresca.run_load_path`): a 2D step is handed to
+fixed point run around it, :func:`solvers.kernels.tresca.run_load_path`): a 2D step is handed to
 every library as a QP in ``(u, t)``, the slip split into two nonnegative parts
 (:func:`problems.friction.forms.split_program`); a 3D step, isotropic, as a second-order
 cone program (:func:`problems.friction.forms.cone_program`) to the libraries whose own API
@@ -23,7 +23,7 @@ second-order cones, one per row of ``F`` (:func:`problems.friction.forms.epigrap
 ``P = F'F`` with ``F`` the sparse Cholesky factor of ``A``), which leaves the multipliers
 unchanged. The step is rescaled like the frictionless problem, the tangential rows by one
 factor per node
-(:mod:`solvers._scaling`), and the library's multipliers map back to ``p`` and the
+(:mod:`solvers.kernels.scaling`), and the library's multipliers map back to ``p`` and the
 tangential multipliers ``lam`` (``SolveResult.tangential``).
 
 Presets: ``low/mid/high`` = ``tol`` 1e-3/1e-6/1e-9 set as the library's absolute
@@ -69,8 +69,8 @@ from problems.friction.forms import (ConeProgram, epigraph_program, lift, standa
                                      step_multipliers)
 from problems.qp import ContactQP
 from problems.spec import Options, Parameter, resolve_parameters
-from solvers._scaling import ADAPTER_PARAMETERS, scale_qp, upper_triangle
-from solvers.cholesky import cholesky_factor
+from solvers.kernels.scaling import ADAPTER_PARAMETERS, scale_qp, upper_triangle
+from solvers.kernels.cholesky import cholesky_factor
 from solvers.base import TOLERANCES, Role, SolveResult, SolverSpec, guess_not_used
 
 
@@ -300,7 +300,7 @@ def _ecos_call(program: ConeProgram, settings: dict, x0, z0) -> Outcome:
     (:func:`problems.friction.forms.epigraph_program`): ``1/2 (F_j x)^2 <= w_j``, a
     second-order cone of size 3 per row of ``F``, ``P = F'F``. ``P`` is ``A`` on ``u``
     and zero on ``t``, so ``F = (F_A, 0)`` with ``F_A`` the sparse Cholesky factor of
-    ``A`` (:func:`solvers.cholesky.cholesky_factor`, a fill-reducing ordering): its
+    ``A`` (:func:`solvers.kernels.cholesky.cholesky_factor`, a fill-reducing ordering): its
     nonzeros are the factorisation's fill, where a dense factor would put ``n^2/2`` into
     the KKT system ECOS factorises at each iteration. The nonnegative rows are
     ``dims["l"]``, the cones ``dims["q"]``, the epigraph cones last; its ``z`` of the

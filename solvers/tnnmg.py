@@ -2,12 +2,12 @@
 
 Gräser and Kornhuber (J. Comput. Math. 27, 2009), Gräser and Sander (IMA J. Numer. Anal.
 39, 2019; the dune-tnnmg module). The nodal constraints become bounds on single unknowns
-by the change of variables of Krause and Wohlmuth (:mod:`solvers.contact_box`:
+by the change of variables of Krause and Wohlmuth (:mod:`solvers.kernels.contact_box`:
 ``u = T v``, ``A~ = T' A T``, ``v[pivot] <= upper``). One step from ``v``:
 
 1. nonlinear presmoothing: ``presmoothing`` node-block Gauss-Seidel sweeps, each block
    minimised exactly (a bound crossed is clamped and the rest of the block solved
-   again; :mod:`solvers._block_gs`), alternating direction;
+   again; :mod:`solvers.kernels.block_gs`), alternating direction;
 2. the active set ``E = {pivot : v = upper}`` and the truncated linear correction: one
    V-cycle for ``A~ c = r`` on the unknowns off ``E`` (``c = 0`` on ``E``), with the
    truncated prolongation ``D_I T^{-1} P`` at the finest transfer and the Galerkin
@@ -35,8 +35,8 @@ Every part decreases the energy, so the iteration is monotone and converges glob
 for any number of smoothing sweeps. The geometric hierarchy is the scene's refinement
 hierarchy (``qp.multilevel``); without one (the roll stack) the correction is a direct
 solve of the truncated system, refactorised when the active set changes (exact
-truncated Newton; :func:`solvers.cholesky.factorize`). It stops when the suite's verification
-passes: the four KKT residuals and the certified energy bound (:func:`certify`).
+truncated Newton; :func:`solvers.kernels.cholesky.factorize`). It stops when the suite's
+verification passes: the four KKT residuals and the certified energy bound (:func:`certify`).
 
 Memory: ``A~`` is the scene's ``A`` (not copied) plus the transformation's update on the
 rows near the contact, which the compiled sweep reads beside it; ``T`` and ``T^{-1}`` are
@@ -56,15 +56,15 @@ constrained node and are taken.
 
 Tresca friction (one step of a load path, :class:`problems.friction.data.Friction`; Gräser and
 Kornhuber's setting of a block-separable nonsmooth energy). The tangential rows become
-coordinates too (:mod:`solvers.contact_box`: ``T_i u = theta_i R_i v_t,i``, ``v_t,i`` the
+coordinates too (:mod:`solvers.kernels.contact_box`: ``T_i u = theta_i R_i v_t,i``, ``v_t,i`` the
 node's one (2D) or two (3D) unknowns after ``v_s[0]``, ``R_i`` orthogonal), so the energy
 ``J~(v) + sum_i weight_i |v_t,i - centre_i|`` (:class:`_TrescaTerm`; in 3D the Euclidean
 norm, the isotropic disc) is separable by node blocks with the normal bound on
 ``v_s[0]``. The step is the one above with:
 
 1. the node block's exact minimiser of the normal bound and the term (the normal unknown
-   free or at its bound, times stick or slip; 2D: :func:`solvers._block_gs._tresca_block`,
-   3D: :func:`solvers._block_gs.disc_block_minimiser`, a secular equation solved to
+   free or at its bound, times stick or slip; 2D: :func:`solvers.kernels.block_gs._tresca_block`,
+   3D: :func:`solvers.kernels.block_gs.disc_block_minimiser`, a secular equation solved to
    round-off);
 2. the truncation of the normal-active pivots and of the sticking nodes' tangential
    unknowns (slip exactly zero); a slipping node's term enters the correction's
@@ -113,14 +113,14 @@ from problems.friction.residuals import friction_residuals
 from problems.kkt import kkt_residuals
 from problems.qp import ContactQP
 from problems.spec import Options, Parameter
-from solvers._block_gs import (BOTH_FIXED, BOUNDED, FIXED, FREE, TANGENT_FIXED, TRESCA,
-                               block_gauss_seidel, block_inverses, tresca_block_gauss_seidel,
-                               unsigned_index, with_pattern)
+from solvers.kernels.block_gs import (BOTH_FIXED, BOUNDED, FIXED, FREE, TANGENT_FIXED, TRESCA,
+                                      block_gauss_seidel, block_inverses, tresca_block_gauss_seidel,
+                                      unsigned_index, with_pattern)
 from solvers.base import VERIFIED_PRESETS, Role, SolveResult, SolverSpec
 from solvers.certificate import certify
-from solvers.cholesky import FactorizationError, factorize
-from solvers.contact_box import (BoxTransformation, TransformationError, box_transformation,
-                                 check_structure)
+from solvers.kernels.cholesky import FactorizationError, factorize
+from solvers.kernels.contact_box import (BoxTransformation, TransformationError, box_transformation,
+                                         check_structure)
 
 
 #: The suite's KKT check (and the certificate) runs once the transformed problem's own
@@ -170,7 +170,7 @@ ARC_MIN = 1e-4
 class _Fine:
     """The transformed fine-level system ``A~ = A + C`` and what its block smoother needs:
     the scene's ``A`` itself (not copied) and the transformation's update ``C``
-    (:meth:`~solvers.contact_box.BoxTransformation.operator_update`, rows near the
+    (:meth:`~solvers.kernels.contact_box.BoxTransformation.operator_update`, rows near the
     contact only)."""
 
     A: sp.csr_matrix
@@ -221,7 +221,7 @@ class _Fine:
 
 @dataclass
 class _TrescaTerm:
-    """Tresca's term of a step in the transformed unknowns (:mod:`solvers.contact_box`:
+    """Tresca's term of a step in the transformed unknowns (:mod:`solvers.kernels.contact_box`:
     ``T_i u = theta_i R_i v_t,i``, ``v_t,i`` the ``k = dim - 1`` tangential unknowns of
     constrained node ``i``, ``R_i`` orthogonal; 2D: ``R_i = 1``)::
 
@@ -1245,7 +1245,7 @@ def _tresca_solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | 
 
 
 def supports(qp: ContactQP) -> tuple[bool, str]:
-    """Nodal constraints with one row per constrained node (:mod:`solvers.contact_box`);
+    """Nodal constraints with one row per constrained node (:mod:`solvers.kernels.contact_box`);
     with friction, one Tresca step (2D or 3D) whose tangential rows become coordinates too
     (a Coulomb problem's step at its given slip bound: the fixed point ``s = mu p`` is the
     load path's)."""

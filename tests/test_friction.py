@@ -17,8 +17,8 @@ from reference.cattaneo_mindlin import (partial_slip_reference, relative_l2, sti
                                         stick_zone_size, tangential_traction)
 from reference.hertz import moment_estimate
 from solvers.interface import solve, solvers
-from solvers.tresca import (box_qp_active_set, friction_path, path_for_ratio, tangential_ratio,
-                            tresca_exact, with_step)
+from solvers.kernels.tresca import (box_qp_active_set, friction_path, path_for_ratio,
+                                    tangential_ratio, tresca_exact, with_step)
 
 SCENE = problems()["circle_square"]
 

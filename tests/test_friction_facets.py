@@ -26,7 +26,7 @@ from solvers.interface import solve, solvers
 from solvers.qp_libraries import LIBRARIES
 from report.friction import FACET_ENERGY_EXPONENT, FACET_FIT_LAST, complete, facet_claims
 from report.rates import fitted_slope
-from solvers.tresca import facet_convergence, friction_path
+from solvers.kernels.tresca import facet_convergence, friction_path
 from workflows.cli import main
 from workflows.scripts.friction_study import facet_rows
 from agreement import within_certificate

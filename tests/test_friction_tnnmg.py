@@ -1,6 +1,6 @@
 """TNNMG on one 2D Tresca step: the tangential rows become coordinates exactly, the node
 block's nonsmooth minimiser is exact, and the solver's answers satisfy the friction KKT
-conditions and agree with the exact reference (:func:`solvers.tresca.tresca_exact`) on
+conditions and agree with the exact reference (:func:`solvers.kernels.tresca.tresca_exact`) on
 circle_square; its frictionless path is the one it was."""
 import functools
 from dataclasses import replace
@@ -13,12 +13,12 @@ from problems.friction.residuals import friction_residuals
 from problems.kkt import energy_error
 from problems.spec import problems
 from solvers import tnnmg
-from solvers._block_gs import (TRESCA, block_inverses, tresca_block_gauss_seidel,
-                               unsigned_index)
+from solvers.kernels.block_gs import (TRESCA, block_inverses, tresca_block_gauss_seidel,
+                                      unsigned_index)
 from solvers.certificate import certify
-from solvers.contact_box import box_transformation
+from solvers.kernels.contact_box import box_transformation
 from solvers.interface import solve
-from solvers.tresca import TrescaSolution, friction_path, path_for_ratio
+from solvers.kernels.tresca import TrescaSolution, friction_path, path_for_ratio
 from agreement import within_certificate
 
 SCENE = problems()["circle_square"]

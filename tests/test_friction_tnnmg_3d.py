@@ -14,11 +14,11 @@ from problems.friction.residuals import friction_residuals
 from problems.kkt import energy_error
 from problems.spec import problems
 from solvers import tnnmg
-from solvers._block_gs import disc_block_minimiser
+from solvers.kernels.block_gs import disc_block_minimiser
 from solvers.certificate import certify
-from solvers.contact_box import box_transformation
+from solvers.kernels.contact_box import box_transformation
 from solvers.interface import solve
-from solvers.tresca import as_tresca_solution, friction_path, tangential_ratio
+from solvers.kernels.tresca import as_tresca_solution, friction_path, tangential_ratio
 from test_friction_tnnmg import _one_block, _random_block_system
 from agreement import within_certificate
 
@@ -169,7 +169,7 @@ def test_the_sweep_takes_a_3d_block_to_the_disc_minimiser():
 CUBE = problems()["cube_sphere"]
 
 #: The held cap's shift along x that gives Q/(mu P) about 0.3 and 0.7 at mu = 0.5 on levels
-#: 1 and 2 (found by solvers.tresca.path_for_ratio with TNNMG; the tests measure the ratio).
+#: 1 and 2 (found by solvers.kernels.tresca.path_for_ratio with TNNMG; the tests measure the ratio).
 SHIFT_FOR_RATIO = {0.3: 0.035, 0.7: 0.088}
 
 

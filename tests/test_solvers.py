@@ -18,7 +18,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from problems.spec import ParameterError
-from solvers import _scaling
+from solvers.kernels import scaling
 from problems.kkt import kkt_residuals
 from problems.qp import ContactQP, QPValidationError
 from solvers.interface import TOLERANCES, solve, solvers
@@ -417,7 +417,7 @@ def test_bad_problems_raise_clear_errors():
 def test_scaling_round_trip(references):
     """The unscaled solution of the scaled problem solves the original one."""
     qp, ref = references["obstacle-SI"]
-    data = _scaling.scale_qp(qp)
+    data = scaling.scale_qp(qp)
     np.testing.assert_allclose(data.A.diagonal(), 1.0)
     scaled = ContactQP(A=data.A, f=data.f, B=data.B, g=data.g)
     u_s, p_s = data.scale_guess(ref.u, ref.p)

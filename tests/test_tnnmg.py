@@ -10,9 +10,9 @@ import scipy.sparse as sp
 from problems.kkt import energy_error
 from problems.qp import SharedWork
 from problems.spec import ParameterError, problems
-from solvers._block_gs import (BOUNDED, FIXED, FREE, block_gauss_seidel, block_inverses,
-                               unsigned_index)
-from solvers.contact_box import TransformationError, box_transformation, check_structure
+from solvers.kernels.block_gs import (BOUNDED, FIXED, FREE, block_gauss_seidel, block_inverses,
+                                      unsigned_index)
+from solvers.kernels.contact_box import TransformationError, box_transformation, check_structure
 from solvers import tnnmg
 from solvers.interface import solve
 from solvers.reference import reference_solve

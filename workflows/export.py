@@ -279,9 +279,9 @@ def friction_solution_files(folder: Path, item: SetProblem, qp, u: np.ndarray,
 def tight_rows(G: sp.spmatrix, h: np.ndarray, x: np.ndarray, rtol: float = 1e-8) -> dict:
     """How many rows of ``Gx <= h`` hold with equality at ``x`` (slack below ``rtol``
     times ``max(|h|, |Gx|)``), and how many of them are linearly dependent on the others
-    (:func:`solvers.cholesky.row_basis` of their Gram matrix ``G_T G_T'``): where that is
+    (:func:`solvers.kernels.cholesky.row_basis` of their Gram matrix ``G_T G_T'``): where that is
     positive, LICQ fails at the solution and the multipliers ``z`` are not unique."""
-    from solvers.cholesky import row_basis
+    from solvers.kernels.cholesky import row_basis
 
     Gx = G @ x
     scale = max(float(np.max(np.abs(h), initial=0.0)), float(np.max(np.abs(Gx), initial=0.0)),

@@ -22,7 +22,7 @@ multiplier basis:
   vertices (a segment, ``k = 2``; a triangle, ``k = 3``) ``psi_a = (k + 1) phi_a - 1``:
   biorthogonal, ``int psi_i phi_j = delta_ij m_i``, so ``D = diag(m)``, and row ``i``
   moves its constrained node by exactly ``n``: each row owns one constrained node, as
-  nodal rows do (the box transformation of :mod:`solvers.contact_box` applies).
+  nodal rows do (the box transformation of :mod:`solvers.kernels.contact_box` applies).
   (With ``psi_a = alpha phi_a + beta`` on a simplex of dimension ``s = k - 1``,
   ``int phi_a phi_b = |T| (1 + delta_ab) / ((s + 1)(s + 2))`` and
   ``int phi_b = |T| / (s + 1)`` make biorthogonality read ``beta = -alpha / (s + 2)``

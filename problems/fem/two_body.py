@@ -445,7 +445,7 @@ def frictional_two_body(scene: Callable[[int, Options], TwoBodyScene], level: in
     then the tangential steps (the held part moved along x to ``j shift / shift_steps``,
     ``j = 1 .. shift_steps``: :func:`shift_increments`); the ContactQP
     holds the first step's data, slip measured from the unloaded state, slip bounds zero
-    (the path's driver sets them: :func:`solvers.tresca.friction_path`); in 3D the law's
+    (the path's driver sets them: :func:`solvers.kernels.tresca.friction_path`); in 3D the law's
     shape ``friction_facets`` (:func:`friction_facets`).
 
     ``scene(level, options)`` builds the scene with the held part's x-displacement set

@@ -88,7 +88,7 @@ class Friction:
     ``A u + B'p + T'lam = f``, ``lam_i in s_i P_k`` (:meth:`gauge` ``<= s_i``),
     ``lam_i . slip_i = s_i h_Pk(slip_i)``. The dual is the isotropic one with the discs
     replaced by ``s_i P_k`` (``min 1/2 y'Sy - c'y``, ``p >= 0``, ``lam_i in s_i P_k``,
-    :mod:`solvers.tresca`). In 2D the law is already polyhedral (the disc is the
+    :mod:`solvers.kernels.tresca`). In 2D the law is already polyhedral (the disc is the
     interval ``[-s_i, s_i]``): ``facets`` is ``0`` there.
 
     Attributes

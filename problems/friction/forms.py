@@ -24,7 +24,7 @@ itself) map back to the suite's ``(p, lam)`` (``A u + B'p + T'lam = f``,
   Stationarity in ``t_i`` gives ``a_i + b_i = s_i`` for the two rows' multipliers, in ``u``
   ``lam_i = a_i - b_i``; with ``a, b >= 0`` that is ``|lam_i| <= s_i``, and complementarity
   puts ``lam_i = s_i sign(slip_i)`` where the node slips. The dual of this QP is
-  the box problem of :func:`solvers.tresca.tresca_exact`.
+  the box problem of :func:`solvers.kernels.tresca.tresca_exact`.
 * :func:`facet_program` (3D, the faceted law, ``lam_i`` in the inscribed regular
   ``k``-gon ``s_i P_k`` with vertices ``v_j``, :class:`problems.friction.data.Friction`): the
   support function ``s_i max_j v_j . slip_i`` moved into the ``k`` rows

@@ -5,7 +5,7 @@ circle, one vertex along the first tangent, with which the faceted law (3D,
 function (the faceted dissipation), its gauge (the admissibility of ``lam_i``) and the
 Euclidean projection onto ``s_i P_k`` with the region it lands in (facet interior or
 vertex) and that region's affine projection, on which the exact reference's semismooth
-Newton method is exact (:mod:`solvers.tresca`).
+Newton method is exact (:mod:`solvers.kernels.tresca`).
 """
 from __future__ import annotations
 

@@ -20,7 +20,7 @@ default scene.
 
 - **Reference paths.** Tresca friction with `mu` (0.5), the normal load first, then the
   held arc (cap) moved along x; the tangential step is scaled until Q/(μP) of the last step
-  is 0.3 and 0.7 (`solvers.tresca.path_for_ratio`). The reference is `tresca_exact` (exact
+  is 0.3 and 0.7 (`solvers.kernels.tresca.path_for_ratio`). The reference is `tresca_exact` (exact
   to round-off) where it takes the problem: up to 2000 constrained rows and 4e8 entries
   of its dense A⁻¹G' (cube–sphere level 3 has 1.3e9); beyond, the first of
   `semismooth_newton` and `tnnmg` that takes it, verified at `high`, and the table's
@@ -48,7 +48,7 @@ default scene.
   verified at `high`, twice: each solve started from the path's last answer (`warm`, as
   a quasi-static computation and `contactbench solve` run it) and from zero (`cold`,
   `--cold`); TNNMG a third time by nested iteration (`nested`,
-  `solvers.tresca.run_nested_load_path`): the same path on the two coarser levels first,
+  `solvers.kernels.tresca.run_nested_load_path`): the same path on the two coarser levels first,
   and each solve on a level started from its own last answer plus the coarser level's
   prolongated change over that solve, so that the slip front's place comes from below
   (Alg. 8.5 on each load step). The table records status, iterations in the normal and

@@ -18,7 +18,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from problems.qp import ContactQP, SurfaceHierarchy
-from solvers.multigrid import HIGH_SAFETY, Apply, ScaledVCycle, lanczos_extremes
+from solvers.kernels.multigrid import HIGH_SAFETY, Apply, ScaledVCycle, lanczos_extremes
 
 # ---------------------------------------------------------------------------
 # S-hat: Schur-complement preconditioners

@@ -317,7 +317,7 @@ def disc_block_minimiser(M, r, h, weight, e, d):   # pragma: no cover (compiled)
         1/2 d'Md - r'd + weight |d_t - e|   subject to   d_0 <= h
 
     (``M`` 3 x 3 SPD, ``d_t = d[1:3]``, ``|.|`` Euclidean): the node block of a Tresca step
-    after the box transformation (:mod:`solvers.contact_box`), written into ``d``. Returns
+    after the box transformation (:mod:`solvers.kernels.contact_box`), written into ``d``. Returns
     the case: ``2 * at_bound + stick`` (``d_0 = h`` exactly; ``d_t = e`` exactly).
 
     The normal unknown free: eliminated, the tangential part minimises

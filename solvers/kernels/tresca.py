@@ -54,7 +54,7 @@ from problems.kkt import energy_error, kkt_residuals
 from problems.qp import ContactQP
 from problems.spec import ParameterError
 from solvers.base import SolveResult
-from solvers.cholesky import factorize
+from solvers.kernels.cholesky import factorize
 
 #: Largest constrained surface (rows) :func:`tresca_exact` takes: ``S`` is dense,
 #: ``(1 + k) m`` square for ``k`` tangential rows per node.
