@@ -17,6 +17,7 @@ from solvers import tnnmg
 from solvers.kernels.block_gs import disc_block_minimiser
 from solvers.certificate import certify
 from solvers.kernels.contact_box import box_transformation
+from solvers.kernels.tnnmg_tresca import disc_line_search
 from solvers.interface import solve
 from solvers.kernels.tresca import as_tresca_solution, friction_path, tangential_ratio
 from test_friction_tnnmg import _one_block, _random_block_system
@@ -125,7 +126,7 @@ def test_the_disc_line_search_is_the_minimiser_along_the_segment():
         dt[rng.uniform(size=m) < 0.1] = 0.0
         base, curvature = rng.normal() * 3, rng.uniform(0.05, 2)
         longest = np.inf if trial % 3 == 0 else rng.uniform(0.1, 4)
-        a, reached, short = tnnmg._disc_line_search(base, curvature, z, dt, weight, longest)
+        a, reached, short = disc_line_search(base, curvature, z, dt, weight, longest)
         assert 0.0 <= a <= longest
         end = min(longest, 50.0)
         grid = np.linspace(0.0, end, 4001)

@@ -17,12 +17,19 @@ Frictionless:
   (Krause and Wohlmuth's change of variables), tangential rows as coordinates;
 * :mod:`solvers.kernels.block_gs` -- the compiled node-block Gauss-Seidel sweeps of
   TNNMG;
+* the pieces of truncated nonsmooth Newton multigrid (:mod:`solvers.tnnmg`):
+  :mod:`solvers.kernels.tnnmg_system` (the box-transformed system, its node-block
+  smoother, a Tresca step's term), :mod:`solvers.kernels.tnnmg_correction` (the truncated
+  V-cycle, CG on a face), :mod:`solvers.kernels.tnnmg_line_search` (projection and line
+  search);
 * :mod:`solvers.kernels.scaling` -- the diagonal rescaling the QP libraries are handed.
 
 Frictional:
 
 * :mod:`solvers.kernels.tresca` -- the exact reference of a Tresca step, the load path
-  and Coulomb's fixed point.
+  and Coulomb's fixed point;
+* :mod:`solvers.kernels.tnnmg_tresca` -- what TNNMG does differently on a Tresca step (the
+  nonsmooth line searches, the slip curvature, CG on a 2D step's faces).
 
 Numerics only: nothing here writes a file (checked by the tests).
 """
