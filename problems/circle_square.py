@@ -20,8 +20,8 @@ Where the thesis and we differ, and why (DESIGN.md, "known gaps"):
   counts.
 * Load path. With the body force on both bodies and the circle hung from its
   upper arc, the square sinks under its own weight almost as fast as the circle
-  and only ~2 % of the circle's weight passes through the contact (prototype
-  measurement). We therefore drive the contact by the circle alone: its upper arc
+  and only a small part of the circle's weight passes through the contact. We
+  therefore drive the contact by the circle alone: its upper arc
   (polar angle within ``held_arc`` degrees of the top) is displaced downwards by
   ``indent`` (a prescribed support displacement, like a press), and the body force
   (0, -``load``) acts on the circle only; the square carries no body force (its

@@ -23,8 +23,8 @@ Where the thesis and we differ, and why (DESIGN.md, "known gaps"):
   a ~ 0.27, i.e. 8.7 constrained nodes across the radius at level 3 (h = 1/32),
   as a resolved Hertz comparison needs (0.045 gave a/h = 6.8); a/R ~ 0.3, so the
   contact is not small against the ball, and the finite cube is not a
-  half-space: both bend Hertz by a few percent (measured at level 3: a -2.2 %,
-  p0 +4.5 %; the study reports it per level).
+  half-space: both bend Hertz by a few percent (the contact-solution study reports it
+  per level).
 
 Meshes: level L has a structured cube with 4 * 2^L cells per edge (Kuhn
 tetrahedra; each level the Freudenthal refinement of the previous one) and a

@@ -277,9 +277,9 @@ class SharedWork:
         ``{threshold: (n, k) array}`` (:func:`problems.floating.floating_modes`).
     floating_factor : object or None
         ``A^{-1}`` with the floating modes removed
-        (:func:`solvers.kernels.cholesky.shared_floating_factor`), shared by the exact solver and
-        the verification's linear solver (a factorisation of the roll stack's level 3
-        takes ~25 s).
+        (:func:`solvers.kernels.cholesky.shared_floating_factor`), shared by the exact
+        solver and the verification's linear solver (a factorisation of a large problem
+        is too slow to repeat).
     linear_solver : callable or None
         ``(r, guess=None) -> A^{-1} r`` of the verification
         (:func:`solvers.certificate.linear_solver`).
@@ -293,8 +293,8 @@ class SharedWork:
     contact_schur : dict
         ``{factorization: ContactSchur}`` (:func:`solvers.semismooth_newton.contact_schur`):
         ``A`` factorised and the dense Schur complement of the normal and tangential rows,
-        shared by the Tresca solves of a load path (at cube-sphere level 3 forming it
-        costs minutes).
+        shared by the Tresca solves of a load path (forming it is too slow to repeat
+        for each).
     """
 
     floating_modes: dict = field(default_factory=dict)

@@ -83,10 +83,11 @@ supplied. The P1 scene supplies its layers instead (``multilevel.extrusion``,
 solvers coarsen along ``x`` and smooth whole sections
 (:func:`solvers.kernels.multigrid.layered_hierarchy`): the tetrahedra are up to 25:1 long
 in ``x``, where pointwise smoothing with algebraic
-coarsening (smoothed aggregation, still the P2 scene's) leaves ``kappa(V A)`` at 150 and
-more. The constrained surface has one level: the band is 25:1 anisotropic too, and a
-tensor coarsening of it measured ``kappa(S-hat^-1 S_in)`` about 27, so the augmented
-projection's ``schur=auto`` takes ``S_in``.
+coarsening (smoothed aggregation, still the P2 scene's) leaves ``kappa(V A)`` large (the
+roll-stack study's page). The constrained surface has one level: the band is 25:1
+anisotropic too, and a tensor coarsening of it leaves ``kappa(S-hat^-1 S_in)`` far above
+:data:`solvers.augmented_projection.SCHUR_KAPPA_LIMIT` (docs/guide/measurements.md), so
+the augmented projection's ``schur=auto`` takes ``S_in``.
 
 Left out: friction and the rolls' horizontal offset; the strip's plastic response
 (its pressure is a given uniform traction); the work roll's bearing/bending forces;

@@ -40,15 +40,15 @@ primal energy ``J(u^k) = 1/2 u'Au - f'u`` (``u^k`` is infeasible on the way and
 Gauss-Seidel step: with ``S_in <= S-hat`` the ``p``-step decreases ``Jt`` for any
 ``tau <= 1`` (the inner functional of (8.24) decreases from ``p^k``) and the
 ``u``-step with the new ``p`` does for ``tau < 2`` (``(A - Ah) Ah^-1 A <=
-gamma_bar (A - Ah)``), so its default is ``tau = 1`` (measured: half the outer
-steps of ``tau = 1/alpha_bar``); the additive update keeps the thesis's
-``tau = 1/alpha_bar``.
+gamma_bar (A - Ah)``), so its default is ``tau = 1`` (fewer outer steps than
+``tau = 1/alpha_bar``: docs/guide/measurements.md); the additive update keeps the
+thesis's ``tau = 1/alpha_bar``.
 
 Beyond the thesis, three things keep the method's outer step count bounded where the
 thesis's ingredients lose their spectral equivalence:
 
-* Towards incompressibility a V-cycle's ``kappa(V A)`` grows like ``(1 - 2 nu)^-0.75``
-  (70 at nu = 0.499, 450 at 0.4999, independent of h): ``A-hat^{-1}`` is then a Chebyshev
+* Towards incompressibility a V-cycle's ``kappa(V A)`` grows without bound (independent
+  of h; the hard-cases study's page): ``A-hat^{-1}`` is then a Chebyshev
   polynomial in the V-cycle whose degree comes from the measured spectrum
   (:func:`solvers.kernels.multigrid.scaled_vcycle`, ``ahat.degree = 0``), and ``S-hat = auto``
   takes ``S_in`` where the multilevel operator's ``kappa(S-hat^{-1} S_in)`` exceeds
@@ -181,9 +181,9 @@ def mprgp(S_hat: Callable, d: np.ndarray, q0: np.ndarray, alpha_bar: float, rtol
 
 
 #: SMALBE's relative tolerance on the floating bodies' equilibrium ``||G q - e|| / ||e||``
-#: per projection. The outer iteration corrects what one projection leaves (the roll
-#: stack, level 0: 29 outer steps at 1e-12, 1e-8 and 1e-4 alike; 20, 9 and 2.5
-#: augmented-Lagrangian steps per projection).
+#: per projection. The outer iteration corrects what one projection leaves: a tighter
+#: tolerance costs augmented-Lagrangian steps per projection and saves no outer step
+#: (docs/guide/measurements.md).
 EQ_RTOL = 1e-6
 
 
@@ -562,20 +562,17 @@ def balanced_projection(projection: Component, S_hat: SchurPreconditioner) -> Ca
 #: ``schur="auto"`` keeps the multilevel ``S-hat`` while its measured
 #: ``kappa(S-hat^{-1} S_in)`` is at most this, and takes ``S_in`` itself beyond. The
 #: multilevel operator models ``S`` as an H^{-1/2} norm; a locking P1 material stiffens
-#: ``S`` on the fine surface modes, and the ratio grows (circle-square level 1: 2.6 at
-#: nu = 0.3, 3.8 at 0.49, 7.6 at 0.499, 15 at 0.4999; cube-sphere 3.8, 6.0, 15, 27). The
-#: V-cycles of a whole solve cross over near 6 (2D: 285 vs 375 at 0.49, 1617 vs 1442 at
-#: 0.499; 3D: 693 vs 588 at 0.49; ``S_in`` costs an ``A-hat`` per inner step). The
-#: stabilised problem's operator (:func:`solvers.kernels.schur.stabilised_schur_apply`) starts
-#: higher at nu = 0.3 (2D levels 1-3: 5.6, 6.3, 6.7; 3D levels 1-2: 6.3, 7.8) and still
-#: wins (2D level 3: 3.3 s against 4.3 s for the assembled ``S_in``, whose assembly grows
-#: like m N), so its limit is twice the nodal one.
+#: ``S`` on the fine surface modes, and the ratio grows with nu. The V-cycles of a whole
+#: solve cross over near 6 (``S_in`` costs an ``A-hat`` per inner step). The stabilised
+#: problem's operator (:func:`solvers.kernels.schur.stabilised_schur_apply`) starts higher
+#: at nu = 0.3 and still wins against the assembled ``S_in``, whose assembly grows like
+#: m N, so its limit is twice the nodal one (the measurements:
+#: docs/guide/measurements.md).
 SCHUR_KAPPA_LIMIT = {"nodal": 6.0, "stabilised": 12.0}
 
 #: ... and assembles ``S_in`` (``m`` products with ``A-hat``, then dense products) up to
 #: this many constraints: a matrix-free ``S_in`` costs an ``A-hat`` per inner step, and a
-#: solve takes hundreds to thousands of them (the roll stack, level 0, m = 12: 1,209
-#: inner steps, 56 s matrix-free, 3.7 s assembled).
+#: solve takes hundreds to thousands of them (docs/guide/measurements.md).
 ASSEMBLE_LIMIT = 400
 
 

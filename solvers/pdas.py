@@ -14,9 +14,10 @@ rows (``method="schur"``, the default up to 5000 constraints): ``A`` factorised
 once by a sparse Cholesky (:mod:`solvers.kernels.cholesky`: MKL PARDISO with METIS,
 partial solves on the support of ``B``), the dense ``S = B A^{-1} B^T`` formed
 once (``N^C`` columns), each step a dense Cholesky of ``S_II`` and one solve
-with ``A`` for ``u``; iterative refinement after every solve with ``A``. At
-circle-square level 4 (262k nodes) the ``schur`` route takes seconds where the
-``kkt`` route took ~170 s; ``kkt`` stays as the cross-check (tests compare them). The active set is then updated
+with ``A`` for ``u``; iterative refinement after every solve with ``A``. On the
+large scenes the ``schur`` route is far faster than the ``kkt`` route
+(docs/guide/measurements.md); ``kkt`` stays as the cross-check (tests compare them). The
+active set is then updated
 by the PDAS rule ``I = {i : p_i + c (Bu - Cp - g)_i > 0}``. After the first
 step ``p_i = 0`` off ``I`` and ``(Bu - Cp - g)_i = 0`` on ``I``, so the rule
 keeps ``i`` in ``I`` while ``p_i >= 0`` and adds ``i`` when it is violated; ``c``

@@ -12,12 +12,11 @@ face, Moré and Toraldo) and BNCG (bounded nonlinear CG, no linear solve). The K
 solves of BNLS and GPCG are preconditioned by GAMG, with the bodies' rigid-body modes
 (``T^{-1} R``, orthonormal) as its near-null space, restricted to each reduced system's
 free set, or by hypre's BoomerAMG; each reduced system gets a fresh multigrid setup (the
-worker's ``FreshAMG``). Measured on circle-square and cube-sphere level 1 (7-8k
-unknowns, ``mid``): BNLS and GPCG converge in 3-5 steps with either preconditioner
-(48-105 Krylov iterations with GAMG; without the near-null space on the reduced systems,
-550); BNCG, unpreconditioned, needs about 2000 iterations. Tao's interior point method
-BQPIP is not offered: it takes the missing bounds as finite ones at PETSc's infinity,
-starts from a residual of 1e12 and had not converged on level 1 after 60 s.
+worker's ``FreshAMG``): BNLS and GPCG converge in a few steps with either
+preconditioner, the near-null space on the reduced systems cutting their Krylov
+iterations; BNCG, unpreconditioned, needs far more iterations (docs/guide/distributed.md).
+Tao's interior point method BQPIP is not offered: it takes the missing bounds as finite
+ones at PETSc's infinity and does not converge on the smallest scenes.
 
 PETSc's Debian build (``python3-petsc4py``) is built against that Python's numpy, not
 the suite's, so the solve runs as its own job: ``mpiexec -n RANKS python3

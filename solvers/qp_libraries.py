@@ -39,14 +39,12 @@ is the report's ``solver_presets.csv`` (:func:`Library.describe`).
 How each library is reached: through qpsolvers (``qpsolvers.solve_problem``), the layer
 qpbenchmark itself runs, where it passes every option the presets need and the
 library's own status and iteration count (``Solution.extras``) -- OSQP, ProxQP, PIQP,
-QPALM, cvxopt, SCS. Measured on a 19,881-unknown contact-like QP (median of 3, osqp 1.1,
-clarabel 0.11, proxsuite 0.8): 188-198 ms through qpsolvers against 191-205 ms direct
-for OSQP, 903 against 908 ms for Clarabel, 86.9 against 86.8 ms for ProxQP, the same
-iterations: qpsolvers costs no time. It loses options, though, and there the call is
-direct: Clarabel's iteration count (not in ``extras``), HiGHS's status (``extras`` is
-empty: its own "Solve error" / "Large nullspace" would read as a bare failure) and ECOS's
-epigraph (qpsolvers's ``ecos_solve_problem`` builds it from a dense ``P`` and its dense
-Cholesky factor, ``n^2`` entries, and passes no cones).
+QPALM, cvxopt, SCS. qpsolvers costs no time: the same solves, the same iterations, take
+as long through it as direct (docs/guide/measurements.md). It loses options, though, and
+there the call is direct: Clarabel's iteration count (not in ``extras``), HiGHS's status
+(``extras`` is empty: its own "Solve error" / "Large nullspace" would read as a bare
+failure) and ECOS's epigraph (qpsolvers's ``ecos_solve_problem`` builds it from a dense
+``P`` and its dense Cholesky factor, ``n^2`` entries, and passes no cones).
 qpsolvers also passes dual warm starts to no library and drops QPALM's primal one (PIQP,
 Clarabel, HiGHS and ECOS take none either); the suite's studies start every library
 cold, so nothing measured depends on it, and a run given a guess says in its message

@@ -42,9 +42,8 @@ verification passes: the four KKT residuals and the certified energy bound (:fun
 Memory: ``A~`` is the scene's ``A`` (not copied) plus the transformation's update on the
 rows near the contact, which the compiled sweep reads beside it; ``T`` and ``T^{-1}`` are
 kept as their changed rows; each coarse operator is held once (with explicit zeros where
-the truncation's term goes). Measured: 1.16x the peak memory of the multigrid-PCG linear
-solve in 2D (262k nodes) and 0.95x in 3D (135k), the input both hold included (the
-solver comparison's page).
+the truncation's term goes). Its peak memory is about the multigrid-PCG linear
+solve's (the solver comparison's page).
 
 Nested iteration from the coarsest level is the caller's: the scene's coarser problems,
 solved in turn, give ``u0`` (the augmented-projection study does this for every
@@ -142,38 +141,32 @@ from solvers.kernels.tnnmg_tresca import (SlipCurvature, TrescaFace, TrescaFaceC
 #: transformation's norm, O(1)).
 CHECK_FACTOR = 10.0
 
-#: V-cycle sweeps by dimension (option ``sweeps=0``). Measured at the quick levels
-#: (circle-square 66k/262k nodes, cube-sphere 18k/135k, one quiet run each): in 2D V(1,1)
-#: keeps the steps level-independent (9 and 10) at the lower time, V(2,2) costs 15% more;
-#: in 3D one node-block sweep a side smooths too little for that (11 -> 13 steps per level,
-#: +18%), V(2,2) keeps it (8 -> 9) at the same time to the target.
+#: V-cycle sweeps by dimension (option ``sweeps=0``): in 2D V(1,1) keeps the steps
+#: level-independent at the lower time; in 3D one node-block sweep a side smooths too
+#: little for that, V(2,2) keeps it at the same time to the target
+#: (docs/guide/measurements.md).
 AUTO_SWEEPS = {2: 1, 3: 2}
 
 #: Nonlinear presmoothing sweeps per step (option ``presmoothing=0``): one without
 #: friction; two on a Tresca step, where the sweeps alone move the slip front (the
-#: truncated correction holds every sticking node). Measured on the nested load paths at
-#: Q/(mu P) 0.3 / 0.7 (tangential step to tol 1e-10, :mod:`workflows.scripts.friction_study`'s
-#: scenes): circle-square levels 3 and 4 10 / 10 and 9 / 12 steps with one, 9 / 10 and
-#: 9 / 10 with two; cube-sphere levels 2 and 3 12 / 12 and 15 / 15 with one, 11 / 11 and
-#: 14 / 15 with two. Never more steps, for one sweep more per step.
+#: truncated correction holds every sticking node): on the nested load paths of
+#: :mod:`workflows.scripts.friction_study`'s scenes never more steps, for one sweep more
+#: per step (docs/guide/friction.md).
 AUTO_PRESMOOTHING = {False: 1, True: 2}
 
 #: V-cycle sweeps of a 3D Tresca step's TNNMG steps (option ``sweeps=0``; 2D as
 #: :data:`AUTO_SWEEPS`). A 3D step takes no CG on its face, so each V-cycle's contraction
-#: is the step's: with V(2,2) it falls with the level, 0.16 per step at cube-sphere level 2
-#: and 0.28 at level 3 (the normal step, where no stick set is found, too: 12 -> 15 steps
-#: to tol 1e-10). Measured on the nested load paths (Q/(mu P) 0.3 / 0.7, tangential step
-#: to tol 1e-10, two presmoothing sweeps): levels 2 and 3 take 11 / 11 and 14 / 15 steps
-#: with V(2,2), 9 / 10 and 11 / 10 with V(3,3), 8 / 9 and 9 / 10 with V(4,4), the sweeps a
-#: compiled pass over the mesh each.
+#: is the step's: with V(2,2) it falls with the level (in the normal step too, where no
+#: stick set is found); four sweeps a side, each a compiled pass over the mesh, take the
+#: fewest steps on the nested load paths (docs/guide/friction.md).
 TRESCA_3D_SWEEPS = 4
 
 #: V-cycle sweeps of the preconditioner of CG on a face of a 2D Tresca step (option
 #: ``sweeps=0``): two a side, as the linear floor's V-cycle smooths (a symmetric
-#: Gauss-Seidel sweep, forward and back, before and after). Measured on circle-square
-#: level 3 (Q/(mu P) 0.7): to energy error 1e-6 CG with one a side takes 12 steps, as
-#: TNNMG steps alone do; with two, 11.
+#: Gauss-Seidel sweep, forward and back, before and after): with one a side CG takes as
+#: many steps as TNNMG steps alone do (docs/guide/friction.md).
 TRESCA_FACE_SWEEPS = 2
+
 
 @dataclass
 class _StepLog:

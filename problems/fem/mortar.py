@@ -47,7 +47,7 @@ P2 (Remark 7.11's elements; :func:`multiplier_basis`, :func:`dual_coefficients`)
   the gap's variation over the vertex's patch, and its coefficient carries no net force
   (the total force is ``sum c_i m_i``); the standard mortar conditions (weighted gaps
   and coefficients >= 0) hold all the same, but the vertex coefficients are no pressure
-  (on cube_sphere at level 1 they reach 5 times the midpoints' largest);
+  (docs/guide/mortar.md);
 * the nodal pressure at P2 is therefore recovered from the forces, as for the nodal P2
   rows (:func:`problems.fem.two_body.quadratic_pressure_map`): the constrained nodes'
   forces ``F = D' diag(1/s) p`` aggregated onto the vertices (each midpoint's half to

@@ -245,10 +245,10 @@ def quadratic_pressure_map(surface) -> sp.csr_matrix:
     interpolated back to the midpoints, ``P diag(1 / m_1) P'``.
 
     P2's nodal forces alternate between vertices and midpoints (with the HRZ mass of
-    :func:`problems.fem.quadratic.surface_mass_p2` by about +-20 % on circle-square
-    level 2; in 3D a vertex function integrates to zero, so ``p / mass`` is no pressure
-    there). Aggregating each midpoint's force half onto each of its vertices is exact
-    for a constant pressure in 2D and 3D and removes the alternation.
+    :func:`problems.fem.quadratic.surface_mass_p2`: docs/guide/measurements.md; in 3D a
+    vertex function integrates to zero, so ``p / mass`` is no pressure there).
+    Aggregating each midpoint's force half onto each of its vertices is exact for a
+    constant pressure in 2D and 3D and removes the alternation.
 
     Parameters
     ----------

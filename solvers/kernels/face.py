@@ -22,10 +22,9 @@ from solvers.kernels.multigrid import Apply
 #: Face projections: the metric whose orthogonal complement of ``ker B_I`` is removed.
 FACE_KINDS = ("harmonic", "euclidean")
 
-#: Default patch width of the harmonic face projection per dimension. Measured with the
-#: semismooth Newton solver to 1e-6: at circle-square level 4 hops 1/2/3/5 took
-#: 9.3/8.0/6.2/5.9 s (Euclidean 16.3 s), at cube-sphere level 3 18.1/15.7/19.1/22.7 s
-#: (Euclidean 22.7 s): in 3D the patch's factorisation grows faster than the steps fall.
+#: Default patch width of the harmonic face projection per dimension: the fastest
+#: semismooth Newton solves; in 3D the patch's factorisation grows faster than the steps
+#: fall (docs/guide/measurements.md).
 AUTO_HOPS = {2: 5, 3: 2}
 
 #: The face projection as a solver option (declared once; :func:`face_projector`).
@@ -58,9 +57,8 @@ class FaceProjector:
     ``W = A^{-1} B_I'``). With the multigrid V-cycle ``M`` the projected
     preconditioner is ``Pi M Pi'``: exact on the face when ``W = A^{-1} B_I'``,
     it inherits the V-cycle's rate, whereas the Euclidean projector cuts the
-    smooth V-cycle correction at the constrained DOFs (measured at circle-square
-    level 4 on the solution's face: 12 projected-PCG steps to energy error 1e-6
-    with ``hops=5``, 24 with the Euclidean projector, 7 without constraints).
+    smooth V-cycle correction at the constrained DOFs (it takes twice the
+    projected-PCG steps: the solver comparison's page).
 
     Setup: a sparse Cholesky factor of ``G_pp`` (:func:`solvers.kernels.cholesky.factorize`)
     and the dense Cholesky factor of the small ``K = B_p G_pp^{-1} B_p'`` (partial

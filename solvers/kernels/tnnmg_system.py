@@ -143,8 +143,8 @@ class TrescaTerm:
         stationarity residual, which the certified bound weighs by ``A^-1`` (second
         order), instead of in the slip complementarity, which enters the duality gap
         linearly (:func:`solvers.certificate.certify`: with the clipped residual the bound
-        lags the energy error by two orders at energy error 1e-7 on circle-square level 3).
-        Any multiplier in ``[-s_i, s_i]`` gives a certified bound."""
+        lags the energy error by orders of magnitude, docs/guide/friction.md). Any
+        multiplier in ``[-s_i, s_i]`` gives a certified bound."""
         if self.k == 1:
             lam = friction.clip(residual_v[self.pivot] / self.theta)
             slip = np.sign(self.theta) * np.sign(v[self.pivot] - self.centre)
