@@ -20,8 +20,8 @@ Where the thesis and we differ, and why (DESIGN.md, "known gaps"):
   counts.
 * Load path. With the body force on both bodies and the circle hung from its
   upper arc, the square sinks under its own weight almost as fast as the circle
-  and only ~2 % of the circle's weight passes through the contact (prototype
-  measurement). We therefore drive the contact by the circle alone: its upper arc
+  and only a small part of the circle's weight passes through the contact. We
+  therefore drive the contact by the circle alone: its upper arc
   (polar angle within ``held_arc`` degrees of the top) is displaced downwards by
   ``indent`` (a prescribed support displacement, like a press), and the body force
   (0, -``load``) acts on the circle only; the square carries no body force (its
@@ -39,7 +39,7 @@ boundary nodes lie on the circle at every level. Total nodes: 1099, 4237, 16636,
 Friction (``friction``, ``mu``, ``shift``; beyond the thesis, which is frictionless): each
 constrained node gets a tangential row, the same interpolation (Alg. 7.1) as its normal
 row along its unit tangent ((1, 0) for n = (0, 1)), and Tresca or Coulomb friction on it
-(:class:`problems.qp.Friction`). The load path is the normal load (the press) and then the
+(:class:`problems.friction.data.Friction`). The load path is the normal load (the press) and then the
 tangential step, the held arc moved along x by ``shift``
 (:func:`problems.fem.two_body.frictional_two_body`); nodal P1 rows only.
 

@@ -23,8 +23,8 @@ Where the thesis and we differ, and why (DESIGN.md, "known gaps"):
   a ~ 0.27, i.e. 8.7 constrained nodes across the radius at level 3 (h = 1/32),
   as a resolved Hertz comparison needs (0.045 gave a/h = 6.8); a/R ~ 0.3, so the
   contact is not small against the ball, and the finite cube is not a
-  half-space: both bend Hertz by a few percent (measured at level 3: a -2.2 %,
-  p0 +4.5 %; the study reports it per level).
+  half-space: both bend Hertz by a few percent (the contact-solution study reports it
+  per level).
 
 Meshes: level L has a structured cube with 4 * 2^L cells per edge (Kuhn
 tetrahedra; each level the Freudenthal refinement of the previous one) and a
@@ -43,7 +43,7 @@ Table 9.3 and every solver sees the thesis's problem.
 Friction (``friction``, ``mu``, ``shift``; beyond the thesis, which is frictionless): each
 constrained node gets two tangential rows, the same interpolation (Alg. 7.1) as its normal
 row along an orthonormal frame with the normal (the x and y axes for n = (0, 0, 1)), and
-isotropic Tresca or Coulomb friction on them (:class:`problems.qp.Friction`). The load
+isotropic Tresca or Coulomb friction on them (:class:`problems.friction.data.Friction`). The load
 path is the normal load (the press) and then the tangential step, the held cap moved
 along x by ``shift`` (:func:`problems.fem.two_body.frictional_two_body`); nodal P1 rows
 only. A tangential load along x keeps the plane y = 1/2 a symmetry plane (a half model

@@ -26,7 +26,7 @@ def floating_modes(qp: ContactQP, threshold: float = FLOATING_THRESHOLD) -> np.n
     elastic stiffness. A factorisation of ``A`` then returns the huge rigid response
     ``A^{-1} f`` (metres where the answer is ~0.1 mm) and the contact solution is a
     difference of such numbers. Solvers that know these modes treat them exactly
-    (:class:`solvers.cholesky.FloatingCholesky`).
+    (:class:`solvers.kernels.cholesky.FloatingCholesky`).
 
     Parameters
     ----------

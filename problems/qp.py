@@ -5,7 +5,9 @@ Both sides of the data flow import this module and nothing above it: a scene
 (``solvers/<name>.py``) receives one; :mod:`problems.kkt` judges any ``(u, p)`` the
 same way whoever produced it. Beside it, one job each: :mod:`problems.kkt` (KKT
 residuals, energy error), :mod:`problems.slack` (the slack form of the stabilised
-problem), :mod:`problems.floating` (floating bodies' rigid modes).
+problem), :mod:`problems.floating` (floating bodies' rigid modes). Friction (the
+:class:`problems.friction.data.Friction` a ContactQP may carry, its program forms and
+its KKT residuals) is gathered in :mod:`problems.friction`.
 
 Conventions (thesis Ch. 7-8, DESIGN.md)::
 
@@ -25,6 +27,8 @@ from typing import Callable
 
 import numpy as np
 import scipy.sparse as sp
+
+from problems.friction.data import FRICTION_LAWS, Friction, check_facets
 
 
 class QPValidationError(ValueError):
@@ -148,7 +152,7 @@ class Extrusion:
     and is the copy of one unknown of its body's section.
 
     What a semicoarsening multigrid needs when the levels are separate meshes
-    (:func:`solvers.multigrid.layered_hierarchy`).
+    (:func:`solvers.kernels.multigrid.layered_hierarchy`).
 
     Attributes
     ----------
@@ -263,273 +267,6 @@ class Stabilisation:
         return len(self.nodes)
 
 
-#: The friction laws a ContactQP can carry (``none``: the thesis's frictionless problem).
-FRICTION_LAWS = ("none", "tresca", "coulomb")
-
-#: The fewest facets of a faceted friction law (a polygon needs three); ``0``: isotropic.
-MIN_FRICTION_FACETS = 3
-
-
-def polygon_vertices(k: int) -> np.ndarray:
-    """The ``k`` vertices ``v_j = (cos 2 pi j / k, sin 2 pi j / k)`` of the regular
-    ``k``-gon ``P_k`` inscribed in the unit circle, one vertex along the first tangent
-    (``(k, 2)``, counter-clockwise)."""
-    angle = 2.0 * np.pi * np.arange(k) / k
-    return np.column_stack([np.cos(angle), np.sin(angle)])
-
-
-def polygon_normals(k: int) -> np.ndarray:
-    """The unit outward normals ``n_j`` of the facets ``[v_j, v_j+1]`` of ``P_k``
-    (``(k, 2)``): ``P_k = {l : n_j . l <= cos(pi / k)}``, ``cos(pi / k)`` its apothem."""
-    angle = np.pi * (2 * np.arange(k) + 1) / k
-    return np.column_stack([np.cos(angle), np.sin(angle)])
-
-
-def polygon_support(x: np.ndarray, k: int) -> np.ndarray:
-    """``h_Pk(x_i) = max_{l in P_k} l . x_i = max_j v_j . x_i`` of each row of ``x``
-    (``(N, 2)``): the faceted dissipation per unit slip bound."""
-    return np.max(np.asarray(x, dtype=float) @ polygon_vertices(k).T, axis=1)
-
-
-def polygon_gauge(x: np.ndarray, k: int) -> np.ndarray:
-    """The gauge ``min {t >= 0 : x_i in t P_k} = max_j n_j . x_i / cos(pi / k)`` of each
-    row of ``x`` (``(N, 2)``): ``x_i in s_i P_k`` exactly when it is ``<= s_i``."""
-    return (np.max(np.asarray(x, dtype=float) @ polygon_normals(k).T, axis=1)
-            / np.cos(np.pi / k))
-
-
-#: Regions of a point ``z`` against ``s P_k`` (:func:`polygon_regions`): ``REGION_INSIDE``
-#: (``z`` is its own projection), then per facet ``j`` the code ``REGION_FACET + 2 j``
-#: (projected into the facet's interior) and ``REGION_FACET + 2 j + 1`` (projected onto
-#: its first vertex ``s v_j``).
-REGION_INSIDE, REGION_FACET = 1, 2
-
-
-def polygon_regions(z: np.ndarray, s: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
-    """The Euclidean projection of each row of ``z`` (``(N, 2)``) onto ``s_i P_k`` and
-    its region (:data:`REGION_INSIDE`, :data:`REGION_FACET`): outside, the nearest of
-    the ``k`` facets' nearest points (each the segment's parameter clipped to
-    ``[0, 1]``), exact to round-off; ``s_i = 0`` projects onto ``0``."""
-    z, s = np.asarray(z, dtype=float), np.asarray(s, dtype=float)
-    v = polygon_vertices(k)
-    start = s[:, None, None] * v[None]                         # (N, k, 2): s v_j
-    edge = s[:, None, None] * (np.roll(v, -1, axis=0) - v)[None]
-    length2 = np.maximum(np.einsum("nkd,nkd->nk", edge, edge), 1e-300)
-    t = np.einsum("nkd,nkd->nk", z[:, None, :] - start, edge) / length2
-    at = np.clip(t, 0.0, 1.0)
-    near = start + at[..., None] * edge
-    dist = np.einsum("nkd,nkd->nk", z[:, None, :] - near, z[:, None, :] - near)
-    j = np.argmin(dist, axis=1)
-    rows = np.arange(len(z))
-    inside = polygon_gauge(z, k) <= s
-    projection = np.where(inside[:, None], z, near[rows, j])
-    t_j = at[rows, j]
-    facet = np.where(t_j >= 1.0, (j + 1) % k, j)       # the far vertex: the next facet's
-    code = REGION_FACET + 2 * facet + ((t_j <= 0.0) | (t_j >= 1.0))
-    return projection, np.where(inside, REGION_INSIDE, code)
-
-
-def project_polygon(z: np.ndarray, s: np.ndarray, k: int) -> np.ndarray:
-    """Each row of ``z`` (``(N, 2)``) projected onto ``s_i P_k`` (:func:`polygon_regions`)."""
-    return polygon_regions(z, s, k)[0]
-
-
-def region_projection(z: np.ndarray, s: np.ndarray, k: int,
-                      code: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The affine projection of each row of ``z`` that its region ``code`` stands for, and
-    its Jacobian (``(N, 2, 2)``): inside ``z`` and ``I``; in facet ``j``'s interior the
-    projection onto the facet's line, ``I - n_j n_j'``; at vertex ``j`` ``s v_j`` and
-    ``0``. On the right region it is :func:`project_polygon`."""
-    z, s, code = np.asarray(z, dtype=float), np.asarray(s, dtype=float), np.asarray(code)
-    facet = np.maximum(code - REGION_FACET, 0) // 2
-    vertex = (code >= REGION_FACET) & ((code - REGION_FACET) % 2 == 1)
-    on_facet = (code >= REGION_FACET) & ~vertex
-    n = polygon_normals(k)[facet]
-    apothem = np.cos(np.pi / k)
-    out = z - (np.einsum("nd,nd->n", n, z) - s * apothem)[:, None] * n
-    eye = np.broadcast_to(np.eye(2), (len(z), 2, 2))
-    jac = eye - n[:, :, None] * n[:, None, :]
-    out = np.where(on_facet[:, None], out, np.where(vertex[:, None],
-                                                     s[:, None] * polygon_vertices(k)[facet], z))
-    jac = np.where(on_facet[:, None, None], jac, np.where(vertex[:, None, None], 0.0, eye))
-    return out, jac
-
-
-@dataclass
-class LoadStep:
-    """One step of a quasi-static load path: the ContactQP's data of that step.
-
-    Attributes
-    ----------
-    f : (n,) array
-        Load vector of the step (with the step's prescribed displacements lifted).
-    g : (m,) array
-        Gaps of the step.
-    offset : (m_contact k,) array
-        Tangential relative displacement of the step's prescribed values
-        (``T_full @ u_fixed``): the step's relative tangential displacement is
-        ``T u + offset``.
-    """
-
-    f: np.ndarray
-    g: np.ndarray
-    offset: np.ndarray
-
-
-@dataclass
-class Friction:
-    """Tresca or Coulomb friction on the constrained rows: ``k = d - 1`` tangential rows
-    per constrained node (2D: one, 3D: two).
-
-    The tangential rows of constrained node ``i`` are ``t_ij . (u(P) - sum_k w_k u(P_k))``,
-    the same interpolation (Alg. 7.1, (7.14)) as its normal row with the unit tangents
-    ``t_ij`` orthogonal to the row's direction ``n_i`` (and, in 3D, to each other). Rows
-    and every tangential vector are node-major: entry ``i k + j`` belongs to node ``i``,
-    tangent ``j``. The slip of ``u`` is measured from the previous state of the load
-    path::
-
-        slip(u) = T u + offset - previous
-
-    and one step is the Tresca problem (isotropic: ``|.|`` is the Euclidean norm of a
-    node's ``k``-vector, the absolute value in 2D)::
-
-        minimise 1/2 u'Au - f'u + sum_i s_i |slip_i(u)|   subject to   B u <= g
-
-    with KKT conditions ``A u + B'p + T'lam = f``, ``|lam_i| <= s_i``,
-    ``lam_i . slip_i = s_i |slip_i|`` (and the normal ones). Coulomb friction sets
-    ``s_i = mu p_i`` by a fixed point over Tresca problems.
-
-    The faceted law (3D, ``facets = k >= 3``) replaces the disc ``|lam_i| <= s_i`` by
-    ``s_i P_k``, ``P_k`` the regular ``k``-gon inscribed in the unit circle with one vertex
-    along the first tangent (:func:`polygon_vertices`): inscribed, as the pyramid
-    approximations of engineering codes are, so that ``P_k`` lies inside the disc, its
-    dissipation is a lower bound of the isotropic one and it grows to it as ``k`` grows
-    (the gap is ``1 - cos(pi / k)`` relative, ``O(k^-2)``). Its primal term is the
-    support function of ``s_i P_k``::
-
-        s_i h_Pk(slip_i) = max_{l in s_i P_k} l . slip_i = s_i max_j v_j . slip_i
-
-    (a linear function is largest at a vertex ``v_j``), so the step is
-
-        minimise 1/2 u'Au - f'u + sum_i s_i h_Pk(slip_i(u))   subject to   B u <= g
-
-    and, as ``s_i h_Pk`` is the support function of ``s_i P_k`` (its subdifferential at
-    ``x`` is the face of ``s_i P_k`` where ``l . x`` is largest), its KKT conditions are
-    ``A u + B'p + T'lam = f``, ``lam_i in s_i P_k`` (:meth:`gauge` ``<= s_i``),
-    ``lam_i . slip_i = s_i h_Pk(slip_i)``. The dual is the isotropic one with the discs
-    replaced by ``s_i P_k`` (``min 1/2 y'Sy - c'y``, ``p >= 0``, ``lam_i in s_i P_k``,
-    :mod:`solvers.tresca`). In 2D the law is already polyhedral (the disc is the
-    interval ``[-s_i, s_i]``): ``facets`` is ``0`` there.
-
-    Attributes
-    ----------
-    law : {"tresca", "coulomb"}
-    mu : float
-        Friction coefficient (Coulomb; for Tresca it documents how ``slip_bound`` was made).
-    T : (m_contact k, n) sparse
-        Tangential rows on the free DOFs (node-major).
-    tangent : (m_contact k, d) array
-        Unit tangent of each tangential row.
-    slip_bound : (m_contact,) array
-        ``s_i >= 0``, a force (the bound on ``|lam_i|``).
-    offset : (m_contact k,) array
-        ``T_full @ u_fixed`` of this step's prescribed values.
-    previous : (m_contact k,) array
-        Relative tangential displacement ``T u_prev + offset_prev`` of the previous state.
-    path : tuple of LoadStep
-        The scene's load path (normal load first, then the tangential step); the
-        ContactQP's ``f``, ``g`` and ``offset`` are those of one of its steps.
-    facets : int
-        ``0``: isotropic (the disc); ``k >= 3`` (3D only): the faceted law, ``lam_i`` in
-        the inscribed regular ``k``-gon ``s_i P_k``.
-    """
-
-    law: str
-    mu: float
-    T: sp.spmatrix
-    tangent: np.ndarray
-    slip_bound: np.ndarray
-    offset: np.ndarray
-    previous: np.ndarray
-    path: tuple = ()
-    facets: int = 0
-
-    @property
-    def components(self) -> int:
-        """``k``: tangential rows per constrained node (``d - 1``)."""
-        return self.T.shape[0] // max(len(self.slip_bound), 1)
-
-    def blocks(self, v: np.ndarray) -> np.ndarray:
-        """The node-major vector ``v`` (``m_contact k`` entries) as ``(m_contact, k)``."""
-        return np.asarray(v, dtype=float).reshape(-1, self.components)
-
-    def magnitude(self, v: np.ndarray) -> np.ndarray:
-        """Euclidean norm of each node's ``k``-vector of ``v`` (2D: ``|v_i|``)."""
-        v = np.asarray(v, dtype=float)
-        return np.abs(v) if self.components == 1 else np.linalg.norm(self.blocks(v), axis=1)
-
-    def inner(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-        """Per node ``a_i . b_i`` of two node-major vectors (2D: ``a_i b_i``)."""
-        a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
-        return a * b if self.components == 1 else np.einsum("ij,ij->i", self.blocks(a),
-                                                             self.blocks(b))
-
-    def dissipation(self, slip: np.ndarray) -> np.ndarray:
-        """Per node the dissipation per unit slip bound of the slip ``slip``: ``|slip_i|``
-        (isotropic), ``h_Pk(slip_i) = max_j v_j . slip_i`` (faceted)."""
-        if not self.facets:
-            return self.magnitude(slip)
-        return polygon_support(self.blocks(slip), self.facets)
-
-    def gauge(self, lam: np.ndarray) -> np.ndarray:
-        """Per node the size of ``lam_i`` the slip bound limits: ``|lam_i|`` (isotropic),
-        the gauge of ``P_k`` (faceted, :func:`polygon_gauge`): ``lam_i`` is admissible
-        exactly when it is ``<= s_i``."""
-        if not self.facets:
-            return self.magnitude(lam)
-        return polygon_gauge(self.blocks(lam), self.facets)
-
-    def clip(self, lam: np.ndarray) -> np.ndarray:
-        """``lam`` projected onto the friction discs ``|lam_i| <= s_i`` (2D: the box
-        ``[-s_i, s_i]``; 3D: each node's vector scaled back radially; faceted: the
-        Euclidean projection onto ``s_i P_k``, :func:`project_polygon`)."""
-        lam, s = np.asarray(lam, dtype=float), self.slip_bound
-        if self.components == 1:
-            return np.clip(lam, -s, s)
-        if self.facets:
-            return project_polygon(self.blocks(lam), s, self.facets).ravel()
-        size = self.magnitude(lam)
-        scale = np.where(size > s, s / np.where(size > 0, size, 1.0), 1.0)
-        return (self.blocks(lam) * scale[:, None]).ravel()
-
-    def tangential_force(self, lam: np.ndarray) -> np.ndarray:
-        """The total tangential force ``sum_ij lam_ij t_ij`` (``(d,)``) of the multipliers
-        ``lam``."""
-        return (np.asarray(lam, dtype=float)[:, None] * self.tangent).sum(axis=0)
-
-    def total_force(self, lam: np.ndarray) -> float:
-        """``Q``: the size of the total tangential force of the multipliers ``lam``
-        (2D: ``|sum_i lam_i|``; 3D: the norm of :meth:`tangential_force`)."""
-        if self.components == 1:
-            return abs(float(np.asarray(lam, dtype=float).sum()))
-        return float(np.linalg.norm(self.tangential_force(lam)))
-
-    def slip(self, u: np.ndarray) -> np.ndarray:
-        """Tangential slip ``T u + offset - previous`` of ``u`` in this step."""
-        return self.T @ np.asarray(u, dtype=float) + self.offset - self.previous
-
-    def states(self, lam: np.ndarray, tol: float) -> np.ndarray:
-        """Stick/slip state of each constrained node from its tangential multiplier
-        ``lam``: ``free`` where ``s_i = 0`` (no tangential force can act: out of contact
-        under Coulomb friction), ``stick`` where ``|lam_i|`` lies inside its bound by more
-        than ``tol max(s)`` (the slip is then zero), ``slip`` where it is at the bound.
-        """
-        s = self.slip_bound
-        margin = tol * (float(s.max()) if s.size else 0.0)
-        inside = s - self.gauge(lam) > margin
-        return np.where(s > 0, np.where(inside, "stick", "slip"), "free")
-
-
 @dataclass
 class SharedWork:
     """What is computed once per :class:`ContactQP` and shared, typed (``qp.cache``).
@@ -540,9 +277,9 @@ class SharedWork:
         ``{threshold: (n, k) array}`` (:func:`problems.floating.floating_modes`).
     floating_factor : object or None
         ``A^{-1}`` with the floating modes removed
-        (:func:`solvers.cholesky.shared_floating_factor`), shared by the exact solver and
-        the verification's linear solver (a factorisation of the roll stack's level 3
-        takes ~25 s).
+        (:func:`solvers.kernels.cholesky.shared_floating_factor`), shared by the exact
+        solver and the verification's linear solver (a factorisation of a large problem
+        is too slow to repeat).
     linear_solver : callable or None
         ``(r, guess=None) -> A^{-1} r`` of the verification
         (:func:`solvers.certificate.linear_solver`).
@@ -550,14 +287,14 @@ class SharedWork:
         ``(digest of (u, p, tol), DualityGap)``: the last certificate
         (:func:`solvers.certificate.certify`).
     dual_operators : dict
-        ``{frictional: DualOperators}`` (:func:`solvers.tresca.dual_operators`): ``A``
+        ``{frictional: DualOperators}`` (:func:`solvers.kernels.tresca.dual_operators`): ``A``
         factorised and the dense dual Hessian, shared by the steps of a load path (with
         and without the tangential rows).
     contact_schur : dict
         ``{factorization: ContactSchur}`` (:func:`solvers.semismooth_newton.contact_schur`):
         ``A`` factorised and the dense Schur complement of the normal and tangential rows,
-        shared by the Tresca solves of a load path (at cube-sphere level 3 forming it
-        costs minutes).
+        shared by the Tresca solves of a load path (forming it is too slow to repeat
+        for each).
     """
 
     floating_modes: dict = field(default_factory=dict)
@@ -780,20 +517,6 @@ class ContactQP:
         if self.mesh is None or self.contact is None:
             raise QPValidationError("this ContactQP has no mesh/contact surface")
         return self.mesh.points[self.contact.nodes]
-
-
-def check_facets(facets, dim: int, error: type = QPValidationError,
-                 name: str = "friction.facets") -> None:
-    """Raise ``error`` naming ``name`` unless ``facets`` is an allowed facet count in
-    ``dim`` dimensions: ``0`` (isotropic), or in 3D an integer ``>= 3``
-    (:data:`MIN_FRICTION_FACETS`); in 2D the law is already polyhedral (an interval)."""
-    whole = isinstance(facets, (int, np.integer)) and not isinstance(facets, bool)
-    if whole and (facets == 0 or (dim == 3 and facets >= MIN_FRICTION_FACETS)):
-        return
-    allowed = (f"0 (isotropic) or an integer >= {MIN_FRICTION_FACETS} (the inscribed regular "
-               "k-gon)" if dim == 3 else
-               "0 (in 2D the friction law is already polyhedral: the interval [-s, s])")
-    raise error(f"{name} = {facets!r} is not allowed in {dim}D; allowed: {allowed}")
 
 
 def _validate_friction(fr: Friction, n: int, mc: int, dim: int) -> None:

@@ -31,7 +31,7 @@ the rolls (``x = 0`` at the mill centre), ``y`` the rolling direction, ``z`` up.
   at levels 0-3 (tested below 1e-4). The springs leave ``A`` nearly singular (the
   work roll's vertical translation has a Rayleigh quotient of ~7e-10 of the diagonal):
   solvers that factorise ``A`` must keep that mode apart
-  (:func:`problems.floating.floating_modes`, :class:`solvers.cholesky.FloatingCholesky`; the
+  (:func:`problems.floating.floating_modes`, :class:`solvers.kernels.cholesky.FloatingCholesky`; the
   exact PDAS does), otherwise the contact solution is a difference of metre-sized
   rigid motions. Stiffer springs are no cure: the spring force is their stiffness times
   the roll's rigid rise (~0.3-0.5 mm), so 1e-4 of the strip force allows at most ~2x
@@ -80,12 +80,14 @@ used 46,611 nodes and 7,089 inequalities.
 Levels are separate meshes, not refinements of each other: no prolongations are
 supplied. The P1 scene supplies its layers instead (``multilevel.extrusion``,
 :func:`problems.fem.mesh.extrusion_layers`), and the V-cycles of the multigrid-preconditioned
-solvers coarsen along ``x`` and smooth whole sections (:func:`solvers.multigrid.layered_hierarchy`):
-the tetrahedra are up to 25:1 long in ``x``, where pointwise smoothing with algebraic
-coarsening (smoothed aggregation, still the P2 scene's) leaves ``kappa(V A)`` at 150 and
-more. The constrained surface has one level: the band is 25:1 anisotropic too, and a
-tensor coarsening of it measured ``kappa(S-hat^-1 S_in)`` about 27, so the augmented
-projection's ``schur=auto`` takes ``S_in``.
+solvers coarsen along ``x`` and smooth whole sections
+(:func:`solvers.kernels.multigrid.layered_hierarchy`): the tetrahedra are up to 25:1 long
+in ``x``, where pointwise smoothing with algebraic
+coarsening (smoothed aggregation, still the P2 scene's) leaves ``kappa(V A)`` large (the
+roll-stack study's page). The constrained surface has one level: the band is 25:1
+anisotropic too, and a tensor coarsening of it leaves ``kappa(S-hat^-1 S_in)`` far above
+:data:`solvers.augmented_projection.SCHUR_KAPPA_LIMIT` (docs/guide/measurements.md), so
+the augmented projection's ``schur=auto`` takes ``S_in``.
 
 Left out: friction and the rolls' horizontal offset; the strip's plastic response
 (its pressure is a given uniform traction); the work roll's bearing/bending forces;

@@ -21,11 +21,10 @@ so the ``mu p`` of the theory is ``s``: the reference profile takes its contact 
 centred at the centre of the deficit, not at the contact's: the theory's stick zone is
 concentric because the normal load leaves no tangential traction between similar
 half-planes. A finite scene's normal step, loaded with friction, leaves a small traction
-odd in ``x`` (on circle-square about 3 % of ``mu P`` in total), which adds to the load's
-traction on one side and subtracts on the other, and the stick zone moves towards the
-latter: 2.3-2.8 % of ``a`` at both ratios and at levels 2-4, and none when the normal
-step is loaded without friction. That offset is reported beside the comparison
-(``stick_offset``), not hidden in it: ``c`` stays the analytic one.
+odd in ``x``, which adds to the load's traction on one side and subtracts on the other,
+and the stick zone moves towards the latter (a few per cent of ``a``, none when the
+normal step is loaded without friction; docs/guide/friction.md). That offset is reported
+beside the comparison (``stick_offset``), not hidden in it: ``c`` stays the analytic one.
 
 For the sphere (Johnson, Sect. 7.2; Mindlin 1949) the contact circle of radius ``a``
 sticks inside the circle of radius ``c`` and::

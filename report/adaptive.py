@@ -39,18 +39,15 @@ from __future__ import annotations
 import argparse
 import re
 
-import matplotlib
+import matplotlib.pyplot as plt
+import numpy as np
+import pandas as pd
+from matplotlib.tri import Triangulation
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import pandas as pd  # noqa: E402
-from matplotlib.tri import Triangulation  # noqa: E402
-
-from report.claims import Claim  # noqa: E402
-from report.figures import save_figure  # noqa: E402
-from report.rates import fitted_slope  # noqa: E402
-from workflows.io import write_csv  # noqa: E402
+from report.claims import Claim
+from report.figures import save_figure
+from report.rates import fitted_slope
+from workflows.io import write_csv
 
 TABLE_VARIANT = "eta1+eta2"
 STYLE = {"uniform": ("k", "o", "-"), "eta1": ("tab:orange", "s", "-"),

@@ -13,17 +13,14 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-import matplotlib
+import matplotlib.pyplot as plt
+import numpy as np
+import pandas as pd
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import pandas as pd  # noqa: E402
-
-from report.claims import Claim  # noqa: E402
-from report.figures import THESIS_COLOR, legend_outside, save_figure, solver_style  # noqa: E402
-from report.rates import fitted_slope as slope  # noqa: E402
-from workflows.io import read_csv, write_csv  # noqa: E402
+from report.claims import Claim
+from report.figures import THESIS_COLOR, legend_outside, save_figure, solver_style
+from report.rates import fitted_slope as slope
+from workflows.io import read_csv, write_csv
 
 MAIN = "alg84"
 #: Rows of the study that are not configurations of Alg. 8.4 (besides the ``amg_pcg_*`` floor).

@@ -15,17 +15,14 @@ from __future__ import annotations
 import argparse
 import re
 
-import matplotlib
+import matplotlib.pyplot as plt
+import numpy as np
+import pandas as pd
+from matplotlib.tri import Triangulation
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import pandas as pd  # noqa: E402
-from matplotlib.tri import Triangulation  # noqa: E402
-
-from report.claims import Claim  # noqa: E402
-from report.figures import save_figure  # noqa: E402
-from workflows.io import read_checked, read_csv, write_csv  # noqa: E402
+from report.claims import Claim
+from report.figures import save_figure
+from workflows.io import read_checked, read_csv, write_csv
 
 
 #: Relative deviation from Hertz (contact half-width, peak pressure) accepted at the finest

@@ -18,17 +18,14 @@ from __future__ import annotations
 
 import argparse
 
-import matplotlib
+import matplotlib.pyplot as plt
+import numpy as np
+import pandas as pd
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import pandas as pd  # noqa: E402
-
-from report.claims import COLUMNS, Claim  # noqa: E402
-from report.figures import save_figure  # noqa: E402
-from report.rates import fitted_slope  # noqa: E402
-from workflows.io import read_csv, write_csv  # noqa: E402
+from report.claims import COLUMNS, Claim
+from report.figures import save_figure
+from report.rates import fitted_slope
+from workflows.io import read_csv, write_csv
 
 #: The suite's bars for Alg. 8.4 on P2 (Sect. 8.6's bounded n_o and Example 8.1's O(N)).
 #: Hertz: the half-width and peak pressure within 5 %.

@@ -15,16 +15,13 @@ import re
 import zlib
 from functools import lru_cache
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from matplotlib.ticker import (FixedLocator, FuncFormatter, LogLocator,  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
+from matplotlib.ticker import (FixedLocator, FuncFormatter, LogLocator,
                                NullFormatter)
 
-from workflows.io import atomic_path  # noqa: E402
-from workflows.studies import PATHS  # noqa: E402
+from workflows.io import atomic_path
+from workflows.studies import PATHS
 
 #: The report's solver colours: the built-in solvers (sorted) take these in turn, then
 #: the report's other rows (:data:`EXTRA_SOLVERS`); colour and marker together tell

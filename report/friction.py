@@ -30,18 +30,15 @@ from __future__ import annotations
 import argparse
 from dataclasses import replace
 
-import matplotlib
+import matplotlib.pyplot as plt
+import numpy as np
+import pandas as pd
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import pandas as pd  # noqa: E402
-
-from report.claims import COLUMNS, Claim  # noqa: E402
-from report.figures import nothing_to_draw, save_figure, solver_style  # noqa: E402
-from report.rates import fitted_slope  # noqa: E402
-from reference.cattaneo_mindlin import stick_zone_ratio  # noqa: E402
-from workflows.io import read_csv, write_csv  # noqa: E402
+from report.claims import COLUMNS, Claim
+from report.figures import nothing_to_draw, save_figure, solver_style
+from report.rates import fitted_slope
+from reference.cattaneo_mindlin import stick_zone_ratio
+from workflows.io import read_csv, write_csv
 
 #: Cattaneo-Mindlin bars at the finest level, by contact kind: c/a within 5 % on the
 #: plane-strain cylinder (line) and within 10 % on the sphere (point: the stick circle

@@ -29,18 +29,15 @@ from __future__ import annotations
 import argparse
 import textwrap
 
-import matplotlib
+import matplotlib.pyplot as plt
+import numpy as np
+import pandas as pd
+from matplotlib.colors import ListedColormap
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import pandas as pd  # noqa: E402
-from matplotlib.colors import ListedColormap  # noqa: E402
-
-from report.claims import COLUMNS, Claim  # noqa: E402
-from report.figures import save_figure  # noqa: E402
-from workflows.io import read_csv, write_csv  # noqa: E402
-from workflows.problem_set import plain_rows  # noqa: E402
+from report.claims import COLUMNS, Claim
+from report.figures import save_figure
+from workflows.io import read_csv, write_csv
+from workflows.problem_set import plain_rows
 
 #: n_o at the largest nu over n_o at the smallest, at most (Theorem 8.8's bounded n_o, with
 #: a factor two of room over the whole range of nu).

@@ -3,17 +3,14 @@ from __future__ import annotations
 
 import argparse
 
-import matplotlib
+import matplotlib.pyplot as plt
+import numpy as np
+import pandas as pd
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import pandas as pd  # noqa: E402
-
-from report.claims import Claim  # noqa: E402
-from report.figures import save_figure  # noqa: E402
-from report.rates import rate_table  # noqa: E402
-from workflows.io import read_csv, write_csv  # noqa: E402
+from report.claims import Claim
+from report.figures import save_figure
+from report.rates import rate_table
+from workflows.io import read_csv, write_csv
 
 STYLE = {"conforming": ("k", "o", "-"), "nodal": ("tab:red", "s", "--"),
          "stabilised_a0.5": ("tab:orange", "^", "-."), "stabilised_a1": ("tab:blue", "D", "-"),

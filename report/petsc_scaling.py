@@ -18,17 +18,14 @@ from __future__ import annotations
 
 import argparse
 
-import matplotlib
+import matplotlib.pyplot as plt
+import numpy as np
+import pandas as pd
+from matplotlib.ticker import NullFormatter
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import pandas as pd  # noqa: E402
-from matplotlib.ticker import NullFormatter  # noqa: E402
-
-from report.claims import COLUMNS, Claim  # noqa: E402
-from report.figures import nothing_to_draw, save_figure  # noqa: E402
-from workflows.io import read_csv, write_csv  # noqa: E402
+from report.claims import COLUMNS, Claim
+from report.figures import nothing_to_draw, save_figure
+from workflows.io import read_csv, write_csv
 
 #: Why the efficiency and the comparison with TNNMG are reported, not judged.
 REPORTED = ("a time measured here shares the machine's cores with other work and includes "

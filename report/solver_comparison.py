@@ -5,19 +5,16 @@ from __future__ import annotations
 
 import argparse
 
-import matplotlib
+import matplotlib.pyplot as plt
+import numpy as np
+import pandas as pd
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import pandas as pd  # noqa: E402
-
-from report import charts  # noqa: E402
-from report.figures import (PRESET_LINES, nothing_to_draw, save_figure,  # noqa: E402
+from report import charts
+from report.figures import (PRESET_LINES, nothing_to_draw, save_figure,
                             solver_legend, solver_style)
-from report.rates import fitted_slope  # noqa: E402
-from solvers.interface import TOLERANCES, solvers  # noqa: E402
-from workflows.io import read_csv, run_solvers, write_csv  # noqa: E402
+from report.rates import fitted_slope
+from solvers.interface import TOLERANCES, solvers
+from workflows.io import read_csv, run_solvers, write_csv
 
 
 

@@ -50,21 +50,18 @@ from __future__ import annotations
 
 import argparse
 
-import matplotlib
+import matplotlib.pyplot as plt
+import numpy as np
+import pandas as pd
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import pandas as pd  # noqa: E402
-
-from report import charts, leaderboard  # noqa: E402
-from report.claims import COLUMNS, Claim  # noqa: E402
-from report.figures import (nothing_to_draw, save_figure, solver_legend,  # noqa: E402
+from report import charts, leaderboard
+from report.claims import COLUMNS, Claim
+from report.figures import (nothing_to_draw, save_figure, solver_legend,
                             solver_style)
-from solvers.base import GUESS_NOT_USED  # noqa: E402
-from solvers.interface import TOLERANCES, solvers  # noqa: E402
-from workflows.io import read_csv, write_csv, write_text  # noqa: E402
-from workflows.problem_set import PROBLEM_CLASSES, cold_rows, plain_rows  # noqa: E402
+from solvers.base import GUESS_NOT_USED
+from solvers.interface import TOLERANCES, solvers
+from workflows.io import read_csv, write_csv, write_text
+from workflows.problem_set import PROBLEM_CLASSES, cold_rows, plain_rows
 
 #: The problem classes' order in the figures and tables.
 CLASS_ORDER = {c: i for i, c in enumerate(PROBLEM_CLASSES)}
@@ -405,7 +402,7 @@ CLAIMS = {
                              unjudged="information: no method here promises fewer iterations "
                              "from the previous step's solution, no bar"),
     "facets": Claim("suite figure (the k-gon friction law approximates the disc, "
-                    "problems/qp.py)", "test set: model error ||u_k - u_iso||_A / "
+                    "problems/friction/data.py)", "test set: model error ||u_k - u_iso||_A / "
                     "||u_iso||_A of the faceted references",
                     unjudged="information: the faceted law's distance to the isotropic one "
                     "at this k, no bar"),

@@ -293,7 +293,7 @@ def main(argv=None):
         amg = FreshAMG(PETSc, args.pc, A, modes, x, upper)
         if args.tao == "gpcg":
             # GPCG's face solves at PETSc's default rtol (1e-5) stall its projected
-            # gradient just above a tight gatol (measured: 3.7e-9 against 2.8e-9)
+            # gradient just above a tight gatol (docs/guide/distributed.md)
             ksp.setTolerances(rtol=GPCG_KSP_RTOL)
         ksp.getPC().setType("python")
         ksp.getPC().setPythonContext(amg)

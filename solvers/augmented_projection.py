@@ -14,8 +14,8 @@ preconditioned Richardson with the block preconditioner (8.22)
 ``diag(gamma_bar (A - Ah), S-hat)`` and an approximate projection of ``p`` onto
 ``p >= 0`` in the ``S-hat`` norm that only multiplies by ``S-hat`` ((8.24)).
 
-Ingredients (:mod:`solvers.multigrid`, :mod:`solvers.schur`): ``Ah`` one symmetric V-cycle
-(geometric multigrid on ``qp.multilevel.prolongations`` or pyamg smoothed
+Ingredients (:mod:`solvers.kernels.multigrid`, :mod:`solvers.kernels.schur`): ``Ah`` one
+symmetric V-cycle (geometric multigrid on ``qp.multilevel.prolongations`` or pyamg smoothed
 aggregation with rigid-body modes), scaled by Lanczos so that
 ``Ah < A <= gamma_bar Ah`` (8.18, Remark 8.14); ``S-hat`` the inexact Schur
 complement ``S_in`` or a sparse one (multilevel surface operator, Jacobi-type),
@@ -40,17 +40,17 @@ primal energy ``J(u^k) = 1/2 u'Au - f'u`` (``u^k`` is infeasible on the way and
 Gauss-Seidel step: with ``S_in <= S-hat`` the ``p``-step decreases ``Jt`` for any
 ``tau <= 1`` (the inner functional of (8.24) decreases from ``p^k``) and the
 ``u``-step with the new ``p`` does for ``tau < 2`` (``(A - Ah) Ah^-1 A <=
-gamma_bar (A - Ah)``), so its default is ``tau = 1`` (measured: half the outer
-steps of ``tau = 1/alpha_bar``); the additive update keeps the thesis's
-``tau = 1/alpha_bar``.
+gamma_bar (A - Ah)``), so its default is ``tau = 1`` (fewer outer steps than
+``tau = 1/alpha_bar``: docs/guide/measurements.md); the additive update keeps the
+thesis's ``tau = 1/alpha_bar``.
 
 Beyond the thesis, three things keep the method's outer step count bounded where the
 thesis's ingredients lose their spectral equivalence:
 
-* Towards incompressibility a V-cycle's ``kappa(V A)`` grows like ``(1 - 2 nu)^-0.75``
-  (70 at nu = 0.499, 450 at 0.4999, independent of h): ``A-hat^{-1}`` is then a Chebyshev
+* Towards incompressibility a V-cycle's ``kappa(V A)`` grows without bound (independent
+  of h; the hard-cases study's page): ``A-hat^{-1}`` is then a Chebyshev
   polynomial in the V-cycle whose degree comes from the measured spectrum
-  (:func:`solvers.multigrid.scaled_vcycle`, ``ahat.degree = 0``), and ``S-hat = auto``
+  (:func:`solvers.kernels.multigrid.scaled_vcycle`, ``ahat.degree = 0``), and ``S-hat = auto``
   takes ``S_in`` where the multilevel operator's ``kappa(S-hat^{-1} S_in)`` exceeds
   :data:`SCHUR_KAPPA_LIMIT`.
 * A body held only by contact (the roll stack's work roll) is treated by FETI's natural
@@ -59,7 +59,7 @@ thesis's ingredients lose their spectral equivalence:
   motion moved by the equality's multiplier.
 * The stabilised problem (Sect. 7.5) adds reverse rows on the opposing surface, for which
   the thesis has no multilevel ``S-hat`` (Remark 7.10: it falls back to ``S_in``, not
-  O(N)): :func:`solvers.schur.stabilised_schur_apply` carries them to the constrained
+  O(N)): :func:`solvers.kernels.schur.stabilised_schur_apply` carries them to the constrained
   surface's multilevel operator through their transfer and adds the mismatch on the
   fine scale, so the method stays O(N) there too.
 
@@ -80,8 +80,8 @@ from problems.floating import floating_modes
 from problems.kkt import kkt_residuals
 from problems.qp import ContactQP
 from problems.spec import Component, ComponentParameter, Options, Parameter, ParameterError
-from solvers.multigrid import AHAT_SCALED, scaled_vcycle, vcycle_kind
-from solvers.schur import SchurPreconditioner, build_schur, kappa_schur_exact
+from solvers.kernels.multigrid import AHAT_SCALED, scaled_vcycle, vcycle_kind
+from solvers.kernels.schur import SchurPreconditioner, build_schur, kappa_schur_exact
 from solvers.base import Role, SolveResult, SolverSpec, preset_texts
 from solvers.certificate import certify
 
@@ -181,9 +181,9 @@ def mprgp(S_hat: Callable, d: np.ndarray, q0: np.ndarray, alpha_bar: float, rtol
 
 
 #: SMALBE's relative tolerance on the floating bodies' equilibrium ``||G q - e|| / ||e||``
-#: per projection. The outer iteration corrects what one projection leaves (the roll
-#: stack, level 0: 29 outer steps at 1e-12, 1e-8 and 1e-4 alike; 20, 9 and 2.5
-#: augmented-Lagrangian steps per projection).
+#: per projection. The outer iteration corrects what one projection leaves: a tighter
+#: tolerance costs augmented-Lagrangian steps per projection and saves no outer step
+#: (docs/guide/measurements.md).
 EQ_RTOL = 1e-6
 
 
@@ -233,7 +233,7 @@ class FloatingCoarseSpace:
     Z. Dostal et al. for contact).
 
     With ``u = u_perp + R alpha`` (``R'u_perp = 0``) the modes leave ``A``'s part:
-    ``A-hat`` acts on the complement of ``R`` only (:func:`solvers.multigrid.scaled_vcycle`,
+    ``A-hat`` acts on the complement of ``R`` only (:func:`solvers.kernels.multigrid.scaled_vcycle`,
     ``near_kernel``), so ``S_in = B A-hat^{-1} B'`` and ``S-hat`` lose the one eigenvalue
     that the springs' ~1e-9 stiffness puts ~4e4 times above the rest of ``S``. The
     floating body's equilibrium ``R'(f - A u - B'p) = 0`` becomes the equality ``G p = e``
@@ -562,20 +562,17 @@ def balanced_projection(projection: Component, S_hat: SchurPreconditioner) -> Ca
 #: ``schur="auto"`` keeps the multilevel ``S-hat`` while its measured
 #: ``kappa(S-hat^{-1} S_in)`` is at most this, and takes ``S_in`` itself beyond. The
 #: multilevel operator models ``S`` as an H^{-1/2} norm; a locking P1 material stiffens
-#: ``S`` on the fine surface modes, and the ratio grows (circle-square level 1: 2.6 at
-#: nu = 0.3, 3.8 at 0.49, 7.6 at 0.499, 15 at 0.4999; cube-sphere 3.8, 6.0, 15, 27). The
-#: V-cycles of a whole solve cross over near 6 (2D: 285 vs 375 at 0.49, 1617 vs 1442 at
-#: 0.499; 3D: 693 vs 588 at 0.49; ``S_in`` costs an ``A-hat`` per inner step). The
-#: stabilised problem's operator (:func:`solvers.schur.stabilised_schur_apply`) starts
-#: higher at nu = 0.3 (2D levels 1-3: 5.6, 6.3, 6.7; 3D levels 1-2: 6.3, 7.8) and still
-#: wins (2D level 3: 3.3 s against 4.3 s for the assembled ``S_in``, whose assembly grows
-#: like m N), so its limit is twice the nodal one.
+#: ``S`` on the fine surface modes, and the ratio grows with nu. The V-cycles of a whole
+#: solve cross over near 6 (``S_in`` costs an ``A-hat`` per inner step). The stabilised
+#: problem's operator (:func:`solvers.kernels.schur.stabilised_schur_apply`) starts higher
+#: at nu = 0.3 and still wins against the assembled ``S_in``, whose assembly grows like
+#: m N, so its limit is twice the nodal one (the measurements:
+#: docs/guide/measurements.md).
 SCHUR_KAPPA_LIMIT = {"nodal": 6.0, "stabilised": 12.0}
 
 #: ... and assembles ``S_in`` (``m`` products with ``A-hat``, then dense products) up to
 #: this many constraints: a matrix-free ``S_in`` costs an ``A-hat`` per inner step, and a
-#: solve takes hundreds to thousands of them (the roll stack, level 0, m = 12: 1,209
-#: inner steps, 56 s matrix-free, 3.7 s assembled).
+#: solve takes hundreds to thousands of them (docs/guide/measurements.md).
 ASSEMBLE_LIMIT = 400
 
 

@@ -231,7 +231,7 @@ class SolverSpec:
         skip message (empty: it solves the frictionless problem only, nothing more).
     facets_reason : str
         Empty: a solver that handles friction takes the faceted law too
-        (``friction.facets`` = k, :class:`problems.qp.Friction`); else why it does not,
+        (``friction.facets`` = k, :class:`problems.friction.data.Friction`); else why it does not,
         and it skips a faceted problem at once with this reason rather than solve the
         isotropic law.
     size_limit : str or dict, optional

@@ -2,7 +2,7 @@
 
 :func:`verify` fills in a :class:`~solvers.base.SolveResult`'s four KKT residuals
 (:func:`problems.kkt.kkt_residuals`; on a frictional problem the six of
-:func:`problems.kkt.friction_residuals`) and a certified bound on its energy error
+:func:`problems.friction.residuals.friction_residuals`) and a certified bound on its energy error
 (:func:`duality_gap`, weak duality; for a Tresca step with the tangential multipliers),
 and decides the verified status. :func:`certify`
 computes the bound (kept per problem, ``qp.cache.certificate``) with the linear solver
@@ -21,8 +21,10 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 
 from problems.floating import floating_modes
-from problems.kkt import KKTResiduals, friction_residuals, kkt_residuals, tresca_energy
-from problems.qp import ContactQP, polygon_normals, polygon_vertices
+from problems.friction.polygon import polygon_normals, polygon_vertices
+from problems.friction.residuals import friction_residuals, tresca_energy
+from problems.kkt import KKTResiduals, kkt_residuals
+from problems.qp import ContactQP
 from solvers.base import (CONTRACT, COULOMB_MONOLITHIC, SolveResult, contract_violation,
                           tangential_rows)
 
@@ -179,10 +181,10 @@ def duality_gap(qp: ContactQP, u: np.ndarray, p: np.ndarray,
     each node's 2-vector scaled back radially into its disc, isotropic friction) and
     any feasible ``u_f``: ``J(u_f) >= L(u_f, p~, l~) >= q(p~, l~) = min_v L``, the
     minimiser ``x = A^{-1}(f - B'p~ - T'l~)``. The faceted law (``s_i h_Pk(t) =
-    max_{l in s_i P_k} l . t``, :class:`problems.qp.Friction`) is the same with ``l~``
+    max_{l in s_i P_k} l . t``, :class:`problems.friction.data.Friction`) is the same with ``l~``
     projected onto the ``k``-gons ``s_i P_k`` and ``s_i h_Pk(slip_i)`` in place of
     ``s_i |slip_i|`` in ``J`` and in the gap. The dual is the box problem of
-    :mod:`solvers.tresca` (``p >= 0``, ``|lam| <= s``), so weak duality holds as
+    :mod:`solvers.kernels.tresca` (``p >= 0``, ``|lam| <= s``), so weak duality holds as
     above, and as ``L`` is quadratic in ``v`` with Hessian ``A`` the gap is again a sum
     of non-negative terms::
 
@@ -326,7 +328,7 @@ FACET_ANGLE = 1e-2
 #: :func:`stick_point` forms ``A^{-1} C'`` without the cached dual operators: the dense
 #: ``C A^{-1} C'`` is then factorised in ``rows^3 / 3`` flops (2.7e9 at the limit, about a
 #: second), the size the exact Tresca route also takes
-#: (:data:`solvers.tresca.TRESCA_EXACT_MAX_M`).
+#: (:data:`solvers.kernels.tresca.TRESCA_EXACT_MAX_M`).
 STICK_MAX_ROWS = 2000
 #: Largest dense ``A^{-1} C'`` (entries, ``n`` times the stacked rows) :func:`stick_point`
 #: forms: 200 MB, about four such arrays at once while it is solved for (``C'``, the solve
@@ -453,7 +455,7 @@ def stick_point(qp: ContactQP, u: np.ndarray, active: np.ndarray, stick: np.ndar
     the smallest correction in the energy norm: ``||u - u_f||_A <= ||u - v||_A`` for every
     ``v`` of that set, the exact solution among them when the held rows hold for it.
     ``A^{-1} C' = (A^{-1} G') R'`` and ``C A^{-1} C' = R S R'`` come from the cached
-    dual operators (``qp.cache.dual_operators``, :func:`solvers.tresca.dual_operators`)
+    dual operators (``qp.cache.dual_operators``, :func:`solvers.kernels.tresca.dual_operators`)
     where present; else ``A^{-1} C'`` is formed with ``solve_A`` on the matrix ``C'``
     when ``solve_A`` is direct (``solve_A.direct``, :func:`linear_solver`), at most
     :data:`STICK_MAX_ROWS` rows and :data:`STICK_MAX_ENTRIES` entries (one solve with
@@ -498,9 +500,9 @@ def linear_solver(qp: ContactQP) -> Callable[..., np.ndarray]:
     built once per problem (``qp.cache.linear_solver``).
 
     The route depends on the problem alone, never on which solver ran before: a sparse
-    Cholesky of ``A`` (:func:`solvers.cholesky.factorize`) up to
+    Cholesky of ``A`` (:func:`solvers.kernels.cholesky.factorize`) up to
     :data:`DIRECT_LINEAR_LIMIT`, and for a problem with floating bodies at any size
-    (with their near-kernel removed, :class:`solvers.cholesky.FloatingCholesky`, the
+    (with their near-kernel removed, :class:`solvers.kernels.cholesky.FloatingCholesky`, the
     factor shared with the exact solver: a multigrid PCG on such a nearly singular
     ``A`` needs thousands of steps); else CG
     preconditioned by one V-cycle (geometric multigrid on the problem's hierarchy, pyamg
@@ -516,7 +518,7 @@ def linear_solver(qp: ContactQP) -> Callable[..., np.ndarray]:
 
     modes = floating_modes(qp)
     if qp.n <= DIRECT_LINEAR_LIMIT.get(qp.dim, 0) or modes.shape[1]:
-        from solvers.cholesky import factorize, shared_floating_factor
+        from solvers.kernels.cholesky import factorize, shared_floating_factor
         # a body held only by weak springs: its rigid part solved apart (no 1/spring-sized
         # intermediate results; see FloatingCholesky)
         chol = shared_floating_factor(qp, modes) if modes.shape[1] else factorize(qp.A)
@@ -526,7 +528,7 @@ def linear_solver(qp: ContactQP) -> Callable[..., np.ndarray]:
             return x + chol.solve(r - qp.A @ x)        # one step of iterative refinement
         solve_A.direct = True
     else:
-        from solvers.multigrid import ahat_component, component_vcycle
+        from solvers.kernels.multigrid import ahat_component, component_vcycle
         vc = component_vcycle(qp, ahat_component())
         M = spla.LinearOperator(qp.A.shape, matvec=vc.raw)
 
@@ -575,7 +577,7 @@ def verify(qp: ContactQP, result: SolveResult, tol: float) -> SolveResult:
     frictional problem of ``tangential``, ...)
     becomes a ``failed`` row without residuals, ``failed_check = "contract:<rule>"``.
     On a frictional problem (``qp.friction``: one Tresca step) the residuals are the six
-    of :func:`problems.kkt.friction_residuals` with ``result.tangential`` and the bound
+    of :func:`problems.friction.residuals.friction_residuals` with ``result.tangential`` and the bound
     is that of the Tresca step (:func:`duality_gap` with ``lam``); an answer that solved
     a Coulomb step itself is judged on the Tresca step of its own bound
     (:func:`judged_step`).
@@ -602,7 +604,7 @@ def verify(qp: ContactQP, result: SolveResult, tol: float) -> SolveResult:
         lam = np.asarray(result.tangential, dtype=float)
         qp = judged_step(qp, result)
         result.kkt = friction_residuals(qp, result.u, result.p, lam)
-    from solvers.cholesky import FactorizationError
+    from solvers.kernels.cholesky import FactorizationError
     try:
         result.gap = certify(qp, result.u, result.p, tol, lam=lam)
     except FactorizationError as err:          # A not positive definite: no certificate

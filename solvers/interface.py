@@ -25,7 +25,7 @@ from problems.spec import (Parameter, ParameterError, discover, load_plugins, lo
 from solvers.base import (CONTRACT, STATUSES, TOLERANCES, Role, SolveResult, SolverSpec,
                           contract_violation, parse_tolerance, tangential_rows)
 from solvers.certificate import broken_contract, certify, linear_solver, verify
-from solvers.tresca import LoadPathRun, run_load_path
+from solvers.kernels.tresca import LoadPathRun, run_load_path
 
 __all__ = ["CONTRACT", "ENTRY_POINT_GROUP", "STATUSES", "STOP_FACTOR", "TOLERANCES",
            "LoadPathRun", "Role", "SolveResult", "SolverSpec", "certify", "check_limits",

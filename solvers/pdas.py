@@ -11,12 +11,13 @@ equality-constrained problem of the current active set ``I`` exactly,
 either by a sparse LU of the reduced KKT matrix per step (``method="kkt"``,
 ``scipy.sparse.linalg.splu``) or through the dual problem (7.3) on the contact
 rows (``method="schur"``, the default up to 5000 constraints): ``A`` factorised
-once by a sparse Cholesky (:mod:`solvers.cholesky`: MKL PARDISO with METIS,
+once by a sparse Cholesky (:mod:`solvers.kernels.cholesky`: MKL PARDISO with METIS,
 partial solves on the support of ``B``), the dense ``S = B A^{-1} B^T`` formed
 once (``N^C`` columns), each step a dense Cholesky of ``S_II`` and one solve
-with ``A`` for ``u``; iterative refinement after every solve with ``A``. At
-circle-square level 4 (262k nodes) the ``schur`` route takes seconds where the
-``kkt`` route took ~170 s; ``kkt`` stays as the cross-check (tests compare them). The active set is then updated
+with ``A`` for ``u``; iterative refinement after every solve with ``A``. On the
+large scenes the ``schur`` route is far faster than the ``kkt`` route
+(docs/guide/measurements.md); ``kkt`` stays as the cross-check (tests compare them). The
+active set is then updated
 by the PDAS rule ``I = {i : p_i + c (Bu - Cp - g)_i > 0}``. After the first
 step ``p_i = 0`` off ``I`` and ``(Bu - Cp - g)_i = 0`` on ``I``, so the rule
 keeps ``i`` in ``I`` while ``p_i >= 0`` and adds ``i`` when it is violated; ``c``
@@ -28,7 +29,7 @@ Linearly dependent active rows (LICQ fails: two constrained nodes with the same
 constraint row, corners, symmetry planes, mortar rows sharing nodes): ``u`` is still
 unique, the multipliers are not. A step whose ``S_II`` (or KKT matrix) is singular
 takes a basis ``J`` of the active rows from a rank-revealing pivoted Cholesky of the
-scaled ``S_II`` (:func:`solvers.cholesky.row_basis`), solves on ``J`` and sets
+scaled ``S_II`` (:func:`solvers.kernels.cholesky.row_basis`), solves on ``J`` and sets
 ``p = 0`` on the dependent rows ``D``, which stay in the active set. The basis is
 consistent with the gaps (``B_D u <= g_D`` on the face of ``J``; a violated dependent
 row is exchanged into ``J``), and rows that no ``u`` satisfies end the run as
@@ -59,9 +60,9 @@ from problems.floating import floating_modes
 from problems.kkt import kkt_residuals
 from problems.qp import ContactQP
 from problems.spec import Options, Parameter
-from solvers.cholesky import InfeasibleError, factorize, row_basis, shared_floating_factor
-from solvers.active_set import (check_positive_diagonal, damped_update, initial_active_set,
-                                pdas_update, stiffness_scale)
+from solvers.kernels.cholesky import InfeasibleError, factorize, row_basis, shared_floating_factor
+from solvers.kernels.active_set import (check_positive_diagonal, damped_update, initial_active_set,
+                                        pdas_update, stiffness_scale)
 from solvers.base import Role, SolveResult, SolverSpec
 
 #: Columns of ``A^{-1} B^T`` computed at once when forming the Schur complement.
@@ -208,7 +209,7 @@ class _ActiveSetSystem:
     refine : int
         Iterative refinement steps.
     factorization : str
-        Backend of :func:`solvers.cholesky.factorize` (``method="schur"``).
+        Backend of :func:`solvers.kernels.cholesky.factorize` (``method="schur"``).
     """
 
     def __init__(self, qp: ContactQP, method: str, refine: int, factorization: str = "auto"):
@@ -286,12 +287,12 @@ class _ActiveSetSystem:
 
     # -- Schur complement -----------------------------------------------------
     def _prepare_schur(self) -> None:
-        """Factorise ``A`` once (:func:`solvers.cholesky.factorize`) and form the dense
+        """Factorise ``A`` once (:func:`solvers.kernels.cholesky.factorize`) and form the dense
         ``S = B A^{-1} B^T`` by partial solves on the support of ``B``.
 
         With floating bodies (:func:`problems.floating.floating_modes`: a body held only by
         contact and weak springs) ``A`` is factorised without its near-kernel
-        (:class:`solvers.cholesky.FloatingCholesky`) and the rigid amplitudes ``alpha``
+        (:class:`solvers.kernels.cholesky.FloatingCholesky`) and the rigid amplitudes ``alpha``
         stay unknowns of each step, as in FETI for contact: ``S = B_r A_rr^{-1} B_r^T``
         is the complement of the held part only (see :meth:`_solve_floating`).
         """
@@ -350,7 +351,7 @@ class _ActiveSetSystem:
     def _solve_floating(self, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The active-set step with floating bodies, iteratively refined.
 
-        In the basis ``u = u_r + R alpha`` (:class:`solvers.cholesky.FloatingCholesky`)
+        In the basis ``u = u_r + R alpha`` (:class:`solvers.kernels.cholesky.FloatingCholesky`)
         the step ``A u + B_I^T p_I = f``, ``B_I u - C_II p_I = g_I`` becomes, after
         eliminating ``u_r``,
 
@@ -360,7 +361,7 @@ class _ActiveSetSystem:
         Cholesky of ``S_II + C_II`` and a ``k x k`` system for the rigid amplitudes.
         Nothing here is of the size of ``1 / spring``: the springs enter only through
         ``Sigma~``, which is small beside ``G~^T S^{-1} G~`` (the contact's stiffness).
-        Dependent rows of ``S_II`` (:func:`solvers.cholesky.row_basis`, not checked
+        Dependent rows of ``S_II`` (:func:`solvers.kernels.cholesky.row_basis`, not checked
         against the gaps: ``S_II`` couples only the held part) carry ``p = 0``.
         """
         if idx.size:
@@ -431,7 +432,7 @@ SOLVER = SolverSpec(
                   "once + dense Schur complement (the dual problem on the contact rows); "
                   f"auto: schur up to {SCHUR_MAX_M} constraints", choices=("auto", "kkt", "schur")),
         Parameter("factorization", "auto", "sparse Cholesky backend of method='schur' "
-                  "(solvers/cholesky.py; auto: MKL PARDISO where installed, else SuperLU)",
+                  "(solvers/kernels/cholesky.py; auto: MKL PARDISO where installed, else SuperLU)",
                   choices=("auto", "pardiso", "splu")),
         Parameter("refine", 3, "iterative refinement steps per direct solve", low=0, high=20),
         Parameter("flip_tol", 1e-13, "relative size below which a sign change does not "

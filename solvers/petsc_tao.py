@@ -1,7 +1,7 @@
 """PETSc/Tao under MPI: the box-transformed contact problem solved by Tao's bound-constrained
 solvers, in a separate MPI job (the suite's path beyond one process).
 
-After the change of variables of Krause and Wohlmuth (:mod:`solvers.contact_box`,
+After the change of variables of Krause and Wohlmuth (:mod:`solvers.kernels.contact_box`,
 ``u = T v``) a nodal contact problem is the bound-constrained QP::
 
     minimise 1/2 v'A~v - f~'v   subject to   v[pivot] <= upper,    A~ = T'AT, f~ = T'f,
@@ -12,12 +12,11 @@ face, Moré and Toraldo) and BNCG (bounded nonlinear CG, no linear solve). The K
 solves of BNLS and GPCG are preconditioned by GAMG, with the bodies' rigid-body modes
 (``T^{-1} R``, orthonormal) as its near-null space, restricted to each reduced system's
 free set, or by hypre's BoomerAMG; each reduced system gets a fresh multigrid setup (the
-worker's ``FreshAMG``). Measured on circle-square and cube-sphere level 1 (7-8k
-unknowns, ``mid``): BNLS and GPCG converge in 3-5 steps with either preconditioner
-(48-105 Krylov iterations with GAMG; without the near-null space on the reduced systems,
-550); BNCG, unpreconditioned, needs about 2000 iterations. Tao's interior point method
-BQPIP is not offered: it takes the missing bounds as finite ones at PETSc's infinity,
-starts from a residual of 1e12 and had not converged on level 1 after 60 s.
+worker's ``FreshAMG``): BNLS and GPCG converge in a few steps with either
+preconditioner, the near-null space on the reduced systems cutting their Krylov
+iterations; BNCG, unpreconditioned, needs far more iterations (docs/guide/distributed.md).
+Tao's interior point method BQPIP is not offered: it takes the missing bounds as finite
+ones at PETSc's infinity and does not converge on the smallest scenes.
 
 PETSc's Debian build (``python3-petsc4py``) is built against that Python's numpy, not
 the suite's, so the solve runs as its own job: ``mpiexec -n RANKS python3
@@ -28,7 +27,7 @@ suite). The problem goes to rank 0's standard input as a stream in PETSc's binar
 output; no file is written. ``u = T v``, and the multipliers are the transformed
 problem's residual at the pivots at their bounds (``p_i = max(r[pivot_i], 0) / beta_i``,
 :func:`at_bound`,
-:meth:`~solvers.contact_box.BoxTransformation.multipliers`); the suite verifies both
+:meth:`~solvers.kernels.contact_box.BoxTransformation.multipliers`); the suite verifies both
 like any solver's.
 
 Where it runs: the interpreter with petsc4py is ``CONTACTBENCH_PETSC_PYTHON`` (default
@@ -62,7 +61,7 @@ import scipy.sparse as sp
 from problems.qp import ContactQP
 from problems.spec import Options, Parameter
 from solvers.base import TOLERANCES, Role, SolveResult, SolverSpec
-from solvers.contact_box import box_transformation, check_structure
+from solvers.kernels.contact_box import box_transformation, check_structure
 
 #: PETSc's binary class ids (petscmat.h, petscvec.h)
 MAT_FILE_CLASSID, VEC_FILE_CLASSID = 1211216, 1211214

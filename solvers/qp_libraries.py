@@ -1,6 +1,6 @@
 """The general QP libraries, one row of a table each, run by one adapter.
 
-Every library solves the same rescaled problem (:mod:`solvers._scaling`):
+Every library solves the same rescaled problem (:mod:`solvers.kernels.scaling`):
 ``min 1/2 x'Px + q'x  s.t.  Gx <= h`` with ``P = A~``, ``q = -f~``, ``G = B~``,
 ``h = g~``; its inequality multipliers are our ``p`` (``Px + q + G'z = 0``, ``z >= 0``)
 without a sign change. :func:`run` does the steps every library shares, once: the
@@ -9,21 +9,21 @@ mapping of the library's own status onto the suite's, the note on an initial gue
 library ignores, and the result. A row (:class:`Library`) says only what differs: how
 a preset maps onto the library's options, its status strings, and how it is called.
 
-Friction (one Tresca step, :mod:`problems.friction_forms`; the load path and Coulomb's
-fixed point run around it, :func:`solvers.tresca.run_load_path`): a 2D step is handed to
+Friction (one Tresca step, :mod:`problems.friction.forms`; the load path and Coulomb's
+fixed point run around it, :func:`solvers.kernels.tresca.run_load_path`): a 2D step is handed to
 every library as a QP in ``(u, t)``, the slip split into two nonnegative parts
-(:func:`problems.friction_forms.split_program`); a 3D step, isotropic, as a second-order
-cone program (:func:`problems.friction_forms.cone_program`) to the libraries whose own API
+(:func:`problems.friction.forms.split_program`); a 3D step, isotropic, as a second-order
+cone program (:func:`problems.friction.forms.cone_program`) to the libraries whose own API
 takes such cones, Clarabel (``SecondOrderConeT``), SCS and ECOS (the cone sizes ``q``,
 called directly: qpsolvers passes no cones); the QP-only libraries skip it. A 3D step of
 the faceted law (the disc replaced by a ``k``-gon) is a QP
-(:func:`problems.friction_forms.facet_program`) handed to every library. ECOS minimises
+(:func:`problems.friction.forms.facet_program`) handed to every library. ECOS minimises
 a linear objective only: it is handed every form with the quadratic term as
-second-order cones, one per row of ``F`` (:func:`problems.friction_forms.epigraph_program`,
+second-order cones, one per row of ``F`` (:func:`problems.friction.forms.epigraph_program`,
 ``P = F'F`` with ``F`` the sparse Cholesky factor of ``A``), which leaves the multipliers
 unchanged. The step is rescaled like the frictionless problem, the tangential rows by one
 factor per node
-(:mod:`solvers._scaling`), and the library's multipliers map back to ``p`` and the
+(:mod:`solvers.kernels.scaling`), and the library's multipliers map back to ``p`` and the
 tangential multipliers ``lam`` (``SolveResult.tangential``).
 
 Presets: ``low/mid/high`` = ``tol`` 1e-3/1e-6/1e-9 set as the library's absolute
@@ -39,14 +39,12 @@ is the report's ``solver_presets.csv`` (:func:`Library.describe`).
 How each library is reached: through qpsolvers (``qpsolvers.solve_problem``), the layer
 qpbenchmark itself runs, where it passes every option the presets need and the
 library's own status and iteration count (``Solution.extras``) -- OSQP, ProxQP, PIQP,
-QPALM, cvxopt, SCS. Measured on a 19,881-unknown contact-like QP (median of 3, osqp 1.1,
-clarabel 0.11, proxsuite 0.8): 188-198 ms through qpsolvers against 191-205 ms direct
-for OSQP, 903 against 908 ms for Clarabel, 86.9 against 86.8 ms for ProxQP, the same
-iterations: qpsolvers costs no time. It loses options, though, and there the call is
-direct: Clarabel's iteration count (not in ``extras``), HiGHS's status (``extras`` is
-empty: its own "Solve error" / "Large nullspace" would read as a bare failure) and ECOS's
-epigraph (qpsolvers's ``ecos_solve_problem`` builds it from a dense ``P`` and its dense
-Cholesky factor, ``n^2`` entries, and passes no cones).
+QPALM, cvxopt, SCS. qpsolvers costs no time: the same solves, the same iterations, take
+as long through it as direct (docs/guide/measurements.md). It loses options, though, and
+there the call is direct: Clarabel's iteration count (not in ``extras``), HiGHS's status
+(``extras`` is empty: its own "Solve error" / "Large nullspace" would read as a bare
+failure) and ECOS's epigraph (qpsolvers's ``ecos_solve_problem`` builds it from a dense
+``P`` and its dense Cholesky factor, ``n^2`` entries, and passes no cones).
 qpsolvers also passes dual warm starts to no library and drops QPALM's primal one (PIQP,
 Clarabel, HiGHS and ECOS take none either); the suite's studies start every library
 cold, so nothing measured depends on it, and a run given a guess says in its message
@@ -65,12 +63,12 @@ from typing import Any, Callable
 import numpy as np
 import scipy.sparse as sp
 
-from problems.friction_forms import (ConeProgram, epigraph_program, lift, standard_program,
+from problems.friction.forms import (ConeProgram, epigraph_program, lift, standard_program,
                                      step_multipliers)
 from problems.qp import ContactQP
 from problems.spec import Options, Parameter, resolve_parameters
-from solvers._scaling import ADAPTER_PARAMETERS, scale_qp, upper_triangle
-from solvers.cholesky import cholesky_factor
+from solvers.kernels.scaling import ADAPTER_PARAMETERS, scale_qp, upper_triangle
+from solvers.kernels.cholesky import cholesky_factor
 from solvers.base import TOLERANCES, Role, SolveResult, SolverSpec, guess_not_used
 
 
@@ -116,7 +114,7 @@ class Library:
         The library's status strings -> the suite's (unknown ones are ``failed``).
     call : callable
         ``call(program, settings, x0, z0) -> Outcome`` on the rescaled problem
-        (:class:`problems.friction_forms.ConeProgram` with a nonnegative cone only).
+        (:class:`problems.friction.forms.ConeProgram` with a nonnegative cone only).
     cone_call : callable or None
         The same with second-order cones (a 3D Tresca step), through the library's own
         cone API; ``None``: a QP library, which skips such a step.
@@ -297,10 +295,10 @@ def _scs_cone_call(program: ConeProgram, settings: dict, x0, z0) -> Outcome:
 def _ecos_call(program: ConeProgram, settings: dict, x0, z0) -> Outcome:
     """Direct (``ecos.solve(c, G, h, dims)``): ECOS minimises a linear objective only, so
     it is handed the program's epigraph form
-    (:func:`problems.friction_forms.epigraph_program`): ``1/2 (F_j x)^2 <= w_j``, a
+    (:func:`problems.friction.forms.epigraph_program`): ``1/2 (F_j x)^2 <= w_j``, a
     second-order cone of size 3 per row of ``F``, ``P = F'F``. ``P`` is ``A`` on ``u``
     and zero on ``t``, so ``F = (F_A, 0)`` with ``F_A`` the sparse Cholesky factor of
-    ``A`` (:func:`solvers.cholesky.cholesky_factor`, a fill-reducing ordering): its
+    ``A`` (:func:`solvers.kernels.cholesky.cholesky_factor`, a fill-reducing ordering): its
     nonzeros are the factorisation's fill, where a dense factor would put ``n^2/2`` into
     the KKT system ECOS factorises at each iteration. The nonnegative rows are
     ``dims["l"]``, the cones ``dims["q"]``, the epigraph cones last; its ``z`` of the

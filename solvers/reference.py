@@ -11,10 +11,10 @@ from solvers.pdas import SCHUR_MAX_M
 
 
 #: Largest number of unknowns for which the exact reference factorises ``A`` (PDAS through
-#: the dual problem on the contact rows), per dimension. Measured with one thread: 2D
-#: level 4 (523k unknowns) factorises in ~3 s; in 3D, 104k unknowns take ~7 s and
-#: 1 GB, 346k ~90 s and 4-5 GB (nested-dissection fill grows like N^(4/3) in 3D), where
-#: the iterative reference takes ~9 s.
+#: the dual problem on the contact rows), per dimension: in 2D a factorisation stays cheap
+#: to millions of unknowns; in 3D nested-dissection fill grows like N^(4/3), and beyond
+#: the limit the factorisation takes longer and more memory than the iterative reference
+#: (docs/guide/measurements.md).
 DIRECT_REFERENCE_LIMIT = {2: 2_500_000, 3: 150_000}
 
 
@@ -27,10 +27,9 @@ def reference_solve(qp: ContactQP, tol: float = 1e-10,
     (:data:`DIRECT_REFERENCE_LIMIT`); otherwise an iterative solve to verified KKT
     residuals and certified energy bound ``<= tol``: TNNMG (:mod:`solvers.tnnmg`) where
     it takes the problem, else the augmented projection with face-CG acceleration
-    (TNNMG skips a stabilisation block, rows that share nodes and floating bodies). On
-    cube-sphere P2 level 2 (391k unknowns, tol 1e-10) TNNMG takes 31 s and 2.4 GB
-    where the augmented projection takes 23 min; at P2 level 1 (52k) 10 s against 74 s,
-    the two within 8e-11 in relative energy. The result's ``solver`` says which route
+    (TNNMG skips a stabilisation block, rows that share nodes and floating bodies), the
+    faster of the two where both run, to the same answer (docs/guide/measurements.md).
+    The result's ``solver`` says which route
     ran; its ``status`` is verified against ``tol`` either way.
     """
     if qp.n <= DIRECT_REFERENCE_LIMIT.get(qp.dim, 0) and qp.m <= SCHUR_MAX_M:

@@ -10,14 +10,14 @@ projected preconditioned CG (Gould, Hribar and Nocedal, SIAM J. Sci. Comput. 23,
 preconditioner ``Pi M Pi'``, ``M`` one symmetric V-cycle (geometric multigrid on
 the refinement hierarchy, pyamg SA without one). ``Pi`` removes the constraint
 directions along their local A-harmonic extensions (``face="harmonic"``, beyond
-Gould-Hribar-Nocedal; :func:`solvers.face.face_projector`), which
+Gould-Hribar-Nocedal; :func:`solvers.kernels.face.face_projector`), which
 keeps the V-cycle's rate on the face, or orthogonally (``face="euclidean"``,
 their ``I - B_I'(B_I B_I')^{-1} B_I``), which cuts the V-cycle's smooth correction
 at the constrained DOFs and needs about twice the steps. The solve is warm
 started from the previous iterate. The multipliers are those the projector defines,
 ``p_I = (W' B_I')^{-1} W' (f - A u)`` (least squares for ``euclidean``), ``p = 0`` off ``I``.
 Linearly dependent active rows (LICQ fails; ``u`` is still unique) are reduced to a
-basis consistent with their gaps (:func:`solvers.cholesky.row_basis`: rank-revealing
+basis consistent with their gaps (:func:`solvers.kernels.cholesky.row_basis`: rank-revealing
 pivoted Cholesky of ``K = B_I W``); the multiplier is then the basic one, zero on the
 dependent rows, as in :mod:`solvers.pdas`. Rows that no ``u`` satisfies end the run as
 ``failed`` ("the problem is infeasible", with a Farkas certificate).
@@ -63,16 +63,17 @@ import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
 
-from problems.kkt import friction_residuals, kkt_residuals
+from problems.friction.residuals import friction_residuals
+from problems.kkt import kkt_residuals
 from problems.qp import ContactQP
 from problems.spec import ComponentParameter, Options, Parameter, ParameterError
-from solvers.face import FACE_PROJECTION, FaceProjector, face_hops, face_projector
-from solvers.multigrid import AHAT, component_vcycle
+from solvers.kernels.face import FACE_PROJECTION, FaceProjector, face_hops, face_projector
+from solvers.kernels.multigrid import AHAT, component_vcycle
 from solvers.base import VERIFIED_PRESETS, Role, SolveResult, SolverSpec
 from solvers.certificate import certify
-from solvers.cholesky import BLOCK as SCHUR_BLOCK, InfeasibleError, factorize, row_basis
-from solvers.active_set import (check_positive_diagonal, damped_update, initial_active_set,
-                                pdas_update, stiffness_scale)
+from solvers.kernels.cholesky import BLOCK as SCHUR_BLOCK, InfeasibleError, factorize, row_basis
+from solvers.kernels.active_set import (check_positive_diagonal, damped_update, initial_active_set,
+                                        pdas_update, stiffness_scale)
 
 
 #: Round-off floor of the inner solve, relative to the energy norm of the iterate: below
@@ -84,7 +85,7 @@ ROUNDOFF_FLOOR = 1e3 * np.finfo(float).eps
 def projected_pcg(A, face: FaceProjector, f, gI, M, x0, rtol: float, max_steps: int):
     """``min 1/2 x'Ax - f'x  s.t.  B_I x = g_I`` by projected PCG from ``x0``.
 
-    ``face`` projects onto ``ker B_I`` (:func:`solvers.face.face_projector`);
+    ``face`` projects onto ``ker B_I`` (:func:`solvers.kernels.face.face_projector`);
     the preconditioner is ``Pi M Pi'``. The residual is kept projected,
     ``r <- Pi' r`` after every update (Gould, Hribar and Nocedal's *residual
     update*, their Sect. 6), so that ``r'z = r' M r`` is evaluated as a norm: the
@@ -291,7 +292,7 @@ def _newton(run: _Run, u: np.ndarray, active: np.ndarray, max_iter: int,
     no ``u`` satisfies, with a Farkas certificate), or ``stalled``: the active set recurs
     even under single damped changes, the best KKT residual has not halved for
     ``patience`` steps, or linearly dependent active rows have no basis consistent with
-    their gaps (:func:`solvers.face.face_projector`). A stalled run goes on in
+    their gaps (:func:`solvers.kernels.face.face_projector`). A stalled run goes on in
     :func:`_monotone` (option ``fallback``).
     """
     qp, opts, tol = run.qp, run.opts, run.tol
@@ -485,7 +486,7 @@ class ContactSchur:
 
     Attributes
     ----------
-    chol : solvers.cholesky.Cholesky
+    chol : solvers.kernels.cholesky.Cholesky
     A : sparse
     G : ((1 + k) m, n) sparse
         ``k = dim - 1`` tangential rows per constrained node.
@@ -530,12 +531,12 @@ def tangential_update(state: np.ndarray, v: np.ndarray, bound: np.ndarray,
     ``v = lam + c slip``: stick where ``|v_i| <= s_i``, slip with ``lam_i = s_i sign(v_i)``
     elsewhere, no force where ``s_i = 0``.
 
-    Round-off hysteresis (as :func:`solvers.active_set.pdas_update`): a sticking row stays
+    Round-off hysteresis (as :func:`solvers.kernels.active_set.pdas_update`): a sticking row stays
     while ``|v_i| <= s_i + eps``, a slipping one keeps its sign while
     ``sign_i v_i >= s_i - eps``, so that a row on the stick/slip boundary (a weakly
     slipping node) cannot flip forever on rounding.
 
-    3D: called with the per-node norm ``|v_i|`` (:meth:`problems.qp.Friction.magnitude`)
+    3D: called with the per-node norm ``|v_i|`` (:meth:`problems.friction.data.Friction.magnitude`)
     as ``v``; a slipping node is then ``+1``.
     """
     new = np.where(np.abs(v) <= bound, STICK, np.sign(v)).astype(int)
@@ -563,7 +564,7 @@ def _damped_tangential(state: np.ndarray, proposed: np.ndarray, v: np.ndarray,
 def _damped_sets(qp: ContactQP, sets: tuple, proposed: tuple, u, p, v, bound, limit: int,
                  mu: float | None) -> tuple[np.ndarray, np.ndarray]:
     """The normal and stick/slip sets with only the ``limit`` largest proposed changes of
-    each (:func:`solvers.active_set.damped_update`, :func:`_damped_tangential`); Coulomb
+    each (:func:`solvers.kernels.active_set.damped_update`, :func:`_damped_tangential`); Coulomb
     (``mu``): no friction force off the normal set."""
     normal = damped_update(qp, sets[0], proposed[0], u, p, limit)
     state = _damped_tangential(sets[1], proposed[1], v, bound, limit)
@@ -582,7 +583,7 @@ def _friction_step(ops: ContactSchur, rhs: np.ndarray, h: np.ndarray, m: int,
 
     Tresca (``mu`` None): ``S`` on the normal active and sticking rows is symmetric
     positive definite; dependent rows are reduced to a basis consistent with ``h``
-    (:func:`solvers.cholesky.row_basis`, their multipliers zero). Coulomb
+    (:func:`solvers.kernels.cholesky.row_basis`, their multipliers zero). Coulomb
     (``mu``): ``lam_i = mu sign_i p_i`` on the slipping rows couples ``lam`` to ``p``
     and the block is not symmetric (a dense LU).
 
@@ -683,8 +684,9 @@ def solve_friction(qp: ContactQP, tol: float, max_iter: int, time_limit: float |
     Newton method of the max/sign formulation).
 
     The sets, from ``(u, p, lam)`` and ``c`` (relative to the stiffness scale):
-    normal active ``N = {p_i + c (B_i u - g_i) > 0}`` (:func:`solvers.active_set.pdas_update`);
-    stick ``{|lam_i + c slip_i| <= s_i}`` (3D: the norm of the node's 2-vector), slip
+    normal active ``N = {p_i + c (B_i u - g_i) > 0}``
+    (:func:`solvers.kernels.active_set.pdas_update`); stick ``{|lam_i + c slip_i| <= s_i}``
+    (3D: the norm of the node's 2-vector), slip
     elsewhere (:func:`tangential_update`). Each step solves the sets' linear system
     exactly (2D :func:`_friction_step`, 3D :func:`_friction_step_discs`: ``A`` factorised
     once, the dense Schur complement of the normal and tangential rows,
@@ -692,7 +694,7 @@ def solve_friction(qp: ContactQP, tol: float, max_iter: int, time_limit: float |
     round-off. 3D: the slipping nodes' condition is not linear (the disc's edge is
     curved), so on repeated sets the Newton steps go on until the friction KKT residual is
     at :data:`FRICTION_ROUNDOFF` or stalls (:data:`FRICTION_STALL`). The answer is judged by
-    :func:`problems.kkt.friction_residuals`.
+    :func:`problems.friction.residuals.friction_residuals`.
 
     Tresca: ``s = qp.friction.slip_bound``. Coulomb, monolithic (the quasi-variational
     inequality, ``s = mu p`` of the iterate): the stick/slip sets use the bound
@@ -834,7 +836,7 @@ def solve_friction(qp: ContactQP, tol: float, max_iter: int, time_limit: float |
 
 
 def _friction_kkt(qp: ContactQP, u, p, lam, mu: float | None) -> float:
-    """The friction KKT residual (:func:`problems.kkt.friction_residuals`) of the step;
+    """The friction KKT residual (:func:`problems.friction.residuals.friction_residuals`) of the step;
     Coulomb (``mu``): of the Tresca step with ``s = mu p``."""
     if mu is not None:
         qp = replace(qp, friction=replace(qp.friction, slip_bound=mu * np.maximum(p, 0.0)))

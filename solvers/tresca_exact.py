@@ -1,7 +1,7 @@
 """The exact reference of one Tresca step, registered as a solver (``tresca_exact``).
 
-One Tresca step (:class:`problems.qp.Friction`, its ``slip_bound`` given) is solved by
-:func:`solvers.tresca.tresca_exact`: the dual problem in ``y = (p, lam)``
+One Tresca step (:class:`problems.friction.data.Friction`, its ``slip_bound`` given) is solved by
+:func:`solvers.kernels.tresca.tresca_exact`: the dual problem in ``y = (p, lam)``
 (``p >= 0``, ``|lam_i| <= s_i``) with the dense Hessian ``S = G A^-1 G'``, ``G = [B; T]``,
 ``u = A^-1 (f - G'y)``. 2D: a box, by a primal active-set method that ends on the exact
 active sets; 3D (two tangential rows per node): a disc per node, by a semismooth Newton
@@ -10,13 +10,13 @@ method on the projection equation driven to round-off on fixed sets; the faceted
 projection onto the k-gons, exact on its final sets.
 The answer carries the tangential multipliers in ``SolveResult.tangential``. A load path
 (normal load, then the tangential step; Coulomb's fixed point ``s = mu p``) is run around
-this solver by :func:`solvers.tresca.run_load_path` (``contactbench solve`` on a
+this solver by :func:`solvers.kernels.tresca.run_load_path` (``contactbench solve`` on a
 frictional scene).
 
 Refused at once (``skipped``): a frictionless problem (its exact reference is ``pdas``;
 the dense dual would only add a slower second route to every frictionless study), more than
-:data:`solvers.tresca.TRESCA_EXACT_MAX_M` rows or a dense ``A^-1 G'`` beyond
-:data:`solvers.tresca.TRESCA_EXACT_MAX_ENTRIES`, friction on anything but nodal rows
+:data:`solvers.kernels.tresca.TRESCA_EXACT_MAX_M` rows or a dense ``A^-1 G'`` beyond
+:data:`solvers.kernels.tresca.TRESCA_EXACT_MAX_ENTRIES`, friction on anything but nodal rows
 (``dim - 1`` tangential rows per constrained node), and a floating body (``A`` is then nearly singular and a plain
 factorisation of it useless).
 """
@@ -30,8 +30,8 @@ from problems.floating import floating_modes
 from problems.qp import ContactQP
 from problems.spec import Options
 from solvers.base import Role, SolveResult, SolverSpec, guess_not_used, preset_texts
-from solvers.tresca import (TRESCA_EXACT_MAX_ENTRIES, TRESCA_EXACT_MAX_M, dense_dual_size,
-                            dual_operators, tresca_exact)
+from solvers.kernels.tresca import (TRESCA_EXACT_MAX_ENTRIES, TRESCA_EXACT_MAX_M, dense_dual_size,
+                                    dual_operators, tresca_exact)
 
 
 def supports(qp: ContactQP) -> tuple[bool, str]:
@@ -59,7 +59,7 @@ def supports(qp: ContactQP) -> tuple[bool, str]:
 def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
           u0: np.ndarray | None, p0: np.ndarray | None, opts: Options) -> SolveResult:
     """One Tresca step solved exactly
-    (:func:`solvers.tresca.tresca_exact`).
+    (:func:`solvers.kernels.tresca.tresca_exact`).
 
     ``tol`` is left to the verification: the method is exact on its final active sets
     (2D) or driven to round-off on them (3D). ``max_iter`` caps the active-set or Newton

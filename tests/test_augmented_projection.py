@@ -12,8 +12,8 @@ from problems.fem.surface import tensor_coarsening
 from problems.kkt import energy_error
 from problems.qp import ContactQP, ContactSurface, Multilevel, SurfaceHierarchy
 from problems.spec import Component
-from solvers import multigrid as mg
-from solvers.schur import build_schur, kappa_schur_exact
+from solvers.kernels import multigrid as mg
+from solvers.kernels.schur import build_schur, kappa_schur_exact
 from solvers.augmented_projection import (SOLVER, Alg84, augmented_projection_algorithm,
                                           face_cg_variant, make_projection, mprgp,
                                           nested_initial_guess, projected_richardson, smalbe,

@@ -15,7 +15,7 @@ from problems.kkt import energy_error
 from problems.spec import problems
 from solvers import certificate
 from solvers.certificate import duality_gap, linear_solver
-from solvers.tresca import dual_operators, friction_path
+from solvers.kernels.tresca import dual_operators, friction_path
 from agreement import within_certificate
 
 #: the tangential step of each scene at level 0, with nodes that stick and nodes that slip
@@ -145,7 +145,7 @@ def test_the_active_rows_by_complementarity_ignore_an_interior_point_tail(step):
 
 def test_the_stick_point_from_the_cached_dual_operators_is_the_one_it_forms(step):
     """The stick point from the exact route's cached ``A^{-1} [B; T]'`` and ``S``
-    (:func:`solvers.tresca.dual_operators`) is the one formed with the verification's
+    (:func:`solvers.kernels.tresca.dual_operators`) is the one formed with the verification's
     factor of ``A``, to round-off; it has zero slip at the stick nodes and is tight on
     the active rows."""
     qp, sol = step
@@ -200,7 +200,7 @@ def test_frictionless_certificates_never_try_the_stick_pairs(monkeypatch):
     cases = []
     for qp, u, p in ((qp_free, None, None), (step_qp, sol.u, sol.p)):
         if u is None:
-            from solvers.tresca import tresca_exact
+            from solvers.kernels.tresca import tresca_exact
             exact = tresca_exact(qp)
             u, p = exact.u, exact.p
         cases.append((qp, u + 1e-6 * np.abs(u).max() * rng.standard_normal(qp.n), p))

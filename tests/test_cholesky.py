@@ -1,4 +1,4 @@
-"""The sparse Cholesky backends (solvers/cholesky.py) and the exact reference built on
+"""The sparse Cholesky backends (solvers/kernels/cholesky.py) and the exact reference built on
 them: PDAS through the dual problem on the contact rows against PDAS with a KKT LU per
 step, on scenes."""
 import platform
@@ -9,8 +9,8 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from problems import circle_square, cube_sphere
-from solvers import cholesky
-from solvers.cholesky import FactorizationError, available_backends, factorize
+from solvers.kernels import cholesky
+from solvers.kernels.cholesky import FactorizationError, available_backends, factorize
 from solvers.interface import solve
 from solvers.reference import reference_solve
 

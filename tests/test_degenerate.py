@@ -22,7 +22,7 @@ import scipy.sparse as sp
 from problems.circle_square import PROBLEM as CIRCLE_SQUARE
 from problems.kkt import energy_error
 from problems.qp import ContactQP
-from solvers.cholesky import InfeasibleError, row_basis
+from solvers.kernels.cholesky import InfeasibleError, row_basis
 from solvers.interface import STATUSES, solve, solvers
 from test_solvers import two_body_qp
 

@@ -9,15 +9,16 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from problems.kkt import energy_error, tresca_energy
+from problems.friction.residuals import tresca_energy
+from problems.kkt import energy_error
 from problems.qp import ContactQP, QPValidationError
 from problems.spec import ParameterError, problems
 from reference.cattaneo_mindlin import (partial_slip_reference, relative_l2, stick_zone_ratio,
                                         stick_zone_size, tangential_traction)
 from reference.hertz import moment_estimate
 from solvers.interface import solve, solvers
-from solvers.tresca import (box_qp_active_set, friction_path, path_for_ratio, tangential_ratio,
-                            tresca_exact, with_step)
+from solvers.kernels.tresca import (box_qp_active_set, friction_path, path_for_ratio,
+                                    tangential_ratio, tresca_exact, with_step)
 
 SCENE = problems()["circle_square"]
 

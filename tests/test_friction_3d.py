@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from problems.fem.contact import tangent_directions
-from problems.kkt import friction_residuals, tresca_energy
+from problems.friction.residuals import friction_residuals, tresca_energy
 from problems.qp import QPValidationError
 from problems.spec import problems
 from reference.cattaneo_mindlin import stick_zone_ratio, stick_zone_size, tangential_traction

@@ -1,5 +1,5 @@
 """Friction in 3D: the exact reference of a Tresca step (the dual with a disc per node, by
-semismooth Newton on the projection equation: solvers.tresca.disc_qp_newton) and the
+semismooth Newton on the projection equation: solvers.kernels.tresca.disc_qp_newton) and the
 semismooth Newton solver's 3D branch (Hüeber-Stadler-Wohlmuth), on small dual problems
 with known optimality conditions and on cube_sphere (mu = 0.5, elastically similar
 bodies: E1 = E2 = 1, nu1 = nu2 = 0.3, the scene's defaults)."""
@@ -8,15 +8,17 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from problems.kkt import energy_error, friction_residuals, tresca_energy
+from problems.friction.residuals import friction_residuals, tresca_energy
+from problems.kkt import energy_error
 from problems.spec import problems
 from reference.cattaneo_mindlin import stick_zone_ratio, stick_zone_size
-from solvers import semismooth_newton, tresca
+from solvers import semismooth_newton
+from solvers.kernels import tresca
 from solvers import tresca_exact as tresca_exact_solver
 from solvers.interface import run_load_path, solve
-from solvers.tresca import (DISC_EDGE, DISC_INSIDE, DISC_ZERO, TrescaSolution,
-                            box_qp_active_set, disc_qp_newton, friction_path, path_for_ratio,
-                            project_dual, tangential_ratio, with_step)
+from solvers.kernels.tresca import (DISC_EDGE, DISC_INSIDE, DISC_ZERO, TrescaSolution,
+                                    box_qp_active_set, disc_qp_newton, friction_path,
+                                    path_for_ratio, project_dual, tangential_ratio, with_step)
 
 
 def _random_dual(seed: int, m: int, k: int):

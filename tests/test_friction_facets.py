@@ -1,6 +1,6 @@
 """The faceted friction law (``friction_facets`` = k: the disc replaced by the inscribed
 regular k-gon): the k-gon's projection, support function and gauge against exact answers,
-its QP (:func:`problems.friction_forms.facet_program`) and the map of its multipliers,
+its QP (:func:`problems.friction.forms.facet_program`) and the map of its multipliers,
 the exact reference on faceted steps against every QP library, the solvers that skip it,
 its distance to the isotropic law as k grows (cube_sphere level 0), and the parameter's
 checks at the CLI."""
@@ -13,18 +13,20 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from problems.friction_forms import (facet_program, facet_weights, lift, program_multipliers,
+from problems.friction.forms import (facet_program, facet_weights, lift, program_multipliers,
                                      tresca_step)
-from problems.kkt import energy_error, friction_residuals, tresca_energy
-from problems.qp import (REGION_INSIDE, QPValidationError, polygon_gauge, polygon_normals,
-                         polygon_regions, polygon_support, polygon_vertices, project_polygon,
-                         region_projection)
+from problems.friction.polygon import (REGION_INSIDE, polygon_gauge, polygon_normals,
+                                       polygon_regions, polygon_support, polygon_vertices,
+                                       project_polygon, region_projection)
+from problems.friction.residuals import friction_residuals, tresca_energy
+from problems.kkt import energy_error
+from problems.qp import QPValidationError
 from problems.spec import ParameterError, problems
 from solvers.interface import solve, solvers
 from solvers.qp_libraries import LIBRARIES
 from report.friction import FACET_ENERGY_EXPONENT, FACET_FIT_LAST, complete, facet_claims
 from report.rates import fitted_slope
-from solvers.tresca import facet_convergence, friction_path
+from solvers.kernels.tresca import facet_convergence, friction_path
 from workflows.cli import main
 from workflows.studies.friction.run import facet_rows
 from agreement import within_certificate

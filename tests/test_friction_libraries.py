@@ -12,18 +12,20 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from problems.friction_forms import (cone_program, contact_program, epigraph_program, lift,
+from problems.friction.forms import (cone_program, contact_program, epigraph_program, lift,
                                      program_multipliers, split_program, step_multipliers,
                                      tresca_step)
-from problems.kkt import energy_error, tresca_energy
-from problems.qp import ContactQP, Friction
+from problems.friction.data import Friction
+from problems.friction.residuals import tresca_energy
+from problems.kkt import energy_error
+from problems.qp import ContactQP
 from problems.spec import problems
-from solvers._scaling import scale_qp
+from solvers.kernels.scaling import scale_qp
 from solvers.base import TOLERANCES
-from solvers.cholesky import cholesky_factor
+from solvers.kernels.cholesky import cholesky_factor
 from solvers.interface import run_load_path, solve, solvers
 from solvers.qp_libraries import LIBRARIES, clarabel_call
-from solvers.tresca import friction_path, warm_start
+from solvers.kernels.tresca import friction_path, warm_start
 from workflows.cli import main
 from workflows.io import read_json
 from agreement import within_certificate
@@ -40,7 +42,7 @@ QP_ONLY = sorted(lib.name for lib in LIBRARIES if lib.cone_call is None)
 @functools.lru_cache(maxsize=None)
 def _exact(scene):
     """``(step_qp, solution)``: the tangential Tresca step of the scene's exact load path
-    and its exact answer (:func:`solvers.tresca.tresca_exact`)."""
+    and its exact answer (:func:`solvers.kernels.tresca.tresca_exact`)."""
     qp = problems()[scene].make(0, friction="tresca", mu=0.5, shift=SHIFT[scene])
     last = friction_path(qp)[-1]
     fr = last.qp.friction
@@ -228,7 +230,7 @@ def test_the_split_form_is_for_one_tangential_row_per_node(exact_step):
 
 
 def test_the_rescaled_step_is_the_step(exact_step):
-    """The rescaled Tresca step (:mod:`solvers._scaling`) has the exact answer mapped into
+    """The rescaled Tresca step (:mod:`solvers.kernels.scaling`) has the exact answer mapped into
     it, ``u~ = u / (sigma d)``, ``p~ = p / (sigma r)``, ``lam~ = lam / (sigma rho)``: the
     stationarity residual is the original's times ``D / sigma``, ``|lam~_i| <= s~_i``
     exactly where ``|lam_i| <= s_i`` (the ratio is unchanged), the slip is ``rho slip /

@@ -15,9 +15,9 @@ from problems.qp import ContactQP
 from problems.spec import problems
 from solvers.base import CONTRACT, SolveResult, contract_violation
 from solvers.certificate import verify
-from solvers.cholesky import FactorizationError
+from solvers.kernels.cholesky import FactorizationError
 from solvers.interface import run_load_path, solve, solvers
-from solvers.tresca import friction_path, warm_start
+from solvers.kernels.tresca import friction_path, warm_start
 from workflows.cli import main
 from workflows.io import read_json
 from agreement import within_certificate

@@ -1,18 +1,19 @@
 """The friction branch of semismooth_newton: the primal-dual active set method of Hüeber,
 Stadler and Wohlmuth for 2D Tresca and Coulomb steps on circle_square (mu = 0.5,
 elastically similar bodies), checked against the exact reference of a Tresca step
-(solvers.tresca.tresca_exact) and against the frictionless PDAS."""
+(solvers.kernels.tresca.tresca_exact) and against the frictionless PDAS."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from problems.kkt import energy_error, friction_residuals
+from problems.friction.residuals import friction_residuals
+from problems.kkt import energy_error
 from problems.spec import problems
 from solvers import semismooth_newton
 from solvers.interface import solve
 from solvers.semismooth_newton import STICK, tangential_update
-from solvers.tresca import TrescaSolution, friction_path, path_for_ratio, with_step
+from solvers.kernels.tresca import TrescaSolution, friction_path, path_for_ratio, with_step
 
 SCENE = problems()["circle_square"]
 SPEC = semismooth_newton.SOLVER
@@ -108,7 +109,7 @@ def test_large_mu_sticks_everywhere():
 @pytest.mark.parametrize("level", [1, 2])
 def test_monolithic_coulomb_agrees_with_the_fixed_point(level):
     """Coulomb with s = mu p inside the Newton iteration against the fixed point over
-    exact Tresca steps (solvers.tresca.coulomb_step), both steps of the path, to 1e-8 in
+    exact Tresca steps (solvers.kernels.tresca.coulomb_step), both steps of the path, to 1e-8 in
     energy; the monolithic answer verifies as the Tresca step of its own bound mu p.
     Measured: the fixed point takes 2 and 9 Tresca solves at level 1, 9 and 10 at level 2
     (each 4, resp. 6-7, Newton steps of the Tresca branch); the monolithic method 4 and 4

@@ -1,6 +1,6 @@
 """TNNMG on one 2D Tresca step: the tangential rows become coordinates exactly, the node
 block's nonsmooth minimiser is exact, and the solver's answers satisfy the friction KKT
-conditions and agree with the exact reference (:func:`solvers.tresca.tresca_exact`) on
+conditions and agree with the exact reference (:func:`solvers.kernels.tresca.tresca_exact`) on
 circle_square; its frictionless path is the one it was."""
 import functools
 from dataclasses import replace
@@ -9,15 +9,18 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from problems.kkt import energy_error, friction_residuals
+from problems.friction.residuals import friction_residuals
+from problems.kkt import energy_error
 from problems.spec import problems
 from solvers import tnnmg
-from solvers._block_gs import (TRESCA, block_inverses, tresca_block_gauss_seidel,
-                               unsigned_index)
+from solvers.kernels.block_gs import (TRESCA, block_inverses, tresca_block_gauss_seidel,
+                                      unsigned_index)
 from solvers.certificate import certify
-from solvers.contact_box import box_transformation
+from solvers.kernels.contact_box import box_transformation
+from solvers.kernels.tnnmg_system import fine_system
+from solvers.kernels.tnnmg_tresca import TrescaFace, TrescaFaceCG, kink_search, tresca_energy
 from solvers.interface import solve
-from solvers.tresca import TrescaSolution, friction_path, path_for_ratio
+from solvers.kernels.tresca import TrescaSolution, friction_path, path_for_ratio
 from agreement import within_certificate
 
 SCENE = problems()["circle_square"]
@@ -135,7 +138,7 @@ def test_the_line_search_over_kinks_is_exact():
         phi = lambda a: base * a + 0.5 * curvature * a * a + jumps @ np.maximum(a - kinks, 0)
         dphi = lambda a, side: base + curvature * a + jumps @ (
             (kinks < a) if side < 0 else (kinks <= a))      # phi'(a-), phi'(a+)
-        a = tnnmg._kink_search(base, curvature, kinks, jumps, longest)
+        a = kink_search(base, curvature, kinks, jumps, longest)
         assert 0 <= a <= longest
         edges = np.r_[0.0, kinks[kinks < longest], min(longest, 1e6)]
         stationary = np.clip(-(base + np.r_[0.0, np.cumsum(jumps)][:edges.size - 1])
@@ -219,14 +222,14 @@ def test_a_face_cg_step_stops_at_a_kink_and_writes_it_exactly():
     there (length ``eps``), the row is written at its centre exactly, the face is left, and
     the energy falls."""
     st = _exact_path(1, 0.7)[-1]
-    fine = tnnmg._fine_system(st.qp, tresca=True)
+    fine = fine_system(st.qp, tresca=True)
     box, term = fine.box, fine.tresca
     v = box.to_v(st.solution.u)
     j = int(np.flatnonzero(st.solution.stick)[0])
     eps = 1e-3 * np.abs(term.centre).max()
     v[term.pivot] = np.where(st.solution.stick, term.centre, v[term.pivot])
     v[term.pivot[j]] = term.centre[j] + eps
-    face = tnnmg._TrescaFace.of(fine, v)
+    face = TrescaFace.of(fine, v)
     assert face.sign[j] == 1
     E = np.concatenate([box.pivot[face.active],
                         term.pivot[(face.sign == 0) & (term.weight > 0)]])
@@ -237,12 +240,12 @@ def test_a_face_cg_step_stops_at_a_kink_and_writes_it_exactly():
         def vcycle(self, g, sweeps=None):
             return back.copy()
     r = fine.f - fine.matvec(v)
-    cg = tnnmg._TrescaFaceCG(E, sweeps=2, face=face)
+    cg = TrescaFaceCG(E, sweeps=2, face=face)
     v2, r2, alpha, leave = cg.step(fine, Direction(), v, r, box.pivot, box.upper, face.active)
     assert cg.rz / float(back @ fine.matvec(back)) > 1.5 * eps     # uncut: past the kink
     assert leave and alpha == pytest.approx(eps, rel=1e-12)
     assert v2[term.pivot[j]] == term.centre[j]
-    assert tnnmg._tresca_energy(fine, v2, r2) < tnnmg._tresca_energy(fine, v, r)
+    assert tresca_energy(fine, v2, r2) < tresca_energy(fine, v, r)
     np.testing.assert_allclose(r2, fine.f - fine.matvec(v2), rtol=0,
                                atol=1e-12 * np.abs(fine.f).max())
 

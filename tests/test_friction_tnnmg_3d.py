@@ -10,14 +10,16 @@ import pytest
 import scipy.sparse as sp
 from scipy.optimize import minimize_scalar
 
-from problems.kkt import energy_error, friction_residuals
+from problems.friction.residuals import friction_residuals
+from problems.kkt import energy_error
 from problems.spec import problems
 from solvers import tnnmg
-from solvers._block_gs import disc_block_minimiser
+from solvers.kernels.block_gs import disc_block_minimiser
 from solvers.certificate import certify
-from solvers.contact_box import box_transformation
+from solvers.kernels.contact_box import box_transformation
+from solvers.kernels.tnnmg_tresca import disc_line_search
 from solvers.interface import solve
-from solvers.tresca import as_tresca_solution, friction_path, tangential_ratio
+from solvers.kernels.tresca import as_tresca_solution, friction_path, tangential_ratio
 from test_friction_tnnmg import _one_block, _random_block_system
 from agreement import within_certificate
 
@@ -124,7 +126,7 @@ def test_the_disc_line_search_is_the_minimiser_along_the_segment():
         dt[rng.uniform(size=m) < 0.1] = 0.0
         base, curvature = rng.normal() * 3, rng.uniform(0.05, 2)
         longest = np.inf if trial % 3 == 0 else rng.uniform(0.1, 4)
-        a, reached, short = tnnmg._disc_line_search(base, curvature, z, dt, weight, longest)
+        a, reached, short = disc_line_search(base, curvature, z, dt, weight, longest)
         assert 0.0 <= a <= longest
         end = min(longest, 50.0)
         grid = np.linspace(0.0, end, 4001)
@@ -168,7 +170,7 @@ def test_the_sweep_takes_a_3d_block_to_the_disc_minimiser():
 CUBE = problems()["cube_sphere"]
 
 #: The held cap's shift along x that gives Q/(mu P) about 0.3 and 0.7 at mu = 0.5 on levels
-#: 1 and 2 (found by solvers.tresca.path_for_ratio with TNNMG; the tests measure the ratio).
+#: 1 and 2 (found by solvers.kernels.tresca.path_for_ratio with TNNMG; the tests measure the ratio).
 SHIFT_FOR_RATIO = {0.3: 0.035, 0.7: 0.088}
 
 

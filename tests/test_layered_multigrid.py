@@ -2,8 +2,9 @@
 
 The roll stack's levels are separate meshes (no refinement hierarchy), each roll one
 section extruded along ``x`` with cells up to 25:1 long along the axis. Its V-cycle
-coarsens along ``x`` and smooths whole sections (:func:`solvers.multigrid.layered_hierarchy`);
-these tests check the layers it reads off the mesh, the interpolation between layers,
+coarsens along ``x`` and smooths whole sections
+(:func:`solvers.kernels.multigrid.layered_hierarchy`); these tests check the layers it
+reads off the mesh, the interpolation between layers,
 that the cycle is a symmetric positive definite preconditioner whose ``kappa(V A)`` stays
 bounded from level 0 to 1 where smoothed aggregation's grows past 100, the Lanczos
 bounds on a floating body's complement. Alg. 8.4 with this cycle on the floating roll:
@@ -15,7 +16,7 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-import solvers.multigrid as mg
+import solvers.kernels.multigrid as mg
 from problems.fem.mesh import extrusion_layers
 from problems.spec import ParameterError, problems
 from solvers.augmented_projection import floating_coarse_space

@@ -1,7 +1,7 @@
 """Local multigrid smoothing on adaptive hierarchies.
 
 The V-cycle of a geometric hierarchy smooths on each level only the unknowns that level
-added and their neighbours (:func:`solvers.multigrid.changed_dofs`). On a uniform
+added and their neighbours (:func:`solvers.kernels.multigrid.changed_dofs`). On a uniform
 hierarchy that is every unknown, so the cycle is the full one; on an adaptive hierarchy
 the work per cycle falls while the cycle stays an SPD preconditioner with a bounded
 condition number.
@@ -11,7 +11,7 @@ import pytest
 
 from problems.fem.adaptive import adaptive_loop, adaptive_start, mark_doerfler
 from problems.spec import problems
-from solvers import multigrid as mg
+from solvers.kernels import multigrid as mg
 from solvers.interface import solve
 
 
@@ -149,7 +149,7 @@ def test_the_solver_merges_levels_by_default(adaptive_qp):
 # --------------------------------------------------------------------------- S-hat inverse
 @pytest.mark.parametrize("case", ["circle_square", "cube_sphere", "adaptive"])
 def test_multilevel_schur_inverse_is_exact(case, adaptive_qp):
-    from solvers.schur import multilevel_schur_apply, multilevel_schur_inverse
+    from solvers.kernels.schur import multilevel_schur_apply, multilevel_schur_inverse
     qp = adaptive_qp if case == "adaptive" else problems()[case].make(1)
     apply, _ = multilevel_schur_apply(qp.multilevel.surface)
     inverse = multilevel_schur_inverse(qp.multilevel.surface)
@@ -159,7 +159,7 @@ def test_multilevel_schur_inverse_is_exact(case, adaptive_qp):
 
 
 def test_setup_inverts_the_multilevel_schur_in_one_or_two_steps(adaptive_qp):
-    from solvers.schur import build_schur
+    from solvers.kernels.schur import build_schur
     qp = adaptive_qp
     vc = mg.scaled_vcycle(qp.A, "gmg", qp.multilevel, qp.dim, qp.free_dofs,
                           smoother="symmetric_gs", sweeps=1, lanczos_steps=8)

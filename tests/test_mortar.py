@@ -25,7 +25,7 @@ from agreement import assert_solvers_agree
 from problems.fem.mortar import mortar_integrals
 from problems.flat_blocks import exact_pressure
 from problems.spec import ParameterError, problems
-from solvers.contact_box import check_structure
+from solvers.kernels.contact_box import check_structure
 from solvers.interface import solve
 
 #: Round-off bar of the exact identities (relative).

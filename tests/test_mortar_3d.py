@@ -36,7 +36,7 @@ from problems.cube_sphere import scene
 from problems.fem.mortar import mortar_integrals, multiplier_basis, surface_quadrature
 from problems.fem.two_body import assemble_two_body
 from problems.spec import problems
-from solvers.contact_box import check_structure
+from solvers.kernels.contact_box import check_structure
 from solvers.interface import solve
 
 CUBE = problems()["cube_sphere"]

@@ -43,7 +43,7 @@ from problems.fem.mortar import (TRIANGLE_RULES, dual_coefficients, mortar_integ
 from problems.fem.quadratic import quadratic_mesh_of, shape_functions
 from problems.flat_blocks import exact_pressure
 from problems.spec import ParameterError, problems
-from solvers.contact_box import check_structure
+from solvers.kernels.contact_box import check_structure
 from solvers.interface import solve
 
 PROBLEMS = problems()

@@ -1,8 +1,9 @@
-"""Nested iteration over a frictional load path (:func:`solvers.tresca.run_nested_load_path`):
-each solve on a finer level starts from its own last answer plus the coarser level's
+"""Nested iteration over a frictional load path
+(:func:`solvers.kernels.tresca.run_nested_load_path`): each solve on a finer level starts
+from its own last answer plus the coarser level's
 prolongated change over the same solve; the answers are those of the plain path (only the
 start differs); Coulomb's law is refused with the reason; the tangential step's scale is
-recovered exactly (:func:`solvers.tresca.tangential_scale`)."""
+recovered exactly (:func:`solvers.kernels.tresca.tangential_scale`)."""
 from __future__ import annotations
 
 import numpy as np
@@ -11,8 +12,8 @@ import pytest
 from problems.kkt import energy_error
 from problems.spec import problems
 from solvers.interface import run_load_path, solve
-from solvers.tresca import (NestedStart, run_nested_load_path, scaled_tangential_step,
-                            tangential_scale, warm_start)
+from solvers.kernels.tresca import (NestedStart, run_nested_load_path, scaled_tangential_step,
+                                    tangential_scale, warm_start)
 
 SCENE = problems()["circle_square"]
 TOL = 1e-9

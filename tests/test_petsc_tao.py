@@ -15,7 +15,7 @@ import pytest
 from problems.kkt import energy_error
 from problems.spec import problems
 from solvers import petsc_tao
-from solvers.contact_box import box_transformation
+from solvers.kernels.contact_box import box_transformation
 from solvers.interface import solve
 from solvers.reference import reference_solve
 

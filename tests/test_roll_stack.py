@@ -4,7 +4,7 @@ symmetry, unit independence and the solvers.
 Tolerances are scale-free: the verification (:func:`problems.kkt.kkt_residuals`) divides
 every KKT residual by the size of the terms it compares (forces by ``max(|f|, |Au|,
 |B'p|)``, gaps by ``max(|Bu|, |g|)``), and the library adapters hand their solvers the
-Jacobi-scaled, unit-load problem (``solvers/_scaling.py``), so E ~ 2e11 Pa and
+Jacobi-scaled, unit-load problem (``solvers/kernels/scaling.py``), so E ~ 2e11 Pa and
 displacements ~ 1e-4 m need no special settings; the same scene in mm/N/MPa gives the
 same residuals.
 """

@@ -4,7 +4,7 @@ its configuration, and the exact treatment of the floating work roll.
 The work roll is held only by the contact and weak springs (~1e-9 of the elastic
 stiffness): ``A`` is nearly singular in its vertical translation. The dual route of the
 exact PDAS keeps that translation as an unknown of each active-set step
-(:class:`solvers.cholesky.FloatingCholesky`, FETI-style), so no intermediate result is of
+(:class:`solvers.kernels.cholesky.FloatingCholesky`, FETI-style), so no intermediate result is of
 the size ``1/spring``; tested here against the KKT-LU PDAS, which never inverts ``A``.
 """
 from __future__ import annotations
@@ -21,7 +21,7 @@ from problems.floating import floating_modes
 from problems.kkt import kkt_residuals
 from problems.roll_stack import PROBLEM
 from report import roll_stack as report
-from solvers.cholesky import FloatingCholesky
+from solvers.kernels.cholesky import FloatingCholesky
 from solvers.interface import solve
 from workflows.studies.roll_stack import run as study
 from workflows.studies import ConfigError, all_targets, check_config, load_config, schema_file

@@ -11,8 +11,8 @@ from problems.kkt import energy_error
 from problems.qp import ContactQP
 from solvers.augmented_projection import nested_initial_guess
 from solvers.interface import solve
-from solvers.face import face_projector
-from solvers.multigrid import vcycle
+from solvers.kernels.face import face_projector
+from solvers.kernels.multigrid import vcycle
 from solvers.semismooth_newton import projected_pcg
 from test_solvers import cycling_qp
 

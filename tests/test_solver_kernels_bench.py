@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from problems.circle_square import PROBLEM
-from solvers import multigrid as mg
-from solvers.schur import build_schur
+from solvers.kernels import multigrid as mg
+from solvers.kernels.schur import build_schur
 from solvers.augmented_projection import SOLVER, make_projection
 
 LEVEL = 2

@@ -18,7 +18,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from problems.spec import ParameterError
-from solvers import _scaling
+from solvers.kernels import scaling
 from problems.kkt import kkt_residuals
 from problems.qp import ContactQP, QPValidationError
 from solvers.interface import TOLERANCES, solve, solvers
@@ -28,7 +28,7 @@ from agreement import within_certificate
 REFERENCE_SOLVERS = tuple(sorted(n for n, s in solvers().items() if s.role == "library"))
 ALL_SOLVERS = ("pdas", "semismooth_newton") + REFERENCE_SOLVERS
 #: The libraries that take the QP through an epigraph cone (ECOS: a linear objective only,
-#: problems.friction_forms.epigraph_program): the stationarity of their answer goes with the
+#: problems.friction.forms.epigraph_program): the stationarity of their answer goes with the
 #: square root of their duality gap, so the accuracy bars at a preset's own tolerance
 #: (KKT within 10 tol, ``A u + B'p = f`` to 1e-6, the unconstrained answer to 1e-5) do not
 #: hold for them; test_ecos_through_its_epigraph_cone states what does
@@ -417,7 +417,7 @@ def test_bad_problems_raise_clear_errors():
 def test_scaling_round_trip(references):
     """The unscaled solution of the scaled problem solves the original one."""
     qp, ref = references["obstacle-SI"]
-    data = _scaling.scale_qp(qp)
+    data = scaling.scale_qp(qp)
     np.testing.assert_allclose(data.A.diagonal(), 1.0)
     scaled = ContactQP(A=data.A, f=data.f, B=data.B, g=data.g)
     u_s, p_s = data.scale_guess(ref.u, ref.p)

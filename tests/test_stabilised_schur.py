@@ -1,6 +1,7 @@
 """Alg. 8.4 on the stabilised two-sided formulation (Sect. 7.5, (7.10)/(7.11)): the
-multilevel ``S-hat`` over both surfaces' rows (:func:`solvers.schur.stabilised_schur_apply`),
-the scene parameter ``coupling`` and the nested initial guess of the reverse rows."""
+multilevel ``S-hat`` over both surfaces' rows
+(:func:`solvers.kernels.schur.stabilised_schur_apply`), the scene parameter ``coupling``
+and the nested initial guess of the reverse rows."""
 from __future__ import annotations
 
 import numpy as np
@@ -12,9 +13,9 @@ from problems import circle_square, cube_sphere
 from problems.spec import ParameterError
 from solvers import augmented_projection as ap
 from solvers.interface import solve
-from solvers.multigrid import lanczos_extremes
+from solvers.kernels.multigrid import lanczos_extremes
 from solvers.reference import reference_solve
-from solvers.schur import multilevel_schur_apply, stabilised_schur_apply
+from solvers.kernels.schur import multilevel_schur_apply, stabilised_schur_apply
 
 SCENES = {"circle_square": circle_square.PROBLEM, "cube_sphere": cube_sphere.PROBLEM}
 

@@ -10,10 +10,11 @@ import scipy.sparse as sp
 from problems.kkt import energy_error
 from problems.qp import SharedWork
 from problems.spec import ParameterError, problems
-from solvers._block_gs import (BOUNDED, FIXED, FREE, block_gauss_seidel, block_inverses,
-                               unsigned_index)
-from solvers.contact_box import TransformationError, box_transformation, check_structure
-from solvers import tnnmg
+from solvers.kernels.block_gs import (BOUNDED, FIXED, FREE, block_gauss_seidel, block_inverses,
+                                      unsigned_index)
+from solvers.kernels.contact_box import TransformationError, box_transformation, check_structure
+from solvers.kernels.tnnmg_correction import UpdatedOperator, hierarchy
+from solvers.kernels.tnnmg_system import fine_system
 from solvers.interface import solve
 from solvers.reference import reference_solve
 
@@ -223,8 +224,8 @@ def test_truncated_coarse_operators_are_the_galerkin_products_of_the_truncated_s
     the pattern holds it) equal the Galerkin products of the truncated prolongation
     ``D_I T^{-1} P`` computed outright, for several active sets and back to none."""
     qp = _build("circle_square", 2, {})
-    fine = tnnmg._fine_system(qp)
-    ml = tnnmg._hierarchy(qp, fine, 1, True, 0)
+    fine = fine_system(qp)
+    ml = hierarchy(qp, fine, 1, True, 0)
     rng = np.random.default_rng(5)
     m = fine.box.pivot.size
     for active in (rng.random(m) < 0.5, np.ones(m, bool), rng.random(m) < 0.2,
@@ -249,7 +250,7 @@ def test_updated_operator_takes_couplings_outside_its_pattern():
     too, and the next update starts from the operator again."""
     base = sp.csr_matrix(sp.diags([4.0, 4.0, 4.0, 4.0]) + sp.diags([1.0, 1.0, 1.0], 1)
                          + sp.diags([1.0, 1.0, 1.0], -1))
-    op = tnnmg._UpdatedOperator(base.copy())       # it owns (and changes) what it gets
+    op = UpdatedOperator(base.copy())       # it owns (and changes) what it gets
     inside = sp.csr_matrix(([0.5, 0.5], ([0, 1], [1, 0])), shape=(4, 4))
     outside = sp.csr_matrix(([0.25, 0.25], ([0, 3], [3, 0])), shape=(4, 4))
     np.testing.assert_array_equal(op.set(inside).toarray(), (base + inside).toarray())

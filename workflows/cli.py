@@ -143,7 +143,7 @@ def split_sets(params: dict, scene, solver) -> tuple[dict, dict]:
 def _solve_contact(spec, level: int, params: dict, args: argparse.Namespace) -> dict[str, Any]:
     from problems.fem.fields import contact_fields, contact_state, friction_state
     from solvers.interface import check_limits, run_load_path, solve, solvers
-    from solvers.tresca import warm_start
+    from solvers.kernels.tresca import warm_start
     from workflows.isolation import solve_isolated
 
     solver = lookup(solvers(), args.solver or "pdas", "solver")
@@ -171,7 +171,7 @@ def _solve_contact(spec, level: int, params: dict, args: argparse.Namespace) -> 
     friction = None
     if qp.friction is None:
         result = solve_one(qp)
-    else:   # the whole load path, each Tresca step by the solver (solvers.tresca)
+    else:   # the whole load path, each Tresca step by the solver (solvers.kernels.tresca)
         run = run_load_path(qp, solve_one, tol, warm=not args.cold)
         qp, result = run.qp, run.result
         friction = {"load_path": run.records}

@@ -16,11 +16,11 @@ and ``<out>/index.json`` lists them; ``<out>/contact_qp.py`` is qpbenchmark's te
 module for the folder (``qpbenchmark <out>/contact_qp.py run ...``; it reads the
 problems whose ``form`` is ``qp``).
 
-A frictional problem (one Tresca step, :mod:`problems.friction_forms`) has ``x = (u, t)``,
+A frictional problem (one Tresca step, :mod:`problems.friction.forms`) has ``x = (u, t)``,
 ``t_i >= |slip_i|`` per node with a slip bound ``s_i > 0``. In 2D it is a QP (``form``
-``qp``, :func:`problems.friction_forms.split_program`), written as above; in 3D
+``qp``, :func:`problems.friction.forms.split_program`), written as above; in 3D
 (isotropic friction) a second-order cone program (``form`` ``cone``,
-:func:`problems.friction_forms.cone_program`) in the conic form Clarabel and SCS take::
+:func:`problems.friction.forms.cone_program`) in the conic form Clarabel and SCS take::
 
     min 1/2 x'Px + q'x   s.t.   Ax + s = b,   s in K = R+^l x SOC(k_1) x ... x SOC(k_c)
 
@@ -49,9 +49,9 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from problems.floating import floating_modes
-from problems.friction_forms import (lift, program_multipliers, standard_program,
+from problems.friction.forms import (lift, program_multipliers, standard_program,
                                      tresca_step)
-from problems.kkt import tresca_energy
+from problems.friction.residuals import tresca_energy
 from problems.slack import slack_form
 from workflows.io import _sha256 as file_digest, json_text, provenance
 from workflows.problem_set import SetProblem, TestSet
@@ -100,7 +100,7 @@ def qp_arrays(qp) -> dict[str, np.ndarray | sp.csr_matrix]:
 def exported_solution(qp, u: np.ndarray, p: np.ndarray) -> np.ndarray:
     """``x`` of the exported problem for the contact solution ``(u, p)``: ``u``, or
     ``(u, s)`` with ``s = c p`` on the penalised rows of the slack form, or a Tresca
-    step's ``(u, t)``, ``t_i = |slip_i(u)|`` (:func:`problems.friction_forms.lift`)."""
+    step's ``(u, t)``, ``t_i = |slip_i(u)|`` (:func:`problems.friction.forms.lift`)."""
     if qp.friction is not None:
         step = tresca_step(qp)
         return lift(step, standard_program(step), u)
@@ -279,9 +279,9 @@ def friction_solution_files(folder: Path, item: SetProblem, qp, u: np.ndarray,
 def tight_rows(G: sp.spmatrix, h: np.ndarray, x: np.ndarray, rtol: float = 1e-8) -> dict:
     """How many rows of ``Gx <= h`` hold with equality at ``x`` (slack below ``rtol``
     times ``max(|h|, |Gx|)``), and how many of them are linearly dependent on the others
-    (:func:`solvers.cholesky.row_basis` of their Gram matrix ``G_T G_T'``): where that is
+    (:func:`solvers.kernels.cholesky.row_basis` of their Gram matrix ``G_T G_T'``): where that is
     positive, LICQ fails at the solution and the multipliers ``z`` are not unique."""
-    from solvers.cholesky import row_basis
+    from solvers.kernels.cholesky import row_basis
 
     Gx = G @ x
     scale = max(float(np.max(np.abs(h), initial=0.0)), float(np.max(np.abs(Gx), initial=0.0)),

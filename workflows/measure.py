@@ -19,7 +19,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from problems.kkt import energy_error
-from solvers import multigrid as pc
+from solvers.kernels import multigrid as pc
 from solvers import tnnmg
 from solvers.interface import linear_solver, verify
 

@@ -360,14 +360,14 @@ class FrictionStep:
         path's): the scene's data of the step, slip bounds ``s`` and previous state
         rounded by :func:`definition_digits`.
     solution : TrescaSolution
-        Its exact reference (:func:`solvers.tresca.tresca_exact`).
+        Its exact reference (:func:`solvers.kernels.tresca.tresca_exact`).
     warm : TrescaSolution
         The previous step's reference solution (the first tangential step's: the normal
         step's), the step's recorded warm start.
     step, steps : int
         This tangential step (from 1) and the path's number of them.
     ratio : float
-        ``Q / (mu P)`` of the reference solution (:func:`solvers.tresca.tangential_ratio`).
+        ``Q / (mu P)`` of the reference solution (:func:`solvers.kernels.tresca.tangential_ratio`).
     fixed_point : dict or None
         Coulomb: the fixed point ``s = mu p`` of the step (its Tresca solves, last change
         and contraction, and ``max |mu p - s| / max s`` of the rounded bound's reference).
@@ -388,10 +388,10 @@ def frictional_steps(problem: str, params: tuple, level: int,
                      perturb: float = 0.0) -> dict[int, FrictionStep]:
     """The tangential steps of a frictional scene's load path as test problems (cached).
 
-    The path is :func:`solvers.tresca.friction_path`'s, with the exact reference (``A``
+    The path is :func:`solvers.kernels.tresca.friction_path`'s, with the exact reference (``A``
     factorised once) on the rounded definitions (its ``define``): the normal step's slip
     bounds ``s = mu p`` (Tresca; Coulomb: the fixed point ``s = mu p`` of each step,
-    :func:`solvers.tresca.coulomb_step`, to 1e-12) and each step's previous state
+    :func:`solvers.kernels.tresca.coulomb_step`, to 1e-12) and each step's previous state
     ``T u + offset`` of the step before are rounded by :func:`definition_digits` before
     the step is solved, so each step's problem and its warm start are exactly the
     previous exported problem's reference. ``perturb`` (tests only) multiplies every
@@ -402,8 +402,8 @@ def frictional_steps(problem: str, params: tuple, level: int,
     dict
         Tangential step (1 .. ``shift_steps``) -> :class:`FrictionStep`.
     """
-    from solvers.tresca import (PathStep, dual_operators, friction_path, tangential_ratio,
-                                tresca_exact)
+    from solvers.kernels.tresca import (PathStep, dual_operators, friction_path, tangential_ratio,
+                                        tresca_exact)
 
     spec = problems()[problem]
     qp = spec.build(level, spec.options(**dict(params)))

@@ -30,7 +30,8 @@ from workflows.studies._base import CHART
 
 GENERATED = "generated"
 #: The modules a user of the suite calls from Python, one API page each.
-API_MODULES = ("problems.spec", "problems.qp", "problems.kkt", "solvers.interface",
+API_MODULES = ("problems.spec", "problems.qp", "problems.kkt", "problems.friction.data",
+               "problems.friction.polygon", "problems.friction.residuals", "solvers.interface",
                "solvers.base", "solvers.certificate", "workflows.problem_set", "workflows.export",
                "workflows.io", "report.claims")
 

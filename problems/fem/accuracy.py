@@ -29,8 +29,7 @@ then separates the measured difference from the true error for every compared
 mesh alike, so "mesh A reaches the error of mesh B" reads off the measured
 differences without knowing it. Energies ``J(u_h)`` are not compared: the polygonal
 circle and the discrete Dirichlet arc change with the mesh, which shifts ``J`` by
-as much as ``||u - u_h||^2`` (measured: 2(J_L - J_3) is a third to a seventh of
-``||u_3 - u_L||^2`` on the uniform levels of circle-square).
+as much as ``||u - u_h||^2`` (docs/guide/measurements.md).
 
 Pure functions of arrays: no files, no clocks.
 """

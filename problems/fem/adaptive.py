@@ -68,7 +68,7 @@ def mark_doerfler(eta_sq, theta: float = 0.5, min_fraction: float = 0.0) -> np.n
 
     Once a few cells at singular points (clamped corners, the ends of a held arc) carry
     a ``theta`` share of the estimate, the bulk set alone is a handful of cells and
-    every step adds a few hundred nodes (circle-square beyond ~30k nodes): a minimum
+    every step adds a few hundred nodes (circle-square's adaptive runs): a minimum
     share keeps the growth per step geometric, so a run reaches the thesis's node
     counts in tens of steps instead of hundreds (and a multigrid hierarchy of as many
     levels)."""
@@ -141,7 +141,7 @@ def prolongate_solution(qp_coarse: ContactQP, u: np.ndarray, p: np.ndarray, qp_f
     the new contact mass, clipped at 0. With the stabilisation of Sect. 7.5 the
     reverse rows' pressure ``p_r / m_r`` lives on the opposing surface's nodes and
     is prolongated as a nodal field (:func:`_reverse_pressure`): the reverse rows
-    carry most of the load there (circle-square level 1: 0.0048 of 0.0060), and the
+    carry most of the load there, and the
     split between the two sets of rows is the stabilised problem's slowest direction.
     ``u0`` is the P1 prolongation of the full nodal displacement (prescribed values
     included) restricted to the free DOFs when ``node_prolongation`` (stacked

@@ -233,13 +233,13 @@ def bisect(points: np.ndarray, cells: np.ndarray, marked, rule: str = "newest_ve
 
 
 def default_rule(dim: int) -> str:
-    """The rule chosen per dimension by measurement
-    (``workflows/scripts/bench_adaptive_refinement.py``): newest-vertex bisection in
+    """The rule chosen per dimension (compared by
+    ``workflows/scripts/bench_adaptive_refinement.py``): newest-vertex bisection in
     2D (angles bounded below by theory, fewest nodes for the same marking, as
     few as longest-edge bisection), longest-edge bisection in 3D (the same
     meshes as scikit-fem's ``MeshTet.refined(marked)`` at a similar time, with
-    the parents recorded; netgen's bisection needed 5x more nodes and reached
-    a 16-17 degree smallest dihedral angle where ours kept 45)."""
+    the parents recorded; netgen's bisection needed more nodes and reached smaller
+    dihedral angles: docs/guide/measurements.md)."""
     return "newest_vertex" if dim == 2 else "longest_edge"
 
 

@@ -69,9 +69,9 @@ def friction_state(qp: ContactQP, u: np.ndarray, p: np.ndarray, lam: np.ndarray,
     ``slip`` is the step's ``T u + offset - previous``; in 3D both, like ``tangential``,
     are node-major with two entries per node (along the row's two tangents,
     ``friction.tangent``). ``state`` is ``stick``, ``slip`` or ``free``
-    (:meth:`problems.qp.Friction.states` at ``tol``). ``tangential_force`` is
+    (:meth:`problems.friction.data.Friction.states` at ``tol``). ``tangential_force`` is
     ``sum_i lam_i t_i``; ``load_ratio`` is Q/(mu P) with ``Q``
-    :meth:`problems.qp.Friction.total_force` (nan for ``mu = 0`` or no contact force).
+    :meth:`problems.friction.data.Friction.total_force` (nan for ``mu = 0`` or no contact force).
     """
     fr = qp.friction
     lam, p = np.asarray(lam, dtype=float), np.asarray(p, dtype=float)

@@ -22,7 +22,7 @@ multiplier basis:
   vertices (a segment, ``k = 2``; a triangle, ``k = 3``) ``psi_a = (k + 1) phi_a - 1``:
   biorthogonal, ``int psi_i phi_j = delta_ij m_i``, so ``D = diag(m)``, and row ``i``
   moves its constrained node by exactly ``n``: each row owns one constrained node, as
-  nodal rows do (the box transformation of :mod:`solvers.contact_box` applies).
+  nodal rows do (the box transformation of :mod:`solvers.kernels.contact_box` applies).
   (With ``psi_a = alpha phi_a + beta`` on a simplex of dimension ``s = k - 1``,
   ``int phi_a phi_b = |T| (1 + delta_ab) / ((s + 1)(s + 2))`` and
   ``int phi_b = |T| / (s + 1)`` make biorthogonality read ``beta = -alpha / (s + 2)``
@@ -47,7 +47,7 @@ P2 (Remark 7.11's elements; :func:`multiplier_basis`, :func:`dual_coefficients`)
   the gap's variation over the vertex's patch, and its coefficient carries no net force
   (the total force is ``sum c_i m_i``); the standard mortar conditions (weighted gaps
   and coefficients >= 0) hold all the same, but the vertex coefficients are no pressure
-  (on cube_sphere at level 1 they reach 5 times the midpoints' largest);
+  (docs/guide/mortar.md);
 * the nodal pressure at P2 is therefore recovered from the forces, as for the nodal P2
   rows (:func:`problems.fem.two_body.quadratic_pressure_map`): the constrained nodes'
   forces ``F = D' diag(1/s) p`` aggregated onto the vertices (each midpoint's half to

@@ -260,8 +260,8 @@ def stiffness_matrix_p2(mesh: QuadraticMesh, E, nu, chunk: int = 50_000) -> sp.c
     The element matrix is ``sum_q w_q |T| (lam g_ai g_bj + mu (g_a . g_b) delta_ij +
     mu g_aj g_bi)`` with the P2 gradients ``g`` at the points of a degree-2 rule (exact:
     the gradients are affine), for all cells of a chunk at once. It equals scikit-fem's
-    assembly (:func:`stiffness_matrix_p2_skfem`, a test) and is ~10x faster than it
-    (3D level 2 of cube-sphere, 135k nodes: 38 s in scikit-fem 12).
+    assembly (:func:`stiffness_matrix_p2_skfem`, a test) and is much faster than it
+    (docs/guide/measurements.md).
 
     Parameters
     ----------

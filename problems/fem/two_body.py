@@ -41,8 +41,8 @@ from problems.fem.quadratic import (FACET_EDGES, body_force_vector_p2, edge_look
                                     stiffness_matrix_p2, surface_mass_p2, traction_vector_p2)
 from problems.fem.surface import facet_sizes, surface_levels
 from problems.spec import Options, Parameter, ParameterError
-from problems.qp import (FRICTION_LAWS, ContactQP, ContactSurface, Friction, HertzSetup, LoadStep,
-                         Mesh, Multilevel, check_facets)
+from problems.friction.data import FRICTION_LAWS, Friction, LoadStep, check_facets
+from problems.qp import ContactQP, ContactSurface, HertzSetup, Mesh, Multilevel
 
 #: The scenes' element order (one declaration, every two-body scene lists it).
 ELEMENT_DEGREE = Parameter(
@@ -245,10 +245,10 @@ def quadratic_pressure_map(surface) -> sp.csr_matrix:
     interpolated back to the midpoints, ``P diag(1 / m_1) P'``.
 
     P2's nodal forces alternate between vertices and midpoints (with the HRZ mass of
-    :func:`problems.fem.quadratic.surface_mass_p2` by about +-20 % on circle-square
-    level 2; in 3D a vertex function integrates to zero, so ``p / mass`` is no pressure
-    there). Aggregating each midpoint's force half onto each of its vertices is exact
-    for a constant pressure in 2D and 3D and removes the alternation.
+    :func:`problems.fem.quadratic.surface_mass_p2`: docs/guide/measurements.md; in 3D a
+    vertex function integrates to zero, so ``p / mass`` is no pressure there).
+    Aggregating each midpoint's force half onto each of its vertices is exact for a
+    constant pressure in 2D and 3D and removes the alternation.
 
     Parameters
     ----------
@@ -445,7 +445,7 @@ def frictional_two_body(scene: Callable[[int, Options], TwoBodyScene], level: in
     then the tangential steps (the held part moved along x to ``j shift / shift_steps``,
     ``j = 1 .. shift_steps``: :func:`shift_increments`); the ContactQP
     holds the first step's data, slip measured from the unloaded state, slip bounds zero
-    (the path's driver sets them: :func:`solvers.tresca.friction_path`); in 3D the law's
+    (the path's driver sets them: :func:`solvers.kernels.tresca.friction_path`); in 3D the law's
     shape ``friction_facets`` (:func:`friction_facets`).
 
     ``scene(level, options)`` builds the scene with the held part's x-displacement set

@@ -177,7 +177,7 @@ def table_solve(qp: ContactQP, u0, p0, tol: float, time_limit: float):
     eta = np.asarray(h["eta_rel"])
     sizes = [P.shape[1] for P in qp.multilevel.prolongations] + [qp.n]
     row = {"solver": "alg84", "n_outer_total": cold.iterations, "t_setup": s["t_setup"],
-           # the V-cycle's levels (the refinement levels merged, solvers.multigrid.
+           # the V-cycle's levels (the refinement levels merged, solvers.kernels.multigrid.
            # merge_levels) and unknowns smoothed per cycle over N (4/3 on a uniform 2D
            # hierarchy); beside them the refinement levels' sizes, what smoothing every
            # level in full would cost

@@ -7,7 +7,7 @@ parameters, ``--problem P --set key=value``), at each of ``--levels``:
 
 * **the reference path per load ratio** -- Tresca friction with ``mu``; the tangential
   step (the held part moved by ``--shift``) is scaled until ``Q/(mu P)`` of the last step
-  is each of ``--ratios`` (:func:`solvers.tresca.path_for_ratio`). The reference is
+  is each of ``--ratios`` (:func:`solvers.kernels.tresca.path_for_ratio`). The reference is
   ``tresca_exact`` (exact to round-off) where it takes the problem (its dual is dense:
   rows times unknowns), else the first of :data:`FALLBACK_REFERENCES` that takes it, at
   the ``high`` tolerance through :func:`solvers.interface.solve` (the ``reference``
@@ -40,7 +40,7 @@ parameters, ``--problem P --set key=value``), at each of ``--levels``:
   contraction per load step (the frictionless solve that starts the path not counted).
 * **the faceted law** (3D, each ``k`` of ``--facets``) -- the reference's path at the
   last ratio with the disc replaced by the inscribed regular ``k``-gon, against the
-  isotropic one (:func:`solvers.tresca.facet_convergence`): the energy gap and its bound
+  isotropic one (:func:`solvers.kernels.tresca.facet_convergence`): the energy gap and its bound
   ``(1 - cos(pi/k)) D``, the relative energy-norm distance of ``u``, the largest
   traction difference, the Newton steps of the tangential step (``tresca_exact`` only:
   the fallback references take the isotropic law alone).
@@ -71,17 +71,18 @@ import numpy as np
 import pandas as pd
 
 from problems.fem.fields import in_plane
-from problems.kkt import energy_error, tresca_energy
-from problems.qp import MIN_FRICTION_FACETS
+from problems.friction.data import MIN_FRICTION_FACETS
+from problems.friction.residuals import tresca_energy
+from problems.kkt import energy_error
 from problems.spec import ParameterError
 from reference.cattaneo_mindlin import (partial_slip_reference, relative_l2, stick_zone_ratio,
                                         stick_zone_size)
 from reference.hertz import moment_estimate
-from solvers import tresca
+from solvers.kernels import tresca
 from solvers.interface import parse_tolerance, run_load_path, solve, solvers
-from solvers.tresca import (as_tresca_solution, friction_path, path_for_ratio,
-                            run_nested_load_path, scaled_tangential_step,
-                            tangential_ratio, tangential_scale, warm_start)
+from solvers.kernels.tresca import (as_tresca_solution, friction_path, path_for_ratio,
+                                    run_nested_load_path, scaled_tangential_step, tangential_ratio,
+                                    tangential_scale, warm_start)
 from workflows.io import write_csv
 from workflows.measure import (amg_pcg_floor, interleaved_median_runs, linear_solution,
                                tnnmg_run)
@@ -126,7 +127,7 @@ def reference_route(qp) -> tuple[str, object]:
 
 def partial_slip(step, ratio: float) -> tuple[dict, pd.DataFrame]:
     """Cattaneo-Mindlin measures of a reference's last step (a
-    :class:`solvers.tresca.PathStep`; module docstring): the row's fields and the
+    :class:`solvers.kernels.tresca.PathStep`; module docstring): the row's fields and the
     per-node profile.
 
     2D (line contact): positions along the contact line, the traction ``lam / mass``
@@ -177,7 +178,7 @@ def partial_slip(step, ratio: float) -> tuple[dict, pd.DataFrame]:
 
 #: The starts of a solver's load path (:func:`solver_row`): each solve from the path's
 #: last answer (``warm``), from zero (``cold``), and for :data:`NESTED_SOLVERS` nested from
-#: the coarser levels (``nested``, :func:`solvers.tresca.run_nested_load_path`).
+#: the coarser levels (``nested``, :func:`solvers.kernels.tresca.run_nested_load_path`).
 STARTS = ("warm", "cold", "nested")
 #: The solvers whose paths run nested too: TNNMG, the multigrid method whose steps on the
 #: finest level the study's growth bar is about.
@@ -321,7 +322,7 @@ def coulomb_rows(qp, factor: float, ref_solve) -> list[dict]:
 
 def facet_rows(path_qp, facets: list[int], ref_name: str) -> list[dict]:
     """The faceted law against the isotropic one on the reference path of ``path_qp``
-    (:func:`solvers.tresca.facet_convergence`), one row per ``k`` of ``facets``; none in
+    (:func:`solvers.kernels.tresca.facet_convergence`), one row per ``k`` of ``facets``; none in
     2D (the law is already polyhedral there); one ``skipped`` row where the reference is
     not ``tresca_exact``."""
     if not facets or path_qp.friction.components != 2:

@@ -6,7 +6,7 @@ bodies), the augmented projection (``solvers/augmented_projection.py``) runs twi
 ``mid`` tolerance (verified KKT and certified bound <= 1e-6):
 
 * ``robust`` -- its defaults: ``A-hat`` a Chebyshev polynomial in the V-cycle whose degree
-  comes from the measured ``kappa(V A)`` (:func:`solvers.multigrid.scaled_vcycle`), and
+  comes from the measured ``kappa(V A)`` (:func:`solvers.kernels.multigrid.scaled_vcycle`), and
   ``S-hat`` multilevel while it stays equivalent to ``S_in``, else ``S_in`` itself;
 * ``vcycle`` -- the thesis's pair as the augmented-projection study runs it: one V-cycle as
   ``A-hat`` (degree 1) and the multilevel ``S-hat``, capped at ``--max-iter`` outer steps.

@@ -6,7 +6,7 @@ For every strip force (``--forces``) and work-roll crown (``--crowns``: the crow
 of the thesis, 150 um, and a cylindrical one for the strip profile) the scene
 (:mod:`problems.roll_stack`) at ``--level`` is solved by the exact reference: PDAS
 through the dual problem on the contact rows with the floating work roll's vertical
-translation kept as an unknown of each step (:class:`solvers.cholesky.FloatingCholesky`,
+translation kept as an unknown of each step (:class:`solvers.kernels.cholesky.FloatingCholesky`,
 ``solvers/pdas.py``), verified to KKT residuals <= 1e-10 with a certified energy bound.
 Then (quarter model: forces of the whole stack are 4x the model's):
 

@@ -13,8 +13,8 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 
 from problems.spec import ComponentParameter, Parameter
-from solvers.cholesky import factorize, row_basis
-from solvers.multigrid import Apply
+from solvers.kernels.cholesky import factorize, row_basis
+from solvers.kernels.multigrid import Apply
 
 # ---------------------------------------------------------------------------
 # The face of an active set: projection for projected PCG
@@ -22,10 +22,9 @@ from solvers.multigrid import Apply
 #: Face projections: the metric whose orthogonal complement of ``ker B_I`` is removed.
 FACE_KINDS = ("harmonic", "euclidean")
 
-#: Default patch width of the harmonic face projection per dimension. Measured with the
-#: semismooth Newton solver to 1e-6: at circle-square level 4 hops 1/2/3/5 took
-#: 9.3/8.0/6.2/5.9 s (Euclidean 16.3 s), at cube-sphere level 3 18.1/15.7/19.1/22.7 s
-#: (Euclidean 22.7 s): in 3D the patch's factorisation grows faster than the steps fall.
+#: Default patch width of the harmonic face projection per dimension: the fastest
+#: semismooth Newton solves; in 3D the patch's factorisation grows faster than the steps
+#: fall (docs/guide/measurements.md).
 AUTO_HOPS = {2: 5, 3: 2}
 
 #: The face projection as a solver option (declared once; :func:`face_projector`).
@@ -58,17 +57,16 @@ class FaceProjector:
     ``W = A^{-1} B_I'``). With the multigrid V-cycle ``M`` the projected
     preconditioner is ``Pi M Pi'``: exact on the face when ``W = A^{-1} B_I'``,
     it inherits the V-cycle's rate, whereas the Euclidean projector cuts the
-    smooth V-cycle correction at the constrained DOFs (measured at circle-square
-    level 4 on the solution's face: 12 projected-PCG steps to energy error 1e-6
-    with ``hops=5``, 24 with the Euclidean projector, 7 without constraints).
+    smooth V-cycle correction at the constrained DOFs (it takes twice the
+    projected-PCG steps: the solver comparison's page).
 
-    Setup: a sparse Cholesky factor of ``G_pp`` (:func:`solvers.cholesky.factorize`)
+    Setup: a sparse Cholesky factor of ``G_pp`` (:func:`solvers.kernels.cholesky.factorize`)
     and the dense Cholesky factor of the small ``K = B_p G_pp^{-1} B_p'`` (partial
     solves on the constrained DOFs). Each operation below costs one solve with
     ``G_pp`` on the patch and one with ``K``.
 
     Linearly dependent rows: ``B_I`` holds only a basis of them (``kept``,
-    :func:`solvers.cholesky.row_basis`), the face is the same, and the others get
+    :func:`solvers.kernels.cholesky.row_basis`), the face is the same, and the others get
     multiplier zero.
     """
 
@@ -126,7 +124,7 @@ def face_projector(A: sp.spmatrix, B_I: sp.spmatrix, kind: str = "harmonic",
         Stiffness matrix (its graph defines the patch, its block the metric).
     B_I : sparse (m_I, n)
         Active constraint rows; linearly dependent ones are reduced to a basis
-        (:func:`solvers.cholesky.row_basis`, from ``K``).
+        (:func:`solvers.kernels.cholesky.row_basis`, from ``K``).
     kind : {"harmonic", "euclidean"}
     hops : int
         ``harmonic`` only: graph distance of the patch from the constrained DOFs.
@@ -139,7 +137,7 @@ def face_projector(A: sp.spmatrix, B_I: sp.spmatrix, kind: str = "harmonic",
     ------
     ValueError
         For an unknown ``kind`` or ``hops < 0``.
-    solvers.cholesky.InfeasibleError
+    solvers.kernels.cholesky.InfeasibleError
         Dependent rows that no ``u`` satisfies (with ``g_I``).
     RuntimeError
         Dependent rows without a basis consistent with ``g_I``.

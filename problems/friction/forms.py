@@ -1,6 +1,6 @@
 """One Tresca step in the standard forms of the general QP and conic libraries.
 
-A Tresca step (:class:`problems.qp.Friction`, its slip bound given) is::
+A Tresca step (:class:`problems.friction.data.Friction`, its slip bound given) is::
 
     minimise 1/2 u'Au - f'u + sum_i s_i |T_i u - r_i|   subject to   B u <= g,
 
@@ -24,9 +24,9 @@ itself) map back to the suite's ``(p, lam)`` (``A u + B'p + T'lam = f``,
   Stationarity in ``t_i`` gives ``a_i + b_i = s_i`` for the two rows' multipliers, in ``u``
   ``lam_i = a_i - b_i``; with ``a, b >= 0`` that is ``|lam_i| <= s_i``, and complementarity
   puts ``lam_i = s_i sign(slip_i)`` where the node slips. The dual of this QP is
-  the box problem of :func:`solvers.tresca.tresca_exact`.
+  the box problem of :func:`solvers.kernels.tresca.tresca_exact`.
 * :func:`facet_program` (3D, the faceted law, ``lam_i`` in the inscribed regular
-  ``k``-gon ``s_i P_k`` with vertices ``v_j``, :class:`problems.qp.Friction`): the
+  ``k``-gon ``s_i P_k`` with vertices ``v_j``, :class:`problems.friction.data.Friction`): the
   support function ``s_i max_j v_j . slip_i`` moved into the ``k`` rows
   ``v_j . (T_i u - r_i) - t_i <= 0``: a QP. Stationarity in ``t_i`` gives
   ``sum_j a_ij = s_i`` for the rows' multipliers ``a_ij >= 0``, in ``u``
@@ -53,7 +53,8 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from problems.qp import ContactQP, polygon_support, polygon_vertices
+from problems.friction.polygon import polygon_support, polygon_vertices
+from problems.qp import ContactQP
 
 
 @dataclass(frozen=True)
@@ -71,7 +72,8 @@ class TrescaStep:
     s : (m_t,) array or None
         Slip bounds ``s_i >= 0``.
     facets : int
-        ``0``: isotropic; ``k >= 3``: the faceted law (3D, :class:`problems.qp.Friction`).
+        ``0``: isotropic; ``k >= 3``: the faceted law (3D,
+        :class:`problems.friction.data.Friction`).
     """
 
     A: sp.spmatrix

@@ -35,7 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from problems.friction_forms import TrescaStep
+from problems.friction.forms import TrescaStep
 from problems.spec import Parameter
 
 #: Options every QP library of :mod:`solvers.qp_libraries` shares.

@@ -32,9 +32,9 @@ TRESCA, TANGENT_FIXED, BOTH_FIXED = 4, 5, 6
 
 def unsigned_index(a: np.ndarray) -> np.ndarray:
     """``a`` (non-negative indices) as ``uint32``, a view of an ``int32`` array (no copy):
-    the compiled kernels then index without numba's test for negative indices (40% of
-    a sweep). An index beyond ``uint32`` stays ``int64`` (correct, slower; numba would
-    turn ``uint64 + int`` into a float)."""
+    the compiled kernels then index without numba's test for negative indices (a large
+    share of a sweep: docs/guide/measurements.md). An index beyond ``uint32`` stays
+    ``int64`` (correct, slower; numba would turn ``uint64 + int`` into a float)."""
     a = np.asarray(a)
     if a.dtype == np.int32:
         return a.view(np.uint32)
@@ -159,8 +159,8 @@ def tresca_block_gauss_seidel(indptr, indices, data, c_indptr, c_indices, c_data
     The loop body keeps a block's residual and update in scalars and hands arrays to no
     helper but :func:`_disc_block` (reached by the bounded blocks of a 3D Tresca step
     only): numba reference-counts every array a loop body passes through its branches,
-    and where it cannot prune those counts each block pays several atomic operations, five
-    times the sweep's arithmetic (measured on a 2D mesh of 75k nodes).
+    and where it cannot prune those counts each block pays several atomic operations,
+    several times the sweep's arithmetic (docs/guide/measurements.md).
     """
     nb = node_ptr.size - 1
     nt = diag0.shape[1] - 1
@@ -317,7 +317,7 @@ def disc_block_minimiser(M, r, h, weight, e, d):   # pragma: no cover (compiled)
         1/2 d'Md - r'd + weight |d_t - e|   subject to   d_0 <= h
 
     (``M`` 3 x 3 SPD, ``d_t = d[1:3]``, ``|.|`` Euclidean): the node block of a Tresca step
-    after the box transformation (:mod:`solvers.contact_box`), written into ``d``. Returns
+    after the box transformation (:mod:`solvers.kernels.contact_box`), written into ``d``. Returns
     the case: ``2 * at_bound + stick`` (``d_0 = h`` exactly; ``d_t = e`` exactly).
 
     The normal unknown free: eliminated, the tangential part minimises

@@ -30,7 +30,7 @@ multipliers (:mod:`problems.fem.mortar`, ``D`` diagonal) have it: row ``i`` move
 constrained node by ``n`` and the opposing surface's unknowns by the mortar weights, the
 form of a nodal row.
 
-Tangential rows (2D friction, :class:`problems.qp.Friction`) become coordinates the same
+Tangential rows (2D friction, :class:`problems.friction.data.Friction`) become coordinates the same
 way. Row ``i``'s tangential row ``T_i u = tau_i' u_s + sum_j T_ij u_j`` has the same
 constrained node and the same opposing unknowns as its normal row, with ``tau_i``
 orthogonal to ``n_i``; the Householder frame's second column ``H_i e_2`` is

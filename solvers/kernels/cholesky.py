@@ -20,15 +20,11 @@ Backends (:data:`BACKENDS`, picked by :func:`factorize` with ``backend="auto"``)
     timings and bitwise reproducible results; ``threads`` to change).
 ``splu``
     SciPy's SuperLU with the COLAMD ordering, the fallback where MKL is absent
-    (e.g. on ARM). Competitive in 2D (1.9 s vs 0.6 s for PARDISO at 131k
-    unknowns); in 3D its fill is ~4x PARDISO's and it is 10-20x slower.
+    (e.g. on ARM). Competitive in 2D; in 3D its fill and its time are far above
+    PARDISO's.
 
-Measured (one thread, quiet machine unless noted; ``tests/test_cholesky.py``
-checks agreement, the timings come from the solver-comparison study): at
-circle-square level 4 (523k unknowns) PARDISO factorises in 2.5-3.0 s and 64
-partial solves on the contact support take 0.27 s against 1.8 s for full
-solves; SciPy's SuperLU with ``MMD_AT_PLUS_A`` -- what the suite used before --
-took 66 s at level 3.
+``tests/test_cholesky.py`` checks that the backends agree; what they cost, and what the
+partial solves save, is in docs/guide/measurements.md.
 """
 from __future__ import annotations
 
@@ -392,8 +388,8 @@ class FloatingCholesky:
 def shared_floating_factor(qp, modes: np.ndarray, backend: str = "auto") -> FloatingCholesky:
     """The :class:`FloatingCholesky` of ``qp.A`` (partial solves on ``B``'s support),
     factorised once per problem and kept in ``qp.cache.floating_factor``: the exact solver and the
-    verification's duality gap need the same ``A^{-1}`` (a factorisation at the roll
-    stack's level 3, 316k unknowns, takes ~25 s), and sharing it changes no number."""
+    verification's duality gap need the same ``A^{-1}`` (a factorisation of a large
+    problem is too slow to repeat), and sharing it changes no number."""
     cached = qp.cache.floating_factor
     if cached is not None and backend in ("auto", cached.backend):
         return cached

@@ -214,8 +214,7 @@ SMOOTHING = ("local", "full")
 
 #: ``local`` smooths a level in full where it changed more than this share of its
 #: unknowns: the sweep over the principal submatrix then saves less than its index
-#: bookkeeping costs (measured at 115k nodes: 21.5 ms a cycle in full, 23.8 ms local,
-#: with 97 % of each kept level changed after :func:`merge_levels`).
+#: bookkeeping costs (docs/guide/measurements.md).
 LOCAL_SHARE = 0.8
 
 #: A merged level solves its deep unknowns exactly (:func:`geometric_hierarchy`,
@@ -250,12 +249,11 @@ def merge_levels(prolongations: list, min_growth: float) -> tuple[list, list]:
     prolongations in between are multiplied together (nested meshes: the product is the
     interpolation between the kept levels).
 
-    An adaptive sequence adds a few per cent of the nodes per step (the full-scale
-    circle-square run has 31 levels from 1k to 115k nodes, their sizes summing to 8.3 N),
-    so every level costs a transfer of its full size and a call overhead. With
-    ``min_growth >= 2`` the kept sizes sum to at most 2 N, and a V-cycle is O(N) even
-    with full smoothing; uniform refinement (x4 in 2D, x8 in 3D per level) keeps every
-    level. ``min_growth <= 1`` keeps every level.
+    An adaptive sequence adds a few per cent of the nodes per step (dozens of levels whose
+    sizes sum to several N: the adaptive study's page), so every level costs a transfer
+    of its full size and a call overhead. With ``min_growth >= 2`` the kept sizes sum to
+    at most 2 N, and a V-cycle is O(N) even with full smoothing; uniform refinement (x4
+    in 2D, x8 in 3D per level) keeps every level. ``min_growth <= 1`` keeps every level.
 
     A merge also stops where more than :data:`DEEP_SHARE` of the finer level's unknowns
     would have been refined twice or more (:func:`refinement_depth`): those regions
@@ -320,8 +318,8 @@ def geometric_hierarchy(A: sp.spmatrix, prolongations: list, smoother: str, swee
         (:func:`merge_levels`). Where a level refined a region more than once, its
         unknowns of depth >= 2 and their neighbours are solved exactly (a sparse LU of
         that principal submatrix) after pre- and before post-smoothing: the octaves
-        the level skipped there. The blocks are small (1 % of the unknowns on the
-        full-scale adaptive run) and the cycle stays symmetric.
+        the level skipped there. The blocks are small (docs/guide/measurements.md) and the
+        cycle stays symmetric.
     """
     from pyamg.multilevel import MultilevelSolver
     from pyamg.relaxation.smoothing import change_smoothers
@@ -418,8 +416,8 @@ def semicoarsening(extrusion: Extrusion) -> tuple[sp.csr_matrix, np.ndarray, Ext
 
 def spd_lu(A: sp.spmatrix):
     """SuperLU of a symmetric positive definite matrix: a symmetric fill-reducing order
-    and no pivoting (measured on the roll stack's sections: 27 % less fill and 40 % faster
-    solves than the default column order with partial pivoting)."""
+    and no pivoting (less fill and faster solves than the default column order with
+    partial pivoting: docs/guide/measurements.md)."""
     return spla.splu(sp.csc_matrix(A), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
                      options={"SymmetricMode": True})
 
@@ -465,8 +463,9 @@ def layered_hierarchy(A: sp.spmatrix, extrusion: Extrusion, sweeps: int,
 
     For meshes that are separate per level (no refinement hierarchy) but extruded, as the
     roll stack's: its tetrahedra are up to 25:1 long along the rolls, and smoothed
-    aggregation with pointwise smoothing has ``kappa(V A)`` 150 at level 1, while this
-    cycle's is about 3.5 at levels 0-3 (``tests/test_layered_multigrid.py``). The layers
+    aggregation with pointwise smoothing loses the spectral equivalence there, while this
+    cycle's ``kappa(V A)`` stays small on every level (``tests/test_layered_multigrid.py``;
+    the roll-stack study's page). The layers
     of one body couple only with their neighbours, on every level (linear
     interpolation between kept layers keeps the block tridiagonal structure).
     """
@@ -748,8 +747,9 @@ def scaled_vcycle(A: sp.spmatrix, kind: str, multilevel: Multilevel | None, dim:
         (:func:`chebyshev_vcycle`; 1 = the V-cycle itself); 0 = the smallest degree
         that brings the Ritz ratio of the V-cycle's ``lambda(V A)`` to at most
         ``gamma_target`` (:func:`chebyshev_degree`). A V-cycle loses its spectral
-        equivalence with ``A`` as the material locks (``nu -> 1/2``: ``kappa(V A)`` ~70
-        at nu = 0.499, ~450 at 0.4999, independent of h): the polynomial restores a
+        equivalence with ``A`` as the material locks (``nu -> 1/2``: ``kappa(V A)`` grows
+        without bound, independent of h; the hard-cases study's page): the polynomial
+        restores a
         bounded ``gamma_bar`` at ``~sqrt(kappa)`` V-cycles per application.
     near_kernel : (n, k) array, optional
         Orthonormal floating modes (:func:`problems.floating.floating_modes`): the

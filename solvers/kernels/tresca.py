@@ -1,6 +1,6 @@
 """Friction: the exact reference of a Tresca step, the load path and Coulomb's fixed point.
 
-One Tresca step (:class:`problems.qp.Friction`)::
+One Tresca step (:class:`problems.friction.data.Friction`)::
 
     minimise 1/2 u'Au - f'u + sum_i s_i |T_i u - r_i|   subject to   B u <= g,
 
@@ -22,16 +22,16 @@ columns for ``k`` tangential rows per node: the reference is for small surfaces)
 * 3D: ``|lam_i| <= s_i`` is a disc. A semismooth Newton method on the projection
   equation ``y = P_K(y - rho (S y - c))`` (:func:`disc_qp_newton`), globalised by the dual
   objective, is driven to round-off on fixed sets.
-* 3D, the faceted law (:class:`problems.qp.Friction`, ``facets = k``): ``lam_i`` in the
+* 3D, the faceted law (:class:`problems.friction.data.Friction`, ``facets = k``): ``lam_i`` in the
   regular ``k``-gon ``s_i P_k``. The same semismooth Newton method with the projection
-  onto the ``k``-gons (:func:`problems.qp.polygon_regions`: piecewise affine, identity
+  onto the ``k``-gons (:func:`problems.friction.polygon.polygon_regions`: piecewise affine, identity
   inside, onto a facet's line, onto a vertex), so on the right sets its Newton step is
   exact and the method ends after finitely many steps; one solver for both laws, on the
   same dense ``S``. (A QP solved exactly by an active-set method on the dual would need
-  the equality ``sum_j a_ij = s_i`` of :func:`problems.friction_forms.facet_program`'s
+  the equality ``sum_j a_ij = s_i`` of :func:`problems.friction.forms.facet_program`'s
   multipliers, no box.)
 
-The answer is then exact to round-off, and :func:`problems.kkt.friction_residuals`
+The answer is then exact to round-off, and :func:`problems.friction.residuals.friction_residuals`
 verifies it.
 
 :func:`friction_path` runs a scene's load path (normal load, then the tangential step,
@@ -47,13 +47,14 @@ import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
 
-from problems.kkt import (FrictionResiduals, energy_error, friction_residuals, kkt_residuals,
-                         tresca_energy)
-from problems.qp import (REGION_INSIDE, ContactQP, LoadStep, polygon_regions,
-                         region_projection)
+from problems.friction.data import LoadStep
+from problems.friction.polygon import REGION_INSIDE, polygon_regions, region_projection
+from problems.friction.residuals import FrictionResiduals, friction_residuals, tresca_energy
+from problems.kkt import energy_error, kkt_residuals
+from problems.qp import ContactQP
 from problems.spec import ParameterError
 from solvers.base import SolveResult
-from solvers.cholesky import factorize
+from solvers.kernels.cholesky import factorize
 
 #: Largest constrained surface (rows) :func:`tresca_exact` takes: ``S`` is dense,
 #: ``(1 + k) m`` square for ``k`` tangential rows per node.
@@ -172,7 +173,7 @@ def project_dual(z: np.ndarray, m: int, bound: np.ndarray, facets: int = 0) -> n
     """``P_K(z)`` onto ``K = {p >= 0, |lam_i| <= s_i}`` of a 3D Tresca step's dual,
     ``z = (p, lam)`` with ``lam`` node-major in blocks of ``k``: ``p`` clipped at zero,
     each ``lam_i`` moved radially onto its disc (onto ``0`` where ``s_i = 0``); with
-    ``facets = k``, onto its ``k``-gon ``s_i P_k`` (:func:`problems.qp.polygon_regions`)."""
+    ``facets = k``, onto its ``k``-gon ``s_i P_k`` (:func:`problems.friction.polygon.polygon_regions`)."""
     lam = z[m:].reshape(len(bound), -1)
     if facets:
         return np.concatenate([np.maximum(z[:m], 0.0),
@@ -199,10 +200,10 @@ def _dual_sets(z: np.ndarray, m: int, bound: np.ndarray, before: tuple | None,
     node's disc (:data:`DISC_EDGE` where ``|z_lam,i| > s_i``). Round-off hysteresis: a
     component within ``eps`` of its boundary keeps its set of ``before``.
 
-    ``facets = k``: each node's region of its ``k``-gon (:func:`problems.qp.polygon_regions`;
+    ``facets = k``: each node's region of its ``k``-gon (:func:`problems.friction.polygon.polygon_regions`;
     :data:`DISC_INSIDE` is its inside, the codes from :data:`DISC_EDGE` on its facets and
     vertices); a node keeps its region of ``before`` where that region's affine projection
-    (:func:`problems.qp.region_projection`) is within ``eps`` of the projection."""
+    (:func:`problems.friction.polygon.region_projection`) is within ``eps`` of the projection."""
     free = z[:m] > 0
     if facets:
         lam = z[m:].reshape(len(bound), 2)
@@ -230,7 +231,7 @@ def _projection_jacobian(z: np.ndarray, m: int, bound: np.ndarray, sets: tuple,
     the given sets: ``1``/``0`` on ``p``; per node ``I`` inside the disc, ``0`` with
     ``s_i = 0`` and ``(s_i / |z_i|) (I - n n')``, ``n = z_i / |z_i|``, on its edge.
     ``facets = k``: per node the Jacobian of its region's affine projection onto the
-    ``k``-gon (:func:`problems.qp.region_projection`; ``0`` with ``s_i = 0``)."""
+    ``k``-gon (:func:`problems.friction.polygon.region_projection`; ``0`` with ``s_i = 0``)."""
     free, disc = sets
     lam = z[m:].reshape(len(bound), -1)
     if facets:
@@ -280,7 +281,7 @@ def disc_qp_newton(S: np.ndarray, c: np.ndarray, m: int, bound: np.ndarray,
     sets : (free, disc)
         ``free``: ``(m,)`` bool, ``p_i`` off its bound; ``disc``: ``(m,)`` int, the
         node's :data:`DISC_ZERO`, :data:`DISC_INSIDE` or :data:`DISC_EDGE` (faceted: the
-        region codes of :func:`problems.qp.polygon_regions` from :data:`DISC_EDGE` on).
+        region codes of :func:`problems.friction.polygon.polygon_regions` from :data:`DISC_EDGE` on).
     iterations : int
     converged : bool
     """
@@ -562,7 +563,7 @@ class LoadPathRun:
 def as_tresca_solution(step_qp: ContactQP, res: SolveResult) -> TrescaSolution:
     """A registered solver's verified answer of the Tresca step ``step_qp`` as a
     :class:`TrescaSolution` (its ``tangential`` the multipliers; a row sticks by
-    :meth:`problems.qp.Friction.states` at the solve's tolerance)."""
+    :meth:`problems.friction.data.Friction.states` at the solve's tolerance)."""
     lam = np.asarray(res.tangential, dtype=float)
     return TrescaSolution(u=res.u, p=res.p, lam=lam,
                           stick=step_qp.friction.states(lam, res.tol) == "stick",
@@ -598,7 +599,7 @@ def run_load_path(qp: ContactQP, solve_step, tol: float, max_iter: int = 50,
     cannot take friction: ``skipped`` at once). Coulomb's fixed point ``s = mu p`` runs
     around the solver to the relative change ``tol`` (at most ``max_iter`` Tresca solves
     per step). A row sticks when its multiplier lies inside its bound by more than
-    ``tol max(s)`` (:meth:`problems.qp.Friction.states`). Gross sliding (no row of the
+    ``tol max(s)`` (:meth:`problems.friction.data.Friction.states`). Gross sliding (no row of the
     last step sticks although some have a bound, ``mu > 0``: the tangential load has
     reached ``mu P`` and no static partial-slip state is left) makes the run ``failed``.
     A solver that solves a Coulomb step itself (``stats["friction"]`` is
@@ -829,7 +830,7 @@ def path_for_ratio(qp: ContactQP, ratio: float, rtol: float = 1e-6,
 def facet_convergence(qp: ContactQP, facets: tuple, solve=None) -> list[dict]:
     """The faceted law's distance to the isotropic one as the facets grow: the load path
     of the frictional ``qp`` (isotropic, ``qp.friction.facets`` 0) and of the same problem
-    with each ``k`` of ``facets`` (:class:`problems.qp.Friction`), each by ``solve``
+    with each ``k`` of ``facets`` (:class:`problems.friction.data.Friction`), each by ``solve``
     (default: :func:`tresca_exact`, ``A`` factorised once for all), compared in the last
     step.
 
