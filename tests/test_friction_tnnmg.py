@@ -17,6 +17,7 @@ from solvers.kernels.block_gs import (TRESCA, block_inverses, tresca_block_gauss
                                       unsigned_index)
 from solvers.certificate import certify
 from solvers.kernels.contact_box import box_transformation
+from solvers.kernels import tnnmg_system
 from solvers.kernels.tnnmg_system import fine_system
 from solvers.kernels.tnnmg_tresca import TrescaFace, TrescaFaceCG, kink_search, tresca_energy
 from solvers.interface import solve
@@ -155,8 +156,9 @@ def test_a_frictionless_solve_never_enters_the_tresca_path(monkeypatch):
     def refuse(*args, **kwargs):
         raise AssertionError("the Tresca path was entered on a frictionless problem")
     monkeypatch.setattr(tnnmg, "_tresca_solve", refuse)
-    monkeypatch.setattr(tnnmg, "tresca_block_gauss_seidel", refuse)
-    monkeypatch.setattr(tnnmg, "_tresca_step", refuse)
+    monkeypatch.setattr(tnnmg_system, "tresca_block_gauss_seidel", refuse)    # its sweeps
+    for name in ("tresca_line_search_step", "tresca_stationarity", "tresca_energy"):
+        monkeypatch.setattr(tnnmg, name, refuse)                              # its steps
     qp = SCENE.make(1)
     res = solve(qp, "tnnmg", tol=1e-8)
     ref = solve(qp, "pdas", tol=1e-10)
