@@ -30,7 +30,6 @@ from workflows.studies import (PATHS, STUDIES, all_targets, at_scale, bench_path
 # tiny.yaml would leave quick's scenes in them)
 if not workflow.overwrite_configfiles:
     configfile: os.path.join(workflow.basedir, "workflows/config/quick.yaml")
-report: "report/workflow.rst"
 # the sections and resources the studies declare at the config's scale (scale: quick)
 config.update(at_scale(config))
 # the test set's families are scenes too (workflows/config/test_sets/): typed once there
@@ -60,6 +59,11 @@ shell.prefix(f"export CONTACTBENCH_CONFIGFILE={','.join(map(str, workflow.config
              + "; ")
 for removed in sweep_results("results"):
     print(f"removed a corrupted or partial result, to be rebuilt: {removed}", file=sys.stderr)
+# the HTML report opens on the run's headline (written by the summary rule) once it exists
+# (after the sweep above), on the description of its sections before
+_LANDING = (os.path.abspath(PATHS["summary_landing"]) if os.path.exists(PATHS["summary_landing"])
+            else "report/workflow.rst")
+report: _LANDING
 
 # one line per running study every minute (which job, how far, the declared runtime)
 onstart:
@@ -87,5 +91,6 @@ include: "workflows/summary.smk"
 
 rule all:
     input:
-        all_targets(config), PATHS["summary_html"], PATHS["summary_claims"]
+        all_targets(config), PATHS["summary_html"], PATHS["summary_claims"],
+        PATHS["summary_landing"]
     default_target: True

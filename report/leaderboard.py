@@ -378,19 +378,21 @@ def leaderboard(board: pd.DataFrame) -> pd.DataFrame:
     return out
 
 
-def board_words(board: pd.DataFrame) -> str:
+def board_words(board: pd.DataFrame, bold=lambda s: f"<b>{s}</b>",
+                escape=html.escape) -> str:
     """A board's verdict in words: its fastest verified solver with its coverage, its
-    references' independent check, the solvers that declined the class."""
+    references' independent check, the solvers that declined the class (HTML; ``bold``
+    and ``escape`` give another markup, e.g. reStructuredText's)."""
     first = board.iloc[0]
     cls, size, preset = first["problem_class"], first["size_class"], first["preset"]
     ranked = board[board["standing"] == "ranked"]
     fast = ranked[ranked["fastest"].astype(bool)]
-    head = (f"<b>{html.escape(PROBLEM_CLASSES.get(cls, cls))}</b>, {html.escape(str(size))} "
-            f"class, preset {html.escape(preset)} (tol {TOLERANCES[preset]:g}, "
+    head = (f"{bold(escape(PROBLEM_CLASSES.get(cls, cls)))}, {escape(str(size))} "
+            f"class, preset {escape(preset)} (tol {TOLERANCES[preset]:g}, "
             f"{int(first['problems'])} problems): ")
     if len(fast):
         r = fast.iloc[0]
-        head += (f"fastest verified <b>{html.escape(r.solver)}</b> (median time "
+        head += (f"fastest verified {bold(escape(r.solver))} (median time "
                  f"{r.median_ratio:.3g} x the best, verified on {int(r.verified)} of "
                  f"{int(r.problems)})")
     else:
@@ -398,26 +400,40 @@ def board_words(board: pd.DataFrame) -> str:
     refs = board[board["standing"] == "reference"]
     if len(refs):
         head += "; exact reference " + ", ".join(
-            f"{html.escape(r.solver)} within {r.independent_agreement:.2g} of the closest "
+            f"{escape(r.solver)} within {r.independent_agreement:.2g} of the closest "
             "independent verified answer" if np.isfinite(r.independent_agreement) else
-            f"{html.escape(r.solver)} (no independent verified answer)"
+            f"{escape(r.solver)} (no independent verified answer)"
             for r in refs.itertuples())
     declined = board[board["standing"] == "declined"]
     if len(declined):
         head += ("; not ranked, declining the class: "
-                 + ", ".join(html.escape(s) for s in declined["solver"]))
+                 + ", ".join(escape(s) for s in declined["solver"]))
     return head + "."
+
+
+def ordered_boards(frame: pd.DataFrame) -> list[tuple[tuple, pd.DataFrame]]:
+    """The boards of ``leaderboards.csv``, ``((problem_class, size_class, preset), rows)``,
+    in the problem classes' order, then by size class and preset."""
+    order = {c: i for i, c in enumerate(PROBLEM_CLASSES)}
+    return sorted(frame.groupby(["problem_class", "size_class", "preset"], sort=False),
+                  key=lambda kv: (order.get(kv[0][0], 99), kv[0][1],
+                                  list(TOLERANCES).index(kv[0][2])))
+
+
+def leaderboards_landing(frame: pd.DataFrame) -> list[str]:
+    """The report's landing page's part of ``leaderboards.csv`` (reStructuredText): each
+    board's verdict in words (:func:`board_words`)."""
+    return ["Solver leaderboards over the contact QP test set, one per problem class "
+            "(the tables: **0 summary → summary**):", "",
+            *(f"- {board_words(b, bold=lambda s: f'**{s}**', escape=str)}"
+              for _, b in ordered_boards(frame)), ""]
 
 
 def leaderboards_html(frame: pd.DataFrame) -> list[str]:
     """The leaderboards of ``leaderboards.csv`` in words and as tables, one per problem
     class, size class and preset, each with its settings and the load it was timed under."""
     parts = []
-    keys = ["problem_class", "size_class", "preset"]
-    order = {c: i for i, c in enumerate(PROBLEM_CLASSES)}
-    boards = sorted(frame.groupby(keys, sort=False),
-                    key=lambda kv: (order.get(kv[0][0], 99), kv[0][1],
-                                    list(TOLERANCES).index(kv[0][2])))
+    boards = ordered_boards(frame)
     parts.append("<ul class='lead'>" + "".join(f"<li>{board_words(b)}</li>"
                                                for _, b in boards) + "</ul>")
     for (cls, size, preset), b in boards:

@@ -62,7 +62,8 @@ def targets() -> list[str]:
     """Every file the tiny run makes: the scale file read as the workflow reads it, with
     the sections its studies declare at the tiny scale (``scale: tiny``)."""
     config = load_config(TINY)
-    return all_targets(config) + [PATHS["summary_html"], PATHS["summary_claims"]]
+    return all_targets(config) + [PATHS["summary_html"], PATHS["summary_claims"],
+                                  PATHS["summary_landing"]]
 
 
 @pytest.fixture(scope="module")
@@ -322,6 +323,42 @@ def test_summary_page_renders_in_the_report(tiny_run):
     results = [m.strip() for m in menu if m.strip()]
     assert results.index("0 summary") < results.index("circle_square")
     assert "Provenance" in body and re.search(r"\d+ pass", body) and "Table 9.1" in body
+
+
+def test_the_report_opens_on_the_headline(tiny_run):
+    """The HTML report's landing page is the run's headline: the title says what the suite
+    covers, the claims' counts are the summary's, the leaderboards' verdicts follow, and in
+    headless Chromium at 1400 x 900 px all of it is on the first screen."""
+    from collections import Counter
+
+    from report.summary import TITLE
+
+    landing = (tiny_run / PATHS["summary_landing"]).read_text(encoding="utf-8")
+    counts = Counter(pd.read_csv(tiny_run / PATHS["summary_claims"],
+                                 keep_default_na=False)["result"])
+    claims_line = (f"**Claims checked**: {counts['pass']} pass, {counts['miss']} miss, "
+                   f"{counts['n/a']} not judged at this scale")
+    assert landing.splitlines()[0] == TITLE and "frictional" in TITLE
+    assert claims_line in landing and "Solver leaderboards" in landing
+    lines = landing.splitlines()
+    board = lines[lines.index(next(l for l in lines if l.startswith("Solver leaderboards"))) + 2]
+    assert board.startswith("- **")
+    board = board[4:].split("**")[0]        # the first board's problem class
+    if chromium() is None:
+        pytest.skip("no Chromium on this machine (`make test` installs Debian's chromium)")
+    from playwright.sync_api import sync_playwright
+
+    report = report_html(tiny_run)
+    with sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=chromium(), args=BROWSER_ARGS)
+        page = browser.new_page(viewport={"width": 1400, "height": 900})
+        page.goto(report.as_uri())
+        page.wait_for_selector("text=0 summary", timeout=60_000)
+        boxes = {text: page.get_by_text(text).first.bounding_box()
+                 for text in (TITLE, "Claims checked", "Solver leaderboards", board)}
+        browser.close()
+    for text, box in boxes.items():       # on the first screen, the title not cut off above
+        assert box is not None and 0 <= box["y"] <= box["y"] + box["height"] <= 900, (text, box)
 
 
 #: What the figure audit refuses in a study's log: matplotlib's warnings (an empty legend,

@@ -8,7 +8,9 @@ rule summary:
         html=report(PATHS["summary_html"], caption="../report/captions/summary.rst",
                     category="0 summary", subcategory="summary"),
         claims=report(PATHS["summary_claims"], caption="../report/captions/summary_claims.rst",
-                      category="0 summary", subcategory="claims")
+                      category="0 summary", subcategory="claims"),
+        # the HTML report's landing page (Snakefile: report:)
+        landing=PATHS["summary_landing"]
     log: log_path("summary", "all")
     conda: ENV
     params:
@@ -16,4 +18,5 @@ rule summary:
         bench=os.path.dirname(os.path.dirname(PATHS["benchmark"]))
     shell:
         "{params.py} -m report.summary --items {params.outputs} --benchmarks {params.bench} "
-        "--scale {params.scale} --html {output.html} --claims {output.claims} > {log} 2>&1"
+        "--scale {params.scale} --html {output.html} --claims {output.claims} "
+        "--landing {output.landing} > {log} 2>&1"

@@ -30,6 +30,7 @@ COMMON_PATHS = {
     # the summary page at the top of the report (report/summary.py)
     "summary_html": "results/summary/summary.html",
     "summary_claims": "results/summary/claims.csv",
+    "summary_landing": "results/summary/landing.rst",
     # logs and benchmarks of every rule
     "log": "results/logs/{rule}/{name}.log",
     "benchmark": "results/benchmarks/{rule}/{name}.tsv",
@@ -141,6 +142,9 @@ class Study:
     front : dict
         ``{path key: "module:function"}``: its outputs the summary page's headline shows,
         rendered by a function of the report (``function(table) -> [html]``).
+    landing : dict
+        ``{path key: "module:function"}``: its outputs the HTML report's landing page shows,
+        rendered by a function of the report (``function(table) -> [reStructuredText lines]``).
     notes : dict
         ``{path key: text}``: what a table's columns mean where a name alone would mislead
         (shown under it on the summary page).
@@ -170,6 +174,7 @@ class Study:
     inline: dict = field(default_factory=dict)
     derived_claims: dict = field(default_factory=dict)
     front: dict = field(default_factory=dict)
+    landing: dict = field(default_factory=dict)
     notes: dict = field(default_factory=dict)
     folder: Path | None = None
 

@@ -92,4 +92,5 @@ STUDY = Study(
     scenes=family_scenes,
     front={"solver_leaderboards": "report.leaderboard:leaderboards_front",
            "solver_summary_by_scene": "report.leaderboard:failures_front"},
+    landing={"solver_leaderboards": "report.leaderboard:leaderboards_landing"},
 )
