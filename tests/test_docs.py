@@ -93,6 +93,20 @@ def test_the_command_line_page_and_the_guides_are_built(site):
     assert "guide/add-a-solver.html" in text_of(site / "index.html")   # the globbed toctree
 
 
+@pytest.mark.slow
+def test_the_pages_render_their_mathematics_offline(site):
+    """Dollar math becomes MathJax markup, MathJax ships with the site (no network needed
+    to read it), and no built page shows raw TeX or names what a user cannot see."""
+    mortar = text_of(site / "guide" / "mortar.html")
+    assert mortar.count('class="math') >= 10
+    assert (site / "_static" / "mathjax" / "tex-chtml.js").is_file()
+    assert 'src="../_static/mathjax/tex-chtml.js"' in mortar
+    for page in site.rglob("*.html"):
+        text = plain_text_of(page)
+        assert "$\\" not in text and "$$" not in text, page
+        assert "steering" not in text.lower(), page
+
+
 # --------------------------------------------------------------------------- commands
 ROOT = DOCS.parent
 #: The pages a user reads commands from: the front page and the hand-written docs.
@@ -215,3 +229,52 @@ def test_each_study_page_shows_what_its_declaration_and_rules_say(site):
     for claim in CLAIMS.values():                   # the report module's declared claims
         assert claim.thesis in page
     assert "P1 (circles) against P2 (squares)" in page         # the figure's caption
+
+
+# --------------------------------------------------------------------------- measured record
+RECORD = DOCS / "measured" / "regenerations.csv"
+
+
+def quoted_record(readme: str, row: dict) -> list[str]:
+    """What the README must say of one recorded run: its table row's wall time, jobs and
+    peak memory, and its claim counts."""
+    line = next((l for l in readme.splitlines() if l.startswith(f"| `{row['command']}` |")),
+                "")
+    wanted = {"wall time and jobs": f"{row['wall_time']} for {row['jobs']} jobs",
+              "peak memory": f"peak memory {row['peak_memory_gb']} GB"}
+    missing = [f"{what} ({text!r})" for what, text in wanted.items() if text not in line]
+    claims = (f"- {row['scale']} run: {row['claims']} checked claims ({row['passed']} pass, "
+              f"{row['missed']} miss, {row['unjudged']} reported without a bar)")
+    if claims not in readme:
+        missing.append(f"claims ({claims!r})")
+    return missing
+
+
+def test_the_readme_quotes_the_measured_record():
+    """The wall times, jobs, peak memory and claim counts the README quotes are the
+    record's (one source per number); the docs pages include the record, they do not
+    type its numbers again."""
+    import csv
+
+    rows = list(csv.DictReader(RECORD.open(encoding="utf-8")))
+    assert {r["scale"] for r in rows} >= {"quick", "full"}
+    for row in rows:
+        assert int(row["claims"]) == sum(int(row[k]) for k in ("passed", "missed", "unjudged"))
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    for row in rows:
+        assert not quoted_record(readme, row), (row["scale"], quoted_record(readme, row))
+    for page in ("getting-started.md", "performance.md"):
+        assert ":file: measured/regenerations.csv" in (DOCS / page).read_text(encoding="utf-8")
+
+
+def test_a_readme_that_differs_from_the_record_is_caught():
+    """The check above fails on a README whose quick wall time or claim count was typed
+    differently from the record."""
+    import csv
+
+    row = next(r for r in csv.DictReader(RECORD.open(encoding="utf-8")) if r["scale"] == "quick")
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    assert not quoted_record(readme, row)
+    assert quoted_record(readme.replace(row["wall_time"], "8.5 min"), row)
+    assert quoted_record(readme.replace(f"{row['claims']} checked claims", "185 checked claims"),
+                         row)
