@@ -25,7 +25,7 @@ TIMING = re.compile(r"(^|_)(t|s|cpu|wall|rss|mb|peak|memory|created)($|_)|time|s
                     r"floor_ratio|ratio_to_floor|efficiency|tnnmg_over_petsc|"
                     r"^(rank|median_ratio|spread|shift|fastest)$")
 #: Claims whose measured value is a time ratio or a time's growth, or a memory ratio.
-TIMING_CLAIM = re.compile(r"T_solve|time|faster|speed|memory|efficiency")
+TIMING_CLAIM = re.compile(r"T_solve|time|faster|fastest|speed|memory|efficiency")
 
 
 def comparable(frame: pd.DataFrame) -> pd.DataFrame:
