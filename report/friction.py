@@ -564,8 +564,10 @@ def cost_figure(runs: pd.DataFrame, path: str) -> None:
         elif start == "nested":                          # from the coarser levels
             style.update(ls="-." if ratio == min(solved.ratio) else ":", mfc="none")
         for ax, y in zip(axes, (g.steps_tangential, t)):
-            ax.plot(g.N, y, **style, label=f"{name} ({start}), Q/(mu P) = {ratio:g}: "
-                                           f"exponent {fitted_slope(g.N, y, last=len(g)):.2f}")
+            slope = fitted_slope(g.N, y, last=len(g)) if len(g) >= 2 else np.nan
+            growth = (f"exponent {slope:.2f}" if np.isfinite(slope)
+                      else "one size, no exponent")
+            ax.plot(g.N, y, **style, label=f"{name} ({start}), Q/(mu P) = {ratio:g}: {growth}")
     axes[0].set_xscale("log")
     axes[1].set_xscale("log")
     axes[1].set_yscale("log")
@@ -578,7 +580,7 @@ def cost_figure(runs: pd.DataFrame, path: str) -> None:
         ax.set_xlabel("nodes N")
         ax.set_title(f"{scene}: Tresca friction, the solvers' cost", fontsize=9)
         ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize=7)
+        ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.32))  # below
     save_figure(fig, path)
 
 

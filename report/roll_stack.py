@@ -214,7 +214,7 @@ def stress_figure(vtus: list[str], forces: list[float], path: str) -> None:
         for col, (tris, a, b) in enumerate(((f0, 1, 2), (f0, 1, 2), (f1, 0, 2))):
             axis = ax[row, col]
             tri = mtri.Triangulation(pts[:, a], pts[:, b], tris)
-            im = axis.tripcolor(tri, vm / 1e6, shading="gouraud", cmap="jet", vmin=0,
+            im = axis.tripcolor(tri, vm / 1e6, shading="gouraud", cmap="viridis", vmin=0,
                                 vmax=vmax if col == 1 else None)
             axis.set_aspect("equal" if col < 2 else "auto")
             axis.set_xlabel(("y (rolling direction)" if col < 2 else "x along the rolls") + " [m]")
@@ -263,7 +263,7 @@ def sag_figure(profiles: pd.DataFrame, path: str) -> None:
     curves = (("work_axis", "WR axis", "C0"), ("backup_axis", "BUR axis", "C1"),
               ("work_contact_line", "WR top (contact) line", "C2"),
               ("backup_contact_line", "BUR bottom (contact) line", "C3"))
-    crowned_curves = (("work_contact_line_crowned", "WR top line, crown added back", "C2"),
+    crowned_curves = (("work_contact_line_crowned", "WR top line, crown added back", "C5"),
                       ("work_surface", "WR strip side (axis + crown)", "C4"),
                       ("backup_contact_line", "BUR bottom (contact) line", "C3"))
     for row, force in enumerate(forces):
@@ -276,7 +276,7 @@ def sag_figure(profiles: pd.DataFrame, path: str) -> None:
                 if name in bm:
                     a.plot(bm.x, bm[name] * UM, "--", color=color, label=f"{label}, beam")
             a.set_xlabel("x along the rolls [m]")
-            a.set_ylabel("vertical displacement (up) [um]")
+            a.set_ylabel("vertical displacement (up) [µm]")
             a.grid(alpha=0.3)
         ax[row, 0].set_title(f"{_label(force)}: sag along lines (as measured)", fontsize=8)
         ax[row, 1].set_title(f"{_label(force)}: with the crown (Schliff) added back", fontsize=8)
@@ -302,7 +302,7 @@ def strip_figure(profiles: pd.DataFrame, path: str) -> None:
     styles = {}
     for i, ((force, crown), g) in enumerate(profiles.groupby(["force", "crown"])):
         c = f"C{i}"
-        lab = f"{_label(force)}, crown {crown * UM:g} um"
+        lab = f"{_label(force)}, crown {crown * UM:g} µm"
         fe = g[g.source == "fe"].dropna(subset=["strip_profile"]).sort_values("x")
         bm = g[g.source == "beam"].dropna(subset=["strip_profile"]).sort_values("x")
         ax.plot(fe.x, fe.strip_profile * UM, "o-", ms=3, color=c)
@@ -310,7 +310,7 @@ def strip_figure(profiles: pd.DataFrame, path: str) -> None:
         ax.plot(bm.x, bm.strip_profile * UM, "--", color=c)
         styles[lab] = c
     ax.set_xlabel("x across the strip [m]")
-    ax.set_ylabel("strip thickness h(x) - h(0) [um]")
+    ax.set_ylabel("strip thickness h(x) - h(0) [µm]")
     ax.grid(alpha=0.3)
     grouped_legend(ax, styles, {"FE (axis + crown)": "-", "FE (bottom line)": ":",
                                 "beam model": "--"})
