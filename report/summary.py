@@ -315,13 +315,18 @@ TITLE = ("contactbench: elastic two-body contact after Hackl (Linz 1999), fricti
          "and frictional, regenerated")
 
 
+def coverage(items, claims: pd.DataFrame, th: pd.DataFrame) -> tuple[Counter, list, Counter]:
+    """What the headline and the landing page count: the claims by result, the scenes and
+    test-set families of the run's outputs, the thesis items by status."""
+    return (Counter(claims["result"]), sorted({s for _, s, _ in items if s}),
+            Counter(th["status"]))
+
+
 def landing(items, claims: pd.DataFrame, th: pd.DataFrame, scale: str) -> str:
     """The HTML report's landing page (reStructuredText, Snakemake's report description):
     the headline's counts, the leaderboards' verdicts (``Study.landing``), then the
     description of the report's sections (``report/workflow.rst`` without its title)."""
-    counts = Counter(claims["result"])
-    scenes = sorted({s for _, s, _ in items if s})
-    status = Counter(th["status"])
+    counts, scenes, status = coverage(items, claims, th)
     lines = [TITLE, "=" * len(TITLE), "",
              f"**Scale {scale or '?'}**: {len(items)} outputs over {len(scenes)} scenes and "
              f"test-set families; of the thesis's {len(th)} tables and figures, "
@@ -344,9 +349,7 @@ def landing(items, claims: pd.DataFrame, th: pd.DataFrame, scale: str) -> str:
 def headline(items, claims: pd.DataFrame, th: pd.DataFrame, scale: str) -> list[str]:
     """The front page: scale and coverage, the claims' counts linking to the misses and
     the unjudged, the solver leaderboard in words and as a table."""
-    counts = Counter(claims["result"])
-    scenes = sorted({s for _, s, _ in items if s})
-    status = Counter(th["status"])
+    counts, scenes, status = coverage(items, claims, th)
     parts = ["<h2 id='headline'>Headline</h2><ul class='lead'>",
              f"<li><b>Scale {html.escape(scale or '?')}</b>: {len(items)} outputs over "
              f"{len(scenes)} scenes and test-set families ({html.escape(', '.join(scenes))}); of the "
