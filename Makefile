@@ -63,7 +63,8 @@ petsc:
 
 # the solver tests, run once more under every other OpenBLAS kernel the CPU can run
 # (tests/blas_kernels.py), each with another of MKL's code paths for PARDISO (MKL_CBWR; the
-# OpenBLAS kernel does not reach it): rounding must not decide a solve
+# OpenBLAS kernel does not reach it): rounding must not decide a solve. The reruns leave out
+# the tests marked `slow` (mostly a finer level of a solve whose coarser levels run there).
 SOLVER_TESTS := tests/test_rounding.py tests/test_solvers.py tests/test_semismooth_newton.py \
 	tests/test_augmented_projection.py tests/test_cholesky.py tests/test_qp.py tests/test_two_body.py \
 	tests/test_tnnmg.py tests/test_layered_multigrid.py tests/test_petsc_tao.py tests/test_degenerate.py \
@@ -75,14 +76,20 @@ SOLVER_TESTS := tests/test_rounding.py tests/test_solvers.py tests/test_semismoo
 	tests/test_hard_cases.py::test_tolerances_are_scale_free \
 	tests/test_cli.py::test_every_solver_runs_through_the_cli
 
+# the tests spread over one process per core (pytest-xdist), a test file's tests in one
+# process (its fixtures built once), each process with one BLAS thread
+TEST_WORKERS ?= auto
+PYTEST := OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 MKL_NUM_THREADS=1 CONTACTBENCH_CHROMIUM=$(CHROMIUM) \
+	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadfile
+
 test: setup browser petsc
-	CONTACTBENCH_CHROMIUM=$(CHROMIUM) $(BIN)/python -m pytest -q --durations=15
+	$(PYTEST) --durations=10
 	@kernels="$$($(BIN)/python tests/blas_kernels.py)" || exit 1; \
 	set -- AVX2 COMPATIBLE; \
 	for k in $$kernels; do \
 		cbwr="$${1:-COMPATIBLE}"; [ $$# -gt 0 ] && shift; \
 		echo "== the solver tests again under OPENBLAS_CORETYPE=$$k MKL_CBWR=$$cbwr"; \
-		OPENBLAS_CORETYPE=$$k MKL_CBWR=$$cbwr $(BIN)/python -m pytest -q -p no:cacheprovider $(SOLVER_TESTS) || exit 1; \
+		OPENBLAS_CORETYPE=$$k MKL_CBWR=$$cbwr $(PYTEST) -p no:cacheprovider -m "not slow" $(SOLVER_TESTS) || exit 1; \
 	done
 
 # pytest-benchmark history in .benchmarks/ (not committed): each run saved and compared
