@@ -80,7 +80,7 @@ SOLVER_TESTS := tests/test_rounding.py tests/test_solvers.py tests/test_semismoo
 # process (its fixtures built once), each process with one BLAS thread
 TEST_WORKERS ?= auto
 PYTEST := OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 MKL_NUM_THREADS=1 CONTACTBENCH_CHROMIUM=$(CHROMIUM) \
-	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadfile
+	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadfile --no-loadscope-reorder
 
 test: setup browser petsc
 	$(PYTEST) --durations=10
