@@ -204,8 +204,9 @@ def thesis_mates(frame: pd.DataFrame) -> dict[str, str]:
 
 
 def item_path(item) -> str:
-    """The output path of a thesis item with its scene filled in (``results/cube_sphere/
-    element_order.png``); a wildcard the item does not fix reads ``<name>``."""
+    """The output path of a thesis item with its scene filled in (``results/{scene}/x.png``
+    of the item on cube_sphere reads ``results/cube_sphere/x.png``); a wildcard the item
+    does not fix reads ``<name>``."""
     return re.sub(r"\{(\w+)\}", lambda m: item.problem if m.group(1) == "scene" and
                   item.problem else f"<{m.group(1)}>", PATHS[item.key])
 
@@ -361,7 +362,7 @@ CLAIM_COLUMNS = ["study", "scene", "claim", "level", "parameters", "measured", "
                  "result", "thesis", "reason"]
 CLAIM_HEADERS = {"thesis": "source"}
 #: Why a claims table's cell is empty, where it is not a value missing.
-#: Names that may break after their underscores in a claims table (``augmented_projection``).
+#: Names that may break after their underscores in a claims table (a study's, a scene's).
 BREAK_AT_UNDERSCORES = {c: (lambda text: text.replace("_", "_<wbr>")) for c in ("study", "scene")}
 CLAIM_EMPTY = {"level": "a claim about every level, or about none in particular",
                "parameters": "no conditions beyond the claim's title"}
