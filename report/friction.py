@@ -412,9 +412,15 @@ def _tnnmg_face_rate(solved: pd.DataFrame, scene: str) -> list[dict]:
         rows.append(CLAIMS["tnnmg_face_rate"].row(
             float(fine.contraction_tangential_on_face), scene=scene, ratio=ratio,
             level=int(fine.level), coarser=int(coarse.level),
-            coarse_rate=f"{float(coarse.contraction_tangential_on_face):.3g}",
+            coarse_rate=_rate_text(float(coarse.contraction_tangential_on_face)),
             to_face=both("steps_tangential_to_face"), on_face=both("steps_tangential_on_face")))
     return rows
+
+
+def _rate_text(rate: float) -> str:
+    """A contraction on the face as the conditions column gives it: three digits, or why
+    there is none (the face last changed at the last step)."""
+    return f"{rate:.3g}" if np.isfinite(rate) else "none (no step on its face)"
 
 
 def _last_two_levels(solved: pd.DataFrame):
