@@ -548,26 +548,29 @@ def figure_pressure(steps: pd.DataFrame, surfaces: dict, path: str) -> None:
 # --------------------------------------------------------------------------- patch test
 #: The adaptive study's claims (report/claims.py).
 CLAIMS = {
-    "node_saving": Claim("Sect. 7.4; suite bar: 3x, the saving that repays an adaptive solve", "adaptive {variant}: nodes saved for the energy "
-                         "error of uniform N = {N}", ">=", 3.0),
-    "pileup": Claim("Figs. 7.3/7.4", "eta_2 removes the pile-up (Figs. 7.3/7.4): opposing / "
-                    "constrained surface nodes in the contact zone at {at}", "given",
-                    "eta1+eta2 < eta1"),
-    "zigzag": Claim("Fig. 7.5", "the stabilisation (7.10) smooths the nodal pressure (Fig. 7.5, "
-                    "both marked by eta_1): zig-zag rms / p0 at {at}", "given",
-                    "stabilised < eta1"),
-    "patch_mortar": Claim("Ch. 6 (mortar: the patch test passes)", "patch test, mortar "
-                          "coupling: transmits the uniform pressure", "<", 1e-8),
-    "patch_nodal": Claim("Ch. 6 (nodal constraints on non-matching meshes)", "patch test, "
-                         "nodal coupling: cannot transmit it on non-matching meshes (Ch. 6)",
-                         ">=", 1e-3),
+    "node_saving": Claim("Sect. 7.4; suite bar: 3x, the saving that repays an adaptive solve",
+                         "adaptive {variant}: nodes saved for the same energy error", ">=",
+                         3.0, details="against uniform N = {N}"),
+    "pileup": Claim("Figs. 7.3/7.4", "eta_2 removes the pile-up of surface nodes", "given",
+                    "eta1+eta2 < eta1", details="opposing / constrained surface nodes in "
+                    "the contact zone at {at}"),
+    "zigzag": Claim("Fig. 7.5", "the stabilisation (7.10) smooths the nodal pressure", "given",
+                    "stabilised < eta1", details="zig-zag rms / p0 at {at}, both marked by "
+                    "eta_1"),
+    "patch_mortar": Claim("Ch. 6 (mortar: the patch test passes)", "patch test: mortar "
+                          "coupling transmits the uniform pressure", "<", 1e-8,
+                          details="largest pressure deviation, finest level"),
+    "patch_nodal": Claim("Ch. 6 (nodal constraints on non-matching meshes)", "patch test: "
+                         "nodal coupling cannot transmit it on non-matching meshes", ">=",
+                         1e-3, details="largest pressure deviation, finest level"),
     "patch_two_pass": Claim("Alg. 7.1 applied to both surfaces (two-pass; not in the thesis)",
-                            "patch test, two-pass coupling: transmits the uniform pressure "
-                            "(its coinciding nodes' rows are linearly dependent)", "<", 1e-8),
-    "patch_stabilised": Claim("Sect. 7.5", "patch test, stabilised coupling (Sect. 7.5): the "
-                              "pressure deviation shrinks under refinement (smallest fitted "
-                              "rate in h over both constrained sides; the penalty grows like "
-                              "h^-2alpha)", ">", 0.25),
+                            "patch test: two-pass coupling transmits the uniform pressure",
+                            "<", 1e-8, details="largest pressure deviation, finest level; its "
+                            "coinciding nodes' rows are linearly dependent"),
+    "patch_stabilised": Claim("Sect. 7.5", "patch test: stabilised coupling's pressure "
+                              "deviation shrinks under refinement", ">", 0.25,
+                              details="smallest fitted rate in h over both constrained "
+                              "sides; the penalty grows like h^-2alpha"),
 }
 
 

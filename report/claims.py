@@ -2,10 +2,12 @@
 
 Every study's report module declares its claims once, at its top, as a ``CLAIMS`` dict
 of :class:`Claim`: where the claim comes from (the thesis's item, a published result, or
-"suite bar" with the reason the bar is what it is), the measured quantity (a text template), the comparison and the bar. Its
-``claims()`` function only measures and calls :meth:`Claim.row`; the summary page
+"suite bar" with the reason the bar is what it is), a short title saying what is
+measured, the conditions of the measurement (a text template), the comparison and the
+bar. Its ``claims()`` function only measures and calls :meth:`Claim.row`, which puts the
+title, the scene, the level and the conditions in columns of their own; the summary page
 (``report/summary.py``) collects the rows, and ``tests/test_claims.py`` checks that
-every row comes from a declared claim.
+every row comes from a declared claim and that every title reads as one short line.
 """
 from __future__ import annotations
 
@@ -27,8 +29,13 @@ UNJUDGED, GIVEN = "-", "given"
 #: The reason shown for an unjudged row when its claim or its measuring code gives none.
 NO_BAR = "a measured figure reported for reference: the thesis sets no bar for it"
 NOT_REACHED = "this scale does not reach the size or resolution the bar is about"
+#: The reason of a claim this run measured nothing for begins so (:meth:`Claim.absent`).
+NO_RUN = "no run at this scale"
 #: The columns of a claims table.
-COLUMNS = ["claim", "thesis", "measured", "bar", "pass", "reason"]
+COLUMNS = ["claim", "scene", "level", "parameters", "thesis", "measured", "bar", "pass",
+           "reason"]
+#: The longest a claim's title may read (characters, formatted): one line of the summary.
+TITLE_MAX = 100
 
 
 @dataclass(frozen=True)
@@ -41,9 +48,10 @@ class Claim:
         Where it comes from: the thesis's item ("Sect. 6.2", "Lemma 8.13"), a published
         result, or "suite bar" with the one-line reason the bar is what it is
         ("suite bar (TNNMG: close to one linear solve)").
-    quantity : str
-        The measured quantity, a template formatted with the row's fields
-        (``"H1 rate -- {where}"``).
+    title : str
+        What is measured, in at most :data:`TITLE_MAX` characters: a template formatted
+        with the row's fields (``"H1 rate of the {coupling} coupling"``). The scene and
+        the level have columns of their own and stay out of it.
     compare : str
         One of :data:`COMPARE`, :data:`UNJUDGED` or :data:`GIVEN`.
     bar : float, (lo, hi), str or None
@@ -51,13 +59,21 @@ class Claim:
     unjudged : str
         Why a claim without a bar (``compare`` ``"-"``) is reported but not judged;
         the summary shows it in place of a verdict.
+    details : str
+        The conditions of the measurement (a template like ``title``): the row's
+        ``parameters`` column.
+    level : str
+        The row's ``level`` column as a template (``"{coarser} -> {level}"``); empty: the
+        field ``level`` or ``levels``, if the row has one.
     """
 
     thesis: str
-    quantity: str
+    title: str
     compare: str = UNJUDGED
     bar: Any = None
     unjudged: str = ""
+    details: str = ""
+    level: str = ""
 
     def __post_init__(self):
         allowed = (*COMPARE, UNJUDGED, GIVEN)
@@ -82,7 +98,9 @@ class Claim:
 
     def row(self, measured, judged: bool = True, passed: bool | None = None,
             reason: str = "", **fields) -> dict:
-        """The claims-table row: claim, thesis, measured, bar, pass, reason.
+        """The claims-table row (:data:`COLUMNS`): the title, the scene (the field
+        ``scene``, if given), the level, the conditions, the source, measured, bar, pass,
+        reason.
 
         ``judged=False``: this scale does not reach what the bar is about (pass empty);
         ``reason`` says what it lacks (:data:`NOT_REACHED` if not given). ``passed``: the
@@ -91,7 +109,7 @@ class Claim:
         """
         if self.compare == GIVEN:
             if judged and passed is None:
-                raise ValueError(f"claim {self.quantity!r}: a 'given' claim needs 'passed'")
+                raise ValueError(f"claim {self.title!r}: a 'given' claim needs 'passed'")
             verdict = bool(passed) if judged else None
         elif self.compare == UNJUDGED or not judged:
             verdict = None
@@ -104,5 +122,22 @@ class Claim:
             why = self.unjudged or NO_BAR
         else:
             why = reason.format(**fields) if reason else NOT_REACHED
-        return {"claim": self.quantity.format(**fields), "thesis": self.thesis,
+        return {"claim": self.title.format(**fields), "scene": str(fields.get("scene", "")),
+                "level": self.level_text(fields),
+                "parameters": self.details.format(**fields), "thesis": self.thesis,
                 "measured": measured, "bar": self.bar_text(), "pass": verdict, "reason": why}
+
+    def absent(self, reason: str, **fields) -> dict:
+        """The one row of a claim this run measured nothing for: its title (formatted with
+        ``fields``), the scene, no level, conditions or value, not judged, ``reason`` (why
+        nothing was measured, prefixed by :data:`NO_RUN`)."""
+        return {"claim": self.title.format(**fields), "scene": str(fields.get("scene", "")),
+                "level": "", "parameters": "", "thesis": self.thesis, "measured": math.nan,
+                "bar": self.bar_text(), "pass": None, "reason": f"{NO_RUN}: {reason}"}
+
+    def level_text(self, fields: dict) -> str:
+        """The row's ``level`` column: :attr:`level` formatted, else the field ``level``
+        or ``levels``, else empty."""
+        if self.level:
+            return self.level.format(**fields)
+        return str(fields.get("level", fields.get("levels", "")))

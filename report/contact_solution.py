@@ -39,10 +39,11 @@ HERTZ_MODEL_FLOOR = 0.015
 #: The Hertz claims of Sects. 9.1/9.2 (report/claims.py).
 CLAIMS = {
     "hertz_finest": Claim("Sects. 9.1/9.2", "Hertz {name}: relative deviation at the finest "
-                          "level (level {level}, a/h = {a_over_h:.1f})", "|<=|", HERTZ_BAR),
+                          "level", "|<=|", HERTZ_BAR, details="a/h = {a_over_h:.1f}"),
     "hertz_trend": Claim("Sects. 9.1/9.2", "Hertz {name}: deviation falls under refinement "
-                         "(level {first_level} -> {level}) or is at Hertz's model floor",
-                         "given", f"|finest| < |coarsest| or |finest| <= {HERTZ_MODEL_FLOOR}"),
+                         "or is at Hertz's model floor", "given",
+                         f"|finest| < |coarsest| or |finest| <= {HERTZ_MODEL_FLOOR}",
+                         level="{first_level} -> {level}"),
 }
 
 

@@ -78,41 +78,41 @@ STYLE = {"nodal": ("o-", "C0"), "stabilised": ("s-", "C1"), "two_pass": ("v-", "
 
 CLAIMS = {
     "converged": Claim("suite bar (every compared solve must count)",
-                       "{scene}: PDAS at 'high' verified converged on the reference and every "
-                       "coupling and level", "given", "all"),
+                       "PDAS at 'high' verified converged on every compared solve", "given",
+                       "all", details="the reference and every coupling and level"),
     "rate_mortar": Claim("Hüeber-Wohlmuth 2005 (O(h) for H^{5/2-eps})",
-                         "{scene}: {coupling} energy-error rate against N (finest three "
-                         "levels) minus the optimal {optimal:.3f} (P1: O(h) = O(N^-1/{dim}))",
-                         "|<=|", RATE_BAR),
+                         "{coupling}: energy-error rate in N minus the optimal rate",
+                         "|<=|", RATE_BAR, details="finest three levels; optimal "
+                         "{optimal:.3f} (P1: O(h) = O(N^-1/{dim}))"),
     "rate": Claim("Prop. 7.6 (O(h^1/2) for nodal), Ch. 6 (Laplace)",
-                  "{scene}: {coupling} energy-error rate against N (finest three levels)",
+                  "{coupling}: energy-error rate in N", details="finest three levels",
                   unjudged="the thesis proves a lower bound for nodal constraints on contact "
                   "((7.8)) and the loss of the optimal rate only on the Laplace problem: "
                   "reported beside the mortar rates"),
     "hertz": Claim("Sects. 9.1/9.2 (Hertz)",
-                   "{scene}: {coupling} level {level}, {what} over Hertz's",
+                   "{coupling}: {what} over Hertz's", details="finest level",
                    unjudged="a comparison of the couplings at this scale's finest level; the "
                    "contact_solution study judges Hertz on the suite's scenes"),
     "pressure": Claim("Sect. 6.1 (the multiplier)",
-                      "{scene}: {coupling} level {level}, nodal pressure's rms deviation "
-                      "from Hertz over the contact zone (/ p0)",
+                      "{coupling}: nodal pressure's rms deviation from Hertz",
+                      details="over the contact zone, / p0; finest level",
                       unjudged="a discrete L2 norm against Hertz, reported: the "
                       "H^{-1/2}-type norm of the mortar estimates is the dual-norm rate's row"),
     "rate_p2": Claim("Hüeber-Wohlmuth 2005 (regularity H^{5/2-eps}: P2 at best O(h^3/2))",
-                     "{scene}: {coupling} P2 energy-error rate against N (finest three "
-                     "levels; optimal {optimal:.3f}: O(h^3/2) in {dim}D)",
+                     "{coupling}: P2 energy-error rate in N", details="finest three "
+                     "levels; optimal {optimal:.3f}: O(h^3/2) in {dim}D",
                      unjudged="reported beside the optimal rate: the r^1/2 singularities "
                      "where a prescribed displacement meets a free surface bound every "
                      "order by O(h^1/2) asymptotically, and P2's error near the contact "
                      "falls faster than P1's, so their share is not small at these levels "
                      "(not measured at P2)"),
     "skipped": Claim("suite bar (a coupling a scene refuses says why)",
-                     "{scene}: {coupling} at P{order}",
+                     "{coupling} at P{order}: not solved",
                      unjudged="not solved: the scene refuses this coupling at this "
                      "element order"),
     "rate_dual": Claim("Wohlmuth 2000, Hüeber-Wohlmuth 2005 (multiplier in H^{-1/2})",
-                       "{scene}: {coupling} multiplier error in the dual norm "
-                       "(err_pressure_dual) rate against N (finest three levels)",
+                       "{coupling}: rate in N of the multiplier error in the dual norm",
+                       details="err_pressure_dual, finest three levels",
                        unjudged="the published estimate bounds energy and H^{-1/2} multiplier "
                        "error together by O(h), an upper bound; the Hertz pressure's "
                        "square-root edge lets the multiplier's best approximation fall as "

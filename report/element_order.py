@@ -41,19 +41,23 @@ def slope(x, y) -> float:
 
 #: The element-order study's claims (report/claims.py).
 CLAIMS = {
-    "converged": Claim("suite bar (every compared solve must count)", "{scene}: Alg. 8.4 verified converged on every P1 and P2 "
-                       "level", "given", "all"),
-    "rate": Claim("Remark 7.11", "{scene}: P{deg} energy error ~ N^rate (fitted)",
+    "converged": Claim("suite bar (every compared solve must count)", "Alg. 8.4 verified "
+                       "converged on every P1 and P2 level", "given", "all"),
+    "rate": Claim("Remark 7.11", "P{deg} energy error ~ N^rate", details="fitted over the "
+                  "levels",
                   unjudged="Remark 7.11 gives the order but no rate at the coarse levels "
                   "measured here: reported beside the P2 ratio"),
-    "p2_over_p1": Claim("Remark 7.11", "{scene}: P2 energy error over P1's at N = {N}",
+    "p2_over_p1": Claim("Remark 7.11", "P2 energy error over P1's at the same N",
+                        details="N = {N:,}",
                         unjudged="a measured comparison: Remark 7.11 sets no bar for it"),
-    "hertz": Claim("Sects. 9.1/9.2", "{scene}: P2 level {level} contact half-width and peak "
-                   "pressure against Hertz (|deviation|)", "<=", HERTZ_BAR),
-    "n_outer": Claim("Sect. 8.6 (n_o independent of h), on P2", "{scene}: Alg. 8.4 on P2, n_o over the last two "
-                     "levels", "<=", N_OUTER_GROWTH_BAR),
-    "time": Claim("Example 8.1 (O(N)), on P2", "{scene}: Alg. 8.4 on P2, fitted solve-time "
-                  "exponent against N (last three levels)", "<=", TIME_EXPONENT_BAR),
+    "hertz": Claim("Sects. 9.1/9.2", "P2: contact half-width and peak pressure against "
+                   "Hertz", "<=", HERTZ_BAR, details="the larger |deviation|, finest P2 "
+                   "level"),
+    "n_outer": Claim("Sect. 8.6 (n_o independent of h), on P2", "Alg. 8.4 on P2: n_o of the "
+                     "finest level over the one before", "<=", N_OUTER_GROWTH_BAR,
+                     details="the last two P2 levels"),
+    "time": Claim("Example 8.1 (O(N)), on P2", "Alg. 8.4 on P2: fitted solve-time exponent "
+                  "in N", "<=", TIME_EXPONENT_BAR, details="the last three P2 levels"),
 }
 
 

@@ -83,101 +83,108 @@ CM_CURVE = {"line": "sqrt(1 - Q/(mu P))", "point": "(1 - Q/(mu P))^(1/3)"}
 
 #: The friction study's claims (report/claims.py).
 CLAIMS = {
-    "stick_zone": Claim(CM, "{scene}: stick-zone c/a against {curve} at Q/(mu P) = "
-                        "{ratio:g}, level {level} (relative deviation)", "|<=|",
-                        STICK_ZONE_BAR["line"]),
-    "traction": Claim(CM, "{scene}: tangential traction against q(x) at Q/(mu P) = {ratio:g}, "
-                      "level {level} (relative L2 error over the contact)", "<=", TRACTION_BAR),
-    "stick_rate": Claim(CM, "{scene}: |c/a deviation| ~ N^rate at Q/(mu P) = {ratio:g} "
-                        "(fitted over the levels)",
+    "stick_zone": Claim(CM, "stick-zone c/a against {curve}", "|<=|",
+                        STICK_ZONE_BAR["line"], details="Q/(mu P) = {ratio:g}; relative "
+                        "deviation"),
+    "traction": Claim(CM, "tangential traction against q(x)", "<=", TRACTION_BAR,
+                      details="Q/(mu P) = {ratio:g}; relative L2 error over the contact"),
+    "stick_rate": Claim(CM, "|c/a deviation| ~ N^rate",
                         unjudged="the theory gives the limit, not a rate: the fitted "
-                        "rate is reported beside the finest level's bar"),
-    "traction_rate": Claim(CM, "{scene}: traction L2 error ~ N^rate at Q/(mu P) = {ratio:g} "
-                           "(fitted over the levels)",
+                        "rate is reported beside the finest level's bar",
+                        details="Q/(mu P) = {ratio:g}; fitted over the levels"),
+    "traction_rate": Claim(CM, "traction L2 error ~ N^rate",
                            unjudged="the theory gives the limit, not a rate: the fitted "
-                           "rate is reported beside the finest level's bar"),
+                           "rate is reported beside the finest level's bar",
+                           details="Q/(mu P) = {ratio:g}; fitted over the levels"),
     "agreement": Claim("suite bar (verified answers of one Tresca problem agree to 1e-8)",
-                       "{scene}: {solvers} against the reference, largest relative energy "
-                       "distance over levels {levels}", "<=", AGREEMENT_BAR),
+                       "frictional solvers against the reference: largest energy distance",
+                       "<=", AGREEMENT_BAR, details="{solvers}; relative energy distance"),
     "mu_zero": Claim("suite bar (mu = 0 is the thesis's frictionless problem, to round-off)",
-                     "{scene}: the mu = 0 path against pdas, largest relative energy "
-                     "distance (both load steps, every level)", "<=", MU_ZERO_BAR),
+                     "the mu = 0 path against pdas: largest energy distance", "<=",
+                     MU_ZERO_BAR, details="relative energy distance, both load steps, every "
+                     "level"),
     "verified": Claim("suite bar (a frictional solve counts only when verified)",
-                      "{scene}: frictional solver runs verified converged (friction KKT "
-                      "and the Tresca certificate, every load step)", "given", "all"),
+                      "frictional solver runs verified converged", "given", "all",
+                      details="friction KKT and the Tresca certificate, every load step"),
     "tnnmg_steps": Claim("suite bar (TNNMG, a multigrid method: iterations bounded in h)",
-                         "{scene}: TNNMG tangential-step iterations on the finest level, "
-                         "nested from the two coarser levels (Alg. 8.5 on each load step), "
-                         "level {level} over level {coarser} at Q/(mu P) = {ratio:g}",
-                         "<=", STEPS_GROWTH_BAR),
+                         "TNNMG tangential-step iterations, nested: growth with refinement",
+                         "<=", STEPS_GROWTH_BAR, level="{coarser} -> {level}",
+                         details="Q/(mu P) = {ratio:g}; the finest level over the one "
+                         "before, nested from the two coarser levels (Alg. 8.5 on each load "
+                         "step)"),
     "tnnmg_steps_warm": Claim(
         "suite figure (the tangential step as a quasi-static path runs it)",
-        "{scene}: TNNMG tangential-step iterations from the normal step's answer, level "
-        "{level} over level {coarser} at Q/(mu P) = {ratio:g}",
+        "TNNMG tangential-step iterations from the normal step's answer: growth",
         unjudged="information: from the previous step's answer the slip front has to move "
         "to its place node by node (the steps that find the face grow with the nodes that "
         "change state, about 1/h); the bar is judged with the nested start, which brings "
-        "the front's place from the coarser levels"),
+        "the front's place from the coarser levels",
+        level="{coarser} -> {level}", details="Q/(mu P) = {ratio:g}; the finest level over "
+        "the one before"),
     "tnnmg_face_rate": Claim(
         "Gräser-Kornhuber: on a fixed face a TNNMG step is a linear multigrid step "
-        "(contraction bounded in h)", "{scene}: TNNMG's mean contraction per step of the "
-        "tangential step's stationarity residual, from the normal step's answer, after its "
-        "face (normal active set, stick set, slip signs) last changed, level {level} "
-        "(level {coarser}: {coarse_rate}) at Q/(mu P) = {ratio:g}; steps to the face "
-        "{to_face}, on it {on_face}",
+        "(contraction bounded in h)", "TNNMG's mean contraction per step on the tangential "
+        "step's final face",
         unjudged="information: the steps that find the face grow with the nodes whose "
         "state changes (the slip front's nodes nearest their kink are found last); the "
-        "contraction on it is the multigrid phase the h-independence is about"),
+        "contraction on it is the multigrid phase the h-independence is about",
+        details="Q/(mu P) = {ratio:g}; the stationarity residual from the normal step's "
+        "answer, after the face (normal active set, stick set, slip signs) last changed; "
+        "level {coarser}: {coarse_rate}; steps to the face {to_face}, on it {on_face}"),
     "tnnmg_steps_cold": Claim("suite figure (the tangential step solved as a problem of its "
-                              "own)", "{scene}: TNNMG tangential-step iterations from zero, "
-                              "level {level} over level {coarser} at Q/(mu P) = {ratio:g}",
+                              "own)", "TNNMG tangential-step iterations from zero: growth",
                               unjudged="information: the bar is judged with the nested "
-                              "start"),
+                              "start", level="{coarser} -> {level}",
+                              details="Q/(mu P) = {ratio:g}; the finest level over the one "
+                              "before"),
     "tnnmg_time": Claim("suite bar (TNNMG on a Tresca step: within 3x one linear multigrid "
-                        "solve)", "{scene}: TNNMG's time to relative energy error {target:g} "
-                        "on the tangential step, nested from zero on the two coarser levels "
-                        "(their time included), over the multigrid-PCG solve of the same "
-                        "system without contact from zero, level {level} (N = {N}), "
-                        "Q/(mu P) = {ratio:g} (medians of the timed runs)", "<=",
-                        TIME_BAR),
+                        "solve)", "TNNMG's time on the tangential step, nested, over one "
+                        "linear solve", "<=", TIME_BAR,
+                        details="Q/(mu P) = {ratio:g}, N = {N}; to relative energy error "
+                        "{target:g}, nested from zero on the two coarser levels (their time "
+                        "included), over the multigrid-PCG solve of the same system without "
+                        "contact from zero; medians of the timed runs"),
     "tnnmg_time_cold": Claim("suite figure (the tangential step solved as a problem of its "
                              "own on the finest level alone)",
-                             "{scene}: TNNMG's time to relative energy error {target:g} on "
-                             "the tangential step from zero over the multigrid-PCG solve "
-                             "from zero, level {level} (N = {N}), Q/(mu P) = {ratio:g} "
-                             "(medians of the timed runs)",
+                             "TNNMG's time on the tangential step from zero over one linear "
+                             "solve",
                              unjudged="information: from zero on the finest level TNNMG "
                              "finds the slip front node by node; the bar is judged with the "
-                             "nested start"),
+                             "nested start",
+                             details="Q/(mu P) = {ratio:g}, N = {N}; to relative energy "
+                             "error {target:g}, over the multigrid-PCG solve from zero; "
+                             "medians of the timed runs"),
     "tnnmg_time_warm": Claim("suite figure (the tangential step as a load path runs it)",
-                             "{scene}: TNNMG's time to relative energy error {target:g} on "
-                             "the tangential step from the normal step's answer over the "
-                             "multigrid-PCG solve from zero, level {level} (N = {N}), "
-                             "Q/(mu P) = {ratio:g} (medians of the timed runs)",
+                             "TNNMG's time on the tangential step from the normal step's "
+                             "answer over one linear solve",
                              unjudged="information: a load path's cost per step against one "
-                             "linear solve; the bar is judged with the nested start"),
+                             "linear solve; the bar is judged with the nested start",
+                             details="Q/(mu P) = {ratio:g}, N = {N}; to relative energy "
+                             "error {target:g}, over the multigrid-PCG solve from zero; "
+                             "medians of the timed runs"),
     "facet_energy": Claim("the inscribed k-gon's distance to the disc, 1 - cos(pi/k) = "
-                          "O(k^-2), bounds the energy gap", "{scene}: faceted law's energy "
-                          "gap J* - J_k* ~ k^rate, k = {facets}, level {level}, Q/(mu P) = "
-                          "{ratio:g} (fitted)", "in", FACET_ENERGY_EXPONENT),
+                          "O(k^-2), bounds the energy gap", "faceted law's energy gap J* - "
+                          "J_k* ~ k^rate", "in", FACET_ENERGY_EXPONENT,
+                          details="k = {facets}, Q/(mu P) = {ratio:g}; fitted"),
     "facet_bracket": Claim("the inscribed k-gon lies between the discs of radius cos(pi/k) "
-                           "and 1", "{scene}: 0 <= J* - J_k* <= (1 - cos(pi/k)) D(u_k) at "
-                           "every k and level (slack 1e-10 of |J|)", "given",
-                           "every faceted path"),
+                           "and 1", "0 <= J* - J_k* <= (1 - cos(pi/k)) D(u_k) at every k and "
+                           "level", "given", "every faceted path",
+                           details="slack 1e-10 of |J|"),
     "facet_energy_all": Claim("the faceted energy gap over every k, the pre-asymptotic "
-                              "ones included", "{scene}: faceted law's energy gap ~ k^rate, "
-                              "k = {facets}, level {level}, Q/(mu P) = {ratio:g} (fitted)",
+                              "ones included", "faceted law's energy gap ~ k^rate over every k",
                               unjudged="information: the small k are pre-asymptotic; the "
-                              "bar is judged over the largest k"),
+                              "bar is judged over the largest k",
+                              details="k = {facets}, Q/(mu P) = {ratio:g}; fitted"),
     "facet_displacement": Claim("the faceted law's traction points at a vertex, off the "
-                                "slip by up to pi/k: O(k^-1)", "{scene}: faceted law's "
-                                "relative energy-norm distance of u ~ k^rate, k = {facets}, "
-                                "level {level}, Q/(mu P) = {ratio:g} (fitted)",
+                                "slip by up to pi/k: O(k^-1)", "faceted law's relative "
+                                "energy-norm distance of u ~ k^rate",
                                 unjudged="the theory gives -1 as an upper rate, not an "
-                                "equality: reported beside the energy's bar"),
+                                "equality: reported beside the energy's bar",
+                                details="k = {facets}, Q/(mu P) = {ratio:g}; fitted"),
     "coulomb": Claim("suite bar (the fixed point s = mu p must converge to count)",
-                     "{scene}: Coulomb's fixed point converged in every load step of every "
-                     "level (Tresca solves per level, normal + tangential)", "given", "all"),
+                     "Coulomb's fixed point converged in every load step of every level",
+                     "given", "all", details="Tresca solves per level, normal + "
+                     "tangential, in the measured column"),
 }
 
 
@@ -224,10 +231,15 @@ def claims(runs: pd.DataFrame) -> pd.DataFrame:
                 reason=why if kind == "line" else
                 "the sphere's traction profile is reported, not judged: Mindlin's solution "
                 "takes the traction parallel to Q, exact only for nu = 0", **fields))
-            rows.append(CLAIMS["stick_rate"].row(
-                fitted_slope(g.N, g.dev_c_over_a.abs(), last=len(g)), scene=scene, ratio=ratio))
-            rows.append(CLAIMS["traction_rate"].row(
-                fitted_slope(g.N, g.traction_l2, last=len(g)), scene=scene, ratio=ratio))
+            if len(g) >= 2:
+                rows.append(CLAIMS["stick_rate"].row(
+                    fitted_slope(g.N, g.dev_c_over_a.abs(), last=len(g)), scene=scene,
+                    ratio=ratio))
+                rows.append(CLAIMS["traction_rate"].row(
+                    fitted_slope(g.N, g.traction_l2, last=len(g)), scene=scene, ratio=ratio))
+        if len(ref) and (ref.groupby("ratio").size() < 2).all():
+            rows += [CLAIMS[key].absent("a reference on one level only: no rate to fit",
+                                        scene=scene) for key in ("stick_rate", "traction_rate")]
         rows.append(_agreement(t, scene))
         mu0 = t[t.role == "mu_zero"]
         ok = len(mu0) and (mu0.status == "converged").all()
@@ -251,24 +263,21 @@ def claims(runs: pd.DataFrame) -> pd.DataFrame:
                              ("warm", "tnnmg_time_warm")):
             rows += _time_ratio(t[t.role == "timing"], scene, start, claim)
         rows.append(_coulomb(t[t.role == "coulomb"], scene))
-        rows += facet_claims(t[t.role == "facets"], scene)
+        rows += facet_claims(t[t.role == "facets"], scene, kind)
     return pd.DataFrame(rows, columns=COLUMNS)
 
 
-def facet_claims(facets: pd.DataFrame, scene: str) -> list[dict]:
+def facet_claims(facets: pd.DataFrame, scene: str, kind: str = "point") -> list[dict]:
     """The faceted law against the isotropic one: the energy bracket at every k and
     level; at the finest level where every faceted path converged, the energy gap's
     exponent over the :data:`FACET_FIT_LAST` largest k judged against
-    :data:`FACET_ENERGY_EXPONENT`, over every k and the displacement's reported. A scene
-    without faceted runs (2D, where the law is already polyhedral, or a study without
-    ``facets``) gives every row with that reason."""
+    :data:`FACET_ENERGY_EXPONENT`, over every k and the displacement's reported.
+
+    Without faceted runs a line contact (``kind``, a 2D scene: its friction law is
+    already polyhedral) has no facet claims, a point contact one row saying so."""
     if facets.empty:
-        why = ("no faceted runs: a 2D scene (its friction law is already polyhedral) or a "
-               "study without facets")
-        fields = dict(scene=scene, facets="-", level="-", ratio=float("nan"))
-        return [CLAIMS[key].row(np.nan, judged=False, passed=None, reason=why, **fields)
-                for key in ("facet_bracket", "facet_energy", "facet_energy_all",
-                            "facet_displacement")]
+        return [] if kind == "line" else [CLAIMS["facet_bracket"].absent(
+            "no faceted runs (the study's facets are not set)", scene=scene)]
     solved = facets[facets.status == "converged"]
     slack = FACET_BRACKET_SLACK * solved.energy.abs()
     inside = ((solved.energy_gap >= -slack) & (solved.energy_gap <= solved.gap_bound + slack))
@@ -364,11 +373,12 @@ def _tnnmg_growth(solved: pd.DataFrame, contact_nodes: pd.Series, scene: str,
     reference rows; ``resolved_nodes``: the fewest the finer level needs for the bar to
     be judged; ``claim``: the key in :data:`CLAIMS`)."""
     rows = []
-    for ratio, pair in _last_two_levels(solved):
+    pairs = list(_last_two_levels(solved))
+    if pairs and all(pair is None for _, pair in pairs):
+        return [CLAIMS[claim].absent("TNNMG converged on one level only; the growth needs "
+                                     "two", scene=scene)]
+    for ratio, pair in pairs:
         if pair is None:
-            rows.append(CLAIMS[claim].row(np.nan, judged=False, scene=scene,
-                                          ratio=ratio, level="-", coarser="-",
-                                          reason="needs two levels"))
             continue
         coarse, fine = pair
         resolved = contact_nodes.get(fine.level, 0) >= resolved_nodes
@@ -381,10 +391,8 @@ def _tnnmg_growth(solved: pd.DataFrame, contact_nodes: pd.Series, scene: str,
     if not rows:                       # no converged TNNMG row from this start: say so
         said = "; ".join(sorted({f"level {int(r.level)}: {r.status}" for r in
                                  solved[solved.solver == "tnnmg"].itertuples()}))
-        rows.append(CLAIMS[claim].row(np.nan, judged=False, scene=scene, ratio=np.nan,
-                                      level="-", coarser="-", reason=(
-                                          f"TNNMG did not converge ({said})" if said else
-                                          "no TNNMG run from this start")))
+        rows.append(CLAIMS[claim].absent(f"TNNMG did not converge ({said})" if said else
+                                         "no TNNMG run from this start", scene=scene))
     return rows
 
 
@@ -393,20 +401,26 @@ def _tnnmg_face_rate(solved: pd.DataFrame, scene: str) -> list[dict]:
     next coarser one's, and the steps to and on the face at both, per ratio
     (``solved``: the solver rows of one start)."""
     rows = []
-    for ratio, pair in _last_two_levels(solved):
-        if pair is None:
-            rows.append(CLAIMS["tnnmg_face_rate"].row(
-                np.nan, scene=scene, ratio=ratio, level="-", coarser="-", coarse_rate="-",
-                to_face="-", on_face="-"))
-            continue
+    pairs = [(ratio, pair) for ratio, pair in _last_two_levels(solved) if pair is not None]
+    if not pairs:
+        return [CLAIMS["tnnmg_face_rate"].absent("no two levels with a converged TNNMG run "
+                                                 "from the normal step's answer",
+                                                 scene=scene)]
+    for ratio, pair in pairs:
         coarse, fine = pair
         both = lambda column: " -> ".join(f"{float(r[column]):g}" for r in pair)
         rows.append(CLAIMS["tnnmg_face_rate"].row(
             float(fine.contraction_tangential_on_face), scene=scene, ratio=ratio,
             level=int(fine.level), coarser=int(coarse.level),
-            coarse_rate=f"{float(coarse.contraction_tangential_on_face):.3g}",
+            coarse_rate=_rate_text(float(coarse.contraction_tangential_on_face)),
             to_face=both("steps_tangential_to_face"), on_face=both("steps_tangential_on_face")))
     return rows
+
+
+def _rate_text(rate: float) -> str:
+    """A contraction on the face as the conditions column gives it: three digits, or why
+    there is none (the face last changed at the last step)."""
+    return f"{rate:.3g}" if np.isfinite(rate) else "none (no step on its face)"
 
 
 def _last_two_levels(solved: pd.DataFrame):
@@ -421,8 +435,7 @@ def _last_two_levels(solved: pd.DataFrame):
 def _coulomb(co: pd.DataFrame, scene: str) -> dict:
     """Coulomb's fixed point: converged in every load step; its Tresca solves per level."""
     if not len(co):
-        return CLAIMS["coulomb"].row("-", judged=False, scene=scene,
-                                     reason="no Coulomb runs at this configuration")
+        return CLAIMS["coulomb"].absent("no Coulomb runs at this configuration", scene=scene)
     per_level = "; ".join(
         f"level {int(lv)}: " + " + ".join(str(int(s)) for s in g.sort_values("load_step")
                                            .tresca_solves)

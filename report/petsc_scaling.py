@@ -35,21 +35,22 @@ REPORTED = ("a time measured here shares the machine's cores with other work and
 #: The petsc_scaling study's claims (report/claims.py).
 CLAIMS = {
     "converged": Claim("suite bar (a timed run counts only if verified)",
-                       "{scene}: petsc_tao at ranks {ranks} and TNNMG verified converged on "
-                       "every level", "given", "all"),
+                       "petsc_tao and TNNMG verified converged on every level", "given",
+                       "all", details="petsc_tao at ranks {ranks}"),
     "petsc_skipped": Claim("suite bar (a run that cannot take place says why)",
-                           "{scene}: petsc_tao not run",
+                           "petsc_tao not run",
                            unjudged="a skipped run measures nothing; the measured column gives the reason"),
     "agreement": Claim("suite bar (two answers within their certified energy-error bounds "
                        "of the exact one lie within the bounds' sum of each other)",
-                       "{scene}: largest ||u_r - u_1||_A / ||u_1||_A over its bar "
-                       "(b_r + b_1) / (1 - b_1), r > 1, every level", "<=", 1.0),
+                       "petsc_tao at r ranks agrees with one rank within the bounds", "<=",
+                       1.0, details="largest ||u_r - u_1||_A / ||u_1||_A over its bar (b_r + "
+                       "b_1) / (1 - b_1), r > 1, every level"),
     "efficiency": Claim("the suite (strong scaling of the distributed solver)",
-                        "{scene}: parallel efficiency T(1) / (r T(r)) at r = {ranks} ranks, "
-                        "level {level} (n = {n})", unjudged=REPORTED),
+                        "petsc_tao's parallel efficiency T(1) / (r T(r))", unjudged=REPORTED,
+                        details="r = {ranks} ranks, n = {n:,}"),
     "tnnmg_over_petsc": Claim("the suite (where PETSc starts to pay)",
-                              "{scene}: TNNMG's time over petsc_tao's best (r = {ranks}) at "
-                              "level {level} (above 1: PETSc pays)", unjudged=REPORTED),
+                              "TNNMG's time over petsc_tao's best (above 1: PETSc pays)",
+                              unjudged=REPORTED, details="petsc_tao's best at r = {ranks}"),
 }
 
 

@@ -21,6 +21,7 @@ from __future__ import annotations
 import argparse
 import html
 import importlib
+import re
 from collections import Counter
 from pathlib import Path
 from typing import Callable
@@ -29,7 +30,7 @@ import numpy as np
 import pandas as pd
 
 from report.claims import NOT_REACHED
-from report.tables import new_page, table_html
+from report.tables import SCRIPT, STYLE, new_page, table_html
 from workflows.io import META, provenance, read_csv, read_json, write_csv, write_text
 from workflows.studies import HEAVY_RULES, PATHS, STUDIES, THESIS_ITEMS, claim_keys
 
@@ -57,48 +58,6 @@ NOTES = {key: text for study in STUDIES.values() for key, text in study.notes.it
 #: the studies.
 FRONT = [(key, resolve(ref)) for study in STUDIES.values() for key, ref in study.front.items()]
 
-STYLE = """
-body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;margin:1.2em 1.5em;
-     color:#222;max-width:1300px}
-h1{font-size:1.5em;margin-bottom:.2em} h2{font-size:1.2em;border-bottom:1px solid #ccc;
-   margin-top:1.6em} h3{font-size:1em;margin-bottom:.3em}
-table{border-collapse:collapse;font-size:.8em;margin:.4em 0 1em}
-th,td{border:1px solid #ddd;padding:2px 6px;text-align:right;vertical-align:top;
-      white-space:nowrap}
-th{background:#f3f3f3;cursor:pointer;white-space:normal;min-width:3em}
-td.l,th.l{text-align:left}
-td.l{white-space:normal;overflow-wrap:break-word;min-width:5em;max-width:34em}
-.pass{background:#e3f5e1;color:#1a6b1a;font-weight:600}
-.miss{background:#fde2e1;color:#a11;font-weight:600}
-.na{background:#f4f4f4;color:#666} .small{font-size:.8em;color:#555}
-.wide{overflow-x:auto;max-width:100%}
-.counts a{margin-right:1.2em;font-weight:600;text-decoration:none;padding:1px 4px}
-.lead{font-size:1em;line-height:1.45} .lead li{margin:.2em 0}
-input.filter{font-size:.8em;margin:.2em 0;width:18em}
-img.thumb{max-width:160px;max-height:110px;border:1px solid #ccc}
-"""
-
-#: Sortable and filterable tables, self-contained (no network): a click on a header sorts
-#: by that column (numbers as numbers), the box above a table keeps the rows containing
-#: its text.
-SCRIPT = """
-function cbSort(th){const t=th.closest('table'),i=[...th.parentNode.children].indexOf(th);
- const rows=[...t.querySelectorAll('tr')].slice(1),dir=th.dataset.dir==='a'?-1:1;
- th.dataset.dir=dir===1?'a':'d';
- const key=r=>{const c=r.children[i];const v=c?c.dataset.v??c.innerText:'';
-  const x=parseFloat(v);return isNaN(x)?v:x};
- rows.sort((a,b)=>{const x=key(a),y=key(b);
-  if(typeof x===typeof y)return (x>y?1:x<y?-1:0)*dir;return (typeof x==='number'?-1:1)*dir});
- rows.forEach(r=>t.appendChild(r))}
-function cbFilter(box){const t=document.getElementById(box.dataset.table),q=box.value.toLowerCase();
- [...t.querySelectorAll('tr')].slice(1).forEach(r=>{
-  r.style.display=r.innerText.toLowerCase().includes(q)?'':'none'})}
-document.addEventListener('click',e=>{if(e.target.tagName==='TH'&&e.target.closest('table.sortable'))cbSort(e.target)});
-document.addEventListener('input',e=>{if(e.target.classList.contains('filter'))cbFilter(e.target)});
-"""
-
-#: Why a cell is empty, by the kind of column (shown as the cell's tooltip and under
-#: each table).
 def parse_items(items: list[str]) -> list[tuple[str, str | None, str]]:
     """``key@scene=path`` -> ``(key, scene or None, path)``; raises ValueError on a bad item."""
     out = []
@@ -120,18 +79,30 @@ def study_of(key: str) -> str:
     return "-"
 
 
+#: The columns of the summary's claims file: a claims table's (report/claims.py) with the
+#: study, the result and the claims file (``source``).
+SUMMARY_CLAIMS = ["study", "scene", "claim", "level", "parameters", "thesis", "measured",
+                  "bar", "result", "reason", "source"]
+
+
+def claims_of_item(key: str, scene: str | None, path: str) -> pd.DataFrame:
+    """The claims of one output with its study and file; the scene a row names (a
+    scene's variant) or else the output's, the level and conditions empty where a
+    claims table written without them has none."""
+    c = CLAIMS[key](read_csv(path))
+    for column in ("scene", "level", "parameters"):
+        values = c[column] if column in c else pd.Series("", index=c.index)
+        c[column] = values.fillna("").astype(str).replace("nan", "")
+    c.loc[c["scene"] == "", "scene"] = scene or "-"
+    return c.assign(study=study_of(key), source=path)
+
+
 def collect_claims(items) -> pd.DataFrame:
-    """Every claim of every configured output, with study, scene and source file."""
-    frames = []
-    for key, scene, path in items:
-        if key not in CLAIMS:
-            continue
-        c = CLAIMS[key](read_csv(path))
-        if len(c):
-            frames.append(c.assign(study=study_of(key), scene=scene or "-", source=path))
+    """Every claim of every configured output (:data:`SUMMARY_CLAIMS`)."""
+    frames = [c for key, scene, path in items if key in CLAIMS
+              for c in [claims_of_item(key, scene, path)] if len(c)]
     if not frames:
-        return pd.DataFrame(columns=["study", "scene", "claim", "thesis", "measured", "bar",
-                                     "result", "reason", "source"])
+        return pd.DataFrame(columns=SUMMARY_CLAIMS)
     c = pd.concat(frames, ignore_index=True)
     c["result"] = [("n/a" if p is None or (isinstance(p, float) and np.isnan(p)) else
                     "pass" if str(p).lower() in ("true", "1", "1.0") else "miss")
@@ -144,8 +115,7 @@ def collect_claims(items) -> pd.DataFrame:
     c["reason"] = c["reason"].fillna("").astype(str)
     unjudged = (c["result"] == "n/a") & (c["reason"].str.strip() == "")
     c.loc[unjudged, "reason"] = NOT_REACHED
-    return c[["study", "scene", "claim", "thesis", "measured", "bar", "result", "reason",
-              "source"]]
+    return c[SUMMARY_CLAIMS]
 
 
 def solver_set_text(fixed: dict | None) -> str:
@@ -225,7 +195,22 @@ def beside_thesis(frame: pd.DataFrame, keep=None) -> pd.DataFrame:
     return frame[out]
 
 
-#: How many tables of each name the page being written has (their ids: ``name-k``).
+def thesis_mates(frame: pd.DataFrame) -> dict[str, str]:
+    """Our column -> the thesis's column of the same quantity, where both are in
+    ``frame`` (the inline tables show the thesis's value beneath ours)."""
+    return {c: THESIS_MATE.get(c, f"thesis_{c}") for c in frame.columns
+            if not str(c).startswith("thesis_")
+            and THESIS_MATE.get(c, f"thesis_{c}") in frame.columns}
+
+
+def item_path(item) -> str:
+    """The output path of a thesis item with its scene filled in (``results/{scene}/x.png``
+    of the item on cube_sphere reads ``results/cube_sphere/x.png``); a wildcard the item
+    does not fix reads ``<name>``."""
+    return re.sub(r"\{(\w+)\}", lambda m: item.problem if m.group(1) == "scene" and
+                  item.problem else f"<{m.group(1)}>", PATHS[item.key])
+
+
 def thesis_rows(items, scale: str) -> pd.DataFrame:
     """Every thesis item, its output files and whether this run (at ``scale``) regenerated
     them."""
@@ -240,7 +225,7 @@ def thesis_rows(items, scale: str) -> pd.DataFrame:
             status, where = "regenerated", ", ".join(sorted(files))
         else:
             status = "not in this configuration"
-            where = f"{PATHS[t.key]}: not at the {scale} scale (a larger one regenerates it)"
+            where = f"{item_path(t)}: not at the {scale} scale (a larger one regenerates it)"
         rows.append({"thesis": t.item, "what": t.what, "status": status, "output": where})
     return pd.DataFrame(rows)
 
@@ -371,13 +356,26 @@ def headline(items, claims: pd.DataFrame, th: pd.DataFrame, scale: str) -> list[
     return parts
 
 
+#: The columns of the summary's claims tables, in order, and their headers where the
+#: file's name would mislead (the claims file's ``source`` is the claims table's path).
+CLAIM_COLUMNS = ["study", "scene", "claim", "level", "parameters", "measured", "bar",
+                 "result", "thesis", "reason"]
+CLAIM_HEADERS = {"thesis": "source"}
+#: Why a claims table's cell is empty, where it is not a value missing.
+#: Names that may break after their underscores in a claims table (a study's, a scene's).
+BREAK_AT_UNDERSCORES = {c: (lambda text: text.replace("_", "_<wbr>")) for c in ("study", "scene")}
+CLAIM_EMPTY = {"level": "a claim about every level, or about none in particular",
+               "parameters": "no conditions beyond the claim's title"}
+
+
 def claims_html(claims: pd.DataFrame) -> list[str]:
-    """The claims in three tables: misses, not judged (with the reason), passes."""
+    """The claims in three tables: misses, passes, not judged (grouped by the reason and
+    collapsed), each claim's title, scene, level and conditions in columns of their own."""
     parts = []
     for result, anchor, title in (("miss", "claims-miss", "Missed"),
                                   ("pass", "claims-pass", "Passed"),
                                   ("n/a", "claims-unjudged", "Not judged at this scale")):
-        c = claims[claims["result"] == result].drop(columns=["source"])
+        c = claims.loc[claims["result"] == result, CLAIM_COLUMNS]
         if result != "n/a":
             c = c.drop(columns=["reason"])
         else:           # grouped by their reason
@@ -385,10 +383,11 @@ def claims_html(claims: pd.DataFrame) -> list[str]:
         parts.append(f"<h3 id='{anchor}'>{title} ({len(c)})</h3>")
         if not len(c):
             continue
-        table = table_html(c, left=("study", "scene", "claim", "thesis", "bar", "measured",
-                                    "reason"),
+        table = table_html(c, left=("study", "scene", "claim", "parameters", "thesis", "bar",
+                                    "measured", "reason"),
                            classes={"result": {"pass": "pass", "miss": "miss", "n/a": "na"}},
-                           name=anchor, max_rows=500)
+                           name=anchor, max_rows=500, headers=CLAIM_HEADERS,
+                           empty_why=CLAIM_EMPTY, cell_html=BREAK_AT_UNDERSCORES)
         if result == "n/a":     # collapsed: the reasons first, the rows on a click
             reasons = Counter(c["reason"])
             table = ("<details><summary>" + html.escape("; ".join(
@@ -417,7 +416,9 @@ def page(items, claims: pd.DataFrame, prov: dict, varying: dict, res: pd.DataFra
     parts += claims_html(claims)
     parts.append("<h2 id='thesis'>The thesis's tables and figures</h2>")
     parts.append(thesis_html(th))
-    parts.append("<h2>Tables: ours beside the thesis's</h2>")
+    parts.append("<h2>Tables: ours beside the thesis's</h2><p class='small'>Beneath a value "
+                 "of ours, in grey italics, the thesis's value of the same quantity at the "
+                 "same level (its 1999 machine for the times).</p>")
     for key, keep in INLINE.items():
         for k, scene, path in items:
             if k != key:
@@ -431,7 +432,7 @@ def page(items, claims: pd.DataFrame, prov: dict, varying: dict, res: pd.DataFra
                 parts.append(f"<p class='small'>{html.escape(NOTES[key])}</p>")
             parts.append(table_html(frame, left=tuple(c for c in frame.columns
                                                       if frame[c].dtype == object),
-                                    name=key))
+                                    name=key, below=thesis_mates(frame)))
             rest = [c for c in full.columns if c not in frame.columns]
             if rest:
                 parts.append(f"<p class='small'>Also in the file: "

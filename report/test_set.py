@@ -385,25 +385,27 @@ def facet_frame(t: pd.DataFrame) -> pd.DataFrame:
 CLAIMS = {
     "accurate": Claim("Ch. 8 (the solvers' stopping rules); suite bar: a verdict is never wrong",
                       "test set: every verified-converged run is within tol of the exact "
-                      "reference (energy error; {problems} problems, {runs} runs)", "given", "0"),
-    "refuted": Claim("suite figure (a solver's own stopping test, checked)", "test set: claims of convergence refuted by the verification "
-                     "(information: a solver's own stopping test against the suite's KKT and "
-                     "certified bound)",
+                      "reference", "given", "0", details="energy error; {problems} problems, "
+                      "{runs} runs"),
+    "refuted": Claim("suite figure (a solver's own stopping test, checked)", "test set: "
+                     "claims of convergence refuted by the verification",
+                     details="a solver's own stopping test against the suite's KKT and "
+                     "certified bound",
                      unjudged="information: a solver's own stopping test measured against "
                      "the suite's verification, no bar"),
     "ignored_guess": Claim("suite bar (a solver that ignores its initial guess runs the same "
                            "deterministic iteration warm and cold)",
-                           "test set: warm runs that say they ignored the guess take the "
-                           "cold run's iterations and claim ({pairs} run pairs)", "given",
-                           "0 pairs differ"),
+                           "test set: warm runs that ignore the guess repeat the cold run",
+                           "given", "0 pairs differ", details="the cold run's iterations and "
+                           "claim, {pairs} run pairs"),
     "warm_iterations": Claim("suite figure (quasi-static load paths start each step from the "
                              "last)", "test set: median iterations warm / cold per solver "
-                             "that uses the guess ({steps} steps with a warm start)",
+                             "that uses the guess", details="{steps} steps with a warm start",
                              unjudged="information: no method here promises fewer iterations "
                              "from the previous step's solution, no bar"),
     "facets": Claim("suite figure (the k-gon friction law approximates the disc, "
-                    "problems/friction/data.py)", "test set: model error ||u_k - u_iso||_A / "
-                    "||u_iso||_A of the faceted references",
+                    "problems/friction/data.py)", "test set: model error ||u_k - u_iso||_A "
+                    "/ ||u_iso||_A of the faceted references",
                     unjudged="information: the faceted law's distance to the isotropic one "
                     "at this k, no bar"),
 }
@@ -411,14 +413,14 @@ CLAIMS = {
 
 BOARD_CLAIMS = {
     "fastest": Claim("suite figure (time at matched accuracy, report/leaderboard.py)",
-                     "test set, {label}, {size} class, preset {preset}: fastest verified "
-                     "solver ({problems} problems)",
+                     "test set, {label}: fastest verified solver", details="{size} class, "
+                     "preset {preset}, {problems} problems",
                      unjudged="information: a ranking, no bar"),
     "independent": Claim("suite bar (an exact reference is checked by another route, not by "
-                         "itself)", "test set, {label}, {size} class, preset {preset}: the "
-                         "exact references agree with the closest independent verified "
-                         "answer ({problems} problems)", "given",
-                         "within tol (or its floor)"),
+                         "itself)", "test set, {label}: exact references agree with an "
+                         "independent answer", "given", "within tol (or its floor)",
+                         details="the closest independent verified answer; {size} class, "
+                         "preset {preset}, {problems} problems"),
 }
 
 

@@ -9,7 +9,7 @@ import pkgutil
 import pytest
 
 import report
-from report.claims import NO_BAR, NOT_REACHED, UNJUDGED, Claim
+from report.claims import NO_BAR, NO_RUN, NOT_REACHED, TITLE_MAX, UNJUDGED, Claim
 
 
 @pytest.mark.parametrize("compare, bar, measured, verdict", [
@@ -28,7 +28,8 @@ def test_bars_read_as_before_and_unjudged_rows_have_no_verdict():
     assert Claim("x", "q", "in", (1.5, 2.6)).bar_text() == "[1.5, 2.6]"
     assert Claim("x", "q", ">=", 0.45).bar_text() == ">= 0.45"
     assert Claim("x", "q", "|<=|", 0.05).bar_text() == "|.| <= 0.05"
-    assert Claim("x", "q").row(2.0) == {"claim": "q", "thesis": "x", "measured": 2.0, "bar": "-",
+    assert Claim("x", "q").row(2.0) == {"claim": "q", "scene": "", "level": "", "parameters": "",
+                                        "thesis": "x", "measured": 2.0, "bar": "-",
                                         "pass": None, "reason": NO_BAR}
     assert Claim("x", "q", "<=", 1.0).row(5.0, judged=False)["pass"] is None
     given = Claim("x", "q", "given", "all")
@@ -52,6 +53,40 @@ def test_every_declared_claim_without_a_bar_says_why():
         for key, claim in module.CLAIMS.items():
             if claim.compare == UNJUDGED:
                 assert len(claim.unjudged) > 10, f"{module.__name__}: {key}"
+
+
+def _declared():
+    """Every declared claim of the report modules: ``(module, key, claim)``."""
+    for info in pkgutil.iter_modules(report.__path__):
+        module = importlib.import_module(f"report.{info.name}")
+        for table in ("CLAIMS", "BOARD_CLAIMS"):
+            for key, claim in getattr(module, table, {}).items():
+                if isinstance(claim, Claim):
+                    yield module.__name__, key, claim
+
+
+def test_every_declared_title_reads_as_one_short_line():
+    """A title filled with 30-character names stays within TITLE_MAX; the scene, the
+    level, the size and the load ratio are the columns', never the title's."""
+    import re
+    declared = list(_declared())
+    assert len(declared) > 60
+    for name, key, claim in declared:
+        filled = re.sub(r"\{\w+(:[^}]*)?\}", "x" * 30, claim.title)
+        assert len(filled) <= TITLE_MAX, (name, key, filled)
+        assert not re.search(r"\{(scene|level|levels|N|ratio|coarser)\b", claim.title), (name, key)
+
+
+def test_a_row_puts_scene_level_and_conditions_in_columns_of_their_own():
+    claim = Claim("Lemma 8.13", "ratio of {what}", "<=", 2.0, details="Q/(mu P) = {ratio:g}")
+    row = claim.row(1.5, scene="circle_square", level=3, ratio=0.3, what="kappa")
+    assert (row["claim"], row["scene"], row["level"], row["parameters"]) == (
+        "ratio of kappa", "circle_square", "3", "Q/(mu P) = 0.3")
+    growth = Claim("x", "growth", level="{coarser} -> {level}").row(1.1, level=3, coarser=2)
+    assert growth["level"] == "2 -> 3" and growth["parameters"] == ""
+    none = claim.absent("one level only", scene="s", what="kappa")
+    assert none["pass"] is None and none["reason"] == f"{NO_RUN}: one level only"
+    assert (none["level"], none["parameters"]) == ("", "") and math.isnan(none["measured"])
 
 
 def test_a_claim_names_a_wrong_declaration():
@@ -79,7 +114,7 @@ def test_every_study_declares_its_claims_in_one_place():
         "report.exact_reference", "report.hard_cases",
         "report.roll_stack", "report.element_order", "report.test_set"}
     for module in modules:
-        assert module.CLAIMS and all(isinstance(c, Claim) and c.thesis and c.quantity
+        assert module.CLAIMS and all(isinstance(c, Claim) and c.thesis and c.title
                                      for c in module.CLAIMS.values()), module.__name__
         assert '"claim":' not in inspect.getsource(module), module.__name__
 

@@ -13,6 +13,7 @@ import pytest
 from PIL import Image
 
 from report import coupling as report
+from report.claims import COLUMNS
 from workflows.io import read_csv
 from workflows.studies.coupling import run as script
 from workflows.studies import ConfigError, check_config, load_config
@@ -74,7 +75,7 @@ def test_the_errors_against_the_reference_are_measured_and_fall(run):
 def test_the_claims_table_has_every_claim_with_a_status_or_a_reason(run):
     _, out = run
     claims = read_csv(out["claims"])
-    assert list(claims.columns) == ["claim", "thesis", "measured", "bar", "pass", "reason"]
+    assert list(claims.columns) == COLUMNS
     first = claims.iloc[0]
     assert "converged" in first.claim and first.measured == "9 of 9" and first["pass"] == True  # noqa: E712
     for _, row in claims.iterrows():
@@ -85,7 +86,7 @@ def test_the_claims_table_has_every_claim_with_a_status_or_a_reason(run):
                     & claims.claim.str.contains("energy-error rate")]
     assert len(mortar) == 2 and mortar.reason.str.contains("needs 3 levels").all()
     # the multiplier's dual-norm rate: one reported row per coupling, with its reason
-    dual = claims[claims.claim.str.contains("err_pressure_dual")]
+    dual = claims[claims.parameters.str.contains("err_pressure_dual")]
     assert len(dual) == 4 and dual["pass"].isna().all()
     assert dual.reason.str.contains("no rate of the multiplier error alone").all()
     assert {"nodal", "stabilised"} <= {w for c in claims.claim for w in c.replace(":", " ").split()}
@@ -105,12 +106,11 @@ def test_the_mortar_rate_is_judged_against_the_optimal_rate(dim, optimal):
                  for lv, n in enumerate(N)]
     claims = report.claims(pd.DataFrame(rows)).set_index("claim")
     for k, r in (("mortar_dual", optimal - 0.05), ("mortar", optimal + 0.2), ("nodal", -0.25)):
-        row = claims.loc[f"s: {k} multiplier error in the dual norm (err_pressure_dual) rate "
-                         "against N (finest three levels)"]
+        row = claims.loc[f"{k}: rate in N of the multiplier error in the dual norm"]
         assert math.isclose(row.measured, r - 0.25, abs_tol=1e-12) and row["pass"] is None
-    dual = claims.loc[[c for c in claims.index if "mortar_dual energy" in c][0]]
-    std = claims.loc[[c for c in claims.index if "mortar energy" in c][0]]
-    nodal = claims.loc[[c for c in claims.index if "nodal energy" in c][0]]
+    dual = claims.loc[[c for c in claims.index if "mortar_dual: energy" in c][0]]
+    std = claims.loc[[c for c in claims.index if "mortar: energy" in c][0]]
+    nodal = claims.loc[[c for c in claims.index if "nodal: energy" in c][0]]
     assert math.isclose(dual.measured, -0.05, abs_tol=1e-12) and dual["pass"] is True
     assert math.isclose(std.measured, 0.2, abs_tol=1e-12) and std["pass"] is False
     assert math.isclose(nodal.measured, -0.25, abs_tol=1e-12) and nodal["pass"] is None
@@ -318,11 +318,11 @@ def test_the_3d_study_solves_every_coupling_exactly_and_measures_its_errors(run_
 def test_the_3d_claims_judge_against_the_3d_optimal_rate(run_3d):
     t, out = run_3d
     claims = read_csv(out["claims"])
-    cs = claims[claims.claim.str.startswith("cube_sphere")]
+    cs = claims[claims.scene == "cube_sphere"]
     first = cs.iloc[0]
     assert "converged" in first.claim and first.measured == "5 of 5" and first["pass"] == True  # noqa: E712
     mortar = cs[cs.claim.str.contains("mortar") & cs.claim.str.contains("energy-error rate")]
-    assert len(mortar) == 2 and mortar.claim.str.contains("-0.333").all()
+    assert len(mortar) == 2 and mortar.parameters.str.contains("-0.333").all()
     assert mortar.reason.str.contains("needs 3 levels; this run has 1").all()
     for key in ("figure", "hertz"):
         with Image.open(out[key]) as im:

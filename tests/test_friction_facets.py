@@ -24,6 +24,7 @@ from problems.qp import QPValidationError
 from problems.spec import ParameterError, problems
 from solvers.interface import solve, solvers
 from solvers.qp_libraries import LIBRARIES
+from report.claims import NO_RUN
 from report.friction import FACET_ENERGY_EXPONENT, FACET_FIT_LAST, complete, facet_claims
 from report.rates import fitted_slope
 from solvers.kernels.tresca import facet_convergence, friction_path
@@ -260,7 +261,7 @@ def test_the_study_reports_the_faceted_law_and_its_claims():
     assert [r["energy_gap"] for r in rows] == [r["energy_gap"] for r in _table()]
     runs = complete(pd.DataFrame([{"scene": "cube_sphere", "level": 0, "ratio": 0.7, **r}
                                   for r in rows]))
-    table = {row["claim"].split(":")[1][:40]: row for row in facet_claims(runs, "cube_sphere")}
+    table = {row["claim"]: row for row in facet_claims(runs, "cube_sphere")}
     bracket, last, every, displacement = table.values()
     assert bracket["pass"] is True and bracket["measured"] == f"{len(FACETS)} of {len(FACETS)}"
     k = np.array(FACETS)
@@ -275,6 +276,7 @@ def test_the_study_reports_the_faceted_law_and_its_claims():
     assert skipped[0]["status"] == "skipped" and "tresca_exact" in skipped[0]["message"]
     plane = problems()["circle_square"].make(0, friction="tresca", mu=0.5, shift=0.03)
     assert facet_rows(plane, [8], "tresca_exact") == []
-    plain = facet_claims(complete(pd.DataFrame({"role": []})), "circle_square")
-    assert len(plain) == 4 and all(row["pass"] is None for row in plain)
-    assert all("2D" in row["reason"] for row in plain[:2])
+    assert facet_claims(complete(pd.DataFrame({"role": []})), "circle_square", "line") == []
+    none = facet_claims(complete(pd.DataFrame({"role": []})), "cube_sphere", "point")
+    assert len(none) == 1 and none[0]["pass"] is None and none[0]["level"] == ""
+    assert none[0]["reason"].startswith(NO_RUN)

@@ -102,7 +102,7 @@ def _runs(status2="converged", distance=1e-9, bar=1e-7, message=""):
 
 def test_the_report_judges_agreement_and_reports_the_efficiency(tmp_path):
     c = report_scaling.claims(_runs(), "cs").set_index("claim")
-    agree = c.filter(like="over its bar", axis=0).iloc[0]
+    agree = c.filter(like="agrees with one rank", axis=0).iloc[0]
     assert agree["measured"] == pytest.approx(0.01) and agree["pass"] is True
     eff = c.filter(like="parallel efficiency", axis=0).iloc[0]
     assert eff["measured"] == pytest.approx(2.0 / (2 * 1.5)) and eff["pass"] is None
@@ -111,7 +111,7 @@ def test_the_report_judges_agreement_and_reports_the_efficiency(tmp_path):
     assert ratio["measured"] == pytest.approx(2.0)            # 3.0 s against 1.5 s at r = 2
     assert c.filter(like="verified converged", axis=0).iloc[0]["pass"] is True
     far = report_scaling.claims(_runs(distance=2e-7), "cs")
-    assert far[far.claim.str.contains("over its bar")]["pass"].iloc[0] is False
+    assert far[far.claim.str.contains("agrees with one rank")]["pass"].iloc[0] is False
     report_scaling.figure(_runs(), "cs", str(tmp_path / "f.png"))
     assert (tmp_path / "f.png").stat().st_size > 0
 

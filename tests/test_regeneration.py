@@ -24,6 +24,7 @@ import pytest
 from compare_results import differences, tables
 from workflows.io import META, PARTIAL, check_result
 from workflows.studies import PATHS, all_targets, load_config
+from workflows.table_pages import page_path
 
 ROOT = Path(__file__).resolve().parent.parent
 SNAKEMAKE = Path(sys.executable).parent / "snakemake"
@@ -259,8 +260,15 @@ def test_html_report_opens_in_chromium_with_every_figure(tiny_run):
         page.goto((tiny_run / "report.html").as_uri())
         page.wait_for_selector("text=0 summary", timeout=60_000)
         shown = report_figures(page)
+        kinds = page.evaluate("Object.values(results).map(r => r.mime_type)")
+        registered = page.evaluate("Object.keys(results)")
         browser.close()
     assert not errors
+    # a table is shown as a page, never offered as a CSV to download
+    assert "text/csv" not in kinds and not [k for k in registered if k.endswith(".csv")]
+    pages = [page_path(t) for t in targets()
+             if t.endswith(".csv") and (tiny_run / page_path(t)).exists()]
+    assert len(pages) >= 10 and set(pages) <= set(registered), set(pages) - set(registered)
     assert sorted(shown) == figures, set(figures) ^ set(shown)
     assert all(size[0] > 100 and size[1] > 100 for size in shown.values()), shown
 
@@ -503,6 +511,62 @@ def test_headline_page_fits_1400_px_without_horizontal_scroll(tiny_run):
     assert first == "Headline"
     assert widths[0] <= widths[1] and widths[2] <= widths[3], widths
     assert links == ["#claims-pass", "#claims-miss", "#claims-unjudged"] and all(targets_found)
+
+
+#: The width of the report's frame at a 1400 px window: the summary page is shown in it.
+FRAME_PX = 947
+
+
+def test_every_table_of_the_summary_fits_the_reports_frame(tiny_run):
+    """The summary page at the width of the report's frame, every collapsed table opened:
+    no table is wider than its box, no header breaks a name at an underscore, no row
+    shows a raw path or claim template, and a column of numbers written with U+2212
+    minus signs sorts as numbers."""
+    if chromium() is None:
+        pytest.skip("no Chromium on this machine (`make test` installs Debian's chromium)")
+    from playwright.sync_api import sync_playwright
+
+    summary = tiny_run / PATHS["summary_html"]
+    with sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=chromium(), args=BROWSER_ARGS)
+        page = browser.new_page(viewport={"width": FRAME_PX, "height": 900})
+        page.goto(summary.as_uri())
+        page.evaluate("document.querySelectorAll('details').forEach(d => d.open = true)")
+        wide = page.evaluate("""() => [...document.querySelectorAll('table')]
+            .map(t => [t.id, t.getBoundingClientRect().width, t.parentElement.clientWidth])
+            .filter(([id, w, box]) => w > box + 0.5)""")
+        headers = page.locator("th").all_inner_texts()
+        cells = page.locator("td").all_inner_texts()
+        page.evaluate("""() => {const t = document.createElement('table');
+            t.className = 'sortable'; t.id = 'minus-sort';
+            t.innerHTML = '<tr><th>x</th></tr>' + ['\u22122', '1', '\u221210', '0.5']
+                .map(v => `<tr><td>${v}</td></tr>`).join('');
+            document.body.appendChild(t)}""")
+        page.locator("#minus-sort th").click()
+        order = page.locator("#minus-sort td").all_inner_texts()
+        width = page.evaluate("document.documentElement.scrollWidth")
+        browser.close()
+    assert not wide, wide
+    assert width <= FRAME_PX
+    assert not [h for h in headers if "_" in h], headers
+    assert not [c for c in cells if re.search(r"\{[a-z_]+\}", c)]
+    assert order == ["\u221210", "\u22122", "0.5", "1"]
+
+
+def test_every_claim_reads_as_a_title_with_its_details_in_columns(tiny_run):
+    """Every claim of the run: a title of at most TITLE_MAX characters; the scene, level,
+    conditions, measured value, bar, source and reason in columns of their own; no
+    placeholder of a claim without data."""
+    from report.claims import TITLE_MAX
+
+    claims = pd.read_csv(tiny_run / PATHS["summary_claims"], keep_default_na=False)
+    assert claims["claim"].str.len().max() <= TITLE_MAX
+    assert {"scene", "level", "parameters", "measured", "bar", "thesis", "reason"} <= set(
+        claims.columns)
+    assert (claims["parameters"] != "").mean() > 0.5 and (claims["level"] != "").any()
+    for column in ("claim", "level", "parameters"):
+        bad = claims.loc[claims[column].str.contains(r"\{|= -|\bnan\b|level -"), column]
+        assert bad.empty, list(bad)
 
 
 def test_every_unjudged_claim_gives_its_reason(tiny_run):

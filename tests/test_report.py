@@ -55,7 +55,7 @@ def test_claims_pass_and_fail_on_synthetic_studies():
     assert good["pass"].iloc[3:5].isna().all() and list(good["bar"].iloc[3:5]) == ["-", "-"]
     alone = claims(_study(lambda n: 1e-5 * n, [8, 8, 8, 8], [34, 68, 136, 272]))
     assert alone["pass"].iloc[3:5].isna().all()
-    assert "alg84" in alone["claim"].iloc[4] and abs(alone["measured"].iloc[4] - 4.0) < 1e-12
+    assert "alg84" in alone["parameters"].iloc[4] and abs(alone["measured"].iloc[4] - 4.0) < 1e-12
     bad = claims(_study(lambda n: 1e-8 * n ** 1.5, [8, 9, 12, 20], [34, 68, 136, 272]))
     assert not bad["pass"].iloc[0] and not bad["pass"].iloc[2]
     assert abs(bad["measured"].iloc[2] - 1.5) < 1e-12

@@ -160,3 +160,44 @@ def test_failures_link_each_failing_scene_to_its_rows():
     page = table_html(fails, name="failures",
                               row_id=lambda r: failure_anchor(r["scene"]))
     assert page.count("id='failures-cube_sphere'") == 1 and "id='failures-roll_stack'" in page
+
+
+def test_tables_read_their_headers_and_sort_minus_signs_as_numbers():
+    from report.tables import header_text, sort_value, table_html
+    assert header_text("thesis_n_outer_1e-03") == "thesis n outer 1e\u201103"
+    assert sort_value("\u22120.5") == "-0.5" and sort_value(-2) == "-2.0"
+    assert sort_value("3 of 3") is None and sort_value(True) is None
+    html = table_html(pd.DataFrame({"n_outer": [-1.5, 2.0], "note": ["a", "b"]}), name="h")
+    assert ">n outer</th>" in html and "_" not in html.split("<tr>")[1]
+    assert 'data-v="-1.5"' in html and "\u22121.5" in html
+
+
+def test_the_thesis_value_sits_beneath_ours_and_items_name_their_scene():
+    from report.summary import beside_thesis, item_path, thesis_mates
+    from report.tables import table_html
+    frame = beside_thesis(pd.DataFrame({"level": [1], "N": [4237], "thesis_nodes": [4226],
+                                        "kappa_S": [34.8], "thesis_kappa_S": [21.2]}))
+    assert thesis_mates(frame) == {"N": "thesis_nodes", "kappa_S": "thesis_kappa_S"}
+    html = table_html(frame, name="t", below=thesis_mates(frame))
+    assert html.count("<th") == 3 and "4237<br><span class='under'>4226</span>" in html
+    for item in THESIS_ITEMS:
+        if item.key is not None:
+            assert "{" not in item_path(item), item
+    rows = summary.thesis_rows([], "tiny")
+    assert not rows["output"].str.contains("{", regex=False).any()
+
+
+def test_a_csv_table_is_a_page_of_its_own(tmp_path, monkeypatch):
+    from report import tables
+    from workflows import table_pages
+    from workflows.table_pages import page_path, pages_of, shown_table
+    monkeypatch.setattr(table_pages, "TABLE_PAGES", {})
+    path = shown_table("results/{scene}/x_table.csv", caption="c.rst", category="{scene}")
+    assert path == "results/{scene}/x_table.csv" and page_path(path) == "results/{scene}/x_table.html"
+    assert pages_of(["results/cs/x_table.csv", "results/cs/y.csv"]) == ["results/cs/x_table.html"]
+    csv = tmp_path / "t.csv"
+    write_csv(csv, pd.DataFrame({"level": [0, 1], "err_energy": [1e-3, -2e-4]}))
+    tables.main(["--csv", str(csv), "--html", str(tmp_path / "t.html")])
+    page = (tmp_path / "t.html").read_text()
+    assert page.startswith("<!DOCTYPE html>") and "err energy" in page and "cbSort" in page
+

@@ -119,7 +119,7 @@ def test_warm_table_and_its_claims(path_runs):
     assert (differ, pairs) == (0, 2 * len(PATH))
     rows = {r["claim"].split(" (")[0]: r for r in
             warm_facet_claims(path_runs, warm_frame(path_runs), facet_frame(path_runs))}
-    judged = next(r for c, r in rows.items() if "ignored the guess" in c)
+    judged = next(r for c, r in rows.items() if "ignore the guess" in c)
     assert judged["pass"] is True
     # a solver that says it ignores the guess but iterates differently warm fails the check
     tampered = path_runs.copy()
@@ -127,7 +127,7 @@ def test_warm_table_and_its_claims(path_runs):
     tampered.loc[at, "iterations"] += 1
     assert ignored_guess_mismatches(tampered) == (1, 2 * len(PATH))
     bad = warm_facet_claims(tampered, warm_frame(tampered), facet_frame(tampered))
-    assert next(r for r in bad if "ignored the guess" in r["claim"])["pass"] is False
+    assert next(r for r in bad if "ignore the guess" in r["claim"])["pass"] is False
 
 
 def test_facet_table_model_error_falls_with_k(export, path_runs, tmp_path):

@@ -188,8 +188,9 @@ def study_facts(study) -> str:
         lines += ["### Checked claims", "",
                   "Declared once in " + ", ".join(f"`{m}`" for m in modules) + " (`CLAIMS`); "
                   "the summary page shows each with its measured value and pass or miss.", "",
-                  "| claim | source | measured quantity | bar |", "| --- | --- | --- | --- |",
-                  *(f"| `{name}` | {cell(c.thesis)} | {cell(c.quantity)} | "
+                  "| claim | source | title | conditions | bar |",
+                  "| --- | --- | --- | --- | --- |",
+                  *(f"| `{name}` | {cell(c.thesis)} | {cell(c.title)} | {cell(c.details)} | "
                     f"{cell(c.bar_text())} |" for name, c in claims)]
     return "\n".join(lines) + "\n"
 

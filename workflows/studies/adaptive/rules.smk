@@ -29,13 +29,13 @@ rule adaptive_study:
 rule adaptive_tables:
     input: PATHS["adaptive_steps"]
     output:
-        table=report(PATHS["adaptive_table"], caption=CAPTIONS["adaptive_table"],
+        table=shown_table(PATHS["adaptive_table"], caption=CAPTIONS["adaptive_table"],
             category="{scene}", subcategory="adaptive"),
-        accuracy=report(PATHS["adaptive_accuracy"], caption=CAPTIONS["adaptive_accuracy"],
+        accuracy=shown_table(PATHS["adaptive_accuracy"], caption=CAPTIONS["adaptive_accuracy"],
             category="{scene}", subcategory="adaptive"),
-        pileup=report(PATHS["adaptive_pileup"], caption=CAPTIONS["adaptive_pileup"],
+        pileup=shown_table(PATHS["adaptive_pileup"], caption=CAPTIONS["adaptive_pileup"],
             category="{scene}", subcategory="adaptive"),
-        convergence=report(PATHS["adaptive_convergence"], caption=CAPTIONS["adaptive_convergence"],
+        convergence=shown_table(PATHS["adaptive_convergence"], caption=CAPTIONS["adaptive_convergence"],
             category="{scene}", subcategory="adaptive")
     log: log_path("adaptive_tables")
     conda: ENV
@@ -95,7 +95,7 @@ rule patch_test:
 rule patch_report:
     input: runs=PATHS["patch_runs"], pressure=PATHS["patch_pressure"]
     output:
-        table=report(PATHS["patch_table"], caption=CAPTIONS["patch_table"],
+        table=shown_table(PATHS["patch_table"], caption=CAPTIONS["patch_table"],
             category="{scene}", subcategory="patch test"),
         figure=report(PATHS["patch_figure"], caption=CAPTIONS["patch_figure"],
                       category="{scene}", subcategory="patch test")

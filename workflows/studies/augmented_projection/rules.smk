@@ -21,9 +21,9 @@ rule augmented_projection_study:
 rule augmented_projection_report:
     input: PATHS["ap_study"]
     output:
-        table=report(PATHS["ap_table"], caption=CAPTIONS["ap_table"],
+        table=shown_table(PATHS["ap_table"], caption=CAPTIONS["ap_table"],
             category="{scene}", subcategory="augmented projection"),
-        claims=report(PATHS["ap_claims"], caption=CAPTIONS["ap_claims"],
+        claims=shown_table(PATHS["ap_claims"], caption=CAPTIONS["ap_claims"],
             category="{scene}", subcategory="augmented projection"),
         time=report(PATHS["ap_time"], caption=CAPTIONS["ap_time"],
                     category="{scene}", subcategory="augmented projection"),

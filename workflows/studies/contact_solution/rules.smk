@@ -21,7 +21,7 @@ rule contact_hertz_table:
         lambda w: expand(PATHS["hertz_level"], scene=w.scene,
                          level=scenes_of(config, "contact_solution")[w.scene])
     output:
-        report(PATHS["hertz"], caption=CAPTIONS["hertz"],
+        shown_table(PATHS["hertz"], caption=CAPTIONS["hertz"],
                category="{scene}", subcategory="contact solution")
     log: log_path("contact_hertz_table")
     conda: ENV

@@ -18,7 +18,7 @@ rule coupling_study:
 rule coupling_report:
     input: PATHS["cp_study"]
     output:
-        claims=report(PATHS["cp_claims"], caption=CAPTIONS["cp_claims"],
+        claims=shown_table(PATHS["cp_claims"], caption=CAPTIONS["cp_claims"],
                       category="{scene}", subcategory="couplings"),
         figure=report(PATHS["cp_figure"], caption=CAPTIONS["cp_figure"],
                       category="{scene}", subcategory="couplings"),

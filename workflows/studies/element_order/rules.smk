@@ -18,7 +18,7 @@ rule element_order_study:
 rule element_order_report:
     input: PATHS["eo_study"]
     output:
-        claims=report(PATHS["eo_claims"], caption=CAPTIONS["eo_claims"],
+        claims=shown_table(PATHS["eo_claims"], caption=CAPTIONS["eo_claims"],
                       category="{scene}", subcategory="P1 against P2"),
         figure=report(PATHS["eo_figure"], caption=CAPTIONS["eo_figure"],
                       category="{scene}", subcategory="P1 against P2")

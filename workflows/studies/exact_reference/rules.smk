@@ -17,9 +17,9 @@ rule exact_reference:
 rule exact_reference_report:
     input: PATHS["exact_runs"]
     output:
-        table=report(PATHS["exact_table"], caption=CAPTIONS["exact_table"],
+        table=shown_table(PATHS["exact_table"], caption=CAPTIONS["exact_table"],
             category="{scene}", subcategory="exact reference"),
-        claims=report(PATHS["exact_claims"], caption=CAPTIONS["exact_claims"],
+        claims=shown_table(PATHS["exact_claims"], caption=CAPTIONS["exact_claims"],
             category="{scene}", subcategory="exact reference"),
         figure=report(PATHS["exact_figure"], caption=CAPTIONS["exact_figure"],
                       category="{scene}", subcategory="exact reference")

@@ -22,7 +22,7 @@ rule friction_report:
         runs=PATHS["fr_runs"],
         profiles=PATHS["fr_profiles"]
     output:
-        claims=report(PATHS["fr_claims"], caption=CAPTIONS["fr_claims"],
+        claims=shown_table(PATHS["fr_claims"], caption=CAPTIONS["fr_claims"],
                       category="{scene}", subcategory="friction"),
         traction=report(PATHS["fr_traction"], caption=CAPTIONS["fr_traction"],
                         category="{scene}", subcategory="friction"),

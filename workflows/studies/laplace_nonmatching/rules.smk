@@ -19,7 +19,7 @@ rule laplace_summary:
     input: expand(PATHS["laplace_runs"], case=["sin10x", "linear"], side=["coarse", "fine"])
     output:
         errors=PATHS["laplace_errors"], by_side=PATHS["laplace_errors_by_side"],
-        rates=report(PATHS["laplace_rates"], caption=CAPTIONS["laplace_rates"],
+        rates=shown_table(PATHS["laplace_rates"], caption=CAPTIONS["laplace_rates"],
             category="laplace_nonmatching", subcategory="convergence")
     log: log_path("laplace_summary", "all")
     conda: ENV

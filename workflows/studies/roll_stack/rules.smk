@@ -26,11 +26,11 @@ rule roll_stack_report:
         runs=PATHS["roll_runs"], profiles=PATHS["roll_profiles"], contact=PATHS["roll_contact"],
         solvers=PATHS["roll_solver_runs"], vtu=lambda w: roll_fields(config, w.scene)
     output:
-        table=report(PATHS["roll_table"], caption=CAPTIONS["roll_table"],
+        table=shown_table(PATHS["roll_table"], caption=CAPTIONS["roll_table"],
                      category="{scene}", subcategory="roll stack"),
-        claims=report(PATHS["roll_claims"], caption=CAPTIONS["roll_claims"],
+        claims=shown_table(PATHS["roll_claims"], caption=CAPTIONS["roll_claims"],
                       category="{scene}", subcategory="roll stack"),
-        solver_table=report(PATHS["roll_solver_table"],
+        solver_table=shown_table(PATHS["roll_solver_table"],
                             caption=CAPTIONS["roll_solver_table"],
                             category="{scene}", subcategory="roll stack"),
         pressure=report(PATHS["roll_pressure"], caption=CAPTIONS["roll_pressure"],

@@ -29,14 +29,14 @@ rule solver_comparison_report:
         lambda w: expand(PATHS["solver_runs"], scene=w.scene,
                          level=scenes_of(config, "solver_comparison")[w.scene])
     output:
-        table=report(PATHS["solver_table"], caption=CAPTIONS["solver_table"],
+        table=shown_table(PATHS["solver_table"], caption=CAPTIONS["solver_table"],
             category="{scene}", subcategory="solver comparison"),
         presets=PATHS["solver_presets"],
         times=report(PATHS["solver_times"], caption=CAPTIONS["solver_times"],
                      category="{scene}", subcategory="solver comparison"),
         work=report(PATHS["solver_work"], caption=CAPTIONS["solver_work"],
                     category="{scene}", subcategory="solver comparison"),
-        costs=report(PATHS["solver_costs"], caption=CAPTIONS["solver_costs"],
+        costs=shown_table(PATHS["solver_costs"], caption=CAPTIONS["solver_costs"],
             category="{scene}", subcategory="solver comparison"),
         charts=report(chart_path(PATHS["solver_times"]),
                       caption=CAPTIONS["solver_times_chart"],
