@@ -542,8 +542,10 @@ class LoadPathRun:
         The verified answer that ends the run: the last Tresca solve of the last step,
         or the solve that did not verify. Its ``status`` is the run's: ``max_iter``
         (``failed_check`` ``coulomb_fixed_point``) if a step's Coulomb fixed point did not
-        converge in ``max_iter`` Tresca solves, ``failed`` (``gross_sliding``) if every row with a slip bound slips in
-        the last step.
+        converge in ``max_iter`` Tresca solves. A last step in which every row with a slip
+        bound slips (gross sliding: the prescribed tangential displacement has carried the
+        whole contact past ``mu P``) is a static equilibrium like any other, solved and
+        verified; its message says so.
     records : list of dict
         Per step run: ``step`` (from 1), ``load`` (``normal`` or ``tangential``),
         ``tresca_solves`` (the solver's runs in the step: Coulomb's fixed point
@@ -648,11 +650,11 @@ def run_load_path(qp: ContactQP, solve_step, tol: float, max_iter: int = 50,
                            f"s = mu p did not converge in {steps[short[0]].tresca_solves} "
                            f"Tresca solves; {res.message}")
         elif fr.mu > 0 and (states != "free").any() and not (states == "stick").any():
-            res.status, res.failed_check = "failed", "gross_sliding"
+            # under the prescribed displacement the fully sliding state is the (unique)
+            # static equilibrium: verified as any other, reported as the state it is
             res.message = ("gross sliding: every row with a friction bound slips in the "
-                           "last step (the tangential load has reached mu P, no static "
-                           f"partial slip is left); allowed: a smaller tangential load; "
-                           f"{res.message}")
+                           "last step (the prescribed tangential displacement carries the "
+                           f"whole contact at mu P); {res.message}")
     return LoadPathRun(steps=steps, qp=last["qp"], result=res, records=records)
 
 
