@@ -77,20 +77,25 @@ SOLVER_TESTS := tests/test_rounding.py tests/test_solvers.py tests/test_semismoo
 	tests/test_cli.py::test_every_solver_runs_through_the_cli
 
 # the tests spread over one process per core (pytest-xdist), a test file's tests in one
-# process (its fixtures built once), each process with one BLAS thread
+# process (its fixtures built once), each process with one BLAS thread; the solver tests
+# then once more in one process per other kernel, side by side, each running all of them
+# (`--dist each`; a failure names its process by the kernel)
 TEST_WORKERS ?= auto
-PYTEST := OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 MKL_NUM_THREADS=1 CONTACTBENCH_CHROMIUM=$(CHROMIUM) \
-	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadfile --no-loadscope-reorder
+ONE_THREAD := OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 MKL_NUM_THREADS=1
 
 test: setup browser petsc
-	$(PYTEST) --durations=10
+	$(ONE_THREAD) CONTACTBENCH_CHROMIUM=$(CHROMIUM) $(BIN)/python -m pytest -q -n $(TEST_WORKERS) \
+		--dist loadfile --no-loadscope-reorder --durations=10
 	@kernels="$$($(BIN)/python tests/blas_kernels.py)" || exit 1; \
-	set -- AVX2 COMPATIBLE; \
+	[ -n "$$kernels" ] || { echo "no other OpenBLAS kernel to run the solver tests under"; exit 0; }; \
+	set -- AVX2 COMPATIBLE; tx=""; \
 	for k in $$kernels; do \
 		cbwr="$${1:-COMPATIBLE}"; [ $$# -gt 0 ] && shift; \
-		echo "== the solver tests again under OPENBLAS_CORETYPE=$$k MKL_CBWR=$$cbwr"; \
-		OPENBLAS_CORETYPE=$$k MKL_CBWR=$$cbwr $(PYTEST) -p no:cacheprovider -m "not slow" $(SOLVER_TESTS) || exit 1; \
-	done
+		tx="$$tx --tx popen//id=$$k//env:OPENBLAS_CORETYPE=$$k//env:MKL_CBWR=$$cbwr"; \
+	done; \
+	echo "== the solver tests again under the OpenBLAS kernels $$kernels, side by side"; \
+	$(ONE_THREAD) $(BIN)/python -m pytest -q -p no:cacheprovider --dist each $$tx -m "not slow" \
+		$(SOLVER_TESTS)
 
 # pytest-benchmark history in .benchmarks/ (not committed): each run saved and compared
 # with the previous one

@@ -139,3 +139,17 @@ def test_blas_kernels_runs_on_this_machine():
     assert out.returncode == 0, out.stderr
     from blas_kernels import KERNELS
     assert set(out.stdout.split()) <= set(KERNELS)
+
+
+def test_the_blas_kernel_is_the_one_asked_for():
+    """Under ``OPENBLAS_CORETYPE`` (``make test``'s reruns of the solver tests) every
+    OpenBLAS in the process (numpy's and scipy's) runs that kernel: the reruns test what
+    they say they test."""
+    import os
+
+    from blas_kernels import own_kernels
+
+    asked = os.environ.get("OPENBLAS_CORETYPE")
+    if not asked:
+        pytest.skip("OPENBLAS_CORETYPE is not set: the machine's own kernel")
+    assert {k.lower() for k in own_kernels()} == {asked.lower()}
