@@ -76,11 +76,11 @@ SOLVER_TESTS := tests/test_rounding.py tests/test_solvers.py tests/test_semismoo
 	tests/test_hard_cases.py::test_tolerances_are_scale_free \
 	tests/test_cli.py::test_every_solver_runs_through_the_cli
 
-# the tests spread over one process per core (pytest-xdist), a test file's tests in one
+# the tests spread over one process per core (pytest-xdist; at most 8 by default), a test file's tests in one
 # process (its fixtures built once), each process with one BLAS thread; the solver tests
 # then once more in one process per other kernel, side by side, each running all of them
 # (`--dist each`; a failure names its process by the kernel)
-TEST_WORKERS ?= auto
+TEST_WORKERS ?= $(shell n=$$(nproc 2>/dev/null || echo 2); [ $$n -gt 8 ] && n=8; echo $$n)
 ONE_THREAD := OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 MKL_NUM_THREADS=1
 
 test: setup browser petsc
