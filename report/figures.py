@@ -6,8 +6,10 @@ A solver has the same colour and marker in every figure of the report
 (:func:`save_figure` adds it where the figure's own titles do not); a figure with
 nothing to draw says why instead of showing empty axes (:func:`nothing_to_draw`).
 :func:`save_figure` writes into the PNG's text chunks the titles, the number of drawn
-data artists and the number of empty panels (:data:`AUDIT_KEYS`), so that the figure
-audit (``tests/test_regeneration.py``) can check each figure without re-plotting it.
+data artists and the number of empty panels, and the figure audit's record
+(:mod:`report.figure_audit`: legends, labels, solver styles, the smallest font;
+:data:`AUDIT_KEYS`), so that the figure audit (``tests/test_regeneration.py``) can check
+each figure without re-plotting it.
 """
 from __future__ import annotations
 
@@ -20,6 +22,7 @@ import numpy as np
 from matplotlib.ticker import (FixedLocator, FuncFormatter, LogLocator,
                                NullFormatter)
 
+from report import figure_audit
 from workflows.io import atomic_path
 from workflows.studies import PATHS
 
@@ -43,7 +46,7 @@ THESIS_COLOR = "#b15928"
 PRESET_LINES = {"low": ":", "mid": "--", "high": "-"}
 #: PNG text chunks :func:`save_figure` writes for the figure audit.
 AUDIT_KEYS = ("Title", "contactbench:scene", "contactbench:data_artists",
-              "contactbench:empty_panels", "contactbench:nothing_to_draw")
+              "contactbench:empty_panels", "contactbench:nothing_to_draw", *figure_audit.KEYS)
 
 
 @lru_cache(maxsize=1)
@@ -122,7 +125,8 @@ def name_scene(fig, scene: str | None) -> None:
 def save_figure(fig, path: str, dpi: int = 130, scene: str | None = None) -> None:
     """Name the scene (``scene``, else read from ``path``), label every log axis sparsely
     (:func:`sparse_log_ticks`), tight layout, write the PNG atomically to ``path`` with
-    its audit text (:data:`AUDIT_KEYS`), close the figure."""
+    its audit text (:data:`AUDIT_KEYS`; :func:`report.figure_audit.record`), close the
+    figure."""
     scene = scene or scene_of(path)
     name_scene(fig, scene)
     panels = [ax for ax in fig.axes
@@ -137,6 +141,7 @@ def save_figure(fig, path: str, dpi: int = 130, scene: str | None = None) -> Non
             "contactbench:empty_panels": str(sum(1 for d in drawn if d == 0)),
             "contactbench:nothing_to_draw": getattr(fig, "nothing_to_draw", "")}
     fig.tight_layout()
+    meta.update(figure_audit.record(fig, dpi))
     with atomic_path(path) as tmp:
         fig.savefig(tmp, dpi=dpi, format="png", metadata=meta, bbox_inches="tight")
     plt.close(fig)
@@ -182,17 +187,23 @@ def legend_outside(ax, **kwargs) -> None:
                   borderaxespad=0.0, **{"fontsize": 7, **kwargs})
 
 
-def solver_legend(ax, solvers, lines=(), status: bool = True) -> None:
+def solver_legend(ax, solvers, lines=(), status: bool = True, axes=None) -> None:
     """One legend right of the axes, each encoding explained once: a solver by colour and
     marker, then ``lines`` (label, line keywords: a preset's or level's line style, a
-    guide), then filled = verified converged, hollow = not (``status``)."""
+    guide), then filled = verified converged, hollow = not (``status``). An entry with
+    nothing drawn behind it in ``axes`` (default: ``ax``; a line style no line of two
+    points shows, a fill no marker has) is left out
+    (:func:`report.figure_audit.entry_drawn`)."""
     from matplotlib.lines import Line2D
+    key = figure_audit.KEY_GREY
     handles = [Line2D([], [], ls="none", **solver_style(s), label=s) for s in solvers]
-    handles += [Line2D([], [], **{"color": "0.3", **kw}, label=label) for label, kw in lines]
+    handles += [Line2D([], [], **{"color": key, **kw}, label=label) for label, kw in lines]
     if status:
-        handles += [Line2D([], [], color="0.3", marker="o", ls="none",
+        handles += [Line2D([], [], color=key, marker="o", ls="none",
                            label="verified converged"),
-                    Line2D([], [], color="0.3", marker="o", mfc="none", ls="none",
+                    Line2D([], [], color=key, marker="o", mfc="none", ls="none",
                            label="not verified")]
-    ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0,
-              fontsize=7)
+    shown = [h for h in handles if figure_audit.entry_drawn(h, list(axes or [ax]))]
+    if shown:
+        ax.legend(handles=shown, loc="upper left", bbox_to_anchor=(1.01, 1.0),
+                  borderaxespad=0.0, fontsize=7)
