@@ -182,3 +182,26 @@ def test_the_saved_png_carries_every_problem_back(tmp_path):
     bare = tmp_path / "bare.png"
     plt.figure().savefig(bare)
     assert "no audit record" in audit.png_problems(bare)[0]
+
+
+def _one_size_runs():
+    import pandas as pd
+    return pd.DataFrame({"solver": ["osqp", "scs", "linear_floor"], "preset": "mid",
+                         "level": 0, "n": 8000, "total_time": [0.3, 0.9, 0.05],
+                         "energy_error": [1e-7, 1e-9, np.nan],
+                         "status": ["converged", "max_iter", "converged"]})
+
+
+def test_the_solver_figures_at_one_size_draw_points_and_say_so(tmp_path):
+    """One size: the times figure is a dot chart (no line, the floor a vertical line), the
+    work-precision's title no longer promises curves, and both pass the audit."""
+    from report import solver_comparison as sc
+    runs = _one_size_runs().assign(scene_problem="circle_square")
+    out = tmp_path / "results" / "circle_square"
+    times, work = out / "solver_times.png", out / "solver_error_vs_time.png"
+    sc.times_figure(sc.times_frame(runs), "circle_square", str(times))
+    sc.work_precision_figure(sc.work_frame(runs), "circle_square", str(work))
+    for path in (times, work):
+        assert audit.png_problems(path, {"circle_square"}) == [], path
+    assert "at one size, N = 8,000" in audit.png_text(times)[0]["Title"]
+    assert "one point per solver" in audit.png_text(work)[0]["Title"]
