@@ -28,10 +28,11 @@ from workflows.studies import PATHS
 
 #: The report's solver colours: the built-in solvers (sorted) take these in turn, then
 #: the report's other rows (:data:`EXTRA_SOLVERS`); colour and marker together tell
-#: every solver apart.
+#: every solver apart, and solvers whose markers look alike at a few pixels (a plus and
+#: a star, the hexagons) get colours of different hues.
 PALETTE = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2",
-           "#7f7f7f", "#bcbd22", "#17becf", "#393b79", "#8c6d31", "#637939", "#843c39",
-           "#7b4173", "#e7ba52")
+           "#7f7f7f", "#bcbd22", "#17becf", "#393b79", "#e7ba52", "#637939", "#843c39",
+           "#7b4173", "#8c6d31")
 #: One marker fewer than colours: the pair (colour, marker) repeats only after
 #: 16 x 15 solvers.
 MARKERS = ("o", "s", "^", "D", "v", "P", "X", "<", ">", "p", "h", "*", "d", "H", "8")
@@ -69,6 +70,19 @@ def solver_style(name: str) -> dict:
     order = solver_order()
     i = order.index(name) if name in order else len(order) + zlib.crc32(name.encode()) % 97
     return {"color": PALETTE[i % len(PALETTE)], "marker": MARKERS[i % len(MARKERS)]}
+
+
+def solver_shades(name: str, n: int) -> list[str]:
+    """``n`` colours for variants of one solver: its own colour first, then shades of it
+    alternately darker and lighter, so that the variants stay the solver's and are told
+    apart from each other."""
+    from matplotlib.colors import to_hex, to_rgb
+    base = np.array(to_rgb(solver_style(name)["color"]))
+    out = [to_hex(base)]
+    for k in range(1, n):
+        toward = np.zeros(3) if k % 2 else np.ones(3)
+        out.append(to_hex(base + (toward - base) * min(0.25 * ((k + 1) // 2), 0.6)))
+    return out
 
 
 def scene_of(path: str) -> str | None:
@@ -185,6 +199,15 @@ def legend_outside(ax, **kwargs) -> None:
     if handles:
         ax.legend(handles, labels, loc="upper left", bbox_to_anchor=(1.01, 1.0),
                   borderaxespad=0.0, **{"fontsize": 7, **kwargs})
+
+
+def legend_below(ax, ncol: int = 1, offset: float = 0.14, **kwargs) -> None:
+    """The axes' legend under the plot (below its x label, ``offset`` axes heights),
+    clear of the data, in ``ncol`` columns (nothing if no labels)."""
+    handles, labels = ax.get_legend_handles_labels()
+    if handles:
+        ax.legend(handles, labels, loc="upper center", bbox_to_anchor=(0.5, -offset),
+                  ncol=ncol, **{"fontsize": 7, **kwargs})
 
 
 def solver_legend(ax, solvers, lines=(), status: bool = True, axes=None) -> None:
