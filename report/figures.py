@@ -155,10 +155,25 @@ def save_figure(fig, path: str, dpi: int = 130, scene: str | None = None) -> Non
             "contactbench:empty_panels": str(sum(1 for d in drawn if d == 0)),
             "contactbench:nothing_to_draw": getattr(fig, "nothing_to_draw", "")}
     fig.tight_layout()
+    clear_suptitle(fig)
     meta.update(figure_audit.record(fig, dpi))
     with atomic_path(path) as tmp:
         fig.savefig(tmp, dpi=dpi, format="png", metadata=meta, bbox_inches="tight")
     plt.close(fig)
+
+
+def clear_suptitle(fig, pad: float = 6.0) -> None:
+    """Lower the panels until their titles clear the suptitle by ``pad`` pixels (a tall
+    figure's tight layout can leave them overlapping)."""
+    if fig._suptitle is None or not fig.axes:
+        return
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    bottom = fig._suptitle.get_window_extent(renderer).y0
+    top = max(ax.get_tightbbox(renderer).y1 for ax in fig.axes if ax.get_visible())
+    if top + pad > bottom:
+        shift = (top + pad - bottom) / fig.bbox.height
+        fig.subplots_adjust(top=fig.subplotpars.top - shift)
 
 
 def nothing_to_draw(path: str, title: str, reason: str, scene: str | None = None) -> None:
