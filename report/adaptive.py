@@ -648,9 +648,20 @@ def patch_table(runs: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
+#: Draw order and look of the patch test's couplings: the ones that transmit the uniform
+#: pressure exactly (mortar, two-pass) lie on one line, so the one drawn first is larger
+#: and hollow and the next one small, filled and dashed on top of it: both stay visible.
+PATCH_LOOK = {"nodal": dict(ms=4), "stabilised": dict(ms=4),
+              "mortar": dict(ms=8, mfc="none", lw=1.6, zorder=2.1),
+              "two_pass": dict(ms=3.5, ls="--", lw=0.9, zorder=2.2)}
+
+
 def patch_figure(runs: pd.DataFrame, pressure: pd.DataFrame, path: str) -> None:
-    """Nodal pressure / q along the interface at the finest level, per coupling and side."""
-    fig, axes = plt.subplots(1, 2, figsize=(11, 3.8))
+    """Nodal pressure / q along the interface at the finest level, per coupling and side
+    (each coupling in its colour and marker of the coupling study,
+    :data:`report.coupling.STYLE`, as :data:`PATCH_LOOK` draws it); the legend below."""
+    from report.coupling import STYLE
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.6))
     finest = pressure["level"].max()
     for ax, side in zip(axes, ("coarse", "fine")):
         for (coupling, s), g in pressure[(pressure.level == finest)
@@ -659,14 +670,17 @@ def patch_figure(runs: pd.DataFrame, pressure: pd.DataFrame, path: str) -> None:
             g = g.sort_values("x")
             r = runs[(runs.coupling == coupling) & (runs.constrained == side)
                      & (runs.level == finest)].iloc[0]
-            ax.plot(g["x"], g["pressure_over_q"], "o-", ms=3, lw=0.7,
+            fmt, color = STYLE.get(coupling, ("o-", "k"))
+            look = {"lw": 0.7, **PATCH_LOOK.get(coupling, {})}
+            ax.plot(g["x"], g["pressure_over_q"], fmt[0], color=color,
+                    **{"ls": "-", **look},
                     label=f"{coupling}: max |p/q - 1| = {r['dev_max']:.1e}")
-        ax.axhline(1.0, color="k", lw=0.6, ls="--")
+        ax.axhline(1.0, color="k", lw=0.6, ls=":", zorder=0)
         ax.set_xlabel("x")
         ax.set_ylabel("nodal pressure / q")
         ax.set_title(f"{side} side constrained, level {finest} (mesh ratio {r['ratio']})",
                      fontsize=8)
-        ax.legend(fontsize=7)
+        legend_below(ax, ncol=2, offset=0.16)
         ax.grid(alpha=0.3)
     save_figure(fig, path)
 

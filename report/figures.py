@@ -85,6 +85,14 @@ def solver_shades(name: str, n: int) -> list[str]:
     return out
 
 
+def drawable(fmt: str, x, y) -> str:
+    """The format string ``fmt`` without its line where ``(x, y)`` has fewer than two
+    finite points: a line through one point draws nothing, and its legend entry would
+    show a line that is not there."""
+    finite = np.isfinite(np.asarray(x, dtype=float)) & np.isfinite(np.asarray(y, dtype=float))
+    return fmt if finite.sum() > 1 else re.sub(r"--|-\.|-|:", "", fmt)
+
+
 def scene_of(path: str) -> str | None:
     """The scene a figure belongs to, read from its path against the workflow's path
     templates (``results/{scene}/...``); None for a figure across scenes."""
