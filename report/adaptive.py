@@ -365,7 +365,7 @@ def _surface_panel_3d(ax, vtu: str, title: str, whole: bool = False):
     ax.set_aspect("equal")
     ax.set_title(title, fontsize=8)
     _xy_labels(ax)
-    legend_below(ax, offset=0.12)
+    legend_below(ax)
 
 
 def figure_meshes(steps: pd.DataFrame, vtus: dict, surfaces: dict, path: str) -> None:
@@ -680,7 +680,7 @@ def patch_figure(runs: pd.DataFrame, pressure: pd.DataFrame, path: str) -> None:
         ax.set_ylabel("nodal pressure / q")
         ax.set_title(f"{side} side constrained, level {finest} (mesh ratio {r['ratio']})",
                      fontsize=8)
-        legend_below(ax, ncol=2, offset=0.16)
+        legend_below(ax, ncol=2)
         ax.grid(alpha=0.3)
     save_figure(fig, path)
 

@@ -230,7 +230,7 @@ def figure_tnnmg(study: pd.DataFrame, path: str) -> None:
     for ax in axes:
         ax.set_xlabel("nodes N")
         ax.grid(True, which="both", alpha=0.3)
-        legend_below(ax, offset=0.16)
+        legend_below(ax)
     axes[0].set_ylim(bottom=0)
     fig.suptitle("Truncated nonsmooth Newton multigrid against the linear multigrid-PCG "
                  "solve of the same system (exponents: least-squares fit of log-log)",

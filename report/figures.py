@@ -178,10 +178,12 @@ def clear_suptitle(fig, pad: float = 6.0) -> None:
     fig.canvas.draw()
     renderer = fig.canvas.get_renderer()
     bottom = fig._suptitle.get_window_extent(renderer).y0
-    top = max(ax.get_tightbbox(renderer).y1 for ax in fig.axes if ax.get_visible())
+    top = max(max(ax.bbox.y1, ax.title.get_window_extent(renderer).y1 if ax.get_title() else 0)
+              for ax in fig.axes if ax.get_visible())
     if top + pad > bottom:
         shift = (top + pad - bottom) / fig.bbox.height
-        fig.subplots_adjust(top=fig.subplotpars.top - shift)
+        pars = fig.subplotpars
+        fig.subplots_adjust(top=max(pars.top - shift, pars.bottom + 0.5 * (pars.top - pars.bottom)))
 
 
 def nothing_to_draw(path: str, title: str, reason: str, scene: str | None = None) -> None:
@@ -224,13 +226,21 @@ def legend_outside(ax, **kwargs) -> None:
                   borderaxespad=0.0, **{"fontsize": 7, **kwargs})
 
 
-def legend_below(ax, ncol: int = 1, offset: float = 0.14, **kwargs) -> None:
-    """The axes' legend under the plot (below its x label, ``offset`` axes heights),
-    clear of the data, in ``ncol`` columns (nothing if no labels)."""
+def legend_below(ax, ncol: int = 1, x: float = 0.5, **kwargs) -> None:
+    """The axes' legend under the plot, clear of the data: centred at ``x`` (axes
+    fraction) just below the x tick labels and the x label, whatever the axes' height, in
+    ``ncol`` columns (nothing if no labels)."""
+    from matplotlib.transforms import ScaledTranslation
     handles, labels = ax.get_legend_handles_labels()
-    if handles:
-        ax.legend(handles, labels, loc="upper center", bbox_to_anchor=(0.5, -offset),
-                  ncol=ncol, **{"fontsize": 7, **kwargs})
+    if not handles:
+        return
+    tick = max((t.get_fontsize() for t in ax.get_xticklabels()), default=10)
+    label = ax.xaxis.label
+    lines = label.get_text().count("\n") + 1 if label.get_text() else 0
+    drop = (tick * 1.4 + 8 + label.get_fontsize() * 1.25 * lines) / 72      # inches
+    below = ax.transAxes + ScaledTranslation(0, -drop, ax.figure.dpi_scale_trans)
+    ax.legend(handles, labels, loc="upper center", bbox_to_anchor=(x, 0), ncol=ncol,
+              bbox_transform=below, **{"fontsize": 7, **kwargs})
 
 
 def solver_legend(ax, solvers, lines=(), status: bool = True, axes=None) -> None:

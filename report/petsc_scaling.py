@@ -149,7 +149,7 @@ def figure(t: pd.DataFrame, scene: str, path: str) -> None:
         a.set_xlabel("MPI ranks r")
         a.set_title(f"{scene}: {title}", fontsize=10)
         a.grid(True, which="both", alpha=0.3)
-        legend_below(a, offset=0.16)
+        legend_below(a)
     save_figure(fig, path, scene=scene)
 
 
