@@ -189,7 +189,8 @@ def performance_profiles(profiles: pd.DataFrame, path: str) -> None:
         ax.grid(True, which="both", alpha=0.3)
     for ax in list(axes.flat)[len(panels):]:
         ax.set_visible(False)
-    solver_legend(axes.flat[0], sorted(profiles.solver.unique()), status=False)
+    solver_legend(axes.flat[0], sorted(profiles.solver.unique()), status=False,
+                  axes=list(axes.flat)[:len(panels)])
     fig.suptitle("Performance profiles (Dolan-Moré) per problem class: time at matched "
                  "accuracy (tolerance ladder), only verified runs count; the exact references "
                  "are the baseline, not profiled", fontsize=10)
@@ -274,7 +275,7 @@ def work_precision(work: pd.DataFrame, family: str, path: str) -> None:
         ax.set_xlabel("solver time (s)")
         ax.set_ylabel("energy error ||u - u_ref||_A / ||u_ref||_A")
         ax.grid(True, which="both", alpha=0.3)
-        solver_legend(axes[0][-1], sorted(g.solver.unique()))
+    solver_legend(axes[0][-1], sorted(g.solver.unique()), axes=list(axes[0]))
     fig.suptitle(f"Work-precision, family {family}: each solver's tolerance ladder along its "
                  "line (hollow: not verified)", fontsize=10)
     save_figure(fig, path, scene=family)
