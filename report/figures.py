@@ -249,7 +249,8 @@ def solver_legend(ax, solvers, lines=(), status: bool = True, axes=None) -> None
     guide), then filled = verified converged, hollow = not (``status``). An entry with
     nothing drawn behind it in ``axes`` (default: ``ax``; a line style no line of two
     points shows, a fill no marker has) is left out
-    (:func:`report.figure_audit.entry_drawn`)."""
+    (:func:`report.figure_audit.entry_drawn`). For several ``axes`` the legend is the
+    figure's, still placed right of ``ax``."""
     from matplotlib.lines import Line2D
     key = figure_audit.KEY_GREY
     handles = [Line2D([], [], ls="none", **solver_style(s), label=s) for s in solvers]
@@ -259,7 +260,12 @@ def solver_legend(ax, solvers, lines=(), status: bool = True, axes=None) -> None
                            label="verified converged"),
                     Line2D([], [], color=key, marker="o", mfc="none", ls="none",
                            label="not verified")]
-    shown = [h for h in handles if figure_audit.entry_drawn(h, list(axes or [ax]))]
-    if shown:
-        ax.legend(handles=shown, loc="upper left", bbox_to_anchor=(1.01, 1.0),
-                  borderaxespad=0.0, fontsize=7)
+    axes = list(axes or [ax])
+    shown = [h for h in handles if figure_audit.entry_drawn(h, axes)]
+    if not shown:
+        return
+    place = dict(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, fontsize=7)
+    if len(axes) > 1:
+        ax.figure.legend(handles=shown, bbox_transform=ax.transAxes, **place)
+    else:
+        ax.legend(handles=shown, **place)

@@ -205,3 +205,16 @@ def test_the_solver_figures_at_one_size_draw_points_and_say_so(tmp_path):
         assert audit.png_problems(path, {"circle_square"}) == [], path
     assert "at one size, N = 8,000" in audit.png_text(times)[0]["Title"]
     assert "one point per solver" in audit.png_text(work)[0]["Title"]
+
+
+def test_a_legend_of_several_panels_is_the_figures_and_lists_only_what_they_draw():
+    """solver_legend over several panels: a figure legend, its entries checked against
+    every panel; an encoding no panel draws (hollow: not verified) is left out."""
+    from report.figures import solver_legend
+    fig, (a, b) = plt.subplots(1, 2)
+    osqp = solver_style("osqp")
+    b.plot([1, 2], [1, 2], osqp["marker"], color=osqp["color"], ls="none")
+    solver_legend(a, ["osqp"], axes=[a, b])
+    assert a.get_legend() is None and len(fig.legends) == 1
+    assert [t.get_text() for t in fig.legends[0].get_texts()] == ["osqp", "verified converged"]
+    assert audit.undrawn_entries(fig) == []
