@@ -218,3 +218,13 @@ def test_a_legend_of_several_panels_is_the_figures_and_lists_only_what_they_draw
     assert a.get_legend() is None and len(fig.legends) == 1
     assert [t.get_text() for t in fig.legends[0].get_texts()] == ["osqp", "verified converged"]
     assert audit.undrawn_entries(fig) == []
+
+
+def test_a_lone_point_is_drawn_without_a_line_and_its_entry_passes():
+    from report.figures import drawable
+    assert drawable("s--", [1.0, np.nan], [2.0, 3.0]) == "s"
+    assert drawable("o-.", [1.0, 2.0], [2.0, 3.0]) == "o-."
+    fig, ax = _axes()
+    ax.plot([3.0], [1.0], drawable("o--", [3.0], [1.0]), label="one size")
+    ax.legend()
+    assert audit.undrawn_entries(fig) == []
