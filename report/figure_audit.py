@@ -73,26 +73,30 @@ def _finite(xy) -> np.ndarray:
 
 
 def _line_points(line) -> np.ndarray:
+    """The finite points (n x 2, data coordinates) a line draws."""
     x = np.asarray(line.get_xdata(orig=False), dtype=float).ravel()
     y = np.asarray(line.get_ydata(orig=False), dtype=float).ravel()
     return _finite(np.column_stack([x, y])) if len(x) == len(y) else np.empty((0, 2))
 
 
 def _visible(style) -> bool:
+    """True for a marker or line style that draws something."""
     return style not in (None, "", "None", "none", " ")
 
 
 def _same_colour(a, b) -> bool:
+    """True if two matplotlib colours are the same, transparency aside."""
     return np.allclose(to_rgba(a)[:3], to_rgba(b)[:3], atol=2e-3)
 
 
 def _dashes(line) -> tuple:
     """A line's dash pattern, independent of its width (``'-'`` and ``'solid'`` alike)."""
-    offset, seq = getattr(line, "_unscaled_dash_pattern", (0, None))
+    _offset, seq = getattr(line, "_unscaled_dash_pattern", (0, None))
     return tuple(np.round(seq, 3)) if seq else ()
 
 
 def _hollow(line) -> bool:
+    """True for a line whose markers are not filled."""
     mfc = line.get_markerfacecolor()
     return isinstance(mfc, str) and mfc.lower() == "none"
 
