@@ -45,7 +45,7 @@ import pandas as pd
 from matplotlib.tri import Triangulation
 
 from report.claims import Claim
-from report.figures import legend_below, legend_outside, save_figure
+from report.figures import COUPLING_STYLE, legend_below, legend_outside, save_figure
 from report.rates import fitted_slope
 from workflows.io import write_csv
 
@@ -659,8 +659,8 @@ PATCH_LOOK = {"nodal": dict(ms=4), "stabilised": dict(ms=4),
 def patch_figure(runs: pd.DataFrame, pressure: pd.DataFrame, path: str) -> None:
     """Nodal pressure / q along the interface at the finest level, per coupling and side
     (each coupling in its colour and marker of the coupling study,
-    :data:`report.coupling.STYLE`, as :data:`PATCH_LOOK` draws it); the legend below."""
-    from report.coupling import STYLE
+    :data:`report.figures.COUPLING_STYLE`, as :data:`PATCH_LOOK` draws it); the legend
+    below."""
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.6))
     finest = pressure["level"].max()
     for ax, side in zip(axes, ("coarse", "fine")):
@@ -670,7 +670,7 @@ def patch_figure(runs: pd.DataFrame, pressure: pd.DataFrame, path: str) -> None:
             g = g.sort_values("x")
             r = runs[(runs.coupling == coupling) & (runs.constrained == side)
                      & (runs.level == finest)].iloc[0]
-            fmt, color = STYLE.get(coupling, ("o-", "k"))
+            fmt, color = COUPLING_STYLE.get(coupling, ("o-", "k"))
             look = {"lw": 0.7, **PATCH_LOOK.get(coupling, {})}
             ax.plot(g["x"], g["pressure_over_q"], fmt[0], color=color,
                     **{"ls": "-", **look},

@@ -222,9 +222,13 @@ def _display_points(ax, step: float = 3.0) -> np.ndarray:
             pts.append(np.array([[box.x0, box.y0], [box.x1, box.y1], [box.x0, box.y1],
                                  [box.x1, box.y0], [(box.x0 + box.x1) / 2, (box.y0 + box.y1) / 2]]))
     xy = _finite(np.concatenate(pts)) if pts else np.empty((0, 2))
-    box = ax.get_window_extent()
-    inside = (xy[:, 0] >= box.x0) & (xy[:, 0] <= box.x1) & (xy[:, 1] >= box.y0) & (xy[:, 1] <= box.y1)
-    return xy[inside]
+    return xy[_within(xy, ax.get_window_extent())]
+
+
+def _within(xy: np.ndarray, box) -> np.ndarray:
+    """Which display points ``xy`` lie in the box ``box`` (edges included)."""
+    return ((xy[:, 0] >= box.x0) & (xy[:, 0] <= box.x1)
+            & (xy[:, 1] >= box.y0) & (xy[:, 1] <= box.y1))
 
 
 def _along(xy: np.ndarray, step: float) -> np.ndarray:
@@ -246,9 +250,7 @@ def covering_legends(fig) -> list[str]:
     for legend, axes in _legends(fig):
         box = legend.get_window_extent(renderer).padded(-1.0)
         for ax in axes:
-            xy = _display_points(ax)
-            hidden = int(((xy[:, 0] > box.x0) & (xy[:, 0] < box.x1)
-                          & (xy[:, 1] > box.y0) & (xy[:, 1] < box.y1)).sum())
+            hidden = int(_within(_display_points(ax), box).sum())
             if hidden:
                 out.append(f"the legend covers data of {_name(ax)} ({hidden} plotted points "
                            "under it)")

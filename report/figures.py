@@ -43,6 +43,10 @@ REFERENCE_STYLE = {"linear_floor": dict(color="k", marker="_"),
                    "reference": dict(color="k", marker="*")}
 #: The thesis's values wherever a figure overlays them (a colour no solver has).
 THESIS_COLOR = "#b15928"
+#: Format and colour per contact coupling, the same in the coupling study's figures and
+#: the patch test's.
+COUPLING_STYLE = {"nodal": ("o-", "C0"), "stabilised": ("s-", "C1"), "two_pass": ("v-", "C4"),
+                  "mortar": ("^-", "C2"), "mortar_dual": ("D-", "C3")}
 #: Line style per tolerance preset (a preset is a line style in every figure).
 PRESET_LINES = {"low": ":", "mid": "--", "high": "-"}
 #: PNG text chunks :func:`save_figure` writes for the figure audit.

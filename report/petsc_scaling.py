@@ -103,8 +103,9 @@ LEVEL_LINES = ("-", "--", "-.", ":")
 def figure(t: pd.DataFrame, scene: str, path: str) -> None:
     """Time and iterations against ranks, per level, with TNNMG's time beside; the
     parallel efficiency against ranks. Each solver in its colour and marker of every
-    figure, a level by its line style, the legends below the panels. Without a converged petsc_tao run (PETSc not
-    installed, every run stopped short) the image says why instead."""
+    figure, a level by its line style, the legends below the panels. Without a converged
+    petsc_tao run (PETSc not installed, every run stopped short) the image says why
+    instead."""
     p = _petsc(t)
     ok = p[p.status == "converged"]
     if not len(ok):
