@@ -45,7 +45,7 @@ import pandas as pd
 from matplotlib.tri import Triangulation
 
 from report.claims import Claim
-from report.figures import save_figure
+from report.figures import COUPLING_STYLE, legend_below, legend_outside, save_figure
 from report.rates import fitted_slope
 from workflows.io import write_csv
 
@@ -304,9 +304,10 @@ def _zone(surface: pd.DataFrame, dim: int):
 
 
 def _mesh_panel_2d(ax, vtu: str, surface: pd.DataFrame, title: str, zoom: float = 0.65,
-                   at: float = 0.0):
+                   at: float = 0.0, key: bool = False):
     """The mesh around ``at`` (in units of the contact width from the zone's centre),
-    half-width ``zoom`` contact widths, both surfaces' nodes marked."""
+    half-width ``zoom`` contact widths, both surfaces' nodes marked (their key right of
+    the panel where ``key``)."""
     pts, cells, body, _ = _read_vtu(vtu)
     c, width = _zone(surface, 2)
     half = zoom * width
@@ -322,7 +323,15 @@ def _mesh_panel_2d(ax, vtu: str, surface: pd.DataFrame, title: str, zoom: float 
     ax.set_ylim(c[1] - 0.45 * half, c[1] + 0.45 * half)
     ax.set_aspect("equal")
     ax.set_title(title, fontsize=8)
-    ax.legend(fontsize=6, loc="upper right")
+    _xy_labels(ax)
+    if key:
+        legend_outside(ax)
+
+
+def _xy_labels(ax) -> None:
+    """The coordinates' labels of a mesh panel (the scenes are dimensionless)."""
+    ax.set_xlabel("x", fontsize=8)
+    ax.set_ylabel("y", fontsize=8)
 
 
 def _surface_panel_3d(ax, vtu: str, title: str, whole: bool = False):
@@ -344,13 +353,19 @@ def _surface_panel_3d(ax, vtu: str, title: str, whole: bool = False):
         sel = f[facing & near & inside]
         if b == cb:
             tri = Triangulation(pts[:, 0], pts[:, 1], sel)
-            ax.tripcolor(tri, pressure, shading="gouraud", cmap="Greys", alpha=0.6)
-        ax.triplot(Triangulation(pts[:, 0], pts[:, 1], sel), color=color, lw=lw)
+            shade = ax.tripcolor(tri, pressure, shading="gouraud", cmap="Greys", alpha=0.6)
+            ax.figure.colorbar(shade, ax=ax, fraction=0.046, pad=0.02).set_label(
+                "contact pressure (nodal)", fontsize=8)
+        ax.triplot(Triangulation(pts[:, 0], pts[:, 1], sel), color=color, lw=lw,
+                   label="constrained surface (shaded by pressure)" if b == cb
+                   else "opposing surface facets")
     if not whole:
         ax.set_xlim(c[0] - size, c[0] + size)
         ax.set_ylim(c[1] - size, c[1] + size)
     ax.set_aspect("equal")
     ax.set_title(title, fontsize=8)
+    _xy_labels(ax)
+    legend_below(ax)
 
 
 def figure_meshes(steps: pd.DataFrame, vtus: dict, surfaces: dict, path: str) -> None:
@@ -359,9 +374,11 @@ def figure_meshes(steps: pd.DataFrame, vtus: dict, surfaces: dict, path: str) ->
     off, both surfaces' nodes marked; 3D: both surfaces from above)."""
     variants = list(vtus)
     dim = 3 if _read_vtu(next(iter(vtus.values())))[1].shape[1] == 4 else 2
-    rows = 2 if dim == 2 else 1
-    fig, axes = plt.subplots(rows, len(variants), figsize=(5.8 * len(variants), 3.6 * rows + 0.6),
+    rows = len(variants) if dim == 2 else -(-len(variants) // 2)
+    cols = 2 if dim == 2 else min(len(variants), 2)
+    fig, axes = plt.subplots(rows, cols, figsize=(5.6 * cols, (2.9 if dim == 2 else 5.4) * rows),
                              squeeze=False)
+    panels = list(axes.flat)
     for j, v in enumerate(variants):
         last = steps[steps.variant == v].sort_values("step").iloc[-1]
         title = (f"{v}: N = {int(last['N'])}, N^C = {int(last['NC'])}; contact zone: "
@@ -371,12 +388,13 @@ def figure_meshes(steps: pd.DataFrame, vtus: dict, surfaces: dict, path: str) ->
                  f"{last.get('h_zone_opposing', np.nan) / last.get('h_zone_constrained', np.nan):.2f}")
         if dim == 2:
             surface = pd.read_csv(surfaces[v])
-            _mesh_panel_2d(axes[0, j], vtus[v], surface, title)
-            _mesh_panel_2d(axes[1, j], vtus[v], surface, "close-up: the left end of the contact "
-                           "zone (take-off)", zoom=0.12, at=-0.5)
+            _mesh_panel_2d(axes[j, 0], vtus[v], surface, title)
+            _mesh_panel_2d(axes[j, 1], vtus[v], surface, f"{v}, close-up: the left end of the "
+                           "contact zone (take-off)", zoom=0.12, at=-0.5, key=j == 0)
         else:
-            _surface_panel_3d(axes[0, j], vtus[v], title + "\nconstrained surface (black, "
-                              "coloured by pressure), opposing facets (red)")
+            _surface_panel_3d(panels[j], vtus[v], title)
+    for ax in panels[len(variants) if dim == 3 else len(panels):]:
+        ax.set_visible(False)
     figs = {"eta1": "Fig. 7.3: eta_1", "eta1+eta2": "Fig. 7.4: eta_1 + eta_2",
             "stabilised": "Fig. 7.5: stabilised (7.10), eta_1"}
     fig.suptitle("Meshes near the contact ("
@@ -394,14 +412,20 @@ def figure_snapshot(vtu: str, steps: pd.DataFrame, path: str, variant: str = TAB
     if cells.shape[1] == 3:
         fig, axes = plt.subplots(1, 2, figsize=(11, 5.2))
         tri = Triangulation(pts[:, 0], pts[:, 1], cells)
+        on = pressure > 0
         for ax, zoom in zip(axes, (None, 0.25)):
             ax.triplot(tri, color="0.3", lw=0.2 if zoom is None else 0.35)
             if zoom is not None:
-                on = pressure > 0
                 c = pts[on].mean(axis=0) if on.any() else pts.mean(axis=0)
                 ax.set_xlim(c[0] - zoom, c[0] + zoom)
                 ax.set_ylim(c[1] - zoom, c[1] + zoom)
             ax.set_aspect("equal")
+            _xy_labels(ax)
+        if on.any():
+            nodes = axes[1].scatter(pts[on, 0], pts[on, 1], c=pressure[on], cmap="viridis",
+                                    s=14, zorder=3)
+            fig.colorbar(nodes, ax=axes[1], fraction=0.046, pad=0.02).set_label(
+                "contact pressure at the nodes in contact", fontsize=8)
         axes[0].set_title(f"Adaptive mesh (Fig. 9.4): {label}", fontsize=8)
         axes[1].set_title("near the contact", fontsize=8)
     else:
@@ -429,20 +453,20 @@ def figure_eta(steps: pd.DataFrame, path: str) -> None:
     save_figure(fig, path)
 
 
-def _error_panels(runs: pd.DataFrame) -> list[tuple[str, list[tuple[str, str]]]]:
-    """The accuracy panels with something to draw: (title, [(column, name), ...]) each;
-    the energy-error panel is its own case (:func:`_energy_panel`)."""
+def _error_panels(runs: pd.DataFrame) -> list[tuple[str, str, list[tuple[str, str]]]]:
+    """The accuracy panels with something to draw: (title, y label, [(column, name), ...])
+    each; the energy-error panel is its own case (:func:`_energy_panel`)."""
     force_col, force_title = "err_force", "contact force: |P_h - P_ref| / P_ref"
     if "err_force" not in runs or not runs["err_force"].notna().any():
         force_col = "force_dev"
         force_title = ("contact force against the finest mesh's (no reference): "
                        "|P_h / P_finest - 1|")
-    panels = [(force_title, [(force_col, "force")]),
+    panels = [(force_title, "relative force error", [(force_col, "force")]),
               ("Hertz deviation |a/a_H - 1| (solid), |p0/p0_H - 1| (dashed)",
-               [("dev_a_moment", "a"), ("dev_p0_moment", "p0")]),
+               "relative deviation from Hertz", [("dev_a_moment", "a"), ("dev_p0_moment", "p0")]),
               ("nodal pressure / p0_H: zig-zag rms (solid), rms deviation from Hertz (dashed)",
-               [("zigzag_rms", "zig-zag"), ("dev_hertz_rms", "rms from Hertz")])]
-    return [(title, cols) for title, cols in panels
+               "rms / p0_H", [("zigzag_rms", "zig-zag"), ("dev_hertz_rms", "rms from Hertz")])]
+    return [(title, ylabel, cols) for title, ylabel, cols in panels
             if any(col in runs and runs[col].notna().any() for col, _ in cols)]
 
 
@@ -470,7 +494,8 @@ def _energy_panel(ax, runs: pd.DataFrame, accuracy: pd.DataFrame) -> None:
     ax.set_title("energy error ||u_ref - u_h||_A / ||u_ref||_A (solid);\n"
                  f"dotted: with the reference's own error {e_ref:.3f} (orthogonality)",
                  fontsize=8)
-    ax.legend(fontsize=6)
+    ax.set_ylabel("relative energy error")
+    ax.legend(fontsize=7)
 
 
 def figure_error(steps: pd.DataFrame, accuracy: pd.DataFrame, path: str) -> None:
@@ -488,13 +513,15 @@ def figure_error(steps: pd.DataFrame, accuracy: pd.DataFrame, path: str) -> None
     n = len(panels) + energy
     if n == 0:
         raise ValueError("figure_error: no accuracy quantity measured in the steps")
-    shape = (2, 2) if n == 4 else (1, n)
-    fig, axes = plt.subplots(*shape, figsize=(11, 8) if n == 4 else (5.2 * n, 4.4),
+    cols = min(n, 2)
+    fig, axes = plt.subplots(-(-n // cols), cols, figsize=(5.5 * cols, 4.0 * -(-n // cols)),
                              squeeze=False)
     axes = list(axes.ravel())
+    for ax in axes[n:]:
+        ax.set_visible(False)
     if energy:
         _energy_panel(axes.pop(0), runs, accuracy)
-    for ax, (title, cols) in zip(axes, panels):
+    for ax, (title, ylabel, cols) in zip(axes, panels):
         for variant, grp in runs.groupby("variant", sort=False):
             g = grp.sort_values("N")
             color, marker, _ = _style(variant)
@@ -506,7 +533,8 @@ def figure_error(steps: pd.DataFrame, accuracy: pd.DataFrame, path: str) -> None
                               ls=ls, ms=3, label=None if labelled else variant)
                     labelled = True
         ax.set_title(title, fontsize=8)
-        ax.legend(fontsize=6)
+        ax.set_ylabel(ylabel)
+        ax.legend(fontsize=7)
     for ax in fig.axes:
         ax.set_xlabel("nodes N")
         ax.grid(True, which="both", alpha=0.3)
@@ -515,7 +543,7 @@ def figure_error(steps: pd.DataFrame, accuracy: pd.DataFrame, path: str) -> None
 
 def figure_pressure(steps: pd.DataFrame, surfaces: dict, path: str) -> None:
     """Each variant's nodal contact pressure at its last step against Hertz."""
-    fig, axes = plt.subplots(1, len(surfaces), figsize=(5.4 * len(surfaces), 3.9), squeeze=False)
+    fig, axes = plt.subplots(1, len(surfaces), figsize=(4.1 * len(surfaces), 3.9), squeeze=False)
     for ax, (variant, f) in zip(axes[0], surfaces.items()):
         s = pd.read_csv(f)
         dim = 3 if "x2" in s else 2
@@ -537,11 +565,12 @@ def figure_pressure(steps: pd.DataFrame, surfaces: dict, path: str) -> None:
                 label="Hertz for the measured force")
         ax.set_xlabel("x / a_H" if dim == 2 else "r / a_H")
         ax.set_ylabel("p / p0_H")
-        ax.set_title(f"{variant}: N = {int(last['N'])}, zig-zag rms "
-                     f"{last.get('zigzag_rms', np.nan):.3f} p0, rms from Hertz "
-                     f"{last.get('dev_hertz_rms', np.nan):.3f} p0", fontsize=7)
+        measured = [f"{name} {last.get(col, np.nan):.3f} p0" for col, name in
+                     (("zigzag_rms", "zig-zag rms"), ("dev_hertz_rms", "rms from Hertz"))
+                     if np.isfinite(last.get(col, np.nan))]
+        ax.set_title(", ".join([f"{variant}: N = {int(last['N'])}", *measured]), fontsize=7)
         ax.grid(alpha=0.3)
-        ax.legend(fontsize=6)
+        ax.legend(fontsize=7)
     save_figure(fig, path)
 
 
@@ -622,9 +651,20 @@ def patch_table(runs: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
+#: Draw order and look of the patch test's couplings: the ones that transmit the uniform
+#: pressure exactly (mortar, two-pass) lie on one line, so the one drawn first is larger
+#: and hollow and the next one small, filled and dashed on top of it: both stay visible.
+PATCH_LOOK = {"nodal": dict(ms=4), "stabilised": dict(ms=4),
+              "mortar": dict(ms=8, mfc="none", lw=1.6, zorder=2.1),
+              "two_pass": dict(ms=3.5, ls="--", lw=0.9, zorder=2.2)}
+
+
 def patch_figure(runs: pd.DataFrame, pressure: pd.DataFrame, path: str) -> None:
-    """Nodal pressure / q along the interface at the finest level, per coupling and side."""
-    fig, axes = plt.subplots(1, 2, figsize=(11, 3.8))
+    """Nodal pressure / q along the interface at the finest level, per coupling and side
+    (each coupling in its colour and marker of the coupling study,
+    :data:`report.figures.COUPLING_STYLE`, as :data:`PATCH_LOOK` draws it); the legend
+    below."""
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.6))
     finest = pressure["level"].max()
     for ax, side in zip(axes, ("coarse", "fine")):
         for (coupling, s), g in pressure[(pressure.level == finest)
@@ -633,14 +673,17 @@ def patch_figure(runs: pd.DataFrame, pressure: pd.DataFrame, path: str) -> None:
             g = g.sort_values("x")
             r = runs[(runs.coupling == coupling) & (runs.constrained == side)
                      & (runs.level == finest)].iloc[0]
-            ax.plot(g["x"], g["pressure_over_q"], "o-", ms=3, lw=0.7,
+            fmt, color = COUPLING_STYLE.get(coupling, ("o-", "k"))
+            look = {"lw": 0.7, **PATCH_LOOK.get(coupling, {})}
+            ax.plot(g["x"], g["pressure_over_q"], fmt[0], color=color,
+                    **{"ls": "-", **look},
                     label=f"{coupling}: max |p/q - 1| = {r['dev_max']:.1e}")
-        ax.axhline(1.0, color="k", lw=0.6, ls="--")
+        ax.axhline(1.0, color="k", lw=0.6, ls=":", zorder=0)
         ax.set_xlabel("x")
         ax.set_ylabel("nodal pressure / q")
         ax.set_title(f"{side} side constrained, level {finest} (mesh ratio {r['ratio']})",
                      fontsize=8)
-        ax.legend(fontsize=7)
+        legend_below(ax, ncol=2)
         ax.grid(alpha=0.3)
     save_figure(fig, path)
 

@@ -18,7 +18,8 @@ import numpy as np
 import pandas as pd
 
 from report.claims import Claim
-from report.figures import THESIS_COLOR, legend_outside, save_figure, solver_style
+from report.figures import (THESIS_COLOR, legend_below, save_figure, solver_shades,
+                            solver_style)
 from report.rates import fitted_slope as slope
 from workflows.io import read_csv, write_csv
 
@@ -205,21 +206,22 @@ def figure_tnnmg(study: pd.DataFrame, path: str) -> None:
     """TNNMG against the linear floor level by level: steps to the energy-error target,
     time to it (coarse levels included) and peak memory against N, with the fitted
     exponents."""
-    fig, axes = plt.subplots(1, 3, figsize=(13, 4.2))
-    lines = [("tnnmg", "v-", "TNNMG from zero"),
-             ("tnnmg_nested", "^--", "TNNMG, nested iteration"),
-             (FLOOR, "k:", "multigrid-PCG, no contact (floor)")]
+    fig, axes = plt.subplots(1, 3, figsize=(12.5, 4.6))
+    tnnmg = solver_style("tnnmg")
+    lines = [("tnnmg", dict(**tnnmg, ls="-"), "TNNMG from zero"),
+             ("tnnmg_nested", dict(**tnnmg, ls="--", mfc="none"), "TNNMG, nested iteration"),
+             (FLOOR, dict(color="k", ls=":"), "multigrid-PCG, no contact (floor)")]
     for config, style, label in lines:
         grp = study[(study.config == config) & (study["n_to_target"] > 0)].sort_values("N")
         if not len(grp):
             continue
-        axes[0].semilogx(grp["N"], grp["n_to_target"], style, ms=5, label=label)
+        axes[0].semilogx(grp["N"], grp["n_to_target"], ms=5, label=label, **style)
         t = time_to_target(grp)
-        axes[1].loglog(grp["N"], t, style, ms=5,
-                       label=f"{label}, exponent {slope(grp['N'], t):.2f}")
+        axes[1].loglog(grp["N"], t, ms=5,
+                       label=f"{label}, exponent {slope(grp['N'], t):.2f}", **style)
         mem = _memory(study, config)
         if len(mem):
-            axes[2].loglog(mem["N"], mem["mem_mb"], style, ms=5,
+            axes[2].loglog(mem["N"], mem["mem_mb"], ms=5, **style,
                            label=f"{label}, exponent {slope(mem['N'], mem['mem_mb']):.2f}")
     n = np.array([study["N"].min(), study["N"].max()], float)
     floor = study[(study.config == FLOOR) & (study["n_to_target"] > 0)].sort_values("N")
@@ -227,13 +229,12 @@ def figure_tnnmg(study: pd.DataFrame, path: str) -> None:
         t0 = float(time_to_target(floor).iloc[0])
         axes[1].loglog(n, t0 * n / n[0], color="0.6", lw=1, label="slope 1 guide")
     axes[0].set_ylabel("steps to the energy-error target")
-    axes[1].set_ylabel("time to the target, setup and coarse levels incl. [s]")
-    axes[2].set_ylabel("peak memory: input + traced peak of the solve [MB]")
+    axes[1].set_ylabel("time to the target [s]\n(setup and coarse levels included)")
+    axes[2].set_ylabel("peak memory [MB]\n(input + traced peak of the solve)")
     for ax in axes:
         ax.set_xlabel("nodes N")
         ax.grid(True, which="both", alpha=0.3)
-        if ax.get_legend_handles_labels()[0]:
-            ax.legend(fontsize=7)
+        legend_below(ax)
     axes[0].set_ylim(bottom=0)
     fig.suptitle("Truncated nonsmooth Newton multigrid against the linear multigrid-PCG "
                  "solve of the same system (exponents: least-squares fit of log-log)",
@@ -241,27 +242,49 @@ def figure_tnnmg(study: pd.DataFrame, path: str) -> None:
     save_figure(fig, path)
 
 
+def _time_series(config: str, grp: pd.DataFrame, variants: list[str]) -> tuple:
+    """One configuration's curve of the time figure: (times, plot keywords, label). A
+    solver's rows wear its colour and marker (:func:`report.figures.solver_style`); the
+    configurations of Alg. 8.4 the shades of ``augmented_projection``'s colour
+    (:func:`report.figures.solver_shades`: ``variants`` in order, :data:`MAIN` first), each
+    with its own line style; the linear floors black."""
+    if config.startswith("amg_pcg"):
+        return (time_to_target(grp), dict(color="k", ls=":" if config.endswith("gmg") else "-."),
+                f"{config} (linear solve, no contact; floor)")
+    if config in TNNMG_ROWS:
+        style = solver_style("tnnmg")
+        nested = config != "tnnmg"
+        return (time_to_target(grp), dict(**style, ls="--" if nested else "-",
+                                          mfc="none" if nested else style["color"]),
+                f"{config} (TNNMG, not Alg. 8.4; time to the target)")
+    if config in NOT_VARIANTS:
+        return (grp["t_setup"] + grp["t_solve"], dict(**solver_style(config), ls="-."),
+                f"{config} (not Alg. 8.4; to its certified stop at the target)")
+    coarse = grp["t_coarse_levels"].fillna(0.0) if "t_coarse_levels" in grp else 0.0
+    k = variants.index(config)
+    colour = solver_shades("augmented_projection", len(variants))[k]
+    return (grp["t_setup"] + grp["t_solve"] + coarse,
+            dict(color=colour, marker=solver_style("augmented_projection")["marker"],
+                 ls=VARIANT_LINES[k % len(VARIANT_LINES)], mfc=colour if k == 0 else "none"),
+            config)
+
+
+#: Line styles of Alg. 8.4's configurations in the time figure (the main one solid).
+VARIANT_LINES = ("-", "--", "-.", ":")
+
+
 def figure_time(study: pd.DataFrame, thesis: pd.DataFrame | None, path: str) -> None:
     """T_solve against N (log-log; Figs. 9.1, 9.6): our configurations, the multigrid-PCG
-    floor, the thesis."""
-    fig, ax = plt.subplots(figsize=(11.5, 4.8))
-    for config, grp in study[study.config != "reference"].groupby("config"):
+    floor, the thesis; the legend below the axes."""
+    fig, ax = plt.subplots(figsize=(9, 5.6))
+    rows = study[study.config != "reference"]
+    configs = sorted(rows.config.unique())
+    variants = [MAIN] + [c for c in configs if c != MAIN and c not in NOT_VARIANTS
+                         and not c.startswith("amg_pcg")]
+    for config, grp in rows.groupby("config"):
         grp = grp.sort_values("N")
-        if config.startswith("amg_pcg"):
-            t, style = time_to_target(grp), "k:" if config.endswith("gmg") else "k-."
-            label = f"{config} (linear solve, no contact; floor)"
-        elif config in TNNMG_ROWS:
-            t, style = time_to_target(grp), "v-" if config == "tnnmg" else "v--"
-            label = f"{config} (TNNMG, not Alg. 8.4; time to the target)"
-        elif config in NOT_VARIANTS:
-            t, style = grp["t_setup"] + grp["t_solve"], "d-."
-            label = f"{config} (not Alg. 8.4; to its certified stop at the target)"
-        else:
-            coarse = grp["t_coarse_levels"].fillna(0.0) if "t_coarse_levels" in grp else 0.0
-            t, style = grp["t_setup"] + grp["t_solve"] + coarse, "o-" if config == MAIN else "s--"
-            label = f"{config}"
-        ax.loglog(grp["N"], t, style, ms=4, label=f"{label}, slope {slope(grp['N'], t):.2f}",
-                  **_solver_color(config))
+        t, kw, label = _time_series(config, grp, variants)
+        ax.loglog(grp["N"], t, ms=4, label=f"{label}, slope {slope(grp['N'], t):.2f}", **kw)
     if thesis is not None:
         col = next(c for c in thesis.columns if c.startswith("t_solve"))
         ax.loglog(thesis["nodes"], thesis[col], "^-", color=THESIS_COLOR, ms=5,
@@ -272,23 +295,12 @@ def figure_time(study: pd.DataFrame, thesis: pd.DataFrame | None, path: str) -> 
         t0 = float((main["t_setup"] + main["t_solve"]).iloc[0])
         ax.loglog(n, t0 * n / n[0], color="0.6", lw=1, label="slope 1 guide")
     ax.set_xlabel("nodes N")
-    ax.set_ylabel("T_solve incl. setup [s] (floor: time to the same energy error)")
+    ax.set_ylabel("T_solve incl. setup [s]\n(floor: time to the same energy error)")
     ax.set_title("Solve time against N (Figs. 9.1/9.6; slopes over the finest three levels; "
                  "thesis on its 1999 machine)", fontsize=8)
     ax.grid(True, which="both", alpha=0.3)
-    legend_outside(ax, fontsize=6)
+    legend_below(ax, ncol=2)
     save_figure(fig, path)
-
-
-def _solver_color(config: str) -> dict:
-    """The report's colour of the solver behind a configuration: Alg. 8.4's
-    configurations are ``augmented_projection``, TNNMG's ``tnnmg``, the other solvers
-    their own; the linear floors keep their black line styles."""
-    if config.startswith("amg_pcg"):
-        return {}
-    solver = ("tnnmg" if config in TNNMG_ROWS else config if config in NOT_VARIANTS
-              else "augmented_projection")
-    return {"color": solver_style(solver)["color"]}
 
 
 def figure_kappa(study: pd.DataFrame, thesis: pd.DataFrame | None, path: str) -> None:

@@ -36,10 +36,31 @@ SCRIPTS = ("vega/vega.js", "vega-lite/vega-lite.js", "vega-embed/vega-embed.js")
 #: The PATHS keys of the figures that have an interactive chart beside them (the page's
 #: path is the PNG's with ``.html``: :func:`chart_path`).
 CHARTED = ("solver_profiles", "solver_times")
-#: A matplotlib marker (report.figures.MARKERS) as a Vega-Lite point shape.
+
+
+def _polygon(corners: int, start: float = 90.0, inner: float | None = None,
+             squash: float = 1.0) -> str:
+    """A Vega-Lite custom shape: a regular polygon (a star where ``inner`` gives the
+    radius of its inner corners) as an SVG path in the unit square, the first corner at
+    ``start`` degrees, x scaled by ``squash``."""
+    radii = [1.0] if inner is None else [1.0, inner]
+    steps = corners * len(radii)
+    points = []
+    for k in range(steps):
+        a = np.radians(start + 360.0 * k / steps)
+        r = radii[k % len(radii)]
+        points.append(f"{squash * r * np.cos(a):.3f},{-r * np.sin(a):.3f}")
+    return "M" + "L".join(points) + "Z"
+
+
+#: A matplotlib marker (report.figures.MARKERS) as a Vega-Lite point shape, one shape a
+#: marker: Vega-Lite's own where it has one, an SVG path of matplotlib's where not.
 SHAPES = {"o": "circle", "s": "square", "^": "triangle-up", "D": "diamond",
-          "v": "triangle-down", "P": "cross", "X": "cross", "<": "triangle-left",
-          ">": "triangle-right", "p": "diamond", "h": "circle", "*": "cross", "d": "diamond",
+          "v": "triangle-down", "P": "cross", "<": "triangle-left", ">": "triangle-right",
+          "X": "M-1,-0.6L-0.6,-1L0,-0.4L0.6,-1L1,-0.6L0.4,0L1,0.6L0.6,1L0,0.4L-0.6,1L-1,0.6"
+               "L-0.4,0Z",
+          "p": _polygon(5), "h": _polygon(6), "H": _polygon(6, start=0.0),
+          "*": _polygon(5, inner=0.4), "d": _polygon(4, squash=0.6), "8": _polygon(8, 22.5),
           "_": "stroke"}
 #: A preset's line style (report.figures.PRESET_LINES) as a Vega-Lite stroke dash.
 DASHES = {"-": [1, 0], "--": [6, 3], ":": [2, 2]}

@@ -21,7 +21,7 @@ import pandas as pd
 from matplotlib.tri import Triangulation
 
 from report.claims import Claim
-from report.figures import save_figure
+from report.figures import legend_below, save_figure
 from workflows.io import read_checked, read_csv, write_csv
 
 
@@ -142,6 +142,7 @@ def fields_figure(vtu: str, path: str, magnify: float = 1.0) -> None:
     ax.set_title(f"von Mises stress near the contact\n(deformed, true scale; "
                  f"{int(loaded.sum())} loaded nodes)", fontsize=9)
     ax.set_xlabel(labels[0])
+    ax.set_ylabel(labels[1])
     fig.colorbar(im, ax=ax, label="von Mises stress (units of the scene's E)")
     save_figure(fig, path)
 
@@ -275,9 +276,10 @@ def surface_figure(vtu: str, path: str) -> None:
         ax.set_xlim(c[0] - size, c[0] + size)
         ax.set_yticks([0, 1], ["constrained", "opposing"])
         ax.set_xlabel("x")
+        ax.set_ylabel("surface")
         ax.set_title("Nodes of both contact surfaces near the contact: opposing nodes between "
                      "constrained ones 'hang' (Sect. 7.4)", fontsize=8)
-        ax.legend(fontsize=7, loc="upper right")
+        legend_below(ax, ncol=3)
     save_figure(fig, path)
 
 

@@ -54,7 +54,7 @@ import numpy as np
 import pandas as pd
 
 from report.claims import COLUMNS, Claim
-from report.figures import save_figure
+from report.figures import COUPLING_STYLE, drawable, save_figure
 from report.rates import fitted_slope
 from workflows.io import read_csv, write_csv
 
@@ -72,9 +72,8 @@ MORTAR = ("mortar", "mortar_dual")
 #: Where the optimal slopes end: this factor below the smallest error of their order (so
 #: that they run beside the measured lines, not on them).
 SLOPE_BELOW = 0.7
-#: Marker and colour per coupling in the figures.
-STYLE = {"nodal": ("o-", "C0"), "stabilised": ("s-", "C1"), "two_pass": ("v-", "C4"),
-         "mortar": ("^-", "C2"), "mortar_dual": ("D-", "C3")}
+#: Marker and colour per coupling in the figures (shared with the patch test's).
+STYLE = COUPLING_STYLE
 
 CLAIMS = {
     "converged": Claim("suite bar (every compared solve must count)",
@@ -212,8 +211,12 @@ def _style(coupling: str, order: int) -> dict:
 
 
 def _plot(plot, x, y, coupling: str, order: int, label: str) -> None:
+    """One coupling's curve in its style (:func:`_style`; a lone point without a line,
+    nothing, and no legend entry, without a finite point)."""
+    if not (np.isfinite(np.asarray(x, float)) & np.isfinite(np.asarray(y, float))).any():
+        return
     kw = _style(coupling, order)
-    plot(x, y, kw.pop("fmt"), label=label, **kw)
+    plot(x, y, drawable(kw.pop("fmt"), x, y), label=label, **kw)
 
 
 def figure(t: pd.DataFrame, path: str) -> None:

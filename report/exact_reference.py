@@ -19,7 +19,7 @@ import numpy as np
 import pandas as pd
 
 from report.claims import Claim
-from report.figures import legend_outside, save_figure
+from report.figures import drawable, legend_outside, save_figure
 from report.rates import fitted_slope
 from workflows.io import read_csv, write_csv
 
@@ -87,11 +87,13 @@ def figure(table: pd.DataFrame, path: str) -> None:
         ok = np.isfinite(t)
         if not ok.any():
             continue
-        ax.loglog(table.N[ok], t[ok], style, ms=5, color=color,
-                  label=f"{label}, total, slope {fitted_slope(table.N[ok], t[ok]):.2f}")
+        slope = fitted_slope(table.N[ok], t[ok])
+        growth = f"slope {slope:.2f}" if np.isfinite(slope) else "one size, no slope"
+        ax.loglog(table.N[ok], t[ok], drawable(style, table.N[ok], t[ok]), ms=5, color=color,
+                  label=f"{label}, total, {growth}")
         f = table[f"factor_time_{name}"]
-        ax.loglog(table.N[ok], f[ok], style[0] + ":", ms=3, alpha=0.6, color=color,
-                  label=f"{label}, factorisations")
+        ax.loglog(table.N[ok], f[ok], drawable(style[0] + ":", table.N[ok], f[ok]), ms=3,
+                  alpha=0.6, color=color, label=f"{label}, factorisations")
     ax.set_xlabel("nodes N")
     ax.set_ylabel("wall time [s] (one thread)")
     ax.set_title(f"Exact reference: {table['backend'].iloc[0]} Cholesky + dual PDAS vs KKT-LU "

@@ -6,8 +6,10 @@ A solver has the same colour and marker in every figure of the report
 (:func:`save_figure` adds it where the figure's own titles do not); a figure with
 nothing to draw says why instead of showing empty axes (:func:`nothing_to_draw`).
 :func:`save_figure` writes into the PNG's text chunks the titles, the number of drawn
-data artists and the number of empty panels (:data:`AUDIT_KEYS`), so that the figure
-audit (``tests/test_regeneration.py``) can check each figure without re-plotting it.
+data artists and the number of empty panels, and the figure audit's record
+(:mod:`report.figure_audit`: legends, labels, solver styles, the smallest font;
+:data:`AUDIT_KEYS`), so that the figure audit (``tests/test_regeneration.py``) can check
+each figure without re-plotting it.
 """
 from __future__ import annotations
 
@@ -20,15 +22,17 @@ import numpy as np
 from matplotlib.ticker import (FixedLocator, FuncFormatter, LogLocator,
                                NullFormatter)
 
+from report import figure_audit
 from workflows.io import atomic_path
 from workflows.studies import PATHS
 
 #: The report's solver colours: the built-in solvers (sorted) take these in turn, then
 #: the report's other rows (:data:`EXTRA_SOLVERS`); colour and marker together tell
-#: every solver apart.
+#: every solver apart, and solvers whose markers look alike at a few pixels (a plus and
+#: a star, the hexagons) get colours of different hues.
 PALETTE = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2",
-           "#7f7f7f", "#bcbd22", "#17becf", "#393b79", "#8c6d31", "#637939", "#843c39",
-           "#7b4173", "#e7ba52")
+           "#7f7f7f", "#bcbd22", "#17becf", "#393b79", "#e7ba52", "#637939", "#843c39",
+           "#7b4173", "#8c6d31")
 #: One marker fewer than colours: the pair (colour, marker) repeats only after
 #: 16 x 15 solvers.
 MARKERS = ("o", "s", "^", "D", "v", "P", "X", "<", ">", "p", "h", "*", "d", "H", "8")
@@ -39,11 +43,15 @@ REFERENCE_STYLE = {"linear_floor": dict(color="k", marker="_"),
                    "reference": dict(color="k", marker="*")}
 #: The thesis's values wherever a figure overlays them (a colour no solver has).
 THESIS_COLOR = "#b15928"
+#: Format and colour per contact coupling, the same in the coupling study's figures and
+#: the patch test's.
+COUPLING_STYLE = {"nodal": ("o-", "C0"), "stabilised": ("s-", "C1"), "two_pass": ("v-", "C4"),
+                  "mortar": ("^-", "C2"), "mortar_dual": ("D-", "C3")}
 #: Line style per tolerance preset (a preset is a line style in every figure).
 PRESET_LINES = {"low": ":", "mid": "--", "high": "-"}
 #: PNG text chunks :func:`save_figure` writes for the figure audit.
 AUDIT_KEYS = ("Title", "contactbench:scene", "contactbench:data_artists",
-              "contactbench:empty_panels", "contactbench:nothing_to_draw")
+              "contactbench:empty_panels", "contactbench:nothing_to_draw", *figure_audit.KEYS)
 
 
 @lru_cache(maxsize=1)
@@ -66,6 +74,27 @@ def solver_style(name: str) -> dict:
     order = solver_order()
     i = order.index(name) if name in order else len(order) + zlib.crc32(name.encode()) % 97
     return {"color": PALETTE[i % len(PALETTE)], "marker": MARKERS[i % len(MARKERS)]}
+
+
+def solver_shades(name: str, n: int) -> list[str]:
+    """``n`` colours for variants of one solver: its own colour first, then shades of it
+    alternately darker and lighter, so that the variants stay the solver's and are told
+    apart from each other."""
+    from matplotlib.colors import to_hex, to_rgb
+    base = np.array(to_rgb(solver_style(name)["color"]))
+    out = [to_hex(base)]
+    for k in range(1, n):
+        toward = np.zeros(3) if k % 2 else np.ones(3)
+        out.append(to_hex(base + (toward - base) * min(0.25 * ((k + 1) // 2), 0.6)))
+    return out
+
+
+def drawable(fmt: str, x, y) -> str:
+    """The format string ``fmt`` without its line where ``(x, y)`` has fewer than two
+    finite points: a line through one point draws nothing, and its legend entry would
+    show a line that is not there."""
+    finite = np.isfinite(np.asarray(x, dtype=float)) & np.isfinite(np.asarray(y, dtype=float))
+    return fmt if finite.sum() > 1 else re.sub(r"--|-\.|-|:", "", fmt)
 
 
 def scene_of(path: str) -> str | None:
@@ -122,7 +151,8 @@ def name_scene(fig, scene: str | None) -> None:
 def save_figure(fig, path: str, dpi: int = 130, scene: str | None = None) -> None:
     """Name the scene (``scene``, else read from ``path``), label every log axis sparsely
     (:func:`sparse_log_ticks`), tight layout, write the PNG atomically to ``path`` with
-    its audit text (:data:`AUDIT_KEYS`), close the figure."""
+    its audit text (:data:`AUDIT_KEYS`; :func:`report.figure_audit.record`), close the
+    figure."""
     scene = scene or scene_of(path)
     name_scene(fig, scene)
     panels = [ax for ax in fig.axes
@@ -137,9 +167,27 @@ def save_figure(fig, path: str, dpi: int = 130, scene: str | None = None) -> Non
             "contactbench:empty_panels": str(sum(1 for d in drawn if d == 0)),
             "contactbench:nothing_to_draw": getattr(fig, "nothing_to_draw", "")}
     fig.tight_layout()
+    clear_suptitle(fig)
+    meta.update(figure_audit.record(fig, dpi))
     with atomic_path(path) as tmp:
         fig.savefig(tmp, dpi=dpi, format="png", metadata=meta, bbox_inches="tight")
     plt.close(fig)
+
+
+def clear_suptitle(fig, pad: float = 6.0) -> None:
+    """Lower the panels until their titles clear the suptitle by ``pad`` pixels (a tall
+    figure's tight layout can leave them overlapping)."""
+    if fig._suptitle is None or not fig.axes:
+        return
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    bottom = fig._suptitle.get_window_extent(renderer).y0
+    top = max(max(ax.bbox.y1, ax.title.get_window_extent(renderer).y1 if ax.get_title() else 0)
+              for ax in fig.axes if ax.get_visible())
+    if top + pad > bottom:
+        shift = (top + pad - bottom) / fig.bbox.height
+        pars = fig.subplotpars
+        fig.subplots_adjust(top=max(pars.top - shift, pars.bottom + 0.5 * (pars.top - pars.bottom)))
 
 
 def nothing_to_draw(path: str, title: str, reason: str, scene: str | None = None) -> None:
@@ -182,17 +230,46 @@ def legend_outside(ax, **kwargs) -> None:
                   borderaxespad=0.0, **{"fontsize": 7, **kwargs})
 
 
-def solver_legend(ax, solvers, lines=(), status: bool = True) -> None:
+def legend_below(ax, ncol: int = 1, x: float = 0.5, **kwargs) -> None:
+    """The axes' legend under the plot, clear of the data: centred at ``x`` (axes
+    fraction) just below the x tick labels and the x label, whatever the axes' height, in
+    ``ncol`` columns (nothing if no labels)."""
+    from matplotlib.transforms import ScaledTranslation
+    handles, labels = ax.get_legend_handles_labels()
+    if not handles:
+        return
+    tick = max((t.get_fontsize() for t in ax.get_xticklabels()), default=10)
+    label = ax.xaxis.label
+    lines = label.get_text().count("\n") + 1 if label.get_text() else 0
+    drop = (tick * 1.4 + 8 + label.get_fontsize() * 1.25 * lines) / 72      # inches
+    below = ax.transAxes + ScaledTranslation(0, -drop, ax.figure.dpi_scale_trans)
+    ax.legend(handles, labels, loc="upper center", bbox_to_anchor=(x, 0), ncol=ncol,
+              bbox_transform=below, **{"fontsize": 7, **kwargs})
+
+
+def solver_legend(ax, solvers, lines=(), status: bool = True, axes=None) -> None:
     """One legend right of the axes, each encoding explained once: a solver by colour and
     marker, then ``lines`` (label, line keywords: a preset's or level's line style, a
-    guide), then filled = verified converged, hollow = not (``status``)."""
+    guide), then filled = verified converged, hollow = not (``status``). An entry with
+    nothing drawn behind it in ``axes`` (default: ``ax``; a line style no line of two
+    points shows, a fill no marker has) is left out
+    (:func:`report.figure_audit.entry_drawn`). For several ``axes`` the legend is the
+    figure's, still placed right of ``ax``."""
     from matplotlib.lines import Line2D
+    key = figure_audit.KEY_GREY
     handles = [Line2D([], [], ls="none", **solver_style(s), label=s) for s in solvers]
-    handles += [Line2D([], [], **{"color": "0.3", **kw}, label=label) for label, kw in lines]
+    handles += [Line2D([], [], **{"color": key, **kw}, label=label) for label, kw in lines]
     if status:
-        handles += [Line2D([], [], color="0.3", marker="o", ls="none",
+        handles += [Line2D([], [], color=key, marker="o", ls="none",
                            label="verified converged"),
-                    Line2D([], [], color="0.3", marker="o", mfc="none", ls="none",
+                    Line2D([], [], color=key, marker="o", mfc="none", ls="none",
                            label="not verified")]
-    ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0,
-              fontsize=7)
+    axes = list(axes or [ax])
+    shown = [h for h in handles if figure_audit.entry_drawn(h, axes)]
+    if not shown:
+        return
+    place = dict(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, fontsize=7)
+    if len(axes) > 1:
+        ax.figure.legend(handles=shown, bbox_transform=ax.transAxes, **place)
+    else:
+        ax.legend(handles=shown, **place)

@@ -35,7 +35,7 @@ import numpy as np
 import pandas as pd
 
 from report.claims import COLUMNS, Claim
-from report.figures import nothing_to_draw, save_figure, solver_style
+from report.figures import legend_below, nothing_to_draw, save_figure, solver_style
 from report.rates import fitted_slope
 from reference.cattaneo_mindlin import stick_zone_ratio
 from workflows.io import read_csv, write_csv
@@ -477,8 +477,9 @@ def traction_figure(runs: pd.DataFrame, profiles: pd.DataFrame, path: str) -> No
         ax.plot(g.x_over_a, g.mu_pressure, "x", color="gray", ms=4, label="mu p, measured")
         for state, style in (("stick", "o"), ("slip", "s")):
             h = g[g.state == state]
-            ax.plot(h.x_over_a, h.traction, style, color="C1" if state == "stick" else "C3",
-                    ms=4, ls="none", label=f"traction, {state} nodes")
+            if len(h):
+                ax.plot(h.x_over_a, h.traction, style, color="C1" if state == "stick" else "C3",
+                        ms=4, ls="none", label=f"traction, {state} nodes")
         ax.axvspan(e - c if line else 0.0, e + c, color="C0", alpha=0.06)
         ax.set_xlim(-1.25 if line else 0.0, 1.25)
         ax.set_xlabel("x / a (contact half-width a, measured)" if line else
@@ -488,7 +489,7 @@ def traction_figure(runs: pd.DataFrame, profiles: pd.DataFrame, path: str) -> No
         ax.set_title(f"{scene}: level {int(ref.level)}, Q/(mu P) = {ratio:g}, "
                      f"L2 error {float(ref.traction_l2):.1%}", fontsize=9)
         ax.grid(True, alpha=0.3)
-        ax.legend(fontsize=7)
+        legend_below(ax, ncol=2)
     save_figure(fig, path)
 
 
@@ -534,13 +535,14 @@ def map_figure(runs: pd.DataFrame, profiles: pd.DataFrame, path: str) -> None:
         for state, style, colour in (("stick", "o", "C1"), ("slip", "s", "C3"),
                                      ("free", ".", "gray")):
             h = g[g.state == state]
-            ax.plot(h.px_over_a, h.py_over_a, style, color=colour, ms=4, ls="none",
-                    label=f"{state} nodes ({len(h)})")
+            if len(h):
+                ax.plot(h.px_over_a, h.py_over_a, style, color=colour, ms=4, ls="none",
+                        label=f"{state} nodes ({len(h)})")
         if line:
             ax.axvspan(-c, c, color="C0", alpha=0.08, label=f"|x| < c: stick zone, c/a = {c:.3f}")
             ax.axvline(-1, color="gray", ls=":")
             ax.axvline(1, color="gray", ls=":", label="|x| = a, measured")
-            ax.set_ylim(-0.4, 1.0)                  # the legend above the line of nodes
+            ax.set_ylim(-0.4, 0.4)
             ax.set_yticks([])
         else:
             ax.plot(np.cos(angle), np.sin(angle), ":", color="gray", label="r = a, measured")
@@ -552,49 +554,64 @@ def map_figure(runs: pd.DataFrame, profiles: pd.DataFrame, path: str) -> None:
         ax.set_title(f"{scene}: level {int(ref.level)}, Q/(mu P) = {ratio:g}, measured c/a "
                      f"{float(ref.c_over_a):.3f}", fontsize=9)
         ax.grid(True, alpha=0.3)
-        ax.legend(fontsize=7, loc="upper center" if line else "upper right",
-                  ncol=3 if line else 1)
+        legend_below(ax, ncol=2)
     save_figure(fig, path)
 
 
 def cost_figure(runs: pd.DataFrame, path: str) -> None:
-    """Tangential-step iterations and solve time (whole path) against N per solver and
-    ratio, with fitted exponents."""
+    """Tangential-step iterations (top) and solve time (whole path, bottom) against N per
+    solver and ratio, with fitted exponents; one legend for both panels, below them."""
     scene = runs.scene.iloc[0]
     solved = runs[(runs.role == "solver") & (runs.status == "converged")]
     if not len(solved):
         return nothing_to_draw(path, f"{scene}: the solvers' cost",
                                "no solver run was verified converged")
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
     starts = solved.start.fillna("warm")
-    for (name, ratio, start), g in solved.groupby(["solver", "ratio", starts], sort=True):
+    curves = solved.groupby(["solver", "ratio", starts], sort=True)
+    fig, axes = plt.subplots(2, 1, figsize=(7.5, 6.4 + 0.16 * curves.ngroups), sharex=True)
+    for (name, ratio, start), g in curves:
         g = g.sort_values("N")
         t = g.t_setup + g.t_solve + g.t_solve_coarse.fillna(0.0)   # nested: with below
-        line = "-" if ratio == min(solved.ratio) else "--"
-        style = {**solver_style(name), "ls": line}       # the suite's colour per solver
-        if start == "cold":                              # from zero: hollow, lighter
-            style.update(mfc="none", alpha=0.55)
-        elif start == "nested":                          # from the coarser levels
-            style.update(ls="-." if ratio == min(solved.ratio) else ":", mfc="none")
+        style = _cost_style(name, start, ratio == min(solved.ratio), g.N.nunique())
+        growth = _growth(g.N, {"iterations": g.steps_tangential, "time": t})
         for ax, y in zip(axes, (g.steps_tangential, t)):
-            slope = fitted_slope(g.N, y, last=len(g)) if len(g) >= 2 else np.nan
-            growth = (f"exponent {slope:.2f}" if np.isfinite(slope)
-                      else "one size, no exponent")
             ax.plot(g.N, y, **style, label=f"{name} ({start}), Q/(mu P) = {ratio:g}: {growth}")
     axes[0].set_xscale("log")
     axes[1].set_xscale("log")
     axes[1].set_yscale("log")
-    axes[0].set_ylabel("iterations of the tangential load step on the finest level\n"
-                       "(warm: from the normal step's answer; cold: from zero;\nnested: "
-                       "from the coarser levels)")
-    axes[1].set_ylabel("setup + solve time of the load path (s, this machine;\nnested: "
-                       "the coarser levels' paths included)")
+    axes[0].set_ylabel("iterations of the tangential\nload step (finest level)")
+    axes[1].set_ylabel("setup + solve time of the\nload path [s] (this machine)")
     for ax in axes:
-        ax.set_xlabel("nodes N")
-        ax.set_title(f"{scene}: Tresca friction, the solvers' cost", fontsize=9)
         ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.32))  # below
+    axes[1].set_xlabel("nodes N")
+    fig.suptitle(f"{scene}: Tresca friction, the solvers' cost", fontsize=10)
+    legend_below(axes[1])
     save_figure(fig, path)
+
+
+def _growth(n: pd.Series, quantities: dict[str, pd.Series]) -> str:
+    """The fitted exponents against ``n`` of each quantity, as a legend reads them
+    ("one size, no exponent" at one size; "none" where a fit has no answer)."""
+    if n.nunique() < 2:
+        return "one size, no exponent"
+    fits = {q: fitted_slope(n, y, last=len(n)) for q, y in quantities.items()}
+    return "exponents " + ", ".join(f"{v:.2f} ({q})" if np.isfinite(v) else f"none ({q})"
+                                    for q, v in fits.items())
+
+
+def _cost_style(name: str, start: str, low: bool, sizes: int) -> dict:
+    """The cost figure's style of one solver's runs: the solver's colour and marker of
+    every figure, a solid (``low``: the smaller ratio) or dashed line, hollow and lighter
+    from zero (cold), hollow and dash-dotted or dotted from the coarser levels (nested);
+    no line at one size."""
+    style = {**solver_style(name), "ls": "-" if low else "--"}
+    if start == "cold":
+        style.update(mfc="none", alpha=0.55)
+    elif start == "nested":
+        style.update(ls="-." if low else ":", mfc="none")
+    if sizes < 2:
+        style["ls"] = "none"
+    return style
 
 
 def main(argv=None) -> None:

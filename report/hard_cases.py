@@ -136,9 +136,8 @@ def heatmap(t: pd.DataFrame, path: str) -> None:
     solved = grid("status").isin(["converged", "inaccurate", "max_iter"])
 
     status = grid("status").apply(lambda c: c.map({s: i for i, s in enumerate(STATUS_ORDER)}))
-    width = max(3.2, 0.55 * len(solvers) + 1.6)
-    fig, axes = plt.subplots(2, 2, figsize=(2 * width + 1.5, 2 * (0.4 * len(cases) + 2.2)),
-                             squeeze=False)
+    rows, cols, size = heatmap_layout(len(solvers), len(cases))
+    fig, axes = plt.subplots(rows, cols, figsize=size, squeeze=False)
     panels = [(status, "status", "verified status",
                ListedColormap(STATUS_COLORS), (0, len(STATUS_ORDER) - 1)),
               (np.log10(grid("kkt_max").astype(float).clip(lower=1e-16)), "kkt",
@@ -154,28 +153,52 @@ def heatmap(t: pd.DataFrame, path: str) -> None:
                        vmin=None if lim is None else lim[0], vmax=None if lim is None else lim[1])
         ax.set_xticks(range(len(solvers)), solvers, rotation=45, ha="right", fontsize=7)
         ax.set_yticks(range(len(cases)), cases, fontsize=7)
+        ax.set_xlabel("solver", fontsize=8)
+        ax.set_ylabel("hard case", fontsize=8)
         ax.set_title(title, fontsize=9)
         for (i, j), v in np.ndenumerate(vals):
             ax.text(j, i, _cell_text(v, panel) if np.isfinite(v) else "--", ha="center",
-                    va="center", fontsize=6,
+                    va="center", fontsize=6.5,
                     color=_ink(im.cmap(im.norm(v))) if np.isfinite(v) else "k")
         if panel == "status":
+            shown = set(grid("status").stack())
             ax.legend(handles=[Patch(color=c, label=s) for s, c in
-                               zip(STATUS_ORDER, STATUS_COLORS)],
+                               zip(STATUS_ORDER, STATUS_COLORS) if s in shown],
                       loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7,
                       title="status", title_fontsize=7)
         else:
-            fig.colorbar(im, ax=ax, fraction=0.046, pad=0.02)
+            bar = fig.colorbar(im, ax=ax, fraction=0.046, pad=0.02)
+            bar.set_label(COLOURBAR_LABELS[panel], fontsize=7)
     preset = t["preset"].iloc[0]
-    fig.suptitle(f"Hard cases: {len(cases)} families, preset {preset} (tol "
-                 f"{t['tol'].iloc[0]:g}), every solver in its own process with a hard time "
-                 "limit", fontsize=10)
+    families = f"{len(cases)} famil{'y' if len(cases) == 1 else 'ies'}"
+    fig.suptitle(textwrap.fill(f"Hard cases: {families}, preset {preset} (tol "
+                               f"{t['tol'].iloc[0]:g}), every solver in its own process with "
+                               "a hard time limit", width=int(13 * fig.get_figwidth())),
+                 fontsize=10)
     blank = blank_columns(t)
     if blank:
         note = textwrap.fill("-- : no value (no solution, or a skip's time). "
                              + "; ".join(blank), width=int(14 * fig.get_figwidth()))
         fig.text(0.01, 0.0, note, fontsize=7, ha="left", va="top")
     save_figure(fig, path)
+
+
+#: What the colour of each numeric panel of the heat map measures.
+COLOURBAR_LABELS = {"kkt": "log10 KKT residual", "error": "log10 energy error",
+                    "time": "log10 wall time [s]"}
+#: The widest the heat map may be (inches at 130 dpi, about 1,430 pixels) for its 6.5 pt
+#: cell text to stay legible in the report's frame (report.figure_audit).
+HEATMAP_MAX_WIDTH = 11.0
+
+
+def heatmap_layout(solvers: int, cases: int) -> tuple[int, int, tuple[float, float]]:
+    """The heat map's panel grid and size: 2 x 2 while that fits
+    :data:`HEATMAP_MAX_WIDTH`, else the four panels one under another, each as wide as its
+    solvers' columns need (0.42 in a column, room for the case names and the key)."""
+    panel = (1.9 + 0.42 * solvers + 1.1, 0.26 * cases + 2.0)
+    if 2 * panel[0] <= HEATMAP_MAX_WIDTH:
+        return 2, 2, (2 * panel[0], 2 * panel[1])
+    return 4, 1, (panel[0], 4 * panel[1])
 
 
 def blank_columns(t: pd.DataFrame) -> list[str]:
@@ -213,7 +236,7 @@ def incompressibility_claims(t: pd.DataFrame) -> pd.DataFrame:
 
 def incompressibility_figure(t: pd.DataFrame, path: str) -> None:
     """n_o, V-cycles per solve and kappa(V A) against 1 - 2 nu, per scene and variant."""
-    fig, ax = plt.subplots(1, 3, figsize=(14, 4.2))
+    fig, ax = plt.subplots(1, 3, figsize=(12.5, 4.4))
     styles = {"robust": "o-", "vcycle": "s--"}
     for i, (scene, g) in enumerate(t.groupby("scene", sort=True)):
         for variant, h in g.groupby("variant"):
@@ -229,7 +252,8 @@ def incompressibility_figure(t: pd.DataFrame, path: str) -> None:
                              label=f"{scene}: kappa(V A), one V-cycle")
                 ax[2].loglog(x, h.gamma_bar, "^:", color=f"C{i}",
                              label=f"{scene}: gamma_bar of A-hat (Chebyshev)")
-    ax[0].plot([], [], "x", color="k", label="not converged (max_iter)")
+    if (t.status != "converged").any():
+        ax[0].plot([], [], "x", color="k", label="not converged (max_iter)")
     for a, ylabel in zip(ax, ("outer steps n_o to KKT 1e-6", "V-cycles in the solve",
                               "spectral ratio")):
         a.set_xlabel("1 - 2 nu  (towards incompressibility ->)")

@@ -8,7 +8,7 @@ import numpy as np
 import pandas as pd
 
 from report.claims import Claim
-from report.figures import save_figure
+from report.figures import legend_below, save_figure
 from report.rates import rate_table
 from workflows.io import read_csv, write_csv
 
@@ -53,7 +53,8 @@ def add_slope(ax, h: np.ndarray, anchor: float, slope: int, label: str) -> None:
 
 
 def convergence_figure(errors: pd.DataFrame, rates: pd.DataFrame, case: str, path: str) -> None:
-    """H1 (left) and L2 (right) error against h, one line per variant, both sides."""
+    """H1 (left) and L2 (right) error against h, one line per variant, both sides; each
+    panel's legend, with its fitted rates, below it."""
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.8), sharex=True)
     sub = errors[errors["case"] == case]
     worst = sub.groupby("variant")[["err_h1", "err_l2"]].max().max(axis=1)
@@ -81,7 +82,7 @@ def convergence_figure(errors: pd.DataFrame, rates: pd.DataFrame, case: str, pat
         ax.set_title(title, fontsize=10)
         ax.grid(True, which="both", alpha=0.3)
         ax.invert_xaxis()
-    axes[1].legend(fontsize=7, loc="upper left")
+        legend_below(ax)                           # each panel's rates, under it
     note = (f"; exact to round-off (max error {worst[exact].max():.1e}): {', '.join(exact)}"
             if exact else "")
     fig.suptitle(f"Non-matching Laplace problem, case '{case}' "

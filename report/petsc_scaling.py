@@ -24,7 +24,8 @@ import pandas as pd
 from matplotlib.ticker import NullFormatter
 
 from report.claims import COLUMNS, Claim
-from report.figures import nothing_to_draw, save_figure
+from report.figures import (legend_below, nothing_to_draw, save_figure,
+                            solver_style)
 from workflows.io import read_csv, write_csv
 
 #: Why the efficiency and the comparison with TNNMG are reported, not judged.
@@ -96,10 +97,16 @@ def claims(t: pd.DataFrame, scene: str) -> pd.DataFrame:
     return pd.DataFrame(rows, columns=COLUMNS)
 
 
+#: Line style per level (the solver's colour and marker are the same at every level).
+LEVEL_LINES = ("-", "--", "-.", ":")
+
+
 def figure(t: pd.DataFrame, scene: str, path: str) -> None:
     """Time and iterations against ranks, per level, with TNNMG's time beside; the
-    parallel efficiency against ranks. Without a converged petsc_tao run (PETSc not
-    installed, every run stopped short) the image says why instead."""
+    parallel efficiency against ranks. Each solver in its colour and marker of every
+    figure, a level by its line style, the legends below the panels. Without a converged
+    petsc_tao run (PETSc not installed, every run stopped short) the image says why
+    instead."""
     p = _petsc(t)
     ok = p[p.status == "converged"]
     if not len(ok):
@@ -109,27 +116,30 @@ def figure(t: pd.DataFrame, scene: str, path: str) -> None:
                         "no petsc_tao run converged (the table gives each run's status)",
                         scene=scene)
         return
-    fig, ax = plt.subplots(1, 3, figsize=(15, 4.4))
+    fig, ax = plt.subplots(1, 3, figsize=(12.5, 4.6))
+    petsc = solver_style("petsc_tao")
     for i, (level, g) in enumerate(t.groupby("level")):
-        color = f"C{i}"
+        ls = LEVEL_LINES[i % len(LEVEL_LINES)]
         mine = ok[ok.level == level].sort_values("ranks")
         n = int(g.n.iloc[0])
         if len(mine):
-            ax[0].loglog(mine.ranks, mine.total_time, "o-", color=color,
+            ax[0].loglog(mine.ranks, mine.total_time, ls=ls, **petsc,
                          label=f"petsc_tao, level {level} (n = {n})")
-            ax[1].semilogx(mine.ranks, mine.iterations, "o-", color=color,
+            ax[1].semilogx(mine.ranks, mine.iterations, ls=ls, **petsc,
                            label=f"Tao iterations, level {level}")
             if "ksp_iterations" in mine:
-                ax[1].semilogx(mine.ranks, mine.ksp_iterations, "s--", color=color,
-                               label=f"Krylov iterations, level {level}")
-            ax[2].semilogx(mine.ranks, mine.efficiency, "o-", color=color,
-                           label=f"level {level} (n = {n})")
+                ax[1].semilogx(mine.ranks, mine.ksp_iterations, ls=ls, **petsc, mfc="none",
+                               label=f"Krylov iterations (hollow), level {level}")
+            ax[2].semilogx(mine.ranks, mine.efficiency, ls=ls, **petsc,
+                           label=f"petsc_tao, level {level} (n = {n})")
         beside = g[(g.solver != "petsc_tao") & (g.status == "converged")]
         if len(beside):
-            ax[0].axhline(float(beside.total_time.iloc[0]), ls=":", color=color,
-                          label=f"{beside.solver.iloc[0]}, one process, level {level}")
-    ax[2].axhline(1.0, color="gray", lw=0.8, label="ideal")
-    ax[0].set_ylabel("total time per solve (s, this machine)")
+            solver = beside.solver.iloc[0]
+            ax[0].axhline(float(beside.total_time.iloc[0]), ls=ls, lw=1,
+                          color=solver_style(solver)["color"],
+                          label=f"{solver}, one process, level {level}")
+    ax[2].axhline(1.0, color="k", ls=":", lw=0.8, label="ideal")
+    ax[0].set_ylabel("total time per solve [s]\n(this machine)")
     ax[1].set_ylabel("iterations")
     ax[2].set_ylabel("parallel efficiency T(1) / (r T(r))")
     titles = ("time against ranks", "iterations against ranks", "parallel efficiency")
@@ -139,10 +149,9 @@ def figure(t: pd.DataFrame, scene: str, path: str) -> None:
             a.set_xticks(ranks, [str(r) for r in ranks])
             a.xaxis.set_minor_formatter(NullFormatter())
         a.set_xlabel("MPI ranks r")
-        a.set_title(f"{scene}: {title}")
+        a.set_title(f"{scene}: {title}", fontsize=10)
         a.grid(True, which="both", alpha=0.3)
-        if a.get_legend_handles_labels()[0]:
-            a.legend(fontsize=7)
+        legend_below(a)
     save_figure(fig, path, scene=scene)
 
 

@@ -39,7 +39,8 @@ import pandas as pd
 
 from reference.roll_stack import THESIS_FIG_9_11
 from report.claims import Claim
-from report.figures import save_figure
+from report.figure_audit import KEY_GREY
+from report.figures import legend_below, save_figure
 from workflows.io import read_checked, read_csv, write_csv
 
 #: The suite's bars: equilibrium, springs, Hertz at the barrel centre, resolution needed.
@@ -138,7 +139,7 @@ def pressure_figure(profiles: pd.DataFrame, contact: pd.DataFrame, path: str) ->
     ax[0].set_title("strip load on the work roll (uniform over |x| <= L/2) and contact line load",
                     fontsize=8)
     ax[0].grid(alpha=0.3)
-    ax[0].legend(fontsize=7)
+    legend_below(ax[0])
     top = contact[contact.force == contact.force.max()]
     loaded = top[top.pressure > 0]
     sc = ax[1].scatter(top.x, top.y * MM, c=top.pressure / 1e9, s=6, cmap="viridis")
@@ -251,7 +252,7 @@ def line_load_figure(profiles: pd.DataFrame, path: str) -> None:
     for a in ax:
         a.set_xlabel("x along the rolls [m]")
         a.grid(alpha=0.3)
-        a.legend(fontsize=7)
+        legend_below(a)
     save_figure(fig, path)
 
 
@@ -260,7 +261,7 @@ def sag_figure(profiles: pd.DataFrame, path: str) -> None:
     crown added back; FE (solid) and beam model (dashed)."""
     crowned = profiles[profiles.crown == profiles.crown.max()]
     forces = sorted(crowned.force.unique())
-    fig, ax = plt.subplots(len(forces), 2, figsize=(12, 4 * len(forces)), squeeze=False)
+    fig, ax = plt.subplots(len(forces), 2, figsize=(10.5, 4 * len(forces)), squeeze=False)
     curves = (("work_axis", "WR axis", "C0"), ("backup_axis", "BUR axis", "C1"),
               ("work_contact_line", "WR top (contact) line", "C2"),
               ("backup_contact_line", "BUR bottom (contact) line", "C3"))
@@ -281,18 +282,19 @@ def sag_figure(profiles: pd.DataFrame, path: str) -> None:
             a.grid(alpha=0.3)
         ax[row, 0].set_title(f"{_label(force)}: sag along lines (as measured)", fontsize=8)
         ax[row, 1].set_title(f"{_label(force)}: with the crown (Schliff) added back", fontsize=8)
-    grouped_legend(ax[0, 1], {label: color for group in (curves, crowned_curves)
-                              for _, label, color in group},
+    grouped_legend(fig, {label: color for group in (curves, crowned_curves)
+                         for _, label, color in group},
                    {"FE": "-", "beam model": "--"})
     save_figure(fig, path)
 
 
 def grouped_legend(ax, colours: dict[str, str], styles: dict[str, str]) -> None:
-    """One legend right of ``ax``, clear of the data: each curve by its colour, then each
-    source by its line style (explained once, not per curve)."""
+    """One legend right of ``ax`` (an axes, or a figure for a legend of all its panels),
+    clear of the data: each curve by its colour, then each source by its line style
+    (explained once, not per curve)."""
     from matplotlib.lines import Line2D
     handles = [Line2D([], [], color=c, lw=2, label=label) for label, c in colours.items()]
-    handles += [Line2D([], [], color="0.3", ls=ls, label=label) for label, ls in styles.items()]
+    handles += [Line2D([], [], color=KEY_GREY, ls=ls, label=label) for label, ls in styles.items()]
     ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0,
               fontsize=7)
 

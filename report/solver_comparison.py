@@ -80,10 +80,14 @@ def times_figure(runs: pd.DataFrame, scene: str, path: str) -> None:
     """Wall time against problem size per solver and preset (``runs``:
     :func:`times_frame`): colour and marker the solver
     (:func:`report.figures.solver_style`), line style the preset, filled markers the
-    verified-converged runs; the slope-1 guide only where there are two sizes or more."""
-    sizes = np.array(sorted(runs["n"].unique()), dtype=float)
+    verified-converged runs; the slope-1 guide only where there are two sizes or more.
+    With one size the figure is a dot chart instead (:func:`_times_one_size`)."""
     if runs.empty:
         nothing_to_draw(path, f"{scene}: time per solver", "no solver ran on this scene")
+        return
+    sizes = np.array(sorted(runs["n"].unique()), dtype=float)
+    if len(sizes) == 1:
+        _times_one_size(runs, scene, path)
         return
     fig, ax = plt.subplots(figsize=(8.5, 4.8))
     for (solver, preset), grp in runs.groupby(["solver", "preset"]):
@@ -91,24 +95,57 @@ def times_figure(runs: pd.DataFrame, scene: str, path: str) -> None:
         lw = 2 if solver == FLOOR else 1
         ax.loglog(grp["n"], grp["total_time"], PRESET_LINES.get(preset, "-"), color=style["color"],
                   lw=lw, alpha=0.8)
-        ok = grp["verified"]
-        ax.loglog(grp["n"][ok], grp["total_time"][ok], style["marker"], color=style["color"],
-                  ms=6, ls="none")
-        ax.loglog(grp["n"][~ok], grp["total_time"][~ok], style["marker"], color=style["color"],
-                  mfc="none", ms=6, ls="none")
-    if len(sizes) > 1:
-        t0 = runs[runs.n == sizes[0]]["total_time"].median()
-        ax.loglog(sizes, t0 * sizes / sizes[0], ":", color="0.6", lw=1)
+        _status_points(ax, grp["n"], grp["total_time"], grp["verified"], style)
+    t0 = runs[runs.n == sizes[0]]["total_time"].median()
+    ax.loglog(sizes, t0 * sizes / sizes[0], ":", color="0.6", lw=1)
     ax.set_xlabel("unknowns N (free DOFs)")
     ax.set_ylabel("wall time, setup + solve [s]")
-    one = " (one size at this scale: points, no lines)" if len(sizes) == 1 else ""
-    ax.set_title(f"{scene}: time per solver and preset{one}", fontsize=9)
+    ax.set_title(f"{scene}: time per solver and preset", fontsize=9)
     ax.grid(True, which="both", alpha=0.3)
     lines = [(f"preset {p}", dict(ls=PRESET_LINES[p])) for p in PRESET_LINES
              if p in set(runs.preset)]
-    if len(sizes) > 1:
-        lines.append(("slope 1 (O(N))", dict(ls=":", color="0.6")))
+    lines.append(("slope 1 (O(N))", dict(ls=":", color="0.6")))
     solver_legend(ax, sorted(runs.solver.unique()), lines)
+    save_figure(fig, path)
+
+
+def _status_points(ax, x, y, verified, style: dict, **kw) -> None:
+    """The points ``(x, y)`` in the solver's ``style``: filled where ``verified``, hollow
+    where not."""
+    ok = np.asarray(verified, dtype=bool)
+    x, y = np.asarray(x), np.asarray(y)
+    ax.plot(x[ok], y[ok], style["marker"], color=style["color"], ms=6, ls="none", **kw)
+    ax.plot(x[~ok], y[~ok], style["marker"], color=style["color"], mfc="none", ms=6,
+            ls="none", **kw)
+
+
+def _times_one_size(runs: pd.DataFrame, scene: str, path: str) -> None:
+    """The times at a single size as a dot chart: one row per solver (and preset, where
+    there are several), fastest at the top, the time on a log axis; the linear floor as a
+    vertical line across the rows."""
+    n = int(runs["n"].iloc[0])
+    several = runs["preset"].nunique() > 1
+    rows = runs[runs.solver != FLOOR].sort_values("total_time", ascending=False)
+    labels = [f"{r.solver} ({r.preset})" if several else r.solver for r in rows.itertuples()]
+    fig, ax = plt.subplots(figsize=(8.5, 1.6 + 0.27 * len(rows)))
+    y = np.arange(len(rows))
+    for solver, idx in rows.groupby("solver").indices.items():
+        _status_points(ax, rows["total_time"].to_numpy()[idx], y[idx],
+                       rows["verified"].to_numpy()[idx], solver_style(solver))
+    floor = runs[runs.solver == FLOOR]
+    lines = []
+    if len(floor):
+        ax.axvline(float(floor["total_time"].min()), color="k", ls=":", lw=1.2)
+        lines = [("linear floor: the same system without contact", dict(ls=":", color="k"))]
+    ax.set_xscale("log")
+    ax.set_yticks(y, labels, fontsize=8)
+    ax.set_ylim(-0.7, len(rows) - 0.3)
+    ax.set_xlabel("wall time, setup + solve [s]")
+    ax.set_ylabel("solver" + (" (preset)" if several else ""))
+    preset = "" if several else f", preset {runs['preset'].iloc[0]}"
+    ax.set_title(f"{scene}: time per solver at one size, N = {n:,}{preset}", fontsize=9)
+    ax.grid(True, which="both", axis="x", alpha=0.3)
+    solver_legend(ax, [], lines)
     save_figure(fig, path)
 
 
@@ -139,7 +176,9 @@ def work_frame(table: pd.DataFrame) -> pd.DataFrame:
 
 def work_precision_figure(runs: pd.DataFrame, scene: str, path: str) -> None:
     """Energy-norm error against time, one curve per solver and level (points = presets;
-    ``runs``: :func:`work_frame`)."""
+    ``runs``: :func:`work_frame`; filled: verified converged). Where every curve is one
+    point (one preset), the points stand alone, each marked with its level where there
+    are several, and the title says so."""
     if runs.empty:
         nothing_to_draw(path, f"{scene}: work-precision",
                         "no run has an energy error against the exact reference")
@@ -147,17 +186,29 @@ def work_precision_figure(runs: pd.DataFrame, scene: str, path: str) -> None:
     fig, ax = plt.subplots(figsize=(8.5, 4.8))
     levels = sorted(runs.level.unique())
     styles = dict(zip(levels, ["-", "--", ":", "-.", (0, (1, 3))]))
-    for (solver, level), grp in runs.groupby(["solver", "level"]):
+    curves = runs.groupby(["solver", "level"])
+    lines = curves.size().max() > 1
+    for (solver, level), grp in curves:
         style = solver_style(solver)
-        ax.loglog(grp["total_time"], grp["energy_error"], linestyle=styles[level],
-                  color=style["color"], lw=1, marker=style["marker"], ms=4)
+        if lines:
+            ax.loglog(grp["total_time"], grp["energy_error"], linestyle=styles[level],
+                      color=style["color"], lw=1)
+        _status_points(ax, grp["total_time"], grp["energy_error"], grp["verified"], style)
+        if not lines and len(levels) > 1:
+            for x, y in zip(grp["total_time"], grp["energy_error"]):
+                ax.annotate(f"L{level}", (x, y), xytext=(4, 2), textcoords="offset points",
+                            fontsize=7, color=style["color"])
+    ax.set_xscale("log")
+    ax.set_yscale("log")
     ax.set_xlabel("wall time, setup + solve [s]")
     ax.set_ylabel(r"energy-norm error $\|u-u_{ref}\|_A/\|u_{ref}\|_A$ (floored at 1e-16)")
-    ax.set_title(f"{scene}: work-precision, presets low/mid/high along each curve; "
-                 "reference = exact PDAS", fontsize=9)
+    along = ("presets low/mid/high along each curve" if lines else
+             f"one preset ({', '.join(sorted(runs.preset.unique()))}): one point per solver"
+             + (" and level (L)" if len(levels) > 1 else ""))
+    ax.set_title(f"{scene}: work-precision, {along}; reference = exact PDAS", fontsize=9)
     ax.grid(True, which="both", alpha=0.3)
     solver_legend(ax, sorted(runs.solver.unique()),
-                  [(f"level {lv}", dict(ls=styles[lv])) for lv in levels], status=False)
+                  [(f"level {lv}", dict(ls=styles[lv])) for lv in levels])
     save_figure(fig, path)
 
 

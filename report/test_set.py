@@ -171,7 +171,7 @@ def performance_profiles(profiles: pd.DataFrame, path: str) -> None:
         return
     cols = min(len(panels), 2)
     rows_ = -(-len(panels) // cols)
-    fig, axes = plt.subplots(rows_, cols, figsize=(5.6 * cols, 4.2 * rows_), squeeze=False)
+    fig, axes = plt.subplots(rows_, cols, figsize=(4.8 * cols, 4.0 * rows_), squeeze=False)
     for ax, (cls, preset) in zip(axes.flat, panels):
         g = profiles[(profiles.problem_class == cls) & (profiles.preset == preset)]
         for solver, curve in g.groupby("solver"):
@@ -189,7 +189,8 @@ def performance_profiles(profiles: pd.DataFrame, path: str) -> None:
         ax.grid(True, which="both", alpha=0.3)
     for ax in list(axes.flat)[len(panels):]:
         ax.set_visible(False)
-    solver_legend(axes.flat[0], sorted(profiles.solver.unique()), status=False)
+    solver_legend(axes.flat[cols - 1], sorted(profiles.solver.unique()), status=False,
+                  axes=list(axes.flat)[:len(panels)])
     fig.suptitle("Performance profiles (Dolan-Moré) per problem class: time at matched "
                  "accuracy (tolerance ladder), only verified runs count; the exact references "
                  "are the baseline, not profiled", fontsize=10)
@@ -240,10 +241,10 @@ def work_chart(work: pd.DataFrame, family: str) -> tuple[str, dict]:
 
 def work_precision(work: pd.DataFrame, family: str, path: str) -> None:
     """Energy error against time for every solver on one family (``work``:
-    :func:`work_frame`): one panel per level, one line per solver through its presets
-    and rungs (its tolerance ladder; runs without a solution left out; a run that is not
-    verified converged drawn hollow). A family without any such run gets no axes, only the reason
-    (:func:`report.figures.nothing_to_draw`)."""
+    :func:`work_frame`): one panel per level (two abreast), one line per solver through its
+    presets and rungs (its tolerance ladder; runs without a solution left out; a run that is
+    not verified converged drawn hollow). A family without any such run gets no axes, only
+    the reason (:func:`report.figures.nothing_to_draw`)."""
     g = work
     levels = sorted(g.level.unique())
     if not levels:
@@ -252,9 +253,15 @@ def work_precision(work: pd.DataFrame, family: str, path: str) -> None:
                         "reference (no solution, or no reference at this scale)",
                         scene=family)
         return
-    fig, axes = plt.subplots(1, len(levels), figsize=(5.6 * len(levels) + 1.8, 4.6),
+    cols = min(len(levels), 2)
+    rows = -(-len(levels) // cols)
+    legend_room = 1.8 if len(levels) == 1 else 0.0      # one panel: its own legend inside
+    fig, axes = plt.subplots(rows, cols, figsize=(5.0 * cols + legend_room, 4.4 * rows),
                              squeeze=False)
-    for ax, level in zip(axes[0], levels):
+    panels = list(axes.flat)[:len(levels)]
+    for ax in list(axes.flat)[len(levels):]:
+        ax.set_visible(False)
+    for ax, level in zip(panels, levels):
         gl = g[g.level == level]
         for (solver, _), r in gl.groupby(["solver", "preset"], sort=True):
             style = solver_style(solver)
@@ -274,7 +281,7 @@ def work_precision(work: pd.DataFrame, family: str, path: str) -> None:
         ax.set_xlabel("solver time (s)")
         ax.set_ylabel("energy error ||u - u_ref||_A / ||u_ref||_A")
         ax.grid(True, which="both", alpha=0.3)
-        solver_legend(axes[0][-1], sorted(g.solver.unique()))
+    solver_legend(axes[0][-1], sorted(g.solver.unique()), axes=panels)
     fig.suptitle(f"Work-precision, family {family}: each solver's tolerance ladder along its "
                  "line (hollow: not verified)", fontsize=10)
     save_figure(fig, path, scene=family)

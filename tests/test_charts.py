@@ -60,3 +60,20 @@ def test_a_page_carries_its_scripts_and_specs(tmp_path):
     assert charts.charted("results/circle_square/solver_times.png")
     assert charts.charted("results/solver_summary/performance_profiles.png")
     assert not charts.charted("results/circle_square/solver_error_vs_time.png")
+
+
+def test_every_solver_has_its_own_shape_in_the_charts():
+    """A marker is one Vega-Lite shape, no two markers the same (a plus and a star are
+    not both a cross), so that no two solvers share a shape in a chart."""
+    from report.figures import MARKERS, solver_order
+    assert set(MARKERS) <= set(charts.SHAPES)
+    shapes = [charts.SHAPES[m] for m in MARKERS]
+    assert len(set(shapes)) == len(shapes)
+    colours, marks = charts.solver_scales(solver_order())
+    assert len(set(zip(colours["range"], marks["range"]))) == len(solver_order())
+    osqp, scs = (charts.SHAPES[solver_style(s)["marker"]] for s in ("osqp", "scs"))
+    assert osqp != scs
+    # a plus and a star look alike at a few pixels: their colours are far apart
+    from matplotlib.colors import to_rgb
+    rgb = [to_rgb(solver_style(s)["color"]) for s in ("osqp", "scs")]
+    assert sum((a - b) ** 2 for a, b in zip(*rgb)) ** 0.5 > 0.3

@@ -5,6 +5,7 @@ import pandas as pd
 import pytest
 
 from problems.circle_square import PROBLEM
+from report.figure_audit import png_problems
 from solvers.interface import solve, solvers
 
 SI = {"E1": 2.1e11, "E2": 2.1e11, "load": 2.1e9}
@@ -59,6 +60,23 @@ def test_hard_case_report_from_the_test_set_runs(tmp_path):
     assert t.loc[t.status == "converged", "accurate"].all()
     assert (t.loc[t.case == "hard_grazing", "dropped_rows"] > 0).all()
     assert (tmp_path / "h.png").read_bytes()[:4] == b"\x89PNG"
+    assert png_problems(tmp_path / "h.png") == []          # every solver: still legible
+
+
+def test_the_heat_map_stays_legible_with_every_solver_and_many_cases(tmp_path):
+    """Fifteen solvers and fourteen cases (the size that drew a 2,744 px image): the
+    panels stack, and the image passes the figure audit, its cell text legible in the
+    report's frame; the status key lists only the statuses shown."""
+    from report.hard_cases import heatmap, heatmap_layout
+    names = [f"solver_{k:02d}" for k in range(15)]
+    cases = [f"hard_case_{k:02d}" for k in range(14)]
+    t = pd.DataFrame([{"case": c, "solver": s, "preset": "mid", "tol": 1e-6,
+                       "status": "converged" if k % 4 else "max_iter", "kkt_max": 1e-8,
+                       "energy_error": 1e-9, "wall_time": 0.01 * (k + 1), "message": ""}
+                      for c in cases for k, s in enumerate(names)])
+    assert heatmap_layout(15, 14)[:2] == (4, 1) and heatmap_layout(3, 1)[:2] == (2, 2)
+    heatmap(t, str(tmp_path / "h.png"))
+    assert png_problems(tmp_path / "h.png") == []
 
 
 def test_incompressibility_table_script_and_report(tmp_path):
