@@ -184,12 +184,12 @@ def test_the_p2_claims_report_the_rate_beside_the_optimal_and_the_skipped_reason
                  "order": 2, "dim": 2, "status": "skipped", "reason": "built for P1"})
     claims = report.claims(pd.DataFrame(rows)).set_index("claim")
     assert claims.iloc[0].measured == "8 of 8" and claims.iloc[0]["pass"] is True
-    p2 = claims.loc[[c for c in claims.index if "mortar_dual P2 energy-error rate" in c][0]]
+    p2 = claims.loc[[c for c in claims.index if "mortar_dual: P2 energy-error rate" in c][0]]
     assert math.isclose(p2.measured, -0.6, abs_tol=1e-12) and p2["pass"] is None
-    assert "optimal -0.750" in p2.name
-    skipped = claims.loc["s: stabilised at P2"]
+    assert "optimal -0.750" in p2.parameters
+    skipped = claims.loc["stabilised at P2: not solved"]
     assert skipped.measured == "skipped" and skipped.reason.endswith("built for P1")
-    p1 = claims.loc[[c for c in claims.index if "mortar_dual energy-error rate" in c][0]]
+    p1 = claims.loc[[c for c in claims.index if "mortar_dual: energy-error rate" in c][0]]
     assert math.isclose(p1.measured, 0.0, abs_tol=1e-12) and p1["pass"] is True
     assert not [c for c in claims.index if "P2 multiplier error" in c]
 
@@ -206,9 +206,9 @@ def test_a_p2_rate_from_too_few_levels_says_so():
              "dim": 3, "N": n, "status": "converged", "err_energy": 1.0 / n}
             for lv, n in enumerate((2691.0, 18360.0))]
     claims = report.claims(pd.DataFrame(rows))
-    p2 = claims[claims.claim.str.contains("mortar P2 energy-error rate")].iloc[0]
+    p2 = claims[claims.claim.str.contains("mortar: P2 energy-error rate")].iloc[0]
     assert np.isnan(p2.measured) and p2.reason.startswith("not fitted: needs 3 levels; this run has 2")
-    assert "optimal -0.500" in p2.claim
+    assert "optimal -0.500" in p2.parameters
 
 
 @pytest.mark.parametrize("name, coupling", [("cube_sphere", "mortar"), ("cube_sphere", "nodal"),

@@ -32,6 +32,7 @@ for _table, _shown in TABLE_PAGES.items():
         output:
             report(page_path(_table), caption=_shown.caption, category=_shown.category,
                    subcategory=_shown.subcategory)
+        log: log_path(page_rule(_table), page_log_name(_table))
         conda: ENV
         params: py=PY
-        shell: "{params.py} -m report.tables --csv {input} --html {output}"
+        shell: "{params.py} -m report.tables --csv {input} --html {output} > {log} 2>&1"

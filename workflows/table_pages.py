@@ -52,6 +52,13 @@ def page_rule(path: str) -> str:
     return "page_" + re.sub(r"\W+", "_", PurePosixPath(path).stem)
 
 
+def page_log_name(path: str) -> str:
+    """The name of the log of the page rule's job for the table at ``path``: its
+    wildcards (``{scene}``), or ``all`` for a path without any."""
+    wildcards = re.findall(r"\{\w+\}", path)
+    return "_".join(wildcards) or "all"
+
+
 def _pattern(template: str) -> re.Pattern:
     """A path template (``results/{scene}/x.csv``) as a regular expression of its paths."""
     parts = re.split(r"\{\w+\}", template)
