@@ -265,7 +265,7 @@ def test_chebyshev_polynomial_maps_the_spectrum_as_theory_says():
     assert mg.chebyshev_degree(0.5, 1.0, 2.5) == 1           # a good V-cycle stays one
 
 
-@pytest.mark.parametrize("scene", ["circle_square", "cube_sphere"])
+@pytest.mark.parametrize("scene", ["circle_square", pytest.param("cube_sphere", marks=pytest.mark.slow)])
 def test_outer_steps_stay_bounded_towards_incompressibility(scene):
     """The V-cycle's kappa(VA) grows like (1 - 2 nu)^-0.75 (h-independent); the
     automatic Chebyshev degree keeps gamma_bar near its target, and S-hat = S_in where
@@ -308,6 +308,7 @@ def test_honest_status(problems):
     assert res.status == "time_limit"
 
 
+@pytest.mark.slow                       # dense eigenvalues of the operators
 def test_spectral_estimates_match_dense_eigenvalues():
     """gamma_bar (8.18), kappa(S-hat) (Table 9.1) and kappa(S-hat^-1 S) (Sect. 8.6) from
     Lanczos, against dense generalised eigenvalues on level 0 (2194 unknowns, 17 rows)."""

@@ -115,7 +115,8 @@ def test_verified_and_agrees_with_the_exact_reference(name, level):
 
 
 @needs_petsc
-@pytest.mark.parametrize("name,tao", [("circle_square", "bnls"), ("cube_sphere", "gpcg")])
+@pytest.mark.parametrize("name,tao", [("circle_square", "bnls"),
+                                      pytest.param("cube_sphere", "gpcg", marks=pytest.mark.slow)])
 def test_one_and_two_ranks_give_the_same_answer(name, tao):
     qp, ref = _scene(name, 1)
     one, two = (solve(qp, solver="petsc_tao", tol="mid", time_limit=600, tao=tao, ranks=r)
