@@ -89,11 +89,11 @@ CAPTIONS = caption_files(_CAPTION_DIR)
 # folder's declaration), then the summary page over them
 for _study in STUDIES.values():
     include: os.path.join(_study.folder, "rules.smk")
+TARGETS = all_targets(config)         # every study's outputs at this config's scale
 include: "workflows/summary.smk"
 
 rule all:
     input:
-        all_targets(config), PATHS["summary_html"], PATHS["summary_claims"],
-        PATHS["summary_landing"],
-        pages_of(all_targets(config) + [PATHS["summary_claims"]])
+        TARGETS, PATHS["summary_html"], PATHS["summary_claims"], PATHS["summary_landing"],
+        pages_of(TARGETS + [PATHS["summary_claims"]])
     default_target: True

@@ -27,7 +27,7 @@ import numpy as np
 import pandas as pd
 
 from workflows.io import write_text
-from workflows.studies import PATHS
+from workflows.studies import PATHS, path_pattern
 
 #: The Vega-Lite version of the scripts Snakemake bundles (5.x).
 SCHEMA = "https://vega.github.io/schema/vega-lite/v5.json"
@@ -74,11 +74,7 @@ def chart_path(figure: str) -> str:
 def charted(path: str) -> bool:
     """True if the figure at ``path`` is one of :data:`CHARTED` (matched against the
     workflow's path templates)."""
-    for key in CHARTED:
-        pattern = re.sub(r"\\\{\w+\\\}", r"[^/]+", re.escape(PATHS[key]))
-        if re.fullmatch(r"(?:.*/)?" + pattern, str(path)):
-            return True
-    return False
+    return any(path_pattern(PATHS[key]).fullmatch(str(path)) for key in CHARTED)
 
 
 def solver_scales(solvers) -> tuple[dict, dict]:

@@ -399,18 +399,21 @@ def scene_problems(title: str, scene: str, scenes) -> list[str]:
 
 
 # ------------------------------------------------------------------ record and read back
-def figure_problems(fig) -> list[str]:
+def figure_problems(fig, styles: dict[str, dict] | None = None) -> list[str]:
     """Every problem the figure itself shows (all checks but the title's scene, the
-    cross-figure styles and the image's width, which :func:`png_problems` does). The
-    legends' check comes first: it draws the figure, placing legends and labelling ticks."""
+    cross-figure styles and the image's width, which :func:`png_problems` does); ``styles``:
+    the figure's :func:`solver_entries`, if already taken. The legends' check comes first:
+    it draws the figure, placing legends and labelling ticks."""
     return (covering_legends(fig) + undrawn_entries(fig) + nan_texts(fig)
-            + label_problems(fig) + solver_problems(solver_entries(fig)))
+            + label_problems(fig)
+            + solver_problems(solver_entries(fig) if styles is None else styles))
 
 
 def record(fig, dpi: float) -> dict[str, str]:
     """The PNG text chunks of the audit (:data:`KEYS`), taken from the laid-out figure."""
-    return {"contactbench:problems": json.dumps(figure_problems(fig)),
-            "contactbench:solver_styles": json.dumps(solver_entries(fig), sort_keys=True),
+    styles = solver_entries(fig)
+    return {"contactbench:problems": json.dumps(figure_problems(fig, styles)),
+            "contactbench:solver_styles": json.dumps(styles, sort_keys=True),
             "contactbench:smallest_font_pt": f"{smallest_font(fig):g}",
             "contactbench:dpi": f"{dpi:g}"}
 

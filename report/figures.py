@@ -24,7 +24,7 @@ from matplotlib.ticker import (FixedLocator, FuncFormatter, LogLocator,
 
 from report import figure_audit
 from workflows.io import atomic_path
-from workflows.studies import PATHS
+from workflows.studies import PATHS, path_pattern
 
 #: The report's solver colours: the built-in solvers (sorted) take these in turn, then
 #: the report's other rows (:data:`EXTRA_SOLVERS`); colour and marker together tell
@@ -103,9 +103,7 @@ def scene_of(path: str) -> str | None:
     for template in PATHS.values():
         if "{scene}" not in template or not template.endswith(".png"):
             continue
-        pattern = re.escape(template).replace(re.escape("{scene}"), r"(?P<scene>[^/]+)")
-        pattern = re.sub(r"\\\{\w+\\\}", r"[^/]+", pattern)
-        m = re.fullmatch(r"(?:.*/)?" + pattern, str(path))
+        m = path_pattern(template).fullmatch(str(path))
         if m:
             return m.group("scene")
     return None
@@ -132,10 +130,6 @@ def _drawn(ax) -> int:
     return lines + coll + len(ax.images) + len(ax.patches)
 
 
-def _is_colorbar(ax) -> bool:
-    return ax.get_label() == "<colorbar>" or hasattr(ax, "_colorbar")
-
-
 def name_scene(fig, scene: str | None) -> None:
     """Put ``scene`` into the figure's suptitle unless a title already names it."""
     if scene is None:
@@ -155,8 +149,7 @@ def save_figure(fig, path: str, dpi: int = 130, scene: str | None = None) -> Non
     figure."""
     scene = scene or scene_of(path)
     name_scene(fig, scene)
-    panels = [ax for ax in fig.axes
-              if ax.axison and ax.get_visible() and not _is_colorbar(ax)]
+    panels = figure_audit.panels(fig)
     for ax in panels:
         for axis in ("x", "y"):
             if (ax.get_xscale() if axis == "x" else ax.get_yscale()) == "log":

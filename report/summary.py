@@ -179,6 +179,11 @@ def resources(bench_dir: str | None) -> pd.DataFrame:
 THESIS_MATE = {"N": "thesis_nodes"}
 
 
+def thesis_mate(column) -> str:
+    """The thesis's column of the same quantity as our ``column``."""
+    return THESIS_MATE.get(column, f"thesis_{column}")
+
+
 def beside_thesis(frame: pd.DataFrame, keep=None) -> pd.DataFrame:
     """The columns ``keep`` (all if None) and every column the thesis has a value for,
     reordered so that each ``thesis_X`` stands right after our ``X``."""
@@ -186,7 +191,7 @@ def beside_thesis(frame: pd.DataFrame, keep=None) -> pd.DataFrame:
     for c in frame.columns:
         if str(c).startswith("thesis_"):
             continue
-        mate = THESIS_MATE.get(c, f"thesis_{c}")
+        mate = thesis_mate(c)
         if keep is None or c in keep or mate in frame.columns:
             out.append(c)
             if mate in frame.columns:
@@ -198,9 +203,8 @@ def beside_thesis(frame: pd.DataFrame, keep=None) -> pd.DataFrame:
 def thesis_mates(frame: pd.DataFrame) -> dict[str, str]:
     """Our column -> the thesis's column of the same quantity, where both are in
     ``frame`` (the inline tables show the thesis's value beneath ours)."""
-    return {c: THESIS_MATE.get(c, f"thesis_{c}") for c in frame.columns
-            if not str(c).startswith("thesis_")
-            and THESIS_MATE.get(c, f"thesis_{c}") in frame.columns}
+    mates = {c: thesis_mate(c) for c in frame.columns if not str(c).startswith("thesis_")}
+    return {c: mate for c, mate in mates.items() if mate in frame.columns}
 
 
 def item_path(item) -> str:
@@ -361,9 +365,9 @@ def headline(items, claims: pd.DataFrame, th: pd.DataFrame, scale: str) -> list[
 CLAIM_COLUMNS = ["study", "scene", "claim", "level", "parameters", "measured", "bar",
                  "result", "thesis", "reason"]
 CLAIM_HEADERS = {"thesis": "source"}
-#: Why a claims table's cell is empty, where it is not a value missing.
 #: Names that may break after their underscores in a claims table (a study's, a scene's).
 BREAK_AT_UNDERSCORES = {c: (lambda text: text.replace("_", "_<wbr>")) for c in ("study", "scene")}
+#: Why a claims table's cell is empty, where it is not a value missing.
 CLAIM_EMPTY = {"level": "a claim about every level, or about none in particular",
                "parameters": "no conditions beyond the claim's title"}
 

@@ -79,7 +79,6 @@ def empty_reason(column: str, row) -> str:
         return EMPTY_THESIS
     return EMPTY_BY_COLUMN.get(str(column), EMPTY_OURS)
 
-#: What a table's columns mean where a name alone would mislead.
 def cell_text(x) -> str:
     """A cell's text: numbers to 4 significant digits without a hyphen to wrap at
     (``1e-09`` is written ``1e−09``), text escaped; empty for a missing value."""

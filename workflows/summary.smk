@@ -3,7 +3,7 @@
 # thesis's, run time and peak memory per rule. Runs after every study's outputs.
 
 rule summary:
-    input: all_targets(config)
+    input: TARGETS
     output:
         html=report(PATHS["summary_html"], caption="../report/captions/summary.rst",
                     category="0 summary", subcategory="summary"),

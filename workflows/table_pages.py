@@ -3,8 +3,8 @@
 Snakemake's report shows images, PDFs and HTML pages and offers any other file, a CSV
 table among them, as a download only. A rule's output that is a table for the reader is
 therefore named with :func:`shown_table` where a figure is named with ``report()``: the
-CSV stays the rule's output, and the rule ``table_page`` (``workflows/summary.smk``)
-writes its page (:func:`page_path`, by ``python -m report.tables``), which the report
+CSV stays the rule's output, and a rule of its own (:func:`page_rule`,
+``workflows/summary.smk``) writes its page (:func:`page_path`, by ``python -m report.tables``), which the report
 shows with the table's caption, category and subcategory.
 """
 from __future__ import annotations
@@ -12,6 +12,8 @@ from __future__ import annotations
 import re
 from pathlib import PurePosixPath
 from typing import NamedTuple
+
+from workflows.studies._base import path_pattern
 
 
 class Shown(NamedTuple):
@@ -59,13 +61,7 @@ def page_log_name(path: str) -> str:
     return "_".join(wildcards) or "all"
 
 
-def _pattern(template: str) -> re.Pattern:
-    """A path template (``results/{scene}/x.csv``) as a regular expression of its paths."""
-    parts = re.split(r"\{\w+\}", template)
-    return re.compile("[^/]+".join(map(re.escape, parts)))
-
-
 def pages_of(targets: list[str]) -> list[str]:
     """The pages of those ``targets`` that are shown tables (:data:`TABLE_PAGES`)."""
-    patterns = [_pattern(t) for t in TABLE_PAGES]
+    patterns = [path_pattern(t) for t in TABLE_PAGES]
     return [page_path(t) for t in targets if any(p.fullmatch(t) for p in patterns)]

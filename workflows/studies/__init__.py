@@ -40,7 +40,7 @@ import yaml
 from workflows.settings import SCHEMA
 from workflows.studies._base import (CHART, COMMON_PATHS, REFERENCE, RESULTS, SCALES, AtScale,
                                      ConfigError, Study, ThesisItem, bench_path, captions_of,
-                                     coarser_levels, discover_studies, log_path,
+                                     coarser_levels, discover_studies, log_path, path_pattern,
                                      problem_set_of, scene_problem, scenes_of,
                                      scenes_with_families, set_args, thesis_table)
 
@@ -53,7 +53,7 @@ __all__ = ["ALONE_CPUS", "COMMON_PATHS", "HEAVY_RULES", "MACHINE_SHARE", "PATHS"
            "RESULTS", "RUNS_ALONE", "SCALES", "STUDIES", "THESIS_ITEMS", "AtScale", "ConfigError",
            "Study", "ThesisItem", "all_targets", "at_scale", "bench_path", "caption_files", "CHART",
            "captions_of", "check_config", "claim_keys", "coarser_levels", "config_schema",
-           "load_config", "log_path", "problem_set_of", "rule_resources", "scene_problem",
+           "load_config", "log_path", "path_pattern", "problem_set_of", "rule_resources", "scene_problem",
            "scenes_of", "scenes_with_families", "schema_file", "set_args", "study_commands",
            "study_module", "study_of", "summary_items", "thesis_item_files", "thesis_table"]
 

@@ -443,6 +443,15 @@ def set_args(config: dict, scene: str) -> str:
     return f"--problem {problem} {sets}".strip()
 
 
+def path_pattern(template: str) -> re.Pattern:
+    """A path template (``results/{scene}/x.png``) as a regular expression of its paths,
+    for ``fullmatch``: each wildcard a named group of one path component, the path possibly
+    under a leading folder."""
+    parts = re.split(r"\{(\w+)\}", template)
+    return re.compile(r"(?:.*/)?" + "".join(
+        re.escape(part) if i % 2 == 0 else f"(?P<{part}>[^/]+)" for i, part in enumerate(parts)))
+
+
 def log_path(rule: str, name: str = "{scene}") -> str:
     """The log file of a rule's job (``name`` may hold wildcards)."""
     return COMMON_PATHS["log"].format(rule=rule, name=name)
