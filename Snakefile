@@ -18,8 +18,7 @@ from snakemake.utils import validate
 from solvers.interface import solver_set
 from workflows.io import SOLVER_SET_ENV, run_solver_set, sweep_results
 from workflows.mesh_store import CACHE_VARIABLE
-from workflows.table_pages import (TABLE_PAGES, page_log_name, page_path, page_rule, pages_of,
-                                   shown_table)
+from workflows.table_pages import shown_pages, shown_table
 from workflows.progress import clear as clear_progress, start_reporter
 
 from workflows.studies import (PATHS, STUDIES, all_targets, at_scale, bench_path,
@@ -94,6 +93,5 @@ include: "workflows/summary.smk"
 
 rule all:
     input:
-        TARGETS, PATHS["summary_html"], PATHS["summary_claims"], PATHS["summary_landing"],
-        pages_of(TARGETS + [PATHS["summary_claims"]])
+        TARGETS, rules.summary.output
     default_target: True

@@ -2,7 +2,7 @@
 its reason (shared by the summary page, the studies' headline parts and the page the HTML
 report shows for each CSV table).
 
-Example (a CSV table as a page of its own)::
+Example (CSV tables as pages of their own, the n-th page for the n-th table)::
 
     python -m report.tables --csv results/circle_square/coupling_claims.csv \
         --html results/circle_square/coupling_claims.html
@@ -205,10 +205,15 @@ def table_page(frame: pd.DataFrame, title: str) -> str:
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--csv", required=True, help="the table")
-    ap.add_argument("--html", required=True, help="its page to write")
+    ap.add_argument("--csv", required=True, nargs="+", help="the tables")
+    ap.add_argument("--html", required=True, nargs="+",
+                    help="their pages to write, one per table, in the tables' order")
     args = ap.parse_args(argv)
-    write_text(args.html, table_page(read_csv(args.csv), args.csv))
+    if len(args.html) != len(args.csv):
+        ap.error(f"--html: {len(args.html)} pages for {len(args.csv)} tables (--csv); "
+                 "give one page per table")
+    for table, page in zip(args.csv, args.html):
+        write_text(page, table_page(read_csv(table), table))
 
 
 if __name__ == "__main__":

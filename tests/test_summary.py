@@ -190,14 +190,30 @@ def test_the_thesis_value_sits_beneath_ours_and_items_name_their_scene():
 def test_a_csv_table_is_a_page_of_its_own(tmp_path, monkeypatch):
     from report import tables
     from workflows import table_pages
-    from workflows.table_pages import page_path, pages_of, shown_table
+    from workflows.table_pages import Shown, page_path, shown_pages, shown_table
     monkeypatch.setattr(table_pages, "TABLE_PAGES", {})
-    path = shown_table("results/{scene}/x_table.csv", caption="c.rst", category="{scene}")
+    path = shown_table("results/{scene}/x_table.csv", caption="c.rst", category="{scene}",
+                       subcategory="tables of {scene}")
     assert path == "results/{scene}/x_table.csv" and page_path(path) == "results/{scene}/x_table.html"
-    assert pages_of(["results/cs/x_table.csv", "results/cs/y.csv"]) == ["results/cs/x_table.html"]
-    csv = tmp_path / "t.csv"
-    write_csv(csv, pd.DataFrame({"level": [0, 1], "err_energy": [1e-3, -2e-4]}))
-    tables.main(["--csv", str(csv), "--html", str(tmp_path / "t.html")])
-    page = (tmp_path / "t.html").read_text()
-    assert page.startswith("<!DOCTYPE html>") and "err energy" in page and "cbSort" in page
+    assert shown_pages(["results/cs/y.csv", "results/cs/x_table.csv"]) == [
+        ("results/cs/x_table.csv", "results/cs/x_table.html",
+         Shown("c.rst", "cs", "tables of cs"))]     # the wildcards filled, other CSVs not shown
+    frames = [pd.DataFrame({"level": [0, 1], "err_energy": [1e-3, -2e-4]}),
+              pd.DataFrame({"solver": ["tnnmg"], "time_s": [0.5]})]
+    csvs = [tmp_path / f"t{i}.csv" for i in range(2)]
+    for csv, frame in zip(csvs, frames):
+        write_csv(csv, frame)
+    pages = [tmp_path / f"t{i}.html" for i in range(2)]
+    tables.main(["--csv", *map(str, csvs), "--html", *map(str, pages)])
+    first, second = (page.read_text() for page in pages)
+    assert first.startswith("<!DOCTYPE html>") and "err energy" in first and "cbSort" in first
+    assert "tnnmg" in second and "tnnmg" not in first     # each page its own table
+
+
+def test_table_pages_need_one_page_per_table(tmp_path, capsys):
+    from report import tables
+    with pytest.raises(SystemExit):
+        tables.main(["--csv", "a.csv", "b.csv", "--html", str(tmp_path / "a.html")])
+    assert "--html: 1 pages for 2 tables" in capsys.readouterr().err
+    assert not list(tmp_path.iterdir())                   # nothing written
 

@@ -3,13 +3,13 @@
 Snakemake's report shows images, PDFs and HTML pages and offers any other file, a CSV
 table among them, as a download only. A rule's output that is a table for the reader is
 therefore named with :func:`shown_table` where a figure is named with ``report()``: the
-CSV stays the rule's output, and a rule of its own (:func:`page_rule`,
-``workflows/summary.smk``) writes its page (:func:`page_path`, by ``python -m report.tables``), which the report
-shows with the table's caption, category and subcategory.
+CSV stays the rule's output, and the summary's job (``workflows/summary.smk``), which runs
+after every table, writes the pages of all of them in one process (:func:`shown_pages`,
+``python -m report.tables``); the report shows each with its table's caption, category and
+subcategory.
 """
 from __future__ import annotations
 
-import re
 from pathlib import PurePosixPath
 from typing import NamedTuple
 
@@ -48,20 +48,24 @@ def page_path(path: str) -> str:
     return str(PurePosixPath(path).with_suffix(".html"))
 
 
-def page_rule(path: str) -> str:
-    """The name of the rule writing the page of the table at ``path``: ``page_`` and the
-    file's name (``page_augmented_projection_table``)."""
-    return "page_" + re.sub(r"\W+", "_", PurePosixPath(path).stem)
+def shown_pages(targets: list[str]) -> list[tuple[str, str, Shown]]:
+    """Each shown table among ``targets`` with its page and how the report shows it, the
+    category and subcategory filled with the table's wildcards (``{scene}`` ->
+    ``circle_square``).
 
-
-def page_log_name(path: str) -> str:
-    """The name of the log of the page rule's job for the table at ``path``: its
-    wildcards (``{scene}``), or ``all`` for a path without any."""
-    wildcards = re.findall(r"\{\w+\}", path)
-    return "_".join(wildcards) or "all"
-
-
-def pages_of(targets: list[str]) -> list[str]:
-    """The pages of those ``targets`` that are shown tables (:data:`TABLE_PAGES`)."""
-    patterns = [path_pattern(t) for t in TABLE_PAGES]
-    return [page_path(t) for t in targets if any(p.fullmatch(t) for p in patterns)]
+    Returns
+    -------
+    list of (str, str, Shown)
+        ``(table, page, shown)`` in the order of ``targets``.
+    """
+    pages = []
+    for target in targets:
+        for template, shown in TABLE_PAGES.items():
+            match = path_pattern(template).fullmatch(target)
+            if match:
+                fill = match.groupdict()
+                pages.append((target, page_path(target), shown._replace(
+                    category=shown.category and shown.category.format(**fill),
+                    subcategory=shown.subcategory and shown.subcategory.format(**fill))))
+                break
+    return pages
