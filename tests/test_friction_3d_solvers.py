@@ -5,6 +5,8 @@ with known optimality conditions and on cube_sphere (mu = 0.5, elastically simil
 bodies: E1 = E2 = 1, nu1 = nu2 = 0.3, the scene's defaults)."""
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 import pytest
 
@@ -112,6 +114,16 @@ def _frictional(level, **kw):
     return SCENE.make(level, **{"friction": "tresca", "mu": 0.5, "shift": 0.01, **kw})
 
 
+@functools.cache
+def _shared(level, law="tresca"):
+    """The scene of :func:`_frictional` under ``law``, one object per level and law in
+    this module: the tests that only solve it share the exact reference's dense dual and
+    semismooth Newton's Schur complement, each formed once per problem and kept in
+    ``qp.cache`` (the tests that change a limit or count the cache's work build their
+    own)."""
+    return _frictional(level, friction=law)
+
+
 def _registered_path(qp, solver, **options):
     """The load path through the registry: every Tresca solve verified (the friction KKT
     residuals and the certified Tresca energy bound) at 1e-10."""
@@ -129,7 +141,7 @@ def paths(request):
     exact Tresca steps; measured 8 and 6-7 Tresca solves, contraction 0.03-0.05) and
     ``semismooth_newton`` (Coulomb: monolithic)."""
     level, law = request.param
-    qp = _frictional(level, friction=law)
+    qp = _shared(level, law)
     options = {"coulomb": "monolithic"} if law == "coulomb" else {}
     return (qp, _registered_path(qp, "tresca_exact"),
             _registered_path(qp, "semismooth_newton", **options))
@@ -208,7 +220,7 @@ def _stick_zone_deviation(level: int, ratio: float) -> float:
     """``(c/a) / (1 - Q/(mu P))^(1/3) - 1`` of the exact path scaled to ``ratio``; ``a``
     and ``c`` from the moments of ``p`` and of ``s - |lam|``
     (:func:`reference.cattaneo_mindlin.stick_zone_size`)."""
-    qp = _frictional(level)
+    qp = _shared(level)
     steps = path_for_ratio(qp, ratio)
     assert tangential_ratio(steps) == pytest.approx(ratio, rel=1e-6)
     sol, fr = steps[-1].solution, steps[-1].qp.friction
@@ -248,7 +260,7 @@ def test_tnnmg_agrees_with_the_exact_reference(level):
     """The third frictional solver on the same Tresca load path: verified, and within
     1e-8 of tresca_exact in the energy norm and the relative Tresca energy (measured at
     level 1: 1.7e-10 and 4e-16, 13 TNNMG steps per load step)."""
-    qp = _frictional(level)
+    qp = _shared(level)
     exact, multigrid = (_registered_path(qp, name) for name in ("tresca_exact", "tnnmg"))
     assert multigrid.result.status == "converged", multigrid.result.message
     for a, b in zip(exact.steps, multigrid.steps, strict=True):
