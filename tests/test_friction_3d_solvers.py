@@ -6,6 +6,7 @@ bodies: E1 = E2 = 1, nu1 = nu2 = 0.3, the scene's defaults)."""
 from __future__ import annotations
 
 import functools
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -120,8 +121,12 @@ def _shared(level, law="tresca"):
     this module: the tests that only solve it share the exact reference's dense dual and
     semismooth Newton's Schur complement, each formed once per problem and kept in
     ``qp.cache`` (the tests that change a limit or count the cache's work build their
-    own)."""
-    return _frictional(level, friction=law)
+    own). Coulomb's problem is Tresca's with the law changed, as the friction study
+    makes it: the same A, B and T, so the same dual and Schur complement."""
+    if law == "tresca":
+        return _frictional(level)
+    tresca_qp = _shared(level)
+    return replace(tresca_qp, friction=replace(tresca_qp.friction, law=law))
 
 
 def _registered_path(qp, solver, **options):
