@@ -292,11 +292,15 @@ def timing_rows(step_qp, u_ref, target: float, repeats: int, time_limit: float,
             for (name, start), run in timed.items()]
 
 
-def mu_zero_rows(qp, ref_solve) -> list[dict]:
-    """The reference's path of ``qp`` with ``mu = 0`` against ``pdas`` on each load step's
-    frictionless problem (the step's ``f`` and ``g`` without friction: the scene built
-    with ``friction=none`` and the step's shift, array for array)."""
-    steps = friction_path(replace(qp, friction=replace(qp.friction, mu=0.0)), ref_solve)
+def mu_zero_path(qp, ref_solve) -> list:
+    """The reference's load path of ``qp`` with ``mu = 0``."""
+    return friction_path(replace(qp, friction=replace(qp.friction, mu=0.0)), ref_solve)
+
+
+def mu_zero_rows(qp, steps: list) -> list[dict]:
+    """The reference's path with ``mu = 0`` (:func:`mu_zero_path`) against ``pdas`` on
+    each load step's frictionless problem (the step's ``f`` and ``g`` without friction: the
+    scene built with ``friction=none`` and the step's shift, array for array)."""
     rows = []
     for k, (st, load) in enumerate(zip(steps, qp.friction.path), start=1):
         plain = replace(qp, f=load.f, g=load.g, friction=None)
@@ -386,13 +390,26 @@ def level_rows(spec, params: dict, level: int, args) -> tuple[list[dict], list[p
                  timing_rows(ref.qp, ref.solution.u, args.target, args.repeats,
                              args.time_limit, steps[0].solution.u, coarse_steps)]
     try:
-        rows += [{**size, "role": "mu_zero", "solver": ref_name, **r}
-                 for r in mu_zero_rows(qp, ref_solve)]
-        if args.coulomb_shift > 0:
-            rows += [{**size, "role": "coulomb", "solver": ref_name, **r} for r in
-                     coulomb_rows(qp, args.coulomb_shift / args.shift, ref_solve)]
+        zero_steps = mu_zero_path(qp, ref_solve)
     except ReferenceFailed as err:
         rows.append({**size, "role": "mu_zero", "status": "failed", "message": str(err)})
+    else:
+        failed = None
+        try:           # the reference's solves first, while its factorisation is kept
+            coulomb = (coulomb_rows(qp, args.coulomb_shift / args.shift, ref_solve)
+                       if args.coulomb_shift > 0 else [])
+        except ReferenceFailed as err:
+            coulomb, failed = [], err
+        # semismooth Newton's factor of A and Schur complement (the reference beyond
+        # tresca_exact's size) are not needed again: released before pdas factorises A
+        # for the frictionless steps, so that two factorisations are never held at once
+        qp.cache.contact_schur.clear()
+        rows += [{**size, "role": "mu_zero", "solver": ref_name, **r}
+                 for r in mu_zero_rows(qp, zero_steps)]
+        rows += [{**size, "role": "coulomb", "solver": ref_name, **r} for r in coulomb]
+        if failed is not None:
+            rows.append({**size, "role": "mu_zero", "status": "failed",
+                         "message": str(failed)})
     if last_path is not None and not last_path[1].friction.facets:
         rows += [{**size, "ratio": last_path[0], **r}
                  for r in facet_rows(last_path[1], args.facets, ref_name)]
