@@ -58,10 +58,11 @@ def shown_pages(targets: list[str]) -> list[tuple[str, str, Shown]]:
     list of (str, str, Shown)
         ``(table, page, shown)`` in the order of ``targets``.
     """
+    patterns = [(path_pattern(template), shown) for template, shown in TABLE_PAGES.items()]
     pages = []
     for target in targets:
-        for template, shown in TABLE_PAGES.items():
-            match = path_pattern(template).fullmatch(target)
+        for pattern, shown in patterns:
+            match = pattern.fullmatch(target)
             if match:
                 fill = match.groupdict()
                 pages.append((target, page_path(target), shown._replace(
