@@ -51,21 +51,27 @@ def kkt_residuals(qp: ContactQP, u: np.ndarray, p: np.ndarray) -> KKTResiduals:
     p = np.asarray(p, dtype=float)
     Au = qp.A @ u
     Btp = qp.B.T @ p
-    Bu = qp.B @ u
-    slack = qp.g - Bu + (qp.C @ p if qp.C is not None else 0.0)
+    scaled, raw = row_residuals(qp, qp.B @ u, p)
     inf = lambda v: float(np.max(np.abs(v))) if np.size(v) else 0.0
     r_stat = inf(Au + Btp - qp.f)
+    return KKTResiduals(stationarity=r_stat / max(inf(qp.f), inf(Au), inf(Btp), tiny),
+                        **scaled, raw={"stationarity": r_stat, **raw})
+
+
+def row_residuals(qp: ContactQP, Bu: np.ndarray, p: np.ndarray) -> tuple[dict, dict]:
+    """The rows' KKT residuals of :class:`KKTResiduals` (``primal``, ``dual`` and
+    ``complementarity``; every one but the stationarity) from the rows' values ``Bu``
+    and ``p``: ``(scaled, raw)``."""
+    tiny = 1e-300
+    slack = qp.g - Bu + (qp.C @ p if qp.C is not None else 0.0)
+    inf = lambda v: float(np.max(np.abs(v))) if np.size(v) else 0.0
     r_primal = max(0.0, float(np.max(-slack))) if slack.size else 0.0  # 0.0 first: never -0.0
     r_dual = max(0.0, float(np.max(-p))) if p.size else 0.0
     r_comp = float(np.sum(np.abs(p * slack)))
     disp_scale = max(inf(Bu), inf(qp.g), tiny)
-    return KKTResiduals(
-        stationarity=r_stat / max(inf(qp.f), inf(Au), inf(Btp), tiny),
-        primal=r_primal / disp_scale,
-        dual=r_dual / max(inf(p), tiny),
-        complementarity=r_comp / max(float(np.sum(np.abs(p))) * disp_scale, tiny),
-        raw={"stationarity": r_stat, "primal": r_primal, "dual": r_dual, "complementarity": r_comp},
-    )
+    scaled = {"primal": r_primal / disp_scale, "dual": r_dual / max(inf(p), tiny),
+              "complementarity": r_comp / max(float(np.sum(np.abs(p))) * disp_scale, tiny)}
+    return scaled, {"primal": r_primal, "dual": r_dual, "complementarity": r_comp}
 
 
 def energy_error(qp: ContactQP, u: np.ndarray, u_ref: np.ndarray) -> float:

@@ -63,7 +63,7 @@ import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
 
-from problems.friction.residuals import friction_residuals
+from problems.friction.residuals import friction_residuals, friction_row_residuals
 from problems.kkt import kkt_residuals
 from problems.qp import ContactQP
 from problems.spec import ComponentParameter, Options, Parameter, ParameterError
@@ -561,12 +561,12 @@ def _damped_tangential(state: np.ndarray, proposed: np.ndarray, v: np.ndarray,
     return new
 
 
-def _damped_sets(qp: ContactQP, sets: tuple, proposed: tuple, u, p, v, bound, limit: int,
+def _damped_sets(qp: ContactQP, sets: tuple, proposed: tuple, Bu, p, v, bound, limit: int,
                  mu: float | None) -> tuple[np.ndarray, np.ndarray]:
     """The normal and stick/slip sets with only the ``limit`` largest proposed changes of
     each (:func:`solvers.kernels.active_set.damped_update`, :func:`_damped_tangential`); Coulomb
     (``mu``): no friction force off the normal set."""
-    normal = damped_update(qp, sets[0], proposed[0], u, p, limit)
+    normal = damped_update(qp, sets[0], proposed[0], None, p, limit, Bu=Bu)
     state = _damped_tangential(sets[1], proposed[1], v, bound, limit)
     if mu is not None:
         state = np.where(normal, state, 0)
@@ -721,7 +721,9 @@ def solve_friction(qp: ContactQP, tol: float, max_iter: int, time_limit: float |
     w = ops.solve_A(qp.f)
     r = fr.previous - fr.offset                              # slip = T u - r
     h = np.concatenate([qp.g, r])
-    rhs = ops.G @ w - h
+    Gw = ops.G @ w
+    rhs = Gw - h
+    every_step = opts.displacement == "every_step"
     setup_time = time.perf_counter() - t_start
 
     t_solve = time.perf_counter()
@@ -731,19 +733,20 @@ def solve_friction(qp: ContactQP, tol: float, max_iter: int, time_limit: float |
     lam = np.zeros(fr.T.shape[0])
     normal = initial_active_set(qp, u0, p0, c_eff)
 
-    def bound_of(normal, u, p):
+    def bound_of(normal, Bu, p):
         if mu is None:
             return fr.slip_bound
-        return np.where(normal, mu * np.maximum(p + c_eff * (qp.B @ u - qp.g), 0.0), 0.0)
+        return np.where(normal, mu * np.maximum(p + c_eff * (Bu - qp.g), 0.0), 0.0)
 
-    def sets_of(state, normal, u, p, lam):
-        s_hat = bound_of(normal, u, p)
-        v = lam + c_slip * (fr.T @ u - r)
+    def sets_of(state, normal, Gu, p, lam):
+        """The stick/slip sets from the rows' values ``Gu = (B u, T u)``."""
+        s_hat = bound_of(normal, Gu[0], p)
+        v = lam + c_slip * (Gu[1] - r)
         eps = opts.flip_tol * max(float(np.max(np.abs(v), initial=0.0)),
                                   float(np.max(s_hat, initial=0.0)), 1e-300)
         return tangential_update(state, fr.magnitude(v) if discs else v, s_hat, eps), v, s_hat
 
-    state, v, s_hat = sets_of(np.zeros(m, dtype=int), normal, u, p, lam)
+    state, v, s_hat = sets_of(np.zeros(m, dtype=int), normal, (qp.B @ u, fr.T @ u), p, lam)
     history = {"n_active": [], "n_stick": [], "n_slip": [], "kkt_max": [], "time": []}
     seen = {normal.tobytes() + state.tobytes()}
     limit: int | None = None
@@ -768,8 +771,14 @@ def solve_friction(qp: ContactQP, tol: float, max_iter: int, time_limit: float |
             status, message = "failed", f"{law} step {k}: {err}"
             break
         p, lam = y[:m], y[m:]
-        u = ops.solve_A(qp.f - ops.G.T @ y)
-        kkt = _friction_kkt(qp, u, p, lam, mu)
+        if every_step:
+            u = ops.solve_A(qp.f - ops.G.T @ y)
+            Gu = (qp.B @ u, fr.T @ u)
+            kkt = _friction_kkt(qp, u, p, lam, mu)
+        else:                                      # the rows only: G u = G A^-1 f - S y
+            Gy = Gw - ops.S @ y
+            Gu = (Gy[:m], Gy[m:])
+            kkt = _friction_row_kkt(qp, Gu[0], Gu[1] - r, p, lam, mu)
         history["n_active"].append(int(normal.sum()))
         history["n_stick"].append(int(np.count_nonzero(state == STICK)))
         history["n_slip"].append(int(np.count_nonzero(np.abs(state) == 1)))
@@ -777,12 +786,12 @@ def solve_friction(qp: ContactQP, tol: float, max_iter: int, time_limit: float |
         history["time"].append(time.perf_counter() - t_solve)
         if best is None or kkt < best[0]:
             best = (kkt, u, p, lam, normal, state)
-        proposed_normal = pdas_update(qp, normal, u, p, opts.flip_tol)
-        proposed_state, v, s_hat = sets_of(state, proposed_normal, u, p, lam)
+        proposed_normal = pdas_update(qp, normal, u, p, opts.flip_tol, Bu=Gu[0])
+        proposed_state, v, s_hat = sets_of(state, proposed_normal, Gu, p, lam)
         new_normal, new_state = proposed_normal, proposed_state
         if limit is not None:
             new_normal, new_state = _damped_sets(qp, (normal, state), (proposed_normal,
-                                                 proposed_state), u, p, fr.magnitude(v),
+                                                 proposed_state), Gu[0], p, fr.magnitude(v),
                                                  s_hat, limit, mu)
         if np.array_equal(new_normal, normal) and np.array_equal(new_state, state):
             stalled = stalled + 1 if kkt > 0.5 * fixed_best else 0
@@ -812,14 +821,21 @@ def solve_friction(qp: ContactQP, tol: float, max_iter: int, time_limit: float |
                 limit = max(1, n_changes // 2) if limit is None else max(1, limit // 2)
                 seen = set()
                 new_normal, new_state = _damped_sets(qp, (normal, state), (proposed_normal,
-                                                     proposed_state), u, p, fr.magnitude(v),
-                                                     s_hat, limit, mu)
+                                                     proposed_state), Gu[0], p,
+                                                     fr.magnitude(v), s_hat, limit, mu)
                 key = new_normal.tobytes() + new_state.tobytes()
             seen.add(key)
             normal, state = new_normal, new_state
         if time_limit is not None and time.perf_counter() - t_start > time_limit:
             status, message = "time_limit", f"time limit {time_limit:g} s reached at step {k}"
             break
+    if not every_step and best is not None:
+        u = ops.solve_A(qp.f - ops.G.T @ np.concatenate([p, lam]))
+        rows_kkt, kkt = kkt, _friction_kkt(qp, u, p, lam, mu)
+        message += (f"; the steps judged on the rows (friction KKT max {rows_kkt:.1e}), u "
+                    f"formed at the end: friction KKT max {kkt:.1e}")
+        if status == "converged" and kkt > tol:
+            status = "inaccurate"
     if limit is not None:
         message += f"; damped (at most {limit} set changes per step)"
     if n_dependent:
@@ -838,9 +854,20 @@ def solve_friction(qp: ContactQP, tol: float, max_iter: int, time_limit: float |
 def _friction_kkt(qp: ContactQP, u, p, lam, mu: float | None) -> float:
     """The friction KKT residual (:func:`problems.friction.residuals.friction_residuals`) of the step;
     Coulomb (``mu``): of the Tresca step with ``s = mu p``."""
-    if mu is not None:
-        qp = replace(qp, friction=replace(qp.friction, slip_bound=mu * np.maximum(p, 0.0)))
-    return friction_residuals(qp, u, p, lam).max
+    return friction_residuals(_with_bound(qp, p, mu), u, p, lam).max
+
+
+def _friction_row_kkt(qp: ContactQP, Bu, slip, p, lam, mu: float | None) -> float:
+    """The rows' part of :func:`_friction_kkt` (every residual but the stationarity,
+    :func:`problems.friction.residuals.friction_row_residuals`) from ``Bu`` and ``slip``."""
+    return max(friction_row_residuals(_with_bound(qp, p, mu), Bu, slip, p, lam)[0].values())
+
+
+def _with_bound(qp: ContactQP, p, mu: float | None) -> ContactQP:
+    """``qp``; Coulomb (``mu``): its Tresca step with ``s = mu p``."""
+    if mu is None:
+        return qp
+    return replace(qp, friction=replace(qp.friction, slip_bound=mu * np.maximum(p, 0.0)))
 
 
 SOLVER = SolverSpec(
@@ -877,6 +904,11 @@ SOLVER = SolverSpec(
                   "change the active set", low=0.0, high=1e-6),
         Parameter("c_slip", 0.01, "parameter of the stick/slip sets (lam + c slip) relative "
                   "to the stiffness scale (friction only)", low=0.0, low_open=True),
+        Parameter("displacement", "every_step", "friction only: when the displacement u = "
+                  "A^-1 (f - G'y) is formed, at every Newton step (the sets and the stop judged "
+                  "on u's residuals) or once at the end (judged on the rows G u = G A^-1 f - "
+                  "S y; one solve with A's factor per run instead of one per step)",
+                  choices=("every_step", "at_end")),
         Parameter("coulomb", "tresca_step", "on a Coulomb problem: solve the Tresca step of "
                   "its given slip bound (a fixed point s = mu p runs around it), or Coulomb "
                   "monolithically with s = mu p inside the Newton iteration (Hueber-Stadler-"

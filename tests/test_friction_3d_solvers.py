@@ -282,3 +282,22 @@ def test_the_steps_of_a_load_path_share_one_schur_complement():
     step = with_step(qp, 1, np.zeros(qp.m), np.zeros(qp.friction.T.shape[0]))
     assert semismooth_newton.contact_schur(step) is first
     assert first.S.shape == (3 * qp.m, 3 * qp.m)
+
+
+def test_the_displacement_formed_at_the_end_agrees(paths):
+    """3D: semismooth Newton with displacement='at_end' (the steps judged on the rows,
+    u formed once) on the path's last Tresca step (level 2): verified, within 1e-12 of
+    the default's u in the energy norm and 1e-10 of its multipliers; its Newton steps on
+    fixed sets stop at round-off as the default's do (within the stall count)."""
+    qp, _, ssn = paths
+    last = ssn.steps[-1]
+    spec = semismooth_newton.SOLVER
+    every, end = (spec.solve(last.qp, TIGHT, 100, None, None, None,
+                             spec.options(displacement=kind))
+                  for kind in ("every_step", "at_end"))
+    assert every.claimed_status == end.claimed_status == "converged", end.message
+    assert friction_residuals(last.qp, end.u, end.p, end.tangential).max <= TIGHT
+    assert energy_error(last.qp, end.u, every.u) <= 1e-12
+    scale = max(np.max(np.abs(every.tangential)), np.max(every.p))
+    assert np.max(np.abs(end.tangential - every.tangential)) <= 1e-10 * scale
+    assert abs(end.iterations - every.iterations) <= semismooth_newton.FRICTION_STALL

@@ -186,3 +186,46 @@ def test_a_cycling_coulomb_iteration_ends_with_an_honest_status():
     assert res.claimed_status == "failed" and "cycle under single changes" in res.message
     assert res.stats["damped"] and res.iterations < 100
     assert min(res.history["kkt_max"]) > 1e-3             # no step came close
+
+
+def _counting_solves(monkeypatch) -> list:
+    """Count the solves with A's factor (``ContactSchur.solve_A``) from now on."""
+    calls = []
+    plain = semismooth_newton.ContactSchur.solve_A
+
+    def counted(self, rhs):
+        calls.append(1)
+        return plain(self, rhs)
+
+    monkeypatch.setattr(semismooth_newton.ContactSchur, "solve_A", counted)
+    return calls
+
+
+@pytest.mark.parametrize("law", ["tresca", "coulomb"])
+def test_the_displacement_formed_at_the_end_takes_the_same_steps(law, monkeypatch):
+    """displacement='at_end' judges the Newton steps on the rows (G u = G A^-1 f - S y)
+    and forms u once: the same sets, hence the same steps and, in 2D, the same
+    multipliers, with two solves with A's factor per run (A^-1 f and u) instead of one
+    per step and one for A^-1 f. Both steps of a Tresca path and of a monolithic
+    Coulomb one (level 1, the second step at Q/(mu P) = 0.7 resp. with the Coulomb
+    shift)."""
+    if law == "tresca":
+        steps = [st.qp for st in path_for_ratio(_frictional(1), 0.7)]
+        options = {}
+    else:
+        qp = _frictional(1, friction="coulomb", shift=0.02)
+        steps = [with_step(qp, k, np.zeros(qp.m), np.zeros(qp.m)) for k in range(2)]
+        options = {"coulomb": "monolithic"}
+    calls = _counting_solves(monkeypatch)
+    for step_qp in steps:
+        every = _ssn(step_qp, **options)
+        n_every, calls[:] = len(calls), []
+        end = _ssn(step_qp, displacement="at_end", **options)
+        n_end, calls[:] = len(calls), []
+        assert every.claimed_status == end.claimed_status == "converged", end.message
+        assert end.iterations == every.iterations
+        assert (n_every, n_end) == (1 + every.iterations, 2)
+        np.testing.assert_array_equal(end.p, every.p)
+        np.testing.assert_array_equal(end.tangential, every.tangential)
+        assert energy_error(step_qp, end.u, every.u) <= 1e-14
+        assert "u formed at the end" in end.message

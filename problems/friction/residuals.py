@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from problems.kkt import KKTResiduals, kkt_residuals
+from problems.kkt import KKTResiduals, row_residuals
 from problems.qp import ContactQP
 
 
@@ -49,22 +49,32 @@ def friction_residuals(qp: ContactQP, u: np.ndarray, p: np.ndarray,
     fr = qp.friction
     u, p, lam = (np.asarray(v, dtype=float) for v in (u, p, lam))
     inf = lambda v: float(np.max(np.abs(v))) if np.size(v) else 0.0
-    normal = kkt_residuals(qp, u, p)
     Au, Btp, Ttl = qp.A @ u, qp.B.T @ p, fr.T.T @ lam
     r_stat = inf(Au + Btp + Ttl - qp.f)
-    s, slip, size = fr.slip_bound, fr.slip(u), fr.gauge(lam)
+    scaled, raw = friction_row_residuals(qp, qp.B @ u, fr.slip(u), p, lam)
+    return FrictionResiduals(
+        stationarity=r_stat / max(inf(qp.f), inf(Au), inf(Btp), inf(Ttl), tiny), **scaled,
+        raw={"stationarity": r_stat, **raw})
+
+
+def friction_row_residuals(qp: ContactQP, Bu: np.ndarray, slip: np.ndarray, p: np.ndarray,
+                           lam: np.ndarray) -> tuple[dict, dict]:
+    """The rows' residuals of :class:`FrictionResiduals` (every one but the
+    stationarity) from the rows' values: ``Bu``, the slip ``slip``
+    (:meth:`problems.friction.data.Friction.slip`) and the multipliers: ``(scaled,
+    raw)``."""
+    tiny = 1e-300
+    fr = qp.friction
+    inf = lambda v: float(np.max(np.abs(v))) if np.size(v) else 0.0
+    scaled, raw = row_residuals(qp, Bu, p)
+    s, size = fr.slip_bound, fr.gauge(lam)
     r_bound = max(0.0, float(np.max(size - s))) if s.size else 0.0
     r_slip = float(np.sum(np.abs(s * fr.dissipation(slip) - fr.inner(lam, slip))))
-    disp_scale = max(inf(slip), inf(qp.B @ u), inf(qp.g), tiny)
-    return FrictionResiduals(
-        stationarity=r_stat / max(inf(qp.f), inf(Au), inf(Btp), inf(Ttl), tiny),
-        primal=normal.primal, dual=normal.dual, complementarity=normal.complementarity,
-        bound=r_bound / max(inf(size), inf(s), tiny),
-        slip_complementarity=r_slip / max(float(np.sum(s)), float(np.sum(size)), tiny)
-        / disp_scale,
-        raw={**normal.raw, "stationarity": r_stat, "bound": r_bound,
-             "slip_complementarity": r_slip},
-    )
+    disp_scale = max(inf(slip), inf(Bu), inf(qp.g), tiny)
+    scaled.update(bound=r_bound / max(inf(size), inf(s), tiny),
+                  slip_complementarity=r_slip / max(float(np.sum(s)), float(np.sum(size)), tiny)
+                  / disp_scale)
+    return scaled, {**raw, "bound": r_bound, "slip_complementarity": r_slip}
 
 
 def tresca_energy(qp: ContactQP, u: np.ndarray) -> float:

@@ -30,9 +30,11 @@ def stiffness_scale(qp: ContactQP) -> float:
     return float(np.mean(qp.A.diagonal()) / np.mean(row_sq))
 
 
-def constraint_residual(qp: ContactQP, u: np.ndarray, p: np.ndarray) -> np.ndarray:
-    """``Bu - Cp - g`` (positive where a constraint is violated)."""
-    r = qp.B @ u - qp.g
+def constraint_residual(qp: ContactQP, u: np.ndarray, p: np.ndarray,
+                        Bu: np.ndarray | None = None) -> np.ndarray:
+    """``Bu - Cp - g`` (positive where a constraint is violated); ``Bu`` given where the
+    caller has it (``u`` is then not read)."""
+    r = (qp.B @ u if Bu is None else Bu) - qp.g
     if qp.C is not None:
         r = r - qp.C @ p
     return r
@@ -48,34 +50,37 @@ def initial_active_set(qp: ContactQP, u0, p0, c_eff: float) -> np.ndarray:
 
 
 def pdas_update(qp: ContactQP, active: np.ndarray, u: np.ndarray, p: np.ndarray,
-                 flip_tol: float) -> np.ndarray:
+                 flip_tol: float, Bu: np.ndarray | None = None) -> np.ndarray:
     """The PDAS rule after an exact step, with round-off hysteresis.
 
     Keeps ``i`` in the active set while ``p_i >= -flip_tol ||p||_inf`` and adds
-    ``i`` when ``(Bu - Cp - g)_i > flip_tol max(||Bu||_inf, ||g||_inf)``.
+    ``i`` when ``(Bu - Cp - g)_i > flip_tol max(||Bu||_inf, ||g||_inf)`` (``Bu`` given
+    where the caller has it; ``u`` is then not read).
     """
-    r = constraint_residual(qp, u, p)
+    Bu = qp.B @ u if Bu is None else Bu
+    r = constraint_residual(qp, u, p, Bu)
     p_scale = float(np.max(np.abs(p))) if p.size else 0.0
-    d_scale = max(float(np.max(np.abs(qp.B @ u))), float(np.max(np.abs(qp.g)))) if p.size else 0.0
+    d_scale = max(float(np.max(np.abs(Bu))), float(np.max(np.abs(qp.g)))) if p.size else 0.0
     keep = active & (p >= -flip_tol * p_scale)
     add = ~active & (r > flip_tol * d_scale)
     return keep | add
 
 
 def damped_update(qp: ContactQP, active: np.ndarray, proposed: np.ndarray, u: np.ndarray,
-                   p: np.ndarray, limit: int) -> np.ndarray:
+                   p: np.ndarray, limit: int, Bu: np.ndarray | None = None) -> np.ndarray:
     """Apply only the ``limit`` largest of the proposed changes.
 
     Changes are ranked by relative size: ``-p_i / ||p||_inf`` for a constraint
     leaving the active set, ``(Bu - Cp - g)_i / max(||Bu||, ||g||)`` for one
-    entering it.
+    entering it (``Bu`` given where the caller has it; ``u`` is then not read).
     """
     changes = np.flatnonzero(proposed != active)
     if changes.size <= limit:
         return proposed
-    r = constraint_residual(qp, u, p)
+    Bu = qp.B @ u if Bu is None else Bu
+    r = constraint_residual(qp, u, p, Bu)
     p_scale = max(float(np.max(np.abs(p))), 1e-300)
-    d_scale = max(float(np.max(np.abs(qp.B @ u))), float(np.max(np.abs(qp.g))), 1e-300)
+    d_scale = max(float(np.max(np.abs(Bu))), float(np.max(np.abs(qp.g))), 1e-300)
     score = np.where(active[changes], -p[changes] / p_scale, r[changes] / d_scale)
     chosen = changes[np.argsort(-score, kind="stable")[:limit]]
     new = active.copy()

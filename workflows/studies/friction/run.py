@@ -94,6 +94,10 @@ FRICTION_PARAMETERS = ("friction", "mu", "shift")
 #: The fallback references where tresca_exact does not take the problem (its dense dual
 #: grows as rows x unknowns), in order of preference, and their verified tolerance.
 FALLBACK_REFERENCES, FALLBACK_TOL = ("semismooth_newton", "tnnmg"), "high"
+#: The fallback references' options: semismooth Newton judges its steps on the contact rows
+#: and forms ``u`` once per solve (the same steps and answer as its default to round-off, a
+#: quarter of the solves with A's factor; the solver rows run its default).
+FALLBACK_OPTIONS = {"semismooth_newton": {"displacement": "at_end"}}
 #: Tolerance of the frictionless pdas reference of the mu = 0 check.
 PDAS_TOL = 1e-12
 
@@ -106,7 +110,8 @@ def reference_route(qp) -> tuple[str, object]:
     """``(name, solve)`` of the reference for the frictional ``qp``: ``tresca_exact``
     (``solve`` None, the default of :func:`path_for_ratio` and :func:`friction_path`)
     where it takes the problem, else the first of :data:`FALLBACK_REFERENCES` that takes
-    it, verified at :data:`FALLBACK_TOL`, one Tresca step at a time."""
+    it, verified at :data:`FALLBACK_TOL` with :data:`FALLBACK_OPTIONS`, one Tresca step at
+    a time."""
     registered = solvers()
     if registered["tresca_exact"].supports(qp)[0]:
         return "tresca_exact", None
@@ -117,7 +122,7 @@ def reference_route(qp) -> tuple[str, object]:
         raise ReferenceFailed(f"no reference takes {qp.name}: {reasons}")
 
     def fallback(step_qp):
-        res = solve(step_qp, name, FALLBACK_TOL)
+        res = solve(step_qp, name, FALLBACK_TOL, **FALLBACK_OPTIONS.get(name, {}))
         if res.status != "converged":
             raise ReferenceFailed(f"{name}: {res.status} ({res.message})")
         return as_tresca_solution(step_qp, res)
