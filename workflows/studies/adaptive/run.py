@@ -85,7 +85,7 @@ from solvers import augmented_projection as ap
 from solvers.interface import solve, verify
 from solvers.reference import DIRECT_REFERENCE_LIMIT, reference_solve
 from workflows.io import write_csv, write_vtu
-from workflows.measure import dual_norm
+from workflows.measure import dual_norm, return_freed_memory
 from workflows.reference_solution import Reference, contact_measures
 from workflows.progress import study_progress
 from workflows.scene_args import add_scene_arguments, check_levels, scene_from_args
@@ -327,6 +327,7 @@ def run_study(spec, params, start_level: int, variants: list[str], max_nodes: in
             rows.append(row)
         finals[variant] = (run.qps[-1], *run.solutions[-1])
         release_steps(run, error_max_nodes if uniform_levels else None)
+        return_freed_memory()
 
     # ---------------------------------------------------------------- accuracy (2D)
     if uniform_levels:

@@ -85,7 +85,7 @@ from solvers.kernels.tresca import (as_tresca_solution, friction_path, path_for_
                                     tangential_scale, warm_start)
 from workflows.io import write_csv
 from workflows.measure import (amg_pcg_floor, interleaved_median_runs, linear_solution,
-                               tnnmg_run)
+                               return_freed_memory, tnnmg_run)
 from workflows.progress import study_progress
 from workflows.scene_args import add_scene_arguments, check_levels, parse_sets, scene_from_args
 
@@ -394,6 +394,7 @@ def level_rows(spec, params: dict, level: int, args) -> tuple[list[dict], list[p
         rows += [{**size, "ratio": ratio, **r} for r in
                  timing_rows(ref.qp, ref.solution.u, args.target, args.repeats,
                              args.time_limit, steps[0].solution.u, coarse_steps)]
+        return_freed_memory()                  # the ratio's solver runs' leftovers
     try:
         zero_steps = mu_zero_path(qp, ref_solve)
     except ReferenceFailed as err:
@@ -409,6 +410,7 @@ def level_rows(spec, params: dict, level: int, args) -> tuple[list[dict], list[p
         # tresca_exact's size) are not needed again: released before pdas factorises A
         # for the frictionless steps, so that two factorisations are never held at once
         qp.cache.contact_schur.clear()
+        return_freed_memory()
         rows += [{**size, "role": "mu_zero", "solver": ref_name, **r}
                  for r in mu_zero_rows(qp, zero_steps)]
         rows += [{**size, "role": "coulomb", "solver": ref_name, **r} for r in coulomb]
@@ -497,6 +499,7 @@ def main(argv=None) -> None:
         r, p = level_rows(spec, params, level, args)
         rows += r
         profiles += p
+        return_freed_memory()                  # the level's problems and factorisations
     out = pd.DataFrame(rows)
     out.insert(0, "scene", scene)
     out.insert(1, "mu", args.mu)
