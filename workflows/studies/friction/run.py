@@ -362,64 +362,84 @@ def level_rows(spec, params: dict, level: int, args) -> tuple[list[dict], list[p
     except ReferenceFailed as err:
         return [{**size, "role": "reference", "status": "skipped", "message": str(err)}], []
     size["reference"] = ref_name
-    rows, profiles, last_path = [], [], None
+    # The reference's own work first, while its factorisation is held: its paths, its
+    # solver rows, mu = 0 and Coulomb; then that factorisation is released (semismooth
+    # Newton's beyond tresca_exact's size: A's sparse factor) and the other solvers' rows
+    # and the timing runs follow, then pdas factorises A for the frictionless steps: never
+    # two factorisations at once, nor one beside the timed runs. The rows keep their order.
+    blocks, profiles, paths = {}, [], []
     for ratio in args.ratios:
         t0 = time.perf_counter()
         try:
             steps = path_for_ratio(qp, ratio, solve=ref_solve)
         except ReferenceFailed as err:
-            rows.append({**size, "ratio": ratio, "role": "reference", "status": "failed",
-                         "message": str(err)})
+            blocks[ratio] = [{**size, "ratio": ratio, "role": "reference", "status": "failed",
+                              "message": str(err)}]
             continue
         ref = steps[-1]
         fields, profile = partial_slip(ref, ratio)
-        rows.append({**size, "ratio": ratio, "role": "reference", "solver": ref_name,
-                     "status": ref.solution.status, "kkt_max": ref.solution.kkt.max,
-                     "steps_normal": steps[0].solution.iterations,
-                     "steps_tangential": ref.solution.iterations,
-                     "t_solve": time.perf_counter() - t0, **fields})
+        blocks[ratio] = [{**size, "ratio": ratio, "role": "reference", "solver": ref_name,
+                          "status": ref.solution.status, "kkt_max": ref.solution.kkt.max,
+                          "steps_normal": steps[0].solution.iterations,
+                          "steps_tangential": ref.solution.iterations,
+                          "t_solve": time.perf_counter() - t0, **fields}]
         profiles.append(profile.assign(level=level, N=qp.n_nodes, ratio=ratio))
-        last_path = (ratio, ref.qp)
         factor = tangential_scale(ref.qp, qp)
-        below = [scaled_tangential_step(q, factor) for q in coarse]
-        coarse_steps = []
-        for name in args.solvers:
-            for start in STARTS:
-                if start == "nested" and (name not in NESTED_SOLVERS or not below):
-                    continue
-                row, found = solver_row(ref.qp, name, args.tol, args.time_limit, ref,
-                                        start, below)
-                rows.append({**size, "ratio": ratio, "role": "solver", **row})
-                coarse_steps = coarse_steps or found
-        rows += [{**size, "ratio": ratio, **r} for r in
-                 timing_rows(ref.qp, ref.solution.u, args.target, args.repeats,
-                             args.time_limit, steps[0].solution.u, coarse_steps)]
-        return_freed_memory()                  # the ratio's solver runs' leftovers
+        paths.append((ratio, steps, [scaled_tangential_step(q, factor) for q in coarse]))
+    solver_rows = {}                            # (ratio, name, start) -> (row, found)
+
+    def run_solver_rows(names):
+        for ratio, steps, below in paths:
+            for name in names:
+                for start in STARTS:
+                    if start == "nested" and (name not in NESTED_SOLVERS or not below):
+                        continue
+                    solver_rows[ratio, name, start] = solver_row(
+                        steps[-1].qp, name, args.tol, args.time_limit, steps[-1], start, below)
+
+    run_solver_rows([n for n in args.solvers if n == ref_name])
+    tail = []
     try:
         zero_steps = mu_zero_path(qp, ref_solve)
     except ReferenceFailed as err:
-        rows.append({**size, "role": "mu_zero", "status": "failed", "message": str(err)})
+        tail.append({**size, "role": "mu_zero", "status": "failed", "message": str(err)})
+        zero_steps = None
     else:
         failed = None
-        try:           # the reference's solves first, while its factorisation is kept
+        try:
             coulomb = (coulomb_rows(qp, args.coulomb_shift / args.shift, ref_solve)
                        if args.coulomb_shift > 0 else [])
         except ReferenceFailed as err:
             coulomb, failed = [], err
-        # semismooth Newton's factor of A and Schur complement (the reference beyond
-        # tresca_exact's size) are not needed again: released before pdas factorises A
-        # for the frictionless steps, so that two factorisations are never held at once
-        qp.cache.contact_schur.clear()
-        return_freed_memory()
+    qp.cache.contact_schur.clear()             # semismooth Newton's factor and Schur complement
+    return_freed_memory()
+    run_solver_rows([n for n in args.solvers if n != ref_name])
+    for ratio, steps, below in paths:
+        coarse_steps = []
+        for name in args.solvers:
+            for start in STARTS:
+                if (ratio, name, start) in solver_rows:
+                    row, found = solver_rows[ratio, name, start]
+                    blocks[ratio].append({**size, "ratio": ratio, "role": "solver", **row})
+                    coarse_steps = coarse_steps or found
+        blocks[ratio] += [{**size, "ratio": ratio, **r} for r in
+                          timing_rows(steps[-1].qp, steps[-1].solution.u, args.target,
+                                      args.repeats, args.time_limit, steps[0].solution.u,
+                                      coarse_steps)]
+        return_freed_memory()                  # the ratio's timed runs' leftovers
+    rows = [row for ratio in args.ratios for row in blocks[ratio]]
+    if zero_steps is not None:
         rows += [{**size, "role": "mu_zero", "solver": ref_name, **r}
                  for r in mu_zero_rows(qp, zero_steps)]
         rows += [{**size, "role": "coulomb", "solver": ref_name, **r} for r in coulomb]
         if failed is not None:
             rows.append({**size, "role": "mu_zero", "status": "failed",
                          "message": str(failed)})
-    if last_path is not None and not last_path[1].friction.facets:
-        rows += [{**size, "ratio": last_path[0], **r}
-                 for r in facet_rows(last_path[1], args.facets, ref_name)]
+    rows += tail
+    if paths and not paths[-1][1][-1].qp.friction.facets:
+        ratio, steps, _ = paths[-1]
+        rows += [{**size, "ratio": ratio, **r}
+                 for r in facet_rows(steps[-1].qp, args.facets, ref_name)]
     return rows, profiles
 
 
