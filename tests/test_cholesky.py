@@ -65,6 +65,29 @@ def test_partial_solves_give_the_schur_complement(scene_qp, backend):
         factorize(qp.A, backend).solve(qp.f, partial=True)
 
 
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_a_block_solve_holds_two_blocks(scene_qp, backend):
+    """A block of BLOCK sparse columns (the Schur complement's unit of work) is solved
+    with at most three n x BLOCK arrays in memory: the right-hand side, made column-major
+    as the backends take it (no copy on the way in), the answer and its row-major copy
+    (the callers' dense products depend on the layout, so it is kept)."""
+    import tracemalloc
+
+    qp = scene_qp
+    chol = factorize(qp.A, backend, components=qp.B.indices)
+    cols = sp.random(qp.n, cholesky.BLOCK, density=1e-3, format="csc", random_state=1)
+    block = qp.n * cholesky.BLOCK * 8
+    tracemalloc.start()
+    try:
+        x = chol.solve(cols)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert x.shape == (qp.n, cholesky.BLOCK)
+    assert block <= peak <= 3.5 * block
+    np.testing.assert_array_equal(x, chol.solve(np.ascontiguousarray(cols.toarray())))
+
+
 @pytest.mark.skipif("pardiso" not in BACKENDS, reason="MKL not installed (non-x86)")
 def test_pardiso_refuses_an_indefinite_matrix():
     A = sp.diags([1.0, -1.0, 2.0]).tocsr()

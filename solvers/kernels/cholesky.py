@@ -91,7 +91,8 @@ class Cholesky:
         if not vector and cols > BLOCK:
             return np.hstack([self.solve(b[:, s:s + BLOCK], partial)
                               for s in range(0, cols, BLOCK)])
-        dense = b.toarray() if sp.issparse(b) else np.asarray(b, dtype=float)
+        # column-major, as the backends take it: no copy of an n x BLOCK block on the way in
+        dense = b.toarray(order="F") if sp.issparse(b) else np.asarray(b, dtype=float)
         x = self._solve(dense.reshape(self.n, cols), partial)
         return x[:, 0] if vector else x
 

@@ -356,6 +356,7 @@ def level_rows(spec, params: dict, level: int, args) -> tuple[list[dict], list[p
     nested = any(name in NESTED_SOLVERS for name in args.solvers)   # else none built
     coarse = [spec.make(k, **params, friction="tresca", mu=args.mu, shift=args.shift)
               for k in range(max(0, level - NESTED_DEPTH), level) if nested]
+    return_freed_memory()                      # the assembly's temporaries
     size = {"level": level, "N": qp.n_nodes, "n": qp.n, "NC": qp.m, "t_build": t_build}
     try:
         ref_name, ref_solve = reference_route(qp)
@@ -364,8 +365,8 @@ def level_rows(spec, params: dict, level: int, args) -> tuple[list[dict], list[p
     size["reference"] = ref_name
     # The reference's own work first, while its factorisation is held: its paths, its
     # solver rows, mu = 0 and Coulomb; then that factorisation is released (semismooth
-    # Newton's beyond tresca_exact's size: A's sparse factor) and the other solvers' rows
-    # and the timing runs follow, then pdas factorises A for the frictionless steps: never
+    # Newton's beyond tresca_exact's size: A's sparse factor), pdas factorises A for the
+    # frictionless steps, and the other solvers' rows and the timing runs follow: never
     # two factorisations at once, nor one beside the timed runs. The rows keep their order.
     blocks, profiles, paths = {}, [], []
     for ratio in args.ratios:
@@ -413,6 +414,8 @@ def level_rows(spec, params: dict, level: int, args) -> tuple[list[dict], list[p
             coulomb, failed = [], err
     qp.cache.contact_schur.clear()             # semismooth Newton's factor and Schur complement
     return_freed_memory()
+    zero_rows = mu_zero_rows(qp, zero_steps) if zero_steps is not None else []
+    return_freed_memory()                      # pdas's factorisations
     run_solver_rows([n for n in args.solvers if n != ref_name])
     for ratio, steps, below in paths:
         coarse_steps = []
@@ -429,8 +432,7 @@ def level_rows(spec, params: dict, level: int, args) -> tuple[list[dict], list[p
         return_freed_memory()                  # the ratio's timed runs' leftovers
     rows = [row for ratio in args.ratios for row in blocks[ratio]]
     if zero_steps is not None:
-        rows += [{**size, "role": "mu_zero", "solver": ref_name, **r}
-                 for r in mu_zero_rows(qp, zero_steps)]
+        rows += [{**size, "role": "mu_zero", "solver": ref_name, **r} for r in zero_rows]
         rows += [{**size, "role": "coulomb", "solver": ref_name, **r} for r in coulomb]
         if failed is not None:
             rows.append({**size, "role": "mu_zero", "status": "failed",
