@@ -399,45 +399,33 @@ def level_rows(spec, params: dict, level: int, args) -> tuple[list[dict], list[p
                         steps[-1].qp, name, args.tol, args.time_limit, steps[-1], start, below)
 
     run_solver_rows([n for n in args.solvers if n == ref_name])
-    tail = []
+    zero_steps, coulomb, failed = None, [], None
     try:
         zero_steps = mu_zero_path(qp, ref_solve)
+        if args.coulomb_shift > 0:
+            coulomb = coulomb_rows(qp, args.coulomb_shift / args.shift, ref_solve)
     except ReferenceFailed as err:
-        tail.append({**size, "role": "mu_zero", "status": "failed", "message": str(err)})
-        zero_steps = None
-    else:
-        failed = None
-        try:
-            coulomb = (coulomb_rows(qp, args.coulomb_shift / args.shift, ref_solve)
-                       if args.coulomb_shift > 0 else [])
-        except ReferenceFailed as err:
-            coulomb, failed = [], err
+        failed = err
     qp.cache.contact_schur.clear()             # semismooth Newton's factor and Schur complement
     return_freed_memory()
     zero_rows = mu_zero_rows(qp, zero_steps) if zero_steps is not None else []
     return_freed_memory()                      # pdas's factorisations
     run_solver_rows([n for n in args.solvers if n != ref_name])
     for ratio, steps, below in paths:
-        coarse_steps = []
-        for name in args.solvers:
-            for start in STARTS:
-                if (ratio, name, start) in solver_rows:
-                    row, found = solver_rows[ratio, name, start]
-                    blocks[ratio].append({**size, "ratio": ratio, "role": "solver", **row})
-                    coarse_steps = coarse_steps or found
+        ran = [solver_rows[key] for key in ((ratio, name, start) for name in args.solvers
+                                            for start in STARTS) if key in solver_rows]
+        blocks[ratio] += [{**size, "ratio": ratio, "role": "solver", **row} for row, _ in ran]
+        coarse_steps = next((found for _, found in ran if found), [])
         blocks[ratio] += [{**size, "ratio": ratio, **r} for r in
                           timing_rows(steps[-1].qp, steps[-1].solution.u, args.target,
                                       args.repeats, args.time_limit, steps[0].solution.u,
                                       coarse_steps)]
         return_freed_memory()                  # the ratio's timed runs' leftovers
     rows = [row for ratio in args.ratios for row in blocks[ratio]]
-    if zero_steps is not None:
-        rows += [{**size, "role": "mu_zero", "solver": ref_name, **r} for r in zero_rows]
-        rows += [{**size, "role": "coulomb", "solver": ref_name, **r} for r in coulomb]
-        if failed is not None:
-            rows.append({**size, "role": "mu_zero", "status": "failed",
-                         "message": str(failed)})
-    rows += tail
+    rows += [{**size, "role": "mu_zero", "solver": ref_name, **r} for r in zero_rows]
+    rows += [{**size, "role": "coulomb", "solver": ref_name, **r} for r in coulomb]
+    if failed is not None:
+        rows.append({**size, "role": "mu_zero", "status": "failed", "message": str(failed)})
     if paths and not paths[-1][1][-1].qp.friction.facets:
         ratio, steps, _ = paths[-1]
         rows += [{**size, "ratio": ratio, **r}
