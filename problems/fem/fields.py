@@ -104,8 +104,8 @@ def contact_forces(qp: ContactQP, p: np.ndarray) -> np.ndarray:
     components of the forces the contact rows exert on the constrained nodes,
     ``n . (B_C' p)`` per node: the multipliers themselves for nodal rows and dual mortar
     rows (``D`` diagonal), the consistent loads ``int lambda phi_j`` for the standard
-    mortar rows, whose multipliers are no nodal forces (in 3D a P2 vertex row's weights
-    integrate to zero; the force is ``sum c_i m_i``, not the multipliers' sum). Their total
+    mortar rows, whose multipliers are no nodal forces (the consistent load of a P2
+    vertex on a triangle is zero, whatever its row's multiplier). Their total
     is the force the rows transmit, and on a flat surface their second moments are the
     exact integrals of the pressure against quadratics. Every constrained node's DOFs are
     taken to be free (a prescribed one would drop its force).

@@ -7,7 +7,7 @@ opposing body. The mortar method asks it in the mean instead: row ``i`` is the
 weighted gap
 
     (1/m_i) int_Gamma psi_i n.(u_c - u_o) ds  <=  (1/m_i) int_Gamma psi_i gap ds,
-    m_i = int_Gamma phi_i ds,
+    m_i = int_Gamma psi_i ds,
 
 with ``Gamma`` the constrained surface, ``phi_i`` its P1 or P2 hats (the trace of the
 scene's elements: one row per vertex, and per edge midpoint at P2), ``u_c`` the constrained
@@ -15,7 +15,8 @@ body's and ``u_o`` the opposing body's displacement at the opposing point, ``gap
 the distance from ``Gamma`` to the opposing surface along ``n``, and ``psi_i`` the
 multiplier basis:
 
-* ``mortar``: the standard basis ``psi_i = phi_i``. Its constrained block
+* ``mortar``: the standard basis ``psi_i = phi_i`` (on P2 triangles a modified basis of
+  the same space, below). Its constrained block
   ``D_ij = int phi_i phi_j`` is the surface mass matrix: each row reaches its node's
   neighbours, so the rows are not node-wise.
 * ``mortar_dual``: Wohlmuth's dual basis (Wohlmuth 2000), on each facet with ``k``
@@ -35,19 +36,22 @@ for the nodal rows.
 
 P2 (Remark 7.11's elements; :func:`multiplier_basis`, :func:`dual_coefficients`):
 
-* ``mortar``: ``psi_i`` the P2 trace hats (3-node segments, 6-node triangles). On a
-  triangle the vertex hats integrate to zero, ``m_i = 0`` at every vertex in 3D, so
-  the rows cannot be scaled by ``1/m_i``: every P2 row is scaled by ``1/s_i`` with
-  ``s_i`` the HRZ lumped surface mass (:func:`problems.fem.quadratic.surface_mass_p2`,
-  positive; on segments it is ``m_i`` itself). Scaling a row changes neither the
-  feasible set nor the displacement: the multiplier over ``s_i`` is the coefficient
-  ``c_i`` of ``psi_i`` in the multiplier field (a uniform pressure ``q`` has every
-  ``c_i = q``, the contact patch test). In 3D the vertex rows' weights sum to
-  ``m_i = 0``: such a row does not see a rigid translation along ``n`` and bounds only
-  the gap's variation over the vertex's patch, and its coefficient carries no net force
-  (the total force is ``sum c_i m_i``); the standard mortar conditions (weighted gaps
-  and coefficients >= 0) hold all the same, but the vertex coefficients are no pressure
-  (docs/guide/mortar.md);
+* ``mortar``: on a segment ``psi_i`` the P2 trace hats (3-node), each row scaled by
+  ``1/s_i`` with ``s_i`` the HRZ lumped surface mass
+  (:func:`problems.fem.quadratic.surface_mass_p2`, which is ``m_i`` itself there). On a
+  6-node triangle the vertex hats integrate to zero: a vertex row weighted by its hat
+  would not see a rigid translation along ``n`` and would bound only the gap's variation
+  over the vertex's patch (the ball of cube_sphere then penetrates the cube). The
+  multipliers there take the modified basis of the same P2 space (Popp, Wohlmuth, Gee
+  and Wall 2012; :func:`modified_coefficients`): ``psi_v = phi_v + alpha sum_m phi_m``
+  over the midpoints of the vertex's edges, ``psi_m = (1 - 2 alpha) phi_m``, with
+  ``alpha = 1/5``; it sums to one, and every weight ``m_i = int psi_i`` is positive
+  (``2 |T| / 15`` per triangle at a vertex, ``|T| / 5`` at a midpoint), so the rows are
+  scaled by ``1/m_i`` as at P1 and a rigid translation by ``d`` moves every row by
+  ``d``. Scaling a row changes neither the feasible set nor the displacement: the
+  multiplier over the row's scale is the coefficient ``c_i`` of ``psi_i`` in the
+  multiplier field (a uniform pressure ``q`` has every ``c_i = q``, the contact patch
+  test);
 * the nodal pressure at P2 is therefore recovered from the forces, as for the nodal P2
   rows (:func:`problems.fem.two_body.quadratic_pressure_map`): the constrained nodes'
   forces ``F = D' diag(1/s) p`` aggregated onto the vertices (each midpoint's half to
@@ -61,8 +65,8 @@ P2 (Remark 7.11's elements; :func:`multiplier_basis`, :func:`dual_coefficients`)
   one (``m' M^-1 = 1'``), so the patch test holds, and ``D = diag(m)``;
 * ``mortar_dual`` in 3D is refused: ``A = diag(m) M^-1`` needs ``m_i > 0``, and the P2
   vertex hats of a triangle integrate to zero, so no dual basis of the P2 trace exists
-  (the literature modifies the primal basis first: Lamichhane, Stevenson and Wohlmuth
-  2005; Popp et al. 2012; not built here).
+  (the literature modifies the displacements' basis as well and builds the dual basis on
+  it: Lamichhane, Stevenson and Wohlmuth 2005; Popp et al. 2012; not built here).
 
 What is approximated, and how:
 
@@ -192,7 +196,7 @@ class MortarIntegrals:
     weighted_gap : (m,) array
         ``int psi_i gap``.
     mass : (m,) array
-        ``m_i = int phi_i``.
+        The rows' weights ``m_i = int psi_i`` (``int phi_i`` for the dual basis, equal).
     """
 
     nodes: np.ndarray
@@ -421,11 +425,35 @@ def surface_quadrature(points: np.ndarray, facets: np.ndarray, opposing_facets: 
     return clipped_quadrature(points, facets, opposing_facets, n, exact_degree)
 
 
+#: The weight ``alpha`` of the modified P2 basis on a triangle (module docstring): any
+#: ``0 < alpha < 1/2`` keeps it a basis of the same space with every weight positive.
+MODIFIED_ALPHA = 0.2
+
+
+def modified_coefficients(alpha: float = MODIFIED_ALPHA) -> np.ndarray:
+    """The modified P2 basis of a triangle, ``psi_a = sum_c T_ac phi_c`` (Popp, Wohlmuth,
+    Gee and Wall 2012): at a vertex ``phi_a + alpha (phi_m + phi_m')`` over the midpoints
+    of its two edges, at a midpoint ``(1 - 2 alpha) phi_m``. The columns of ``T`` sum to
+    one (the basis sums to one) and the weights are ``int psi_a = 2 alpha |T| / 3`` at a
+    vertex and ``(1 - 2 alpha) |T| / 3`` at a midpoint (``int phi_a = 0`` at a vertex)."""
+    if not 0.0 < alpha < 0.5:
+        raise ValueError(f"parameter 'alpha': {alpha!r} is not allowed; allowed: 0 < alpha "
+                         "< 1/2")
+    T = np.zeros((6, 6))
+    for e, ends in enumerate(FACET_EDGES[3]):
+        T[3 + e, 3 + e] = 1.0 - 2.0 * alpha
+        T[ends, 3 + e] = alpha
+    T[:3, :3] = np.eye(3)
+    return T
+
+
 def multiplier_basis(phi: np.ndarray, dual: bool, degree: int = 1) -> np.ndarray:
     """The multipliers ``psi`` at the quadrature points from the constrained hats
-    ``phi (q, k)`` of a P1 or P2 facet: ``phi`` itself (standard) or the dual basis
-    (module docstring): at P1 Wohlmuth's ``(k + 1) phi_a - 1``, written
-    ``k phi_a - sum_{b != a} phi_b``; at P2 ``A phi`` with :func:`dual_coefficients`.
+    ``phi (q, k)`` of a P1 or P2 facet: ``phi`` itself (standard; on a P2 triangle the
+    modified basis of :func:`modified_coefficients`, whose vertex hats do not integrate
+    to zero) or the dual basis (module docstring): at P1 Wohlmuth's ``(k + 1) phi_a - 1``,
+    written ``k phi_a - sum_{b != a} phi_b``; at P2 ``A phi`` with
+    :func:`dual_coefficients`.
 
     Raises
     ------
@@ -433,7 +461,7 @@ def multiplier_basis(phi: np.ndarray, dual: bool, degree: int = 1) -> np.ndarray
         For a dual basis that does not exist (P2 triangles: :func:`dual_coefficients`).
     """
     if not dual:
-        return phi
+        return phi @ modified_coefficients().T if phi.shape[1] == 6 else phi
     if degree == 2:
         vertices = {3: 2, 6: 3}[phi.shape[1]]
         return phi @ dual_coefficients(vertices, degree).T
@@ -545,7 +573,9 @@ def mortar_integrals(points: np.ndarray, facets: np.ndarray, opposing_facets: np
         c = np.broadcast_to(cols[:, None, :], vals.shape)
         return r.ravel(), c.ravel(), vals.ravel()
 
-    mass = np.bincount(rows_c.ravel(), (wq[:, None] * phi_c).ravel(), minlength=m)
+    # the rows' weights int psi_i (int phi_i for the dual basis, where they are equal)
+    mass = np.bincount(rows_c.ravel(), (wq[:, None] * (phi_c if dual else psi)).ravel(),
+                       minlength=m)
     if dual:                                              # biorthogonality: D = diag(m) exactly
         D = sp.diags(mass, format="csr")
     else:
@@ -593,8 +623,8 @@ def mortar(qp: ContactQP, dual: bool = False) -> ContactQP:
     -------
     ContactQP
         One row per node of the constrained surface (vertices, and edge midpoints at P2),
-        scaled by ``1/s_i``: ``s_i = m_i`` at P1, the HRZ lumped mass at P2 (module
-        docstring); ``contact`` keeps its facets and opposing facets, with those nodes,
+        scaled by ``1/s_i``: ``s_i = m_i`` at P1 and on P2 triangles, the HRZ lumped mass
+        on P2 segments (module docstring); ``contact`` keeps its facets and opposing facets, with those nodes,
         ``mass = s``, the direction ``n`` and, at P2, the pressure recovered from the
         forces (:func:`force_pressure_map`; at P1 the pressure is the multiplier over
         ``m_i``).
@@ -620,8 +650,9 @@ def mortar(qp: ContactQP, dual: bool = False) -> ContactQP:
     pts = qp.mesh.points
     quadratic = quadratic_mesh_of(pts, qp.mesh.cells) if degree == 2 else None
     mi = mortar_integrals(pts, c.facets, c.opposing_facets, n, dual, quadratic)
-    scale = mi.mass if quadratic is None else \
-        surface_mass_p2(pts, quadratic_facets(quadratic, c.facets))[mi.nodes]
+    # P2 segments: the HRZ mass (m_i itself, computed as the nodal P2 rows' contact mass)
+    scale = surface_mass_p2(pts, quadratic_facets(quadratic, c.facets))[mi.nodes] \
+        if quadratic is not None and dim == 2 else mi.mass
     m = len(mi.nodes)
     D, M = mi.D.tocoo(), mi.M.tocoo()
     rows = [np.concatenate([D.row, M.row])] * dim
