@@ -31,7 +31,10 @@ KKT residuals and the certified energy bound of the duality gap,
 refuted by the verification; with ``stop="estimate"``
 by the thesis's (8.25): ``sqrt(eta_k / eta_0) <= eps`` with
 ``eta_k = <w_u, d_u> + <p^{k+1} - p^k, w_p>`` (which defines n_o(eps) of
-Tables 9.1 and 9.3).
+Tables 9.1 and 9.3). An infeasible problem ends ``failed`` with a Farkas certificate
+("the problem is infeasible"): its multipliers run off along a ray of the unbounded dual,
+which :class:`DualRay` reads off their increments and the direct solvers' exact test
+confirms.
 
 What Theorem 8.2 guarantees here: the *transformed* functional ``Jt(u^k, p^k)``
 decreases monotonically (recorded as ``history['J_transformed']``), not the
@@ -84,6 +87,7 @@ from solvers.kernels.multigrid import AHAT_SCALED, scaled_vcycle, vcycle_kind
 from solvers.kernels.schur import SchurPreconditioner, build_schur, kappa_schur_exact
 from solvers.base import Role, SolveResult, SolverSpec, preset_texts
 from solvers.certificate import certify
+from solvers.kernels.cholesky import InfeasibleError, row_basis
 
 
 # ---------------------------------------------------------------------------
@@ -520,6 +524,66 @@ def face_cg_variant(op: Alg84, S_hat_columns: Callable, u: np.ndarray, p: np.nda
 
 
 # ---------------------------------------------------------------------------
+# Infeasibility: the dual ray
+# ---------------------------------------------------------------------------
+#: A step's multiplier increment ``dp`` is a candidate Farkas direction when its forces
+#: ``||B' dp^+||`` are at most this beside ``||B||_F ||dp^+||`` and its gap ``g' dp^+``
+#: is negative: on an infeasible problem ``p^k`` runs off along a ray ``z >= 0`` with
+#: ``B'z = 0``, ``g'z < 0`` (the dual is unbounded) and the increments line up with it.
+FARKAS_RTOL = 1e-6
+
+#: At most this many rows (the candidate's support) are put to the exact test, a dense
+#: Gram matrix of the rows (:func:`solvers.kernels.cholesky.row_basis`).
+FARKAS_ROWS = 2000
+
+
+@dataclass
+class DualRay:
+    """The infeasibility test of :func:`solve`, fed each outer step's multipliers.
+
+    A candidate (:data:`FARKAS_RTOL`) is put to the exact test of the direct solvers:
+    :func:`solvers.kernels.cholesky.row_basis` on the Gram matrix of its support's rows
+    with their gaps, which raises the Farkas certificate of rows no ``u`` satisfies. A
+    candidate the test does not confirm raises the bar: the next must be twice as
+    aligned, so a feasible problem pays for a few tests at most.
+    """
+
+    qp: ContactQP
+    p: np.ndarray
+    bar: float = FARKAS_RTOL
+    tests: int = 0
+
+    def __post_init__(self):
+        self.norm_B = float(np.sqrt(self.qp.B.multiply(self.qp.B).sum()))
+
+    def certificate(self, p_new: np.ndarray) -> str | None:
+        """The Farkas certificate (message) if the step from ``self.p`` to ``p_new``
+        points along a confirmed ray of an infeasible problem, else None."""
+        qp = self.qp
+        z = np.maximum(p_new - self.p, 0.0)
+        self.p = p_new
+        if qp.C is not None or not z.any() or float(qp.g @ z) >= 0.0:
+            return None
+        alignment = float(np.linalg.norm(qp.B.T @ z)) / (self.norm_B * float(np.linalg.norm(z)))
+        if alignment > self.bar:
+            return None
+        self.bar = 0.5 * alignment
+        rows = np.flatnonzero(z > FARKAS_RTOL * z.max())
+        if rows.size > FARKAS_ROWS:
+            return None
+        self.tests += 1
+        B_I = qp.B[rows]
+        K = (B_I @ B_I.T).toarray()
+        try:
+            row_basis(0.5 * (K + K.T), np.asarray(qp.g)[rows], labels=rows)
+        except InfeasibleError as err:
+            return str(err)
+        except RuntimeError:                # dependent rows whose exchanges cycle: no proof
+            return None
+        return None
+
+
+# ---------------------------------------------------------------------------
 # Setup and the registered solve()
 # ---------------------------------------------------------------------------
 def theorem_8_8_alpha(gamma_bar: float) -> tuple[float, float]:
@@ -657,8 +721,9 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
     history = {k: [] for k in ("energy", "J_transformed", "kkt_max", "eta_rel", "eta",
                                "corollary_8_4", "n_inner", "t_proj", "time")}
     t_solve = time.perf_counter()
-    state = {"reason": None, "next_check": tol}
+    state = {"reason": None, "next_check": tol, "infeasible": None}
     stop_kkt = opts.stop == "kkt"
+    ray = DualRay(qp, p)
 
     def monitor(step: OuterStep) -> bool:
         history["energy"].append(qp.energy(step.u) if opts.diagnostics else np.nan)
@@ -673,6 +738,10 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
         history["time"].append(time.perf_counter() - t_solve)
         if callback is not None and callback(step):
             state["reason"] = "callback"
+            return True
+        state["infeasible"] = ray.certificate(step.p)
+        if state["infeasible"] is not None:
+            state["reason"] = "infeasible"
             return True
         if stop_kkt and kmax <= state["next_check"]:
             # the verification's own test: KKT and the certified energy bound (one to
@@ -704,6 +773,8 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
                    if reason == "converged" else f"verified KKT max and certified energy "
                    f"bound <= {tol:.1e}") \
             + f" after {k} outer steps"
+    elif state["reason"] == "infeasible":
+        status, message = "failed", f"outer step {k}: {state['infeasible']}"
     elif state["reason"] == "time_limit":
         status, message = "time_limit", f"time limit {time_limit:g} s reached after {k} outer steps"
     elif state["reason"] == "callback":
