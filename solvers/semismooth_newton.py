@@ -50,7 +50,10 @@ nodes (2D: ``lam = s sign``; 3D: the linearised complementarity function
 ``max(s, |lam + c slip|) lam - s (lam + c slip) = 0``) as its sets. Each step is solved exactly: ``A`` factorised once and
 the dense Schur complement of the normal and tangential rows, as the ``schur`` route of
 :mod:`solvers.pdas` (the inner options ``ahat``, ``inner``, ``face``, ``forcing``,
-``tighten``, ``patience`` and ``fallback`` do not apply). It takes one Tresca step, the
+``tighten`` and ``patience`` do not apply). Sets that cycle under single changes on a
+Tresca step hand the step's dual, from the best Newton step, to a method that cannot
+cycle (``fallback="monotone"``: the primal active-set method on the box in 2D, the
+globalised Newton method of the projection equation in 3D). It takes one Tresca step, the
 slip bound given; with ``coulomb="monolithic"`` a Coulomb problem is solved with
 ``s = mu p`` inside the Newton iteration. A frictionless problem never reaches it.
 """
@@ -704,8 +707,10 @@ def solve_friction(qp: ContactQP, tol: float, max_iter: int, time_limit: float |
     ``mu`` only; a run that does not converge says so.
 
     A set pair that recurs is damped: only the ``k`` largest changes apply (``k`` halved
-    at each further recurrence, down to one); recurring under single changes ends the
-    run ``failed`` with the best iterate.
+    at each further recurrence, down to one). Recurring under single changes, a Tresca
+    step goes on from its best iterate by a method that cannot cycle (:func:`_dual_fallback`,
+    ``fallback="monotone"``; ``stats["fallback"]`` says it ran); a monolithic Coulomb run,
+    or ``fallback="none"``, ends ``failed`` with the best iterate.
     """
     t_start = time.perf_counter()
     check_positive_diagonal(qp.A)
@@ -754,6 +759,7 @@ def solve_friction(qp: ContactQP, tol: float, max_iter: int, time_limit: float |
     status, message = "max_iter", f"the sets did not repeat within {max_iter} steps"
     n_dependent, k = 0, 0
     fixed_best, stalled = np.inf, 0                  # 3D: the Newton steps on fixed sets
+    fallback_steps = None                            # the dual fallback's steps, if it ran
     law = "Coulomb (monolithic)" if monolithic else "Tresca"
     for k in range(1, max_iter + 1):
         try:
@@ -815,6 +821,16 @@ def solve_friction(qp: ContactQP, tol: float, max_iter: int, time_limit: float |
                     status = "converged" if kkt <= tol else "failed"
                     message = (f"{law}: the sets cycle under single changes at step {k}; best "
                                f"step has friction KKT max {kkt:.1e}")
+                    if status == "failed" and mu is None and opts.fallback == "monotone":
+                        y, fell_back = _dual_fallback(ops, rhs, m, fr, p, lam, normal, state)
+                        p, lam = y[:m], y[m:]
+                        fallback_steps, best = fell_back[0], None
+                        u = ops.solve_A(qp.f - ops.G.T @ y)
+                        kkt = _friction_kkt(qp, u, p, lam, None)
+                        status = "converged" if fell_back[1] and kkt <= tol else (
+                            "inaccurate" if fell_back[1] else "max_iter")
+                        message += (f"; fell back to {fell_back[2]} on the dual from the best "
+                                    f"step: {fell_back[0]} steps, friction KKT max {kkt:.1e}")
                     break
                 n_changes = int(np.count_nonzero(proposed_normal != normal)
                                 + np.count_nonzero(proposed_state != state))
@@ -829,7 +845,7 @@ def solve_friction(qp: ContactQP, tol: float, max_iter: int, time_limit: float |
         if time_limit is not None and time.perf_counter() - t_start > time_limit:
             status, message = "time_limit", f"time limit {time_limit:g} s reached at step {k}"
             break
-    if not every_step and best is not None:
+    if not every_step and best is not None and fallback_steps is None:
         u = ops.solve_A(qp.f - ops.G.T @ np.concatenate([p, lam]))
         rows_kkt, kkt = kkt, _friction_kkt(qp, u, p, lam, mu)
         message += (f"; the steps judged on the rows (friction KKT max {rows_kkt:.1e}), u "
@@ -845,10 +861,40 @@ def solve_friction(qp: ContactQP, tol: float, max_iter: int, time_limit: float |
              "n_stick": int(np.count_nonzero(state == STICK)),
              "n_slip": int(np.count_nonzero(np.abs(state) == 1)),
              "n_dependent": n_dependent, "damped": limit is not None,
+             "fallback": fallback_steps is not None,
+             "fallback_steps": 0 if fallback_steps is None else fallback_steps,
              "factorization": ops.chol.backend, "c_eff": c_eff}
     return SolveResult(u=u, p=p, claimed_status=status, message=message, iterations=k,
                        setup_time=setup_time, solve_time=time.perf_counter() - t_solve,
                        history=history, stats=stats, tangential=lam)
+
+
+def _dual_fallback(ops: ContactSchur, rhs: np.ndarray, m: int, fr, p, lam, normal,
+                   state) -> tuple[np.ndarray, tuple]:
+    """A Tresca step's dual ``min 1/2 y'Sy - rhs'y`` over ``p >= 0``, ``|lam_i| <= s_i``
+    (the same ``S`` and ``rhs`` as the Newton steps) by a method that cannot cycle,
+    started from the best Newton step: 2D, the primal active-set method on the box
+    (:func:`solvers.kernels.tresca.box_qp_active_set`, finite, its sets from the step's);
+    3D, the semismooth Newton method on the projection equation, globalised on the dual
+    objective (:func:`solvers.kernels.tresca.disc_qp_newton`, from the step's ``y``).
+
+    Returns
+    -------
+    (y, (steps, converged, name))
+    """
+    from solvers.kernels.tresca import box_qp_active_set, disc_qp_newton
+
+    bound = fr.slip_bound
+    if fr.components > 1:
+        y, _, steps, ok = disc_qp_newton(ops.S, rhs, m, bound,
+                                         start=np.concatenate([p, lam]))
+        return y, (steps, ok, "the globalised Newton method of the projection equation")
+    lo = np.concatenate([np.zeros(m), -bound])
+    hi = np.concatenate([np.full(m, np.inf), bound])
+    start = np.concatenate([np.where(normal, 0, -1),
+                            np.where(np.abs(state) == 1, state, 0)])
+    y, _, steps, ok = box_qp_active_set(ops.S, rhs, lo, hi, start=start)
+    return y, (steps, ok, "the primal active-set method")
 
 
 def _friction_kkt(qp: ContactQP, u, p, lam, mu: float | None) -> float:
@@ -897,7 +943,9 @@ SOLVER = SolverSpec(
         Parameter("fallback", "monotone", "what runs when the Newton iteration stalls (the "
                   "active set cycles under single changes, or 'patience' steps without "
                   "progress): the monotone primal active-set method, or nothing (status "
-                  "'failed')", choices=("monotone", "none")),
+                  "'failed'); on a Tresca step whose sets cycle under single changes, the "
+                  "step's dual by the primal active-set method (2D) or the globalised Newton "
+                  "method of the projection equation (3D)", choices=("monotone", "none")),
         Parameter("c", 1.0, "PDAS parameter relative to the stiffness scale", low=0.0,
                   low_open=True),
         Parameter("flip_tol", 1e-13, "relative size below which a sign change does not "

@@ -188,6 +188,49 @@ def test_a_cycling_coulomb_iteration_ends_with_an_honest_status():
     assert min(res.history["kkt_max"]) > 1e-3             # no step came close
 
 
+def test_a_tresca_step_whose_sets_cycle_falls_back_to_a_method_that_cannot():
+    """The test set's hard_friction_stiff step (contrast 1e4, level 0): from zero the
+    Newton sets cycle under single changes at step 8. The step's dual goes on from the
+    best Newton step by the primal active-set method on the box and ends at the exact
+    reference's answer, saying so; without the fallback the run is ``failed``, and warm
+    started it converges in two Newton steps without one."""
+    from workflows.problem_set import frictional_steps
+
+    params = (("friction", "coulomb"), ("mu", 0.3), ("shift", 0.011), ("E2", 1.0e4))
+    step = frictional_steps("circle_square", params, 0)[1]
+    qp, exact = step.qp, step.solution
+    res = solve(qp, "semismooth_newton", "mid")
+    assert res.status == "converged" and res.stats["fallback"], res.message
+    assert "cycle under single changes" in res.message and "fell back to the primal" \
+        in res.message
+    assert energy_error(qp, res.u, exact.u) <= 1e-10
+    bare = solve(qp, "semismooth_newton", "mid", fallback="none")
+    assert bare.status == "failed" and not bare.stats["fallback"], bare.message
+    assert "cycle under single changes" in bare.message
+    warm = solve(qp, "semismooth_newton", "mid", u0=step.warm.u, p0=step.warm.p)
+    assert warm.status == "converged" and not warm.stats["fallback"] and warm.iterations <= 3
+
+
+def test_the_dual_fallback_solves_a_3d_tresca_step_from_an_empty_start():
+    """In 3D the fallback is the globalised Newton method of the projection equation
+    (``tresca_exact``'s): from ``y = 0`` and empty sets it reaches the exact answer of the
+    test set's hard 3D step (Q/(mu P) ~ 0.98, cube_sphere level 0)."""
+    from workflows.problem_set import frictional_steps
+
+    params = (("friction", "tresca"), ("mu", 0.3), ("shift", 0.075))
+    step = frictional_steps("cube_sphere", params, 0)[1]
+    qp, fr, m = step.qp, step.qp.friction, step.qp.m
+    ops = semismooth_newton.contact_schur(qp)
+    rhs = ops.G @ ops.solve_A(qp.f) - np.concatenate([qp.g, fr.previous - fr.offset])
+    y, (steps, ok, name) = semismooth_newton._dual_fallback(
+        ops, rhs, m, fr, np.zeros(m), np.zeros(fr.T.shape[0]), np.zeros(m, dtype=bool),
+        np.zeros(m, dtype=int))
+    assert ok and steps > 1 and "projection equation" in name
+    u = ops.solve_A(qp.f - ops.G.T @ y)
+    assert energy_error(qp, u, step.solution.u) <= 1e-10
+    assert friction_residuals(qp, u, y[:m], y[m:]).max <= 1e-10
+
+
 def _counting_solves(monkeypatch) -> list:
     """Count the solves with A's factor (``ContactSchur.solve_A``) from now on."""
     calls = []
