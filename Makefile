@@ -69,7 +69,7 @@ SOLVER_TESTS := tests/test_rounding.py tests/test_solvers.py tests/test_semismoo
 	tests/test_augmented_projection.py tests/test_cholesky.py tests/test_qp.py tests/test_two_body.py \
 	tests/test_tnnmg.py tests/test_layered_multigrid.py tests/test_petsc_tao.py tests/test_degenerate.py \
 	tests/test_two_pass.py tests/test_friction.py tests/test_mortar.py \
-	tests/test_friction_ssn.py tests/test_mortar_3d.py tests/test_mortar_p2.py tests/test_friction_registry.py \
+	tests/test_friction_ssn.py tests/test_friction_random.py tests/test_mortar_3d.py tests/test_mortar_p2.py tests/test_friction_registry.py \
 	tests/test_friction_tnnmg.py tests/test_friction_tnnmg_3d.py tests/test_friction_3d_solvers.py \
 	tests/test_friction_libraries.py tests/test_friction_facets.py tests/test_problem_set_friction.py \
 	tests/test_certificate_friction.py tests/test_stabilised.py tests/test_circle_square.py \

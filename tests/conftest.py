@@ -112,3 +112,16 @@ def pytest_collection_modifyitems(items):
     within a file and of the other files is kept)."""
     rank = {name: i for i, name in enumerate(LONGEST_FIRST)}
     items.sort(key=lambda item: rank.get(item.path.name, len(rank)))
+
+
+def pytest_terminal_summary(terminalreporter):
+    """The lines tests published with ``record_property("summary", text)`` (the random
+    frictional family's counts of draws and fallbacks), printed after the run; their
+    reports carry them from pytest-xdist's workers."""
+    lines = [value for key in ("passed", "failed")
+             for report in terminalreporter.stats.get(key, [])
+             for name, value in getattr(report, "user_properties", []) if name == "summary"]
+    if lines:
+        terminalreporter.section("summaries")
+        for line in lines:
+            terminalreporter.write_line(line)

@@ -9,7 +9,9 @@
   conic libraries (split QP, facet QP, second-order cone program, epigraph) and the maps
   of their multipliers;
 * :mod:`problems.friction.residuals` -- how a frictional answer is judged: the KKT
-  residuals of a Tresca step and its energy.
+  residuals of a Tresca step and its energy;
+* :mod:`problems.friction.random_family` -- frictional problems drawn at random, seeded
+  (the robustness tests' family).
 
 Not a problem: the registry skips sub-packages.
 """
