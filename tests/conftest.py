@@ -102,7 +102,8 @@ def qpbenchmark_set(monkeypatch):
 #: The test files whose runs take minutes, started first when the tests are spread over
 #: several processes (``make test``: pytest-xdist, a file to a process, in this order), so
 #: that no process is left with one of them at the end while the others wait.
-LONGEST_FIRST = ("test_regeneration.py", "test_friction_3d_solvers.py", "test_workflow.py",
+LONGEST_FIRST = ("test_regeneration.py", "test_friction_random.py", "test_friction_3d_solvers.py",
+                 "test_workflow.py",
                  "test_quadratic.py", "test_plugins.py", "test_problem_set.py", "test_cli.py",
                  "test_petsc_tao.py", "test_hard_cases.py", "test_roll_stack_study.py")
 
