@@ -551,7 +551,6 @@ class DualRay:
     qp: ContactQP
     p: np.ndarray
     bar: float = FARKAS_RTOL
-    tests: int = 0
 
     def __post_init__(self):
         self.norm_B = float(np.sqrt(self.qp.B.multiply(self.qp.B).sum()))
@@ -571,7 +570,6 @@ class DualRay:
         rows = np.flatnonzero(z > FARKAS_RTOL * z.max())
         if rows.size > FARKAS_ROWS:
             return None
-        self.tests += 1
         B_I = qp.B[rows]
         K = (B_I @ B_I.T).toarray()
         try:

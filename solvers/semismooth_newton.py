@@ -822,15 +822,15 @@ def solve_friction(qp: ContactQP, tol: float, max_iter: int, time_limit: float |
                     message = (f"{law}: the sets cycle under single changes at step {k}; best "
                                f"step has friction KKT max {kkt:.1e}")
                     if status == "failed" and mu is None and opts.fallback == "monotone":
-                        y, fell_back = _dual_fallback(ops, rhs, m, fr, p, lam, normal, state)
+                        y, (fallback_steps, ok, method) = _dual_fallback(
+                            ops, rhs, m, fr, p, lam, normal, state)
                         p, lam = y[:m], y[m:]
-                        fallback_steps, best = fell_back[0], None
                         u = ops.solve_A(qp.f - ops.G.T @ y)
                         kkt = _friction_kkt(qp, u, p, lam, None)
-                        status = "converged" if fell_back[1] and kkt <= tol else (
-                            "inaccurate" if fell_back[1] else "max_iter")
-                        message += (f"; fell back to {fell_back[2]} on the dual from the best "
-                                    f"step: {fell_back[0]} steps, friction KKT max {kkt:.1e}")
+                        status = ("converged" if kkt <= tol else "inaccurate") if ok \
+                            else "max_iter"
+                        message += (f"; fell back to {method} on the dual from the best "
+                                    f"step: {fallback_steps} steps, friction KKT max {kkt:.1e}")
                     break
                 n_changes = int(np.count_nonzero(proposed_normal != normal)
                                 + np.count_nonzero(proposed_state != state))
@@ -882,15 +882,14 @@ def _dual_fallback(ops: ContactSchur, rhs: np.ndarray, m: int, fr, p, lam, norma
     -------
     (y, (steps, converged, name))
     """
-    from solvers.kernels.tresca import box_qp_active_set, disc_qp_newton
+    from solvers.kernels.tresca import box_qp_active_set, disc_qp_newton, dual_box
 
     bound = fr.slip_bound
     if fr.components > 1:
         y, _, steps, ok = disc_qp_newton(ops.S, rhs, m, bound,
                                          start=np.concatenate([p, lam]))
         return y, (steps, ok, "the globalised Newton method of the projection equation")
-    lo = np.concatenate([np.zeros(m), -bound])
-    hi = np.concatenate([np.full(m, np.inf), bound])
+    lo, hi = dual_box(m, bound)
     start = np.concatenate([np.where(normal, 0, -1),
                             np.where(np.abs(state) == 1, state, 0)])
     y, _, steps, ok = box_qp_active_set(ops.S, rhs, lo, hi, start=start)

@@ -66,7 +66,7 @@ def test_partial_solves_give_the_schur_complement(scene_qp, backend):
 
 
 @pytest.mark.parametrize("backend", BACKENDS)
-def test_a_block_solve_holds_two_blocks(scene_qp, backend):
+def test_a_block_solve_holds_at_most_three_blocks(scene_qp, backend):
     """A block of BLOCK sparse columns (the Schur complement's unit of work) is solved
     with at most three n x BLOCK arrays in memory: the right-hand side, made column-major
     as the backends take it (no copy on the way in), the answer and its row-major copy

@@ -111,6 +111,13 @@ class TrescaSolution:
     dual: np.ndarray | None = None
 
 
+def dual_box(m: int, bound: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The bounds ``(lo, hi)`` of a 2D Tresca step's dual ``y = (p, lam)``: ``p >= 0``
+    on the ``m`` normal rows, ``|lam_i| <= s_i`` on the tangential ones."""
+    return (np.concatenate([np.zeros(m), -bound]),
+            np.concatenate([np.full(m, np.inf), bound]))
+
+
 def box_qp_active_set(S: np.ndarray, c: np.ndarray, lo: np.ndarray, hi: np.ndarray,
                       max_iter: int | None = None,
                       start: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, int, bool]:
@@ -406,8 +413,7 @@ def tresca_exact(qp: ContactQP, ops: DualOperators | None = None,
         h, lo, hi = qp.g, np.zeros(m), np.full(m, np.inf)
     else:
         h = np.concatenate([qp.g, fr.previous - fr.offset])
-        lo = np.concatenate([np.zeros(m), -fr.slip_bound])
-        hi = np.concatenate([np.full(m, np.inf), fr.slip_bound])
+        lo, hi = dual_box(m, fr.slip_bound)
     if fr is not None and fr.components > 1:
         y, (free, disc), iterations, ok = disc_qp_newton(ops.S, G @ Ainv_f - h, m,
                                                          fr.slip_bound, max_iter=max_iter,
