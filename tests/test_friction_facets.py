@@ -280,3 +280,31 @@ def test_the_study_reports_the_faceted_law_and_its_claims():
     none = facet_claims(complete(pd.DataFrame({"role": []})), "cube_sphere", "point")
     assert len(none) == 1 and none[0]["pass"] is None and none[0]["level"] == ""
     assert none[0]["reason"].startswith(NO_RUN)
+
+
+def test_a_level_without_faceted_paths_is_named_not_counted_as_a_path():
+    """The full scale's cube_sphere: the faceted paths at the levels ``tresca_exact`` takes,
+    one ``skipped`` row at the finest (its reference is semismooth Newton). The bracket is
+    judged over the paths run and names the level not run; a path outside its bracket, or
+    one that ran and did not converge, fails it; with no path run it is not judged."""
+    qp = _isotropic()
+    rows = [{"scene": "cube_sphere", "level": 0, "ratio": 0.7, **r}
+            for r in facet_rows(qp, list(FACETS), "tresca_exact")]
+    skipped = {"scene": "cube_sphere", "level": 3, "ratio": 0.7,
+               **facet_rows(qp, list(FACETS), "semismooth_newton")[0]}
+    bracket, *energy = facet_claims(complete(pd.DataFrame(rows + [skipped])), "cube_sphere")
+    assert bracket["pass"] is True and bracket["measured"] == f"{len(FACETS)} of {len(FACETS)}"
+    assert "level 3 not run (the reference here is semismooth_newton" in bracket["parameters"]
+    assert energy[0]["level"] == "0" and energy[0]["measured"] == facet_claims(
+        complete(pd.DataFrame(rows)), "cube_sphere")[1]["measured"]
+    outside = [dict(r) for r in rows]
+    outside[2]["energy_gap"] = outside[2]["gap_bound"] * 1.01
+    assert facet_claims(complete(pd.DataFrame(outside + [skipped])),
+                        "cube_sphere")[0]["pass"] is False
+    failed = [dict(r) for r in rows]
+    for r in failed:
+        r["status"] = "failed"
+    assert facet_claims(complete(pd.DataFrame(failed)), "cube_sphere")[0]["pass"] is False
+    only = facet_claims(complete(pd.DataFrame([skipped])), "cube_sphere")
+    assert only[0]["pass"] is None and "level 3 not run" in only[0]["reason"]
+    assert len(only) == 4 and all(row["pass"] is None for row in only)
