@@ -41,35 +41,43 @@ def test_hard_case_report_from_the_test_set_runs(tmp_path):
     from workflows.cli import main as cli
     from workflows.studies.test_set.run import main as runs_main
     export = tmp_path / "export"
-    assert cli(["export", "--class", "small", "--families", "hard_thin_body", "hard_grazing",
+    families = ("hard_thin_body", "hard_grazing", "hard_friction_grazing")
+    assert cli(["export", "--set", "contact-qp-5", "--class", "small", "--families", *families,
                 "--out", str(export), "--quiet"]) == 0
     out = []
-    for family in ("hard_thin_body", "hard_grazing"):
+    for family in families:
         out.append(str(tmp_path / f"{family}.csv"))
-        runs_main(["--set", "contact-qp-1", "--class", "small", "--family", family,
+        runs_main(["--set", "contact-qp-5", "--class", "small", "--family", family,
                    "--export", str(export), "--presets", "mid", "--levels", "0",
                    "--time-limit", "30",
                    "--out", out[-1]])
-    report_main(["table", "--inputs", *out, "--cases", "hard_thin_body:0", "hard_grazing:0",
+    report_main(["table", "--inputs", *out, "--cases", *(f"{f}:0" for f in families),
                  "--preset", "mid", "--table", str(tmp_path / "t.csv"),
                  "--heatmap", str(tmp_path / "h.png")])
     t = pd.read_csv(tmp_path / "t.csv")
     assert set(t["solver"]) == set(solvers())
-    assert set(t["case"]) == {"hard_thin_body", "hard_grazing"} and (t.level == 0).all()
+    assert set(t["case"]) == set(families) and (t.level == 0).all()
+    assert t.groupby("case").size().eq(len(solvers())).all()   # one row per solver and case
     assert t["claim_ok"].all()
     assert t.loc[t.status == "converged", "accurate"].all()
     assert (t.loc[t.case == "hard_grazing", "dropped_rows"] > 0).all()
+    # the frictional case: the owned frictional solvers verified, the frictionless skipped
+    friction = t[t.case == "hard_friction_grazing"].set_index("solver")
+    assert (friction.loc[["tresca_exact", "tnnmg", "semismooth_newton"], "status"]
+            == "converged").all()
+    assert friction.loc["pdas", "status"] == "skipped"
     assert (tmp_path / "h.png").read_bytes()[:4] == b"\x89PNG"
     assert png_problems(tmp_path / "h.png") == []          # every solver: still legible
 
 
-def test_the_heat_map_stays_legible_with_every_solver_and_many_cases(tmp_path):
-    """Fifteen solvers and fourteen cases (the size that drew a 2,744 px image): the
-    panels stack, and the image passes the figure audit, its cell text legible in the
-    report's frame; the status key lists only the statuses shown."""
+@pytest.mark.parametrize("n_cases", [14, 20])
+def test_the_heat_map_stays_legible_with_every_solver_and_many_cases(tmp_path, n_cases):
+    """Fifteen solvers and fourteen cases (the size that drew a 2,744 px image), and the
+    full scale's twenty: the panels stack, and the image passes the figure audit, its cell
+    text legible in the report's frame; the status key lists only the statuses shown."""
     from report.hard_cases import heatmap, heatmap_layout
     names = [f"solver_{k:02d}" for k in range(15)]
-    cases = [f"hard_case_{k:02d}" for k in range(14)]
+    cases = [f"hard_case_{k:02d}" for k in range(n_cases)]
     t = pd.DataFrame([{"case": c, "solver": s, "preset": "mid", "tol": 1e-6,
                        "status": "converged" if k % 4 else "max_iter", "kkt_max": 1e-8,
                        "energy_error": 1e-9, "wall_time": 0.01 * (k + 1), "message": ""}
