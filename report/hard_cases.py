@@ -17,8 +17,13 @@ at most twice ``n_o`` at the smallest (the suite's bar: Theorem 8.8's bounded n_
 a factor two over the whole range). The figure shows ``n_o`` and the V-cycles of a solve
 against ``1 - 2 nu`` for both configurations, the plain V-cycle's ``kappa(V A)`` beside it.
 
+The random frictional family's harder sample (``random-friction``): the claims from
+``workflows/studies/hard_cases/random_friction.py``'s table (:func:`random_friction_claims`).
+
 Example::
 
+    python -m report.hard_cases random-friction \
+        --table results/hard_cases/random_friction.csv --claims c.csv
     python -m report.hard_cases table --inputs runs/*.csv --cases hard_grazing:0 \
         --preset mid --table t.csv --heatmap h.png
     python -m report.hard_cases incompressibility \
@@ -79,6 +84,22 @@ CLAIMS = {
                                 "hard cases: every verified-converged run is accurate "
                                 "against the reference", "given", "0",
                                 details="energy and S-norm multiplier errors <= tol"),
+    # the random frictional family's harder sample
+    "rf_owned": Claim("suite bar (the suite's frictional solvers converge on every draw)",
+                      "random frictional draws: the suite's frictional solvers verified "
+                      "converged", "given", "all",
+                      details="{solvers} at {preset}; {draws}; {fallbacks}"),
+    "rf_within_bound": Claim("suite bar: a verdict is never wrong",
+                             "random frictional draws: every converged run within its "
+                             "certified bound of the reference", "given", "0",
+                             details="the {taking} solvers that take the steps, at "
+                                     "{preset}; {draws}; energy-norm distance to the exact "
+                                     "reference (slack 1e-12)"),
+    "rf_refuted": Claim("the libraries' own stopping tests",
+                        "random frictional draws: claims the verification refutes",
+                        unjudged="information: a refuted claim is reported inaccurate, "
+                                 "never converged",
+                        details="per solver, of its runs; {draws}"),
     # Alg. 8.4 towards incompressibility
     "nu_converged": Claim("suite bar (every run of the defaults must count)",
                           "Alg. 8.4 verified converged at every Poisson ratio nu", "given",
@@ -216,6 +237,48 @@ def blank_columns(t: pd.DataFrame) -> list[str]:
     return out
 
 
+# ------------------------------------------ the random frictional family's harder sample
+#: The suite's own frictional solvers: each must converge on every draw's every step.
+OWNED_FRICTION = ("tresca_exact", "tnnmg", "semismooth_newton")
+#: Round-off allowance of a converged run's distance to the reference over its bound.
+BOUND_SLACK = 1e-12
+
+
+def random_friction_claims(t: pd.DataFrame) -> pd.DataFrame:
+    """The random frictional draws (``workflows/studies/hard_cases/random_friction.py``):
+    the suite's frictional solvers (:data:`OWNED_FRICTION`) verified converged on every
+    step, the draws that needed semismooth Newton's fallback named; every converged run of
+    every solver within its certified bound of the exact reference; the claims the
+    verification refuted, per solver (information)."""
+    draws = t.drop_duplicates("seed")
+    level = ", ".join(str(v) for v in sorted(draws.level.unique()))
+    fields = dict(preset=", ".join(sorted(t.preset.unique())), level=level,
+                  taking=t.loc[t.status != "skipped", "solver"].nunique(),
+                  draws=(f"draws {draws.seed.min()}..{draws.seed.max()} ({len(draws)}: "
+                         f"{int((draws.dim == 2).sum())} 2D, {int((draws.dim == 3).sum())} 3D), "
+                         f"{len(t.drop_duplicates(['seed', 'step']))} steps"))
+    owned = t[t.solver.isin(OWNED_FRICTION)]
+    ok = int((owned.status == "converged").sum())
+    fell_back = sorted(set(t.loc[t.fallback.astype(bool) & (t.solver == "semismooth_newton"),
+                                 "draw"]))
+    fallbacks = (f"semismooth Newton's fallback on {len(fell_back)} draws"
+                 + (f": {', '.join(fell_back)}" if fell_back else ""))
+    conv = t[t.status == "converged"]
+    outside = int((conv.energy_error > conv.energy_bound + BOUND_SLACK).sum())
+    refuted = t[(t.claimed_status == "converged") & (t.status != "converged")]
+    per_solver = refuted.groupby("solver").size()
+    runs = t[t.status != "skipped"].groupby("solver").size()
+    listed = ", ".join(f"{name} {per_solver.get(name, 0)} of {runs[name]}"
+                       for name in runs.index)
+    return pd.DataFrame([
+        CLAIMS["rf_owned"].row(f"{ok} of {len(owned)} runs", passed=ok == len(owned)
+                               and len(owned) > 0, solvers=", ".join(OWNED_FRICTION),
+                               fallbacks=fallbacks, **fields),
+        CLAIMS["rf_within_bound"].row(f"{outside} of {len(conv)} converged runs outside",
+                                      passed=outside == 0, **fields),
+        CLAIMS["rf_refuted"].row(listed or "none", **fields)], columns=COLUMNS)
+
+
 # ------------------------------------------------- Alg. 8.4 towards incompressibility
 def incompressibility_claims(t: pd.DataFrame) -> pd.DataFrame:
     """Per scene: the robust runs all converged, and their n_o grows at most 2x over nu."""
@@ -283,7 +346,14 @@ def main(argv=None) -> None:
     nu.add_argument("--table", required=True, help="the incompressibility runs")
     nu.add_argument("--claims", required=True)
     nu.add_argument("--figure", required=True)
+    rf = steps.add_parser("random-friction",
+                          help="the random frictional family's harder sample: claims")
+    rf.add_argument("--table", required=True, help="the random frictional runs")
+    rf.add_argument("--claims", required=True)
     args = ap.parse_args(argv)
+    if args.step == "random-friction":
+        write_csv(args.claims, random_friction_claims(read_csv(args.table)))
+        return
     if args.step == "incompressibility":
         t = read_csv(args.table)
         write_csv(args.claims, incompressibility_claims(t))

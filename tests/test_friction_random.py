@@ -81,6 +81,9 @@ def test_the_family_is_seeded_and_spans_its_ranges():
     assert shift.min() < 0 < shift.max()
     with pytest.raises(ValueError, match="parameter 'seed'.*allowed: an integer >= 0"):
         draw(-1)
+    assert draw(7, 1).level == 1 and draw(7, 1).params == draw(7).params
+    with pytest.raises(ValueError, match="parameter 'level'.*allowed: an integer 0 .. 2"):
+        draw(7, 3)
 
 
 def test_every_solver_converges_and_agrees_on_every_draw(outcomes, record_property):

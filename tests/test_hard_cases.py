@@ -125,3 +125,36 @@ def test_incompressibility_script_refuses_bad_arguments(capsys):
         script(["--scenes", "circle_square", "--level", "0", "--nus", "0.7", "--out", "x.csv"])
     err = capsys.readouterr().err
     assert "--nus" in err and "0.7" in err
+
+
+def test_the_random_frictional_sample_and_its_claims(tmp_path):
+    """The harder sample's run step (two draws beyond the tests', level 1, the suite's
+    frictional solvers, a library and a frictionless solver) and its claims: every owned
+    run converged and every converged run within its certified bound; a run outside its
+    bound, or an owned run that stopped, fails them; a frictionless solver is skipped."""
+    from report.hard_cases import OWNED_FRICTION, random_friction_claims
+    from workflows.studies.hard_cases.random_friction import main as rf_main
+    out = tmp_path / "rf.csv"
+    rf_main(["--first", "500", "--draws", "2", "--level", "1", "--solvers", *OWNED_FRICTION,
+             "osqp", "pdas", "--out", str(out)])
+    t = pd.read_csv(out)
+    assert set(t.seed) == {500, 501} and (t.level == 1).all()
+    assert (t.loc[t.solver == "pdas", "status"] == "skipped").all()
+    owned = t[t.solver.isin(OWNED_FRICTION)]
+    assert (owned.status == "converged").all() and (owned.energy_error <= 1e-6).all()
+    claims = random_friction_claims(t)
+    assert claims["pass"].tolist()[:2] == [True, True]
+    assert claims["measured"].iloc[0] == f"{len(owned)} of {len(owned)} runs"
+    assert "fallback on 0 draws" in claims["parameters"].iloc[0]
+    outside = t.copy()
+    row = outside.index[outside.solver == "osqp"][0]
+    outside.loc[row, ["status", "energy_error"]] = ["converged", 10 * outside.energy_bound[row]]
+    assert random_friction_claims(outside)["pass"].iloc[1] is False
+    stopped = t.copy()
+    stopped.loc[stopped.index[stopped.solver == "tnnmg"][0], "status"] = "max_iter"
+    assert random_friction_claims(stopped)["pass"].iloc[0] is False
+    for bad in (["--draws", "0"], ["--draws", "1", "--level", "3"],
+                ["--draws", "1", "--solvers", "nope"]):
+        with pytest.raises(SystemExit):
+            rf_main([*bad, "--out", str(tmp_path / "x.csv")])
+    assert not (tmp_path / "x.csv").exists()

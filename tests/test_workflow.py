@@ -338,6 +338,8 @@ def test_a_new_scene_joins_a_study_by_config_alone(tmp_path):
      "'shared': 'contact_level' is not a timing rule"),
     (lambda c: c["hard_cases"]["incompressibility"].update(level=9),
      "'hard_cases.incompressibility' for 'circle_square'"),
+    (lambda c: c["hard_cases"]["random_friction"].update(solvers=["tnnmg", "tnmg"]),
+     "'hard_cases.random_friction.solvers': ['tnmg'] are not allowed"),
     (lambda c: c["element_order"]["reference_level"].update(circle_square=2),
      "'element_order.reference_level.circle_square': 2 is not allowed; allowed: a level in 3.."),
     (lambda c: c["element_order"]["reference_level"].update(ghost=2),

@@ -38,6 +38,10 @@ RANGES = {
 #: The share of 3D draws.
 SHARE_3D = 0.2
 
+#: The finest level a draw is made at: every frictional step's exact reference
+#: (``tresca_exact``, a dense dual) takes both scenes' contact surfaces up to it.
+MAX_LEVEL = 2
+
 
 @dataclass(frozen=True)
 class Draw:
@@ -61,16 +65,20 @@ def _value(rng: np.random.Generator, spec):
     return float(rng.uniform(spec[0], spec[1]))
 
 
-def draw(seed: int) -> Draw:
-    """The family's member ``seed`` (module docstring).
+def draw(seed: int, level: int = 0) -> Draw:
+    """The family's member ``seed`` (module docstring) at mesh ``level`` (the same options
+    at every level: level 1 is the harder sample of the hard-case study).
 
     Raises
     ------
     ValueError
-        For a negative ``seed``.
+        For a negative ``seed``, or a ``level`` outside 0 .. :data:`MAX_LEVEL`.
     """
     if int(seed) != seed or seed < 0:
         raise ValueError(f"parameter 'seed': {seed!r} is not allowed; allowed: an integer >= 0")
+    if int(level) != level or not 0 <= level <= MAX_LEVEL:
+        raise ValueError(f"parameter 'level': {level!r} is not allowed; allowed: an integer "
+                         f"0 .. {MAX_LEVEL}")
     rng = np.random.default_rng([int(seed), 65])
     dim = "3d" if rng.random() < SHARE_3D else "2d"
     params = {}
@@ -81,4 +89,4 @@ def draw(seed: int) -> Draw:
             spec = spec[dim]
         params[key] = _value(rng, spec)
     problem = "cube_sphere" if dim == "3d" else "circle_square"
-    return Draw(int(seed), problem, tuple(sorted(params.items())))
+    return Draw(int(seed), problem, tuple(sorted(params.items())), int(level))

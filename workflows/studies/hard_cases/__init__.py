@@ -1,5 +1,6 @@
 """Every solver on hard variants of the scenes (the test set's runs of its hard families),
-and Alg. 8.4's outer steps towards incompressibility."""
+on the random frictional family's harder sample, and Alg. 8.4's outer steps towards
+incompressibility."""
 from workflows.studies._base import (ConfigError, Study, levels_choice, problem_set_of,
                                      run_levels, scenes_of)
 
@@ -30,6 +31,14 @@ def check(config: dict, registry: dict) -> None:
     from problems.spec import ParameterError
 
     check_cases(config)
+    rf = config.get("hard_cases", {}).get("random_friction") or {}
+    if rf.get("solvers"):
+        from solvers.interface import solvers
+        unknown = [n for n in rf["solvers"] if n not in solvers()]
+        if unknown:
+            raise ConfigError(f"config 'hard_cases.random_friction.solvers': {unknown} are not "
+                              f"allowed; allowed: registered solvers "
+                              f"({', '.join(sorted(solvers()))})")
     inc = config.get("hard_cases", {}).get("incompressibility")
     if not inc:
         return
@@ -78,21 +87,26 @@ STUDY = Study(
             "own process with a hard time limit, on hard variants of the scenes (stiffness "
             "contrast, near incompressibility, mesh ratio, single-node and whole-edge "
             "contact, no contact, initial penetration, SI units, grazing contact, a thin "
-            "body): verified status, certified bound, errors against the reference, time; "
+            "body; friction), and on random frictional draws at a finer level: verified "
+            "status, certified bound, errors against the reference, time; "
             "Alg. 8.4's outer steps against Poisson's ratio up to 0.4999",
     thesis="Ch. 8 solvers on variants of Sects. 9.1, 9.2",
     order=70,
-    scripts={"hard_cases": "workflows.studies.hard_cases.run"},
+    scripts={"hard_cases": "workflows.studies.hard_cases.run",
+             "random_friction": "workflows.studies.hard_cases.random_friction"},
     paths={
         "hard_table": "results/hard_cases/hard_cases.csv",
         "hard_heatmap": "results/hard_cases/hard_cases.png",
         "hard_nu_runs": "results/hard_cases/incompressibility.csv",
         "hard_nu_claims": "results/hard_cases/incompressibility_claims.csv",
         "hard_nu_figure": "results/hard_cases/incompressibility.png",
+        "hard_rf_runs": "results/hard_cases/random_friction.csv",
+        "hard_rf_claims": "results/hard_cases/random_friction_claims.csv",
     },
-    outputs=("hard_table", "hard_heatmap", "hard_nu_runs", "hard_nu_claims", "hard_nu_figure"),
-    heavy_rules=("hard_cases_incompressibility",),
+    outputs=("hard_table", "hard_heatmap", "hard_nu_runs", "hard_nu_claims", "hard_nu_figure",
+             "hard_rf_runs", "hard_rf_claims"),
+    heavy_rules=("hard_cases_incompressibility", "hard_cases_random_friction"),
     check=check,
-    claims=("hard_nu_claims",),
+    claims=("hard_nu_claims", "hard_rf_claims"),
     derived_claims={"hard_table": "report.hard_cases:claims"},
 )

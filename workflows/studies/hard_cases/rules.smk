@@ -49,3 +49,32 @@ rule hard_cases_incompressibility_report:
         "{params.py} -m report.hard_cases incompressibility --table {input} "
         "--claims {output.claims} "
         "--figure {output.figure} > {log} 2>&1"
+
+HCR = HC.get("random_friction", {})
+
+rule hard_cases_random_friction:
+    output: PATHS["hard_rf_runs"]
+    log: log_path("hard_cases_random_friction", "all")
+    benchmark: bench_path("hard_cases_random_friction", "all")
+    resources: **rule_resources(config, "hard_cases_random_friction")
+    conda: ENV
+    params:
+        py=PY, first=HCR.get("first"), draws=HCR.get("draws"), level=HCR.get("level"),
+        preset=HC.get("preset"), time_limit=HCR.get("time_limit"),
+        solvers=(" --solvers " + " ".join(HCR["solvers"])) if HCR.get("solvers") else ""
+    shell:
+        "{params.py} -m workflows.studies.hard_cases.random_friction --first {params.first} "
+        "--draws {params.draws} --level {params.level} --preset {params.preset}"
+        "{params.solvers} --time-limit {params.time_limit} --out {output} > {log} 2>&1"
+
+rule hard_cases_random_friction_report:
+    input: PATHS["hard_rf_runs"]
+    output:
+        claims=shown_table(PATHS["hard_rf_claims"], caption=CAPTIONS["hard_rf_claims"],
+                           category="hard cases", subcategory="random friction")
+    log: log_path("hard_cases_random_friction_report", "all")
+    conda: ENV
+    params: py=PY
+    shell:
+        "{params.py} -m report.hard_cases random-friction --table {input} "
+        "--claims {output.claims} > {log} 2>&1"
