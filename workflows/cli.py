@@ -238,7 +238,7 @@ def cmd_export(args: argparse.Namespace) -> int:
                              "problems of the chosen families")
     try:
         out = export_set(ts, args.size_class, args.out, force=args.force, families=families,
-                         progress=not args.quiet)
+                         progress=not args.quiet, fclib=args.format == "fclib")
     except ExportError as err:
         raise ParameterError(str(err)) from None
     print(f"{ts.id} {args.size_class}: {len(items)} problems -> {out}/ (index.json; "
@@ -283,6 +283,10 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--families", nargs="+", default=None, metavar="FAMILY",
                    help="only these families of the set (default: all)")
     e.add_argument("--out", required=True, help="folder to create (written atomically)")
+    e.add_argument("--format", choices=("qp", "fclib"), default="qp",
+                   help="qp: the QP and cone folders (default); fclib: each folder also "
+                        "with its fclib global file (fclib.hdf5: Coulomb steps and "
+                        "frictionless problems; the reason in meta.json where there is none)")
     e.add_argument("--force", action="store_true", help="replace an existing folder")
     e.add_argument("--quiet", action="store_true", help="no progress bar")
     e.set_defaults(func=cmd_export)

@@ -144,8 +144,10 @@ def condition_estimate(qp) -> dict:
 
 
 def write_problem(folder: Path, item: SetProblem, set_id: str,
-                  reference_tol: float = 1e-10) -> dict:
+                  reference_tol: float = 1e-10, fclib: bool = False) -> dict:
     """Build ``item``, solve it exactly and write its folder; returns its index entry.
+    ``fclib``: the folder also holds the problem's fclib global file where it has one
+    (:func:`fclib_file`).
 
     Raises
     ------
@@ -182,6 +184,7 @@ def write_problem(folder: Path, item: SetProblem, set_id: str,
         np.savez_compressed(folder / "solution.npz", x=x, z=p_ref)
     else:
         friction = friction_solution_files(folder, item, qp, ref.u, p_ref, ref.tangential)
+    fclib_entry = fclib_file(folder, item, qp, ref.u, p_ref, ref.tangential) if fclib else None
     J = objective(qp, ref.u, ref.p)
     tight = (tight_rows(G, arrays[h_name], x) if form == "qp" else
              tight_rows(G[:qp.m], arrays[h_name][:qp.m], x))
@@ -200,6 +203,7 @@ def write_problem(folder: Path, item: SetProblem, set_id: str,
         "objective": J, "objective_constant": 0.0,
         **({"cones": cone_sizes(qp)} if form == "cone" else {}),
         **({"friction": friction} if friction is not None else {}),
+        **({"fclib": fclib_entry} if fclib_entry is not None else {}),
         "solution": {"file": "solution.npz", "x": "x", "z": "z",
                      "active_rows": int(np.sum(ref.p > 0)), **tight},
         "reference": {"solver": ref.solver, "status": ref.status, "tol": reference_tol,
@@ -225,6 +229,40 @@ def write_problem(folder: Path, item: SetProblem, set_id: str,
             "dependent_tight_rows": meta["solution"]["dependent_tight_rows"],
             "objective": J, "folder": item.name,
             "meta_sha256": file_digest(folder / "meta.json")[0]}
+
+
+#: The fclib global file of a problem folder (``--format fclib``).
+FCLIB_FILE = "fclib.hdf5"
+
+
+def fclib_file(folder: Path, item: SetProblem, qp, u: np.ndarray, p: np.ndarray,
+               lam: np.ndarray | None) -> dict:
+    """Write ``qp``'s fclib global file into ``folder`` (:mod:`workflows.fclib`: a Coulomb
+    step, its previous step's reference as the guess; a frictionless problem with
+    ``mu = 0``) with the reference as its solution; returns meta.json's ``fclib`` entry:
+    the file and its natural-map residual, or the reason there is none."""
+    from workflows.fclib import (FclibError, global_problem, natural_map_residual,
+                                 reactions, solution_of, write_global)
+
+    coulomb = qp.friction is not None and item.params.get("friction") == "coulomb"
+    try:
+        problem = global_problem(qp, coulomb=coulomb)
+    except FclibError as err:
+        return {"file": None, "reason": str(err)}
+    r = reactions(problem, p, lam)
+    problem.solution = solution_of(problem, u, r)
+    if qp.friction is not None:
+        warm = item.frictional_step().warm
+        problem.guesses = (solution_of(problem, warm.u, reactions(
+            problem, np.maximum(warm.p, 0.0), warm.lam)),)
+    problem.info = {"title": f"{item.name} ({item.family}, level {item.level})",
+                    "description": f"contactbench test set {item.family}: "
+                                   f"{'Coulomb step' if coulomb else 'frictionless'}"}
+    write_global(folder / FCLIB_FILE, problem)
+    return {"file": FCLIB_FILE, "law": "coulomb" if coulomb else "frictionless (mu = 0)",
+            "contacts": problem.contacts, "spacedim": problem.spacedim,
+            "guesses": len(problem.guesses),
+            "natural_map_residual": natural_map_residual(problem, u, r)}
 
 
 #: What ``x`` is in a frictional problem's export.
@@ -314,8 +352,10 @@ def check_out(out: Path, force: bool) -> None:
 
 
 def export_set(ts: TestSet, size_class: str, out: str | os.PathLike, force: bool = False,
-               families: list[str] | None = None, progress: bool = True) -> Path:
-    """Write the problems of ``ts`` in ``size_class`` (of ``families``) to ``out``.
+               families: list[str] | None = None, progress: bool = True,
+               fclib: bool = False) -> Path:
+    """Write the problems of ``ts`` in ``size_class`` (of ``families``) to ``out``
+    (``fclib``: each folder with its fclib global file too, :func:`fclib_file`).
 
     The folder appears complete or not at all (written beside it, renamed into place).
     Returns ``out``.
@@ -327,7 +367,7 @@ def export_set(ts: TestSet, size_class: str, out: str | os.PathLike, force: bool
     items = ts.problems(size_class, families)
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.partial-", dir=out.parent))
     try:
-        entries = [write_problem(tmp / item.name, item, ts.id)
+        entries = [write_problem(tmp / item.name, item, ts.id, fclib=fclib)
                    for item in tqdm(items, desc=f"export {ts.id} {size_class}",
                                     disable=not progress)]
         index = {"set": ts.id, "name": ts.name, "version": ts.version,
