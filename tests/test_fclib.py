@@ -11,9 +11,11 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
+from workflows import fclib
 from workflows.cli import main
-from workflows.fclib import (FclibError, contact_arrays, natural_map_residual, read_global,
-                             write_global)
+from workflows.fclib import (FclibError, contact_arrays, law_residual, local_problem,
+                             natural_map_residual, read_global, read_local, write_global,
+                             write_local)
 from workflows.problem_set import load
 
 #: A 2D and a 3D Coulomb step, a Tresca step and a frictionless problem (level 0).
@@ -95,24 +97,43 @@ def test_an_fclib_file_reads_back_into_the_suites_arrays(export, name):
     assert de_saxce_residual(M, H, f, w, mu, v, off, d) > LAW_TOL
     assert natural_map_residual(problem, v, off) > LAW_TOL
     assert meta["fclib"]["natural_map_residual"] <= LAW_TOL
+    # the local (Delassus) form in the same file: u = W r + q, the same u, the same law
+    local = read_local(folder / "fclib.hdf5")
+    assert meta["fclib"]["local"].startswith("fclib_local")
+    u_local = local.W @ r + local.q
+    assert np.allclose(u_local, H.T @ v + w, rtol=0, atol=1e-9 * np.abs(w).max())
+    assert law_residual(u_local, r, local.mu, d) <= LAW_TOL
+    assert law_residual(local.W @ off + local.q, off, local.mu, d) > LAW_TOL
     arrays = contact_arrays(problem)
     assert (arrays["B"] != sp.csr_matrix(qp.B)).nnz == 0 and np.array_equal(arrays["g"], qp.g)
     assert np.array_equal(arrays["f"], qp.f)
 
 
-def test_what_fclib_cannot_hold_is_said(export, tmp_path):
+def test_what_fclib_cannot_hold_is_said(export, tmp_path, monkeypatch):
     tresca = json.loads((export / "circle_square_tresca_q05_L0" / "meta.json").read_text())
     assert tresca["fclib"]["file"] is None and "Coulomb's" in tresca["fclib"]["reason"]
     assert not (export / "circle_square_tresca_q05_L0" / "fclib.hdf5").exists()
+    # a file with the local form only (as most of fclib's published problems): read by
+    # read_local, refused by read_global (no stiffness matrix to build the suite's problem)
+    problem = read_global(export / "hard_grazing_L0" / "fclib.hdf5")
     local = tmp_path / "local.hdf5"
-    with h5py.File(local, "w") as h5:
-        h5.create_group("fclib_local").create_dataset("spacedim", data=[3])
+    write_local(local, local_problem(problem))
+    assert read_local(local).W.shape == (problem.H.shape[1],) * 2
     with pytest.raises(FclibError, match="local problem .* no stiffness matrix"):
         read_global(local)
     with h5py.File(tmp_path / "none.hdf5", "w") as h5:
         h5.create_group("other")
     with pytest.raises(FclibError, match="neither /fclib_global nor /fclib_local"):
         read_global(tmp_path / "none.hdf5")
+    with pytest.raises(FclibError, match="no /fclib_local"):
+        read_local(tmp_path / "none.hdf5")
+    with h5py.File(local, "r+") as h5:
+        h5["fclib_local"].create_group("R")
+    with pytest.raises(FclibError, match="bilateral constraints"):
+        read_local(local)
+    monkeypatch.setattr(fclib, "LOCAL_MAX_ENTRIES", 1000)
+    with pytest.raises(FclibError, match="exceed 1000 .* the global form only"):
+        local_problem(problem)
 
 
 def test_triplet_and_row_matrices_of_other_writers_are_read(export, tmp_path):

@@ -237,12 +237,14 @@ FCLIB_FILE = "fclib.hdf5"
 
 def fclib_file(folder: Path, item: SetProblem, qp, u: np.ndarray, p: np.ndarray,
                lam: np.ndarray | None) -> dict:
-    """Write ``qp``'s fclib global file into ``folder`` (:mod:`workflows.fclib`: a Coulomb
-    step, its previous step's reference as the guess; a frictionless problem with
-    ``mu = 0``) with the reference as its solution; returns meta.json's ``fclib`` entry:
-    the file and its natural-map residual, or the reason there is none."""
-    from workflows.fclib import (FclibError, global_problem, natural_map_residual,
-                                 reactions, solution_of, write_global)
+    """Write ``qp``'s fclib file into ``folder`` (:mod:`workflows.fclib`: the global form of
+    a Coulomb step, its previous step's reference as the guess, or of a frictionless
+    problem with ``mu = 0``; the local form too where a dense Delassus operator fits) with
+    the reference as its solution; returns meta.json's ``fclib`` entry: the file and its
+    natural-map residual, or the reason there is none."""
+    from workflows.fclib import (FclibError, global_problem, local_problem,
+                                 natural_map_residual, reactions, solution_of, write_global,
+                                 write_local)
 
     coulomb = qp.friction is not None and item.params.get("friction") == "coulomb"
     try:
@@ -259,9 +261,14 @@ def fclib_file(folder: Path, item: SetProblem, qp, u: np.ndarray, p: np.ndarray,
                     "description": f"contactbench test set {item.family}: "
                                    f"{'Coulomb step' if coulomb else 'frictionless'}"}
     write_global(folder / FCLIB_FILE, problem)
+    try:
+        write_local(folder / FCLIB_FILE, local_problem(problem))
+        local = "fclib_local: u = W r + q, W = H'M^-1 H dense"
+    except FclibError as err:
+        local = f"none: {err}"
     return {"file": FCLIB_FILE, "law": "coulomb" if coulomb else "frictionless (mu = 0)",
             "contacts": problem.contacts, "spacedim": problem.spacedim,
-            "guesses": len(problem.guesses),
+            "guesses": len(problem.guesses), "local": local,
             "natural_map_residual": natural_map_residual(problem, u, r)}
 
 

@@ -20,8 +20,11 @@ why).
 
 Matrices are stored as fclib's C library stores them (``nzmax, m, n, nz, p, i, x``;
 ``nz = -1``: compressed columns), the reference solution as ``/solution/{v, u, r}``, the
-load path's previous step as ``/guesses/1``. :func:`read_global` reads any fclib global
-file with ``h5py`` alone; a *local* (Delassus) file is refused with the reason.
+load path's previous step as ``/guesses/1``; where the contacts are few enough for a dense
+Delassus operator, the *local* problem ``u = W r + q`` too (:func:`local_problem`).
+:func:`read_global` reads any fclib global file with ``h5py`` alone (a file with the local
+form only is refused, with the reason, as no stiffness matrix maps it to the suite's
+problems); :func:`read_local` reads the local form.
 """
 from __future__ import annotations
 
@@ -146,23 +149,109 @@ def project_cone(r: np.ndarray, mu: np.ndarray, d: int) -> np.ndarray:
     return out.ravel()
 
 
-def natural_map_residual(problem: FclibGlobal, v: np.ndarray, r: np.ndarray) -> float:
-    """The relative natural-map residual of Coulomb's law in De Saxce's form,
-    ``|r - P_K(r - rho u^)| / |r|`` over all contacts (``rho = |r|_inf / |u|_inf`` makes it
-    scale-free), together with the equilibrium ``|M v + f - H r| / |f|``: the larger of
-    the two. Zero exactly at a solution."""
-    d, mu = problem.spacedim, problem.mu
-    u = (problem.H.T @ v + problem.w).reshape(-1, d)
+def law_residual(u: np.ndarray, r: np.ndarray, mu: np.ndarray, d: int) -> float:
+    """The relative natural-map residual of Coulomb's law in De Saxce's form at the local
+    velocities ``u`` and reactions ``r``: ``|r - P_K(r - rho u^)| / |r|`` over all contacts
+    (``rho = |r|_inf / |u|_inf`` makes it scale-free). Zero exactly where the law holds."""
+    u = np.asarray(u, dtype=float).reshape(-1, d)
     hat = u.copy()
     hat[:, 0] += mu * np.linalg.norm(u[:, 1:], axis=1)
     r = np.asarray(r, dtype=float)
     scale_r = max(float(np.max(np.abs(r), initial=0.0)), 1e-300)
     rho = scale_r / max(float(np.max(np.abs(u), initial=0.0)), 1e-300)
-    law = np.linalg.norm(r - project_cone(r - rho * hat.ravel(), mu, d)) / max(
-        float(np.linalg.norm(r)), 1e-300)
+    return float(np.linalg.norm(r - project_cone(r - rho * hat.ravel(), mu, d))
+                 / max(float(np.linalg.norm(r)), 1e-300))
+
+
+def natural_map_residual(problem: FclibGlobal, v: np.ndarray, r: np.ndarray) -> float:
+    """:func:`law_residual` at ``u = H'v + w``, together with the equilibrium
+    ``|M v + f - H r| / |f|``: the larger of the two. Zero exactly at a solution."""
+    law = law_residual(problem.H.T @ v + problem.w, r, problem.mu, problem.spacedim)
     balance = np.linalg.norm(problem.M @ v + problem.f - problem.H @ r) / max(
         float(np.linalg.norm(problem.f)), 1e-300)
     return float(max(law, balance))
+
+
+# ------------------------------------------------------------------- the local form
+#: Largest Delassus operator written (entries of the dense ``W``, and of ``M^-1 H``
+#: formed for it): 2e7 (160 MB) each.
+LOCAL_MAX_ENTRIES = 20_000_000
+
+
+@dataclass
+class FclibLocal:
+    """fclib's local problem ``u = W r + q`` (``W = H' M^-1 H`` the Delassus operator,
+    ``q = w - H' M^-1 f``), per contact the law of :class:`FclibGlobal`."""
+
+    spacedim: int
+    W: np.ndarray
+    q: np.ndarray
+    mu: np.ndarray
+
+
+def local_problem(problem: FclibGlobal) -> FclibLocal:
+    """The local (Delassus) form of ``problem``: ``v = M^-1 (H r - f)`` eliminated.
+
+    Raises
+    ------
+    FclibError
+        Where the dense ``W`` or ``M^-1 H`` would exceed :data:`LOCAL_MAX_ENTRIES`.
+    """
+    from solvers.kernels.cholesky import factorize
+
+    n, k = problem.H.shape
+    if max(n, k) * k > LOCAL_MAX_ENTRIES:
+        raise FclibError(f"the Delassus operator: {n} x {k} entries of M^-1 H exceed "
+                         f"{LOCAL_MAX_ENTRIES} (a dense W is formed); the global form only")
+    solve = factorize(sp.csr_matrix(problem.M)).solve
+    MinvH = solve(problem.H.toarray())
+    W = np.asarray(problem.H.T @ MinvH)
+    W = 0.5 * (W + W.T)                        # symmetric to round-off
+    q = problem.w - problem.H.T @ solve(problem.f)
+    return FclibLocal(spacedim=problem.spacedim, W=W, q=np.asarray(q, dtype=float),
+                      mu=problem.mu)
+
+
+def write_local(path: str | os.PathLike, local: FclibLocal) -> None:
+    """Add ``local`` to the fclib file at ``path`` as ``/fclib_local`` (``W`` stored as a
+    compressed-column matrix, ``q`` and ``mu`` under ``vectors``)."""
+    import h5py
+
+    with h5py.File(path, "a") as h5:
+        if "fclib_local" in h5:
+            del h5["fclib_local"]
+        g = h5.create_group("fclib_local")
+        g.create_dataset("spacedim", data=np.array([local.spacedim], dtype=np.int32))
+        _write_matrix(g.create_group("W"), sp.csc_matrix(local.W))
+        vec = g.create_group("vectors")
+        vec.create_dataset("q", data=local.q)
+        vec.create_dataset("mu", data=np.asarray(local.mu, dtype=np.float64))
+
+
+def read_local(path: str | os.PathLike) -> FclibLocal:
+    """The local problem of an fclib file (the suite's or fclib's published ones, whose
+    ``q`` some writers name ``a``).
+
+    Raises
+    ------
+    FclibError
+        For a file without ``/fclib_local``, or with the blocks ``V, R`` of a local problem
+        with bilateral constraints (not a contact step of the suite's kind).
+    """
+    import h5py
+
+    with h5py.File(path, "r") as h5:
+        if "fclib_local" not in h5:
+            raise FclibError(f"{path}: no /fclib_local (its global form: read_global)")
+        g = h5["fclib_local"]
+        if "R" in g or "V" in g:
+            raise FclibError(f"{path}: a local problem with bilateral constraints (V, R): "
+                             "the suite's contact steps have none")
+        vec = g["vectors"]
+        q = vec["q"] if "q" in vec else vec["a"]
+        return FclibLocal(spacedim=int(np.asarray(g["spacedim"]).ravel()[0]),
+                          W=_read_matrix(g["W"]).toarray(), q=np.asarray(q, dtype=float),
+                          mu=np.asarray(vec["mu"], dtype=float))
 
 
 # ------------------------------------------------------------------------------- files
