@@ -238,7 +238,8 @@ def cmd_export(args: argparse.Namespace) -> int:
                              "problems of the chosen families")
     try:
         out = export_set(ts, args.size_class, args.out, force=args.force, families=families,
-                         progress=not args.quiet, fclib=args.format == "fclib")
+                         progress=not args.quiet, fclib=args.format == "fclib",
+                         multigrid=args.multigrid)
     except ExportError as err:
         raise ParameterError(str(err)) from None
     print(f"{ts.id} {args.size_class}: {len(items)} problems -> {out}/ (index.json; "
@@ -287,6 +288,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="qp: the QP and cone folders (default); fclib: each folder also "
                         "with its fclib global file (fclib.hdf5: Coulomb steps and "
                         "frictionless problems; the reason in meta.json where there is none)")
+    e.add_argument("--multigrid", action="store_true",
+                   help="each folder also with what a multigrid solver needs "
+                        "(multigrid.npz: the unknowns' nodes, components and coordinates, "
+                        "the near-null space, the hierarchy's prolongations; mesh.vtu)")
     e.add_argument("--force", action="store_true", help="replace an existing folder")
     e.add_argument("--quiet", action="store_true", help="no progress bar")
     e.set_defaults(func=cmd_export)

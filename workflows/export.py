@@ -144,10 +144,11 @@ def condition_estimate(qp) -> dict:
 
 
 def write_problem(folder: Path, item: SetProblem, set_id: str,
-                  reference_tol: float = 1e-10, fclib: bool = False) -> dict:
+                  reference_tol: float = 1e-10, fclib: bool = False,
+                  multigrid: bool = False) -> dict:
     """Build ``item``, solve it exactly and write its folder; returns its index entry.
     ``fclib``: the folder also holds the problem's fclib global file where it has one
-    (:func:`fclib_file`).
+    (:func:`fclib_file`); ``multigrid``: its multigrid data (:func:`multigrid_file`).
 
     Raises
     ------
@@ -185,6 +186,7 @@ def write_problem(folder: Path, item: SetProblem, set_id: str,
     else:
         friction = friction_solution_files(folder, item, qp, ref.u, p_ref, ref.tangential)
     fclib_entry = fclib_file(folder, item, qp, ref.u, p_ref, ref.tangential) if fclib else None
+    multigrid_entry = multigrid_file(folder, qp) if multigrid else None
     J = objective(qp, ref.u, ref.p)
     tight = (tight_rows(G, arrays[h_name], x) if form == "qp" else
              tight_rows(G[:qp.m], arrays[h_name][:qp.m], x))
@@ -204,6 +206,7 @@ def write_problem(folder: Path, item: SetProblem, set_id: str,
         **({"cones": cone_sizes(qp)} if form == "cone" else {}),
         **({"friction": friction} if friction is not None else {}),
         **({"fclib": fclib_entry} if fclib_entry is not None else {}),
+        **({"multigrid": multigrid_entry} if multigrid_entry is not None else {}),
         "solution": {"file": "solution.npz", "x": "x", "z": "z",
                      "active_rows": int(np.sum(ref.p > 0)), **tight},
         "reference": {"solver": ref.solver, "status": ref.status, "tol": reference_tol,
@@ -229,6 +232,47 @@ def write_problem(folder: Path, item: SetProblem, set_id: str,
             "dependent_tight_rows": meta["solution"]["dependent_tight_rows"],
             "objective": J, "folder": item.name,
             "meta_sha256": file_digest(folder / "meta.json")[0]}
+
+
+#: A problem folder's multigrid data (``--multigrid``).
+MULTIGRID_FILE = "multigrid.npz"
+
+
+def multigrid_file(folder: Path, qp) -> dict:
+    """Write what a multigrid solver needs of ``qp`` into ``folder`` (``multigrid.npz``,
+    and ``mesh.vtu`` for meshio); returns meta.json's ``multigrid`` entry.
+
+    Per unknown of ``u`` (the first ``n_displacements`` entries of ``x``): its node, its
+    component and that node's coordinates, its body; ``near_null_space``, the rigid-body
+    motions of each body restricted to the unknowns (the near-null space smoothed
+    aggregation takes as ``B``); ``prolongations``, the nested hierarchy's ``P_k`` from
+    level ``k`` to ``k + 1`` on the free unknowns, coarsest first, the last ending on
+    ``u`` (``P{k}_data``, ``_indices``, ``_indptr``, ``_shape``: CSR).
+    """
+    import meshio
+
+    mesh, ml = qp.mesh, qp.multilevel
+    node, component = np.divmod(np.asarray(qp.free_dofs), qp.dim)
+    arrays = {"node": node, "component": component, "coordinates": mesh.points[node],
+              "body": (ml.body_of_dof if ml.body_of_dof is not None
+                       else mesh.body_of_node[node])}
+    if ml.rigid_body_modes is not None:
+        arrays["near_null_space"] = np.asarray(ml.rigid_body_modes, dtype=float)
+    for k, P in enumerate(ml.prolongations):
+        P = sp.csr_matrix(P)
+        arrays.update({f"P{k}_data": P.data, f"P{k}_indices": P.indices,
+                       f"P{k}_indptr": P.indptr, f"P{k}_shape": np.array(P.shape)})
+    np.savez_compressed(folder / MULTIGRID_FILE, **arrays)
+    linear = mesh.cells.shape[1] == qp.dim + 1
+    kind = ({2: "triangle", 3: "tetra"} if linear else {2: "triangle6", 3: "tetra10"})[qp.dim]
+    points = np.zeros((mesh.points.shape[0], 3))        # VTU's points are 3D
+    points[:, :qp.dim] = mesh.points
+    meshio.write(folder / "mesh.vtu", meshio.Mesh(
+        points, [(kind, mesh.cells)], point_data={"body": mesh.body_of_node}))
+    return {"file": MULTIGRID_FILE, "mesh": "mesh.vtu", "levels": len(ml.prolongations) + 1,
+            "near_null_space": int(arrays["near_null_space"].shape[1])
+            if "near_null_space" in arrays else 0,
+            "of": "u, the first n_displacements entries of x"}
 
 
 #: The fclib global file of a problem folder (``--format fclib``).
@@ -360,9 +404,10 @@ def check_out(out: Path, force: bool) -> None:
 
 def export_set(ts: TestSet, size_class: str, out: str | os.PathLike, force: bool = False,
                families: list[str] | None = None, progress: bool = True,
-               fclib: bool = False) -> Path:
+               fclib: bool = False, multigrid: bool = False) -> Path:
     """Write the problems of ``ts`` in ``size_class`` (of ``families``) to ``out``
-    (``fclib``: each folder with its fclib global file too, :func:`fclib_file`).
+    (``fclib``: each folder with its fclib file too, :func:`fclib_file`; ``multigrid``:
+    with its multigrid data, :func:`multigrid_file`).
 
     The folder appears complete or not at all (written beside it, renamed into place).
     Returns ``out``.
@@ -374,7 +419,8 @@ def export_set(ts: TestSet, size_class: str, out: str | os.PathLike, force: bool
     items = ts.problems(size_class, families)
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.partial-", dir=out.parent))
     try:
-        entries = [write_problem(tmp / item.name, item, ts.id, fclib=fclib)
+        entries = [write_problem(tmp / item.name, item, ts.id, fclib=fclib,
+                                 multigrid=multigrid)
                    for item in tqdm(items, desc=f"export {ts.id} {size_class}",
                                     disable=not progress)]
         index = {"set": ts.id, "name": ts.name, "version": ts.version,
