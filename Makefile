@@ -21,8 +21,12 @@ CHROMIUM ?= /usr/bin/chromium
 # its own MPI job); without apt-get, or where it cannot install, the petsc_tao runs and
 # tests are skipped with the reason (docs/guide/distributed.md)
 PETSC_PACKAGES := python3-petsc4py python3-mpi4py mpi-default-bin
+# Siconos (the frictional-contact community's solvers) and h5py for the system Python: the
+# tests solve the exported fclib files with it, an independent code (tests/siconos_fclib.py);
+# without apt-get, or where it cannot install, that test is skipped with the reason
+SICONOS_PACKAGES := python3-siconos python3-h5py
 
-.PHONY: setup browser petsc run full test bench docs plan clean
+.PHONY: setup browser petsc siconos run full test bench docs plan clean
 
 $(BIN)/contactbench: pyproject.toml constraints.txt
 	@command -v $(PYTHON) >/dev/null 2>&1 || { echo "error: $(PYTHON) not found; set PYTHON=/path/to/python3.11"; exit 2; }
@@ -51,15 +55,26 @@ $(CHROMIUM):
 	@command -v apt-get >/dev/null 2>&1 || { echo "error: $(CHROMIUM) not found and no apt-get; install Chromium and set CHROMIUM=/path/to/chromium"; exit 2; }
 	apt-get install -y --no-install-recommends chromium || { apt-get update && apt-get install -y --no-install-recommends chromium; }
 
-petsc:
+# Debian packages for the system Python, installed where apt-get can: $(1) the packages,
+# $(2) what is skipped without them (a note, never a failure)
+define apt_install
 	@if ! command -v apt-get >/dev/null 2>&1; then \
-		echo "note: no apt-get: PETSc and MPI not installed, the petsc_tao runs are skipped (docs/guide/distributed.md)"; \
-	elif dpkg -s $(PETSC_PACKAGES) >/dev/null 2>&1; then :; \
+		echo "note: no apt-get: $(1) not installed, $(2)"; \
+	elif dpkg -s $(1) >/dev/null 2>&1; then :; \
 	else \
-		apt-get install -y --no-install-recommends $(PETSC_PACKAGES) \
-		|| { apt-get update && apt-get install -y --no-install-recommends $(PETSC_PACKAGES); } \
-		|| echo "note: $(PETSC_PACKAGES) could not be installed, the petsc_tao runs are skipped"; \
+		apt-get install -y --no-install-recommends $(1) \
+		|| { apt-get update && apt-get install -y --no-install-recommends $(1); } \
+		|| echo "note: $(1) could not be installed, $(2)"; \
 	fi
+endef
+PETSC_SKIPPED := the petsc_tao runs are skipped (docs/guide/distributed.md)
+SICONOS_SKIPPED := the tests do not solve the fclib files with Siconos
+
+petsc:
+	$(call apt_install,$(PETSC_PACKAGES),$(PETSC_SKIPPED))
+
+siconos:
+	$(call apt_install,$(SICONOS_PACKAGES),$(SICONOS_SKIPPED))
 
 # the solver tests, run once more under every other OpenBLAS kernel the CPU can run
 # (tests/blas_kernels.py), each with another of MKL's code paths for PARDISO (MKL_CBWR; the
@@ -83,7 +98,7 @@ SOLVER_TESTS := tests/test_rounding.py tests/test_solvers.py tests/test_semismoo
 TEST_WORKERS ?= $(shell n=$$(nproc 2>/dev/null || echo 2); [ $$n -gt 8 ] && n=8; echo $$n)
 ONE_THREAD := OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 MKL_NUM_THREADS=1
 
-test: setup browser petsc
+test: setup browser petsc siconos
 	$(ONE_THREAD) CONTACTBENCH_CHROMIUM=$(CHROMIUM) $(BIN)/python -m pytest -q -n $(TEST_WORKERS) \
 		--dist loadfile --no-loadscope-reorder --durations=10
 	@kernels="$$($(BIN)/python tests/blas_kernels.py)" || exit 1; \

@@ -1,10 +1,12 @@
 """fclib's global form of the test set's problems (:mod:`workflows.fclib`): written by
 ``contactbench export --format fclib``, read back by an independent reader (``h5py`` and
 ``scipy`` here, none of the suite's code), the mapping checked against the suite's own
-arrays, and the exported reference checked against Coulomb's law in De Saxce's form."""
+arrays, and the exported reference checked against Coulomb's law in De Saxce's form; the
+exported local problems solved by Siconos, an independent code, to the reference."""
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import h5py
 import numpy as np
@@ -156,3 +158,44 @@ def test_triplet_and_row_matrices_of_other_writers_are_read(export, tmp_path):
         h5["fclib_global/H/nz"][0] = -3
     with pytest.raises(FclibError, match="nz = -3 is not an fclib matrix type"):
         read_global(path)
+
+
+SYSTEM_PYTHON = "/usr/bin/python3"
+SICONOS_SCRIPT = Path(__file__).with_name("siconos_fclib.py")
+#: Siconos's answer against the exported reference (relative, max norm): the reference's
+#: Coulomb bounds are rounded to 8 significant digits.
+SICONOS_AGREEMENT = 1e-6
+
+
+def siconos_missing() -> str:
+    """Why Siconos cannot run here ("" if it can)."""
+    import subprocess
+    if not Path(SYSTEM_PYTHON).exists():
+        return f"no {SYSTEM_PYTHON}"
+    probe = subprocess.run([SYSTEM_PYTHON, "-c", "import siconos.numerics, h5py"],
+                           capture_output=True, text=True)
+    return ("" if probe.returncode == 0 else
+            "Siconos or h5py missing for the system Python (make siconos: apt-get install "
+            "python3-siconos python3-h5py)")
+
+
+@pytest.mark.parametrize("name", ["circle_square_coulomb_q05_L0", "cube_sphere_coulomb_q05_L0"])
+def test_siconos_solves_the_exported_coulomb_step_to_the_reference(export, name):
+    """Siconos (nonsmooth Gauss-Seidel, under the system Python, reading the file with its
+    own h5py: nothing of the suite) solves the exported local problem of a 2D and a 3D
+    Coulomb step to the suite's exact reference: the mapping's signs and the law agree."""
+    import subprocess
+    why = siconos_missing()
+    if why:
+        pytest.skip(why)
+    out = subprocess.run([SYSTEM_PYTHON, str(SICONOS_SCRIPT), str(export / name / "fclib.hdf5")],
+                         capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr[-2000:]
+    answer = json.loads(out.stdout.strip().splitlines()[-1])
+    assert answer["info"] == 0, answer["error"]
+    r = np.array(answer["r"])
+    problem = read_global(export / name / "fclib.hdf5")
+    r_ref = problem.solution["r"]
+    assert np.abs(r - r_ref).max() <= SICONOS_AGREEMENT * np.abs(r_ref).max()
+    local = read_local(export / name / "fclib.hdf5")
+    assert law_residual(local.W @ r + local.q, r, local.mu, problem.spacedim) <= LAW_TOL
