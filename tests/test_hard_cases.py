@@ -146,6 +146,10 @@ def test_the_random_frictional_sample_and_its_claims(tmp_path):
     assert claims["pass"].tolist()[:2] == [True, True]
     assert claims["measured"].iloc[0] == f"{len(owned)} of {len(owned)} runs"
     assert "fallback on 0 draws" in claims["parameters"].iloc[0]
+    refuted = ((t.claimed_status == "converged") & (t.status != "converged")).sum()
+    assert claims["measured"].iloc[2] == f"{refuted} of {(t.status != 'skipped').sum()} runs"
+    both = t[["energy_bound", "energy_bound_floor"]].dropna()
+    assert len(both) and (both.energy_bound >= both.energy_bound_floor).all()
     outside = t.copy()
     row = outside.index[outside.solver == "osqp"][0]
     outside.loc[row, ["status", "energy_error"]] = ["converged", 10 * outside.energy_bound[row]]

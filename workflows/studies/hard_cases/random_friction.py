@@ -10,8 +10,8 @@ at ``--preset``, each verified as every run of the suite is (a solver without fr
 ``skipped`` with its reason).
 
 Per run: the draw and its options, the step, the solver, the verified and claimed status,
-the worst KKT residual, the certified energy bound, the energy-norm distance to the exact
-reference (relative), whether semismooth Newton's fallback ran, iterations, time and
+the worst KKT residual, the certified energy bound and its floor, the energy-norm distance
+to the exact reference (relative), whether semismooth Newton's fallback ran, iterations, time and
 message. One process, one solve after the other (the libraries' ``--time-limit`` each).
 
 Example::
@@ -57,6 +57,7 @@ def step_rows(member, step: int, fstep, names: list[str], preset: str,
             "claimed_status": res.claimed_status, "iterations": res.iterations,
             "kkt_max": res.kkt.max if res.kkt is not None else np.nan,
             "energy_bound": res.gap.certified_bound if res.gap is not None else np.nan,
+            "energy_bound_floor": res.gap.floor if res.gap is not None else np.nan,
             "energy_error": (energy_error(fstep.qp, res.u, fstep.solution.u)
                              if finite and res.status != "skipped" else np.nan),
             "fallback": bool(res.stats.get("fallback", False)),
