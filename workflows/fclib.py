@@ -77,7 +77,7 @@ def fclib_form(qp) -> str:
     return ""
 
 
-def global_problem(qp, coulomb: bool, mu: float | None = None) -> FclibGlobal:
+def global_problem(qp, coulomb: bool) -> FclibGlobal:
     """The fclib global form of ``qp`` (module docstring): a frictional step whose bounds
     are Coulomb's (``coulomb``: the fixed point's final step, ``s = mu p``), or a
     frictionless problem (``mu = 0``).
@@ -99,22 +99,28 @@ def global_problem(qp, coulomb: bool, mu: float | None = None) -> FclibGlobal:
         k = fr.components
         T = sp.csr_matrix(fr.T)
         w_t = (fr.previous - fr.offset).reshape(m, k)
-        mus = np.full(m, float(fr.mu if mu is None else mu))
+        mus = np.full(m, float(fr.mu))
     else:
         k = d - 1
         T = sp.csr_matrix((m * k, qp.n))
         w_t = np.zeros((m, k))
         mus = np.zeros(m)
     # rows of H' per contact: the normal row, then its k tangential rows
+    normal, tangential = contact_columns(m, k + 1)
     order = np.empty(m * (k + 1), dtype=np.int64)
-    rows = sp.vstack([-B, -T], format="csr")
-    order[0::k + 1] = np.arange(m)
-    for j in range(k):
-        order[j + 1::k + 1] = m + np.arange(m) * k + j
-    H = sp.csc_matrix(rows[order].T)
+    order[normal] = np.arange(m)
+    order[tangential] = m + np.arange(m * k)
+    H = sp.csc_matrix(sp.vstack([-B, -T], format="csr")[order].T)
     w = np.column_stack([qp.g, w_t]).ravel()
     return FclibGlobal(spacedim=d, M=sp.csc_matrix(qp.A), H=H, f=-np.asarray(qp.f, float),
                        w=w, mu=mus)
+
+
+def contact_columns(contacts: int, d: int) -> tuple[np.ndarray, np.ndarray]:
+    """The columns of ``H`` (entries of ``w``, ``r``) holding each contact's normal
+    component, and its ``d - 1`` tangential ones (contact-major)."""
+    normal = np.arange(contacts) * d
+    return normal, (normal[:, None] + np.arange(1, d)).ravel()
 
 
 def reactions(problem: FclibGlobal, p: np.ndarray, lam: np.ndarray | None) -> np.ndarray:
@@ -375,9 +381,7 @@ def contact_arrays(problem: FclibGlobal) -> dict:
     reference ``previous - offset``, and ``mu``."""
     d = problem.spacedim
     Ht = sp.csr_matrix(problem.H.T)
-    w = problem.w.reshape(-1, d)
-    normal = np.arange(problem.contacts) * d
-    tangential = (normal[:, None] + np.arange(1, d)).ravel()
+    normal, tangential = contact_columns(problem.contacts, d)
     return {"A": sp.csr_matrix(problem.M), "f": -problem.f, "B": -Ht[normal],
-            "g": w[:, 0].copy(), "T": -Ht[tangential], "slip_reference": w[:, 1:].ravel(),
-            "mu": problem.mu}
+            "g": problem.w[normal], "T": -Ht[tangential],
+            "slip_reference": problem.w[tangential], "mu": problem.mu}

@@ -100,9 +100,10 @@ def main(argv=None) -> None:
                                desc="random frictional draws", unit="draw"):
         member = draw(seed, args.level)
         steps = frictional_steps(member.problem, member.params, member.level)
-        for k, fstep in steps.items():
-            rows += step_rows(member, k, fstep, names, args.preset, args.time_limit)
-        done = [r for r in rows if r["seed"] == seed and r["status"] != "skipped"]
+        ran = [row for k, fstep in steps.items()
+               for row in step_rows(member, k, fstep, names, args.preset, args.time_limit)]
+        rows += ran
+        done = [r for r in ran if r["status"] != "skipped"]
         tqdm.write(f"{member.name} ({member.problem}, {len(steps)} steps): "
                    f"{sum(r['status'] == 'converged' for r in done)} of {len(done)} runs "
                    f"converged")
