@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from workflows import fclib
+from solvers.kernels import fclib_form
 from workflows.cli import main
 from workflows.fclib import (FclibError, contact_arrays, law_residual, local_problem,
                              natural_map_residual, read_global, read_local, write_global,
@@ -133,7 +133,7 @@ def test_what_fclib_cannot_hold_is_said(export, tmp_path, monkeypatch):
         h5["fclib_local"].create_group("R")
     with pytest.raises(FclibError, match="bilateral constraints"):
         read_local(local)
-    monkeypatch.setattr(fclib, "LOCAL_MAX_ENTRIES", 1000)
+    monkeypatch.setattr(fclib_form, "LOCAL_MAX_ENTRIES", 1000)
     with pytest.raises(FclibError, match="exceed 1000 .* the global form only"):
         local_problem(problem)
 
