@@ -21,9 +21,10 @@ CHROMIUM ?= /usr/bin/chromium
 # its own MPI job); without apt-get, or where it cannot install, the petsc_tao runs and
 # tests are skipped with the reason (docs/guide/distributed.md)
 PETSC_PACKAGES := python3-petsc4py python3-mpi4py mpi-default-bin
-# Siconos (the frictional-contact community's solvers) and h5py for the system Python: the
-# tests solve the exported fclib files with it, an independent code (tests/siconos_fclib.py);
-# without apt-get, or where it cannot install, that test is skipped with the reason
+# Siconos (the frictional-contact community's solvers) and h5py for the system Python: its
+# solvers run as their own process (solvers/siconos.py), and the tests solve the exported
+# fclib files with it, an independent code (tests/siconos_fclib.py); without apt-get, or
+# where it cannot install, those runs and tests are skipped with the reason
 SICONOS_PACKAGES := python3-siconos python3-h5py
 
 .PHONY: setup browser petsc siconos run full test bench docs plan clean
@@ -41,7 +42,7 @@ $(BIN)/contactbench: pyproject.toml constraints.txt
 setup: $(BIN)/contactbench
 
 # the regeneration, then Snakemake's HTML report of it (the summary page first)
-run: setup petsc
+run: setup petsc siconos
 	$(BIN)/snakemake --profile $(PROFILE) --cores $(CORES) --configfile workflows/config/$(SCALE).yaml
 	$(BIN)/snakemake --profile $(PROFILE) --cores $(CORES) --configfile workflows/config/$(SCALE).yaml --report $(REPORT)
 	@echo "report: $(REPORT)"
@@ -68,7 +69,7 @@ define apt_install
 	fi
 endef
 PETSC_SKIPPED := the petsc_tao runs are skipped (docs/guide/distributed.md)
-SICONOS_SKIPPED := the tests do not solve the fclib files with Siconos
+SICONOS_SKIPPED := the siconos_nsgs and siconos_newton runs are skipped (docs/guide/friction.md)
 
 petsc:
 	$(call apt_install,$(PETSC_PACKAGES),$(PETSC_SKIPPED))

@@ -32,10 +32,11 @@ from workflows.studies import PATHS, path_pattern
 #: a star, the hexagons) get colours of different hues.
 PALETTE = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2",
            "#7f7f7f", "#bcbd22", "#17becf", "#393b79", "#e7ba52", "#637939", "#843c39",
-           "#7b4173", "#8c6d31")
+           "#7b4173", "#8c6d31", "#de9ed6", "#00a087")
 #: One marker fewer than colours: the pair (colour, marker) repeats only after
-#: 16 x 15 solvers.
-MARKERS = ("o", "s", "^", "D", "v", "P", "X", "<", ">", "p", "h", "*", "d", "H", "8")
+#: 18 x 17 solvers.
+MARKERS = ("o", "s", "^", "D", "v", "P", "X", "<", ">", "p", "h", "*", "d", "H", "8", "x",
+           "+")
 #: Rows of the report that are not registered solvers but are drawn like one.
 EXTRA_SOLVERS = ("pdas_kkt",)
 #: Drawn in black: the floors and references every solver is measured against.

@@ -46,11 +46,8 @@ from __future__ import annotations
 import base64
 import functools
 import glob
-import json
 import os
 import shutil
-import signal
-import subprocess
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -61,7 +58,9 @@ import scipy.sparse as sp
 from problems.qp import ContactQP
 from problems.spec import Options, Parameter
 from solvers.base import TOLERANCES, Role, SolveResult, SolverSpec
+from solvers import system_python
 from solvers.kernels.contact_box import box_transformation, check_structure
+from solvers.system_python import JobOutcome, clean_environment, probe
 
 #: PETSc's binary class ids (petscmat.h, petscvec.h)
 MAT_FILE_CLASSID, VEC_FILE_CLASSID = 1211216, 1211214
@@ -162,11 +161,9 @@ class Runtime:
         place more ranks than cores, its ranks not pinned to cores (OpenMPI pins rank 0 of
         every job to core 0: two jobs side by side would share one core), one thread per
         rank, and none of the suite's Python settings (the interpreter has its own numpy)."""
-        env = {k: v for k, v in os.environ.items()
-               if k not in ("PYTHONPATH", "PYTHONHOME", "VIRTUAL_ENV")}
-        env.update({"PETSC_DIR": self.petsc_dir, "OMP_NUM_THREADS": "1",
-                    "OPENBLAS_NUM_THREADS": "1", "OMPI_MCA_rmaps_base_oversubscribe": "1",
-                    "OMPI_MCA_hwloc_base_binding_policy": "none", "PYTHONNOUSERSITE": "1"})
+        env = clean_environment(
+            PETSC_DIR=self.petsc_dir, OMPI_MCA_rmaps_base_oversubscribe="1",
+            OMPI_MCA_hwloc_base_binding_policy="none")
         if os.geteuid() == 0:
             env.update({"OMPI_ALLOW_RUN_AS_ROOT": "1", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1"})
         return env
@@ -201,15 +198,9 @@ def _probe(python: str, mpiexec: str, petsc_dir: str) -> tuple[Runtime | None, s
     if shutil.which(python) is None:
         return None, f"no interpreter {python!r} (CONTACTBENCH_PETSC_PYTHON): {hint}"
     rt = Runtime(shutil.which(python), launcher, petsc_dir)
-    try:
-        out = subprocess.run([rt.python, "-c", "import petsc4py, mpi4py"], env=rt.environment(),
-                             capture_output=True, text=True, timeout=60)
-    except (OSError, subprocess.TimeoutExpired) as err:
-        return None, f"{python} could not be run ({err}): {hint}"
-    if out.returncode != 0:
-        last = (out.stderr.strip().splitlines() or ["no output"])[-1]
-        return None, (f"{python} cannot import petsc4py and mpi4py with PETSC_DIR="
-                      f"{petsc_dir or '(unset)'} ({last}): {hint}")
+    why = probe(rt.python, "petsc4py, mpi4py", (("PETSC_DIR", petsc_dir),))
+    if why:
+        return None, f"{why} with PETSC_DIR={petsc_dir or '(unset)'}: {hint}"
     return rt, ""
 
 
@@ -224,60 +215,12 @@ def supports(qp: ContactQP) -> tuple[bool, str]:
 
 
 # ----------------------------------------------------------------------- the job
-@dataclass
-class JobOutcome:
-    """What the MPI job gave: its record (None if it gave none), or why not."""
-
-    record: dict | None
-    status: str = ""
-    message: str = ""
-    wall: float = 0.0
-
-
-def _die_with_parent() -> None:
-    """The launcher gets SIGTERM when the process that started it dies (a study's
-    isolation kills its child): no MPI job outlives its run. Linux only."""
-    try:
-        import ctypes
-
-        ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGTERM)   # PR_SET_PDEATHSIG
-    except (OSError, AttributeError):
-        pass
-
-
-def _error_lines(text: str, count: int = 4) -> list[str]:
-    """The last ``count`` lines of a job's error output that say what went wrong (Python's
-    exception, PETSc's error stack), without the launcher's frame."""
-    lines = [ln.strip() for ln in text.splitlines() if ln.strip()]
-    said = [ln for ln in lines if "Error" in ln or "error" in ln or ln.startswith("[0]")]
-    return (said or lines)[-count:]
-
-
 def run_job(rt: Runtime, ranks: int, args: list[str], stream: bytes,
             hard_limit: float | None) -> JobOutcome:
     """Run the worker under ``mpiexec -n ranks`` with ``stream`` on its input; past
     ``hard_limit`` wall seconds the launcher's process group is killed."""
-    t0 = time.perf_counter()
-    proc = subprocess.Popen(rt.command(ranks, args), stdin=subprocess.PIPE,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=rt.environment(),
-                            start_new_session=True, preexec_fn=_die_with_parent)
-    try:
-        out, err = proc.communicate(stream, timeout=hard_limit)
-    except subprocess.TimeoutExpired:
-        os.killpg(proc.pid, signal.SIGKILL)
-        proc.communicate()
-        return JobOutcome(None, "time_limit", f"MPI job ({ranks} ranks) killed: no answer "
-                          f"within {hard_limit:.3g} s", time.perf_counter() - t0)
-    wall = time.perf_counter() - t0
-    text = out.decode("utf-8", "replace")
-    line = next((ln for ln in text.splitlines() if ln.startswith(TAG + " ")), None)
-    if proc.returncode != 0 or line is None:
-        how = (f"killed by signal {-proc.returncode}" if proc.returncode < 0
-               else f"exit status {proc.returncode}")
-        tail = " | ".join(_error_lines(err.decode("utf-8", "replace")))
-        return JobOutcome(None, "failed", f"MPI job ({ranks} ranks) gave no answer ({how})"
-                          + (f": {tail}" if tail else ""), wall)
-    return JobOutcome(json.loads(line[len(TAG) + 1:]), wall=wall)
+    return system_python.run_job(rt.command(ranks, args), rt.environment(), stream, hard_limit,
+                                 TAG, f"MPI job ({ranks} ranks)")
 
 
 def at_bound(v_pivot: np.ndarray, upper: np.ndarray) -> np.ndarray:

@@ -131,6 +131,9 @@ def test_the_tangential_rules_of_the_contract(tangential, rule):
 #: short of the verification, which tests/test_friction_libraries.py checks instead
 FRICTIONAL = sorted(name for name, spec in solvers().items()
                     if spec.handles_friction and spec.role != "library")
+#: the frictional solvers that take one law only, and the reason they give for the other
+ONE_LAW = {("siconos_newton", "tresca"): "Siconos's nonsmooth Newton methods solve Coulomb's "
+                                         "law only"}
 
 
 @pytest.mark.parametrize("law", ["tresca", "coulomb"])
@@ -141,9 +144,15 @@ def test_every_frictional_solver_verifies_along_the_path_and_agrees(name, law):
     in the relative energy norm (both steps)."""
     assert "tresca_exact" in FRICTIONAL and len(FRICTIONAL) >= 2
     qp = _scene(1, law)
+    ok, why = solvers()[name].check(qp)
+    if not ok and "install" in why:
+        pytest.skip(why)                   # a solver of another interpreter, not installed
     ref = _registered_path(qp)
     run = run_load_path(qp, lambda step, start: solve(step, name, tol="high", **warm_start(start)),
                         1e-9)
+    if (name, law) in ONE_LAW:
+        assert run.result.status == "skipped" and ONE_LAW[name, law] in run.result.message
+        return
     assert run.result.status == "converged", run.result.message
     assert [r["status"] for r in run.records] == ["converged", "converged"]
     for mine, exact in zip(run.steps, ref.steps, strict=True):

@@ -168,9 +168,10 @@ def natural_map_residual(problem: FclibGlobal, v: np.ndarray, r: np.ndarray) -> 
 
 
 # ------------------------------------------------------------------- the local form
-#: Largest Delassus operator written (entries of the dense ``W``, and of ``M^-1 H``
-#: formed for it): 2e7 (160 MB) each.
+#: Largest Delassus operator formed (entries of the dense ``W``): 2e7 (160 MB).
 LOCAL_MAX_ENTRIES = 20_000_000
+#: Columns of ``M^-1 H`` formed at a time (its memory ``n`` times this, never the whole).
+LOCAL_BLOCK = 256
 
 
 @dataclass
@@ -192,18 +193,21 @@ def local_problem(problem: FclibGlobal, solve_M=None) -> FclibLocal:
     Raises
     ------
     FclibError
-        Where the dense ``W`` or ``M^-1 H`` would exceed :data:`LOCAL_MAX_ENTRIES`.
+        Where the dense ``W`` would exceed :data:`LOCAL_MAX_ENTRIES` entries.
     """
     n, k = problem.H.shape
-    if max(n, k) * k > LOCAL_MAX_ENTRIES:
-        raise FclibError(f"the Delassus operator: {n} x {k} entries of M^-1 H exceed "
+    if k * k > LOCAL_MAX_ENTRIES:
+        raise FclibError(f"the Delassus operator: {k} x {k} entries exceed "
                          f"{LOCAL_MAX_ENTRIES} (a dense W is formed); the global form only")
     if solve_M is None:
         from solvers.kernels.cholesky import factorize
 
         solve_M = factorize(sp.csr_matrix(problem.M)).solve
-    MinvH = solve_M(problem.H.toarray())
-    W = np.asarray(problem.H.T @ MinvH)
+    H = sp.csc_matrix(problem.H)
+    W = np.empty((k, k))
+    for start in range(0, k, LOCAL_BLOCK):         # W's columns, a block of M^-1 H at a time
+        cols = slice(start, min(start + LOCAL_BLOCK, k))
+        W[:, cols] = H.T @ solve_M(H[:, cols].toarray())
     W = 0.5 * (W + W.T)                        # symmetric to round-off
     q = problem.w - problem.H.T @ solve_M(problem.f)
     return FclibLocal(spacedim=problem.spacedim, W=W, q=np.asarray(q, dtype=float),
