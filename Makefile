@@ -87,7 +87,7 @@ SOLVER_TESTS := tests/test_rounding.py tests/test_solvers.py tests/test_semismoo
 	tests/test_two_pass.py tests/test_friction.py tests/test_mortar.py \
 	tests/test_friction_ssn.py tests/test_friction_random.py tests/test_mortar_3d.py tests/test_mortar_p2.py tests/test_friction_registry.py \
 	tests/test_friction_tnnmg.py tests/test_friction_tnnmg_3d.py tests/test_friction_3d_solvers.py \
-	tests/test_friction_libraries.py tests/test_friction_facets.py tests/test_problem_set_friction.py \
+	tests/test_friction_libraries.py tests/test_friction_facets.py tests/test_problem_set_friction.py tests/test_siconos.py \
 	tests/test_certificate_friction.py tests/test_stabilised.py tests/test_circle_square.py \
 	tests/test_hard_cases.py::test_tolerances_are_scale_free \
 	tests/test_cli.py::test_every_solver_runs_through_the_cli

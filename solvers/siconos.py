@@ -229,7 +229,13 @@ def solve_with(method: str):
 
 
 def _parameters() -> tuple:
+    cost = ("the local form costs one solve with A's factor per column of H (three per "
+            "contact), and Siconos's dense W grows as the contacts squared")
     return (
+        Parameter("max_unknowns_2d", 160_000, f"{cost}: in 2D a load path of circle-square's "
+                  "149,616 unknowns (161 contacts) takes 13 s", low=1, kind=int),
+        Parameter("max_unknowns_3d", 60_000, f"{cost}: in 3D a load path of cube-sphere's "
+                  "51,459 unknowns (289 contacts) takes 23 s", low=1, kind=int),
         Parameter("tol_factor", 0.01, "Siconos's stop at tol_factor * tol on its own error (the "
                   "suite's verification decides)", low=0.0, high=1.0, low_open=True),
         Parameter("grace", 30.0, "wall seconds the process gets beyond time_limit (start-up, "
@@ -248,6 +254,7 @@ SOLVERS = (
                 "under the system Python",
         solve=solve_with("nsgs"), parameters=_parameters(), presets=_PRESETS,
         default_max_iter=100_000, role=Role.OTHER, handles_friction=True,
+        size_limit={2: "max_unknowns_2d", 3: "max_unknowns_3d"},
         facets_reason="fclib's and Siconos's cone is the isotropic one",
         supports=supports_for("nsgs")),
     SolverSpec(
@@ -256,6 +263,7 @@ SOLVERS = (
                 "search) on the local (Delassus) form, Coulomb steps; under the system Python",
         solve=solve_with("nsn_ac"), parameters=_parameters(), presets=_PRESETS,
         default_max_iter=1_000, role=Role.OTHER, handles_friction=True,
+        size_limit={2: "max_unknowns_2d", 3: "max_unknowns_3d"},
         facets_reason="fclib's and Siconos's cone is the isotropic one",
         supports=supports_for("nsn_ac")),
 )

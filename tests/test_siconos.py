@@ -94,6 +94,8 @@ def test_what_it_cannot_take_is_skipped_with_the_reason(monkeypatch):
     res = solve(tresca, "siconos_nsgs")
     assert res.status == "skipped" and "dense Delassus operator" in res.message
     monkeypatch.undo()
+    res = solve(tresca, "siconos_nsgs", max_unknowns_2d=1000)
+    assert res.status == "skipped" and "unknowns > max_unknowns_2d = 1000" in res.message
     monkeypatch.setenv("CONTACTBENCH_SICONOS_PYTHON", "/nonexistent/python3")
     res = solve(tresca, "siconos_nsgs")
     assert res.status == "skipped" and siconos.INSTALL in res.message
@@ -130,4 +132,5 @@ def test_both_are_registered_as_frictional_solvers_of_their_own_process():
     for name in ("siconos_nsgs", "siconos_newton"):
         spec = registry[name]
         assert spec.handles_friction and spec.role == "other"
-        assert {p.name for p in spec.parameters} == {"tol_factor", "grace"}
+        assert {p.name for p in spec.parameters} == {"tol_factor", "grace", "max_unknowns_2d",
+                                                     "max_unknowns_3d"}
