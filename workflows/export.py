@@ -407,7 +407,8 @@ def export_set(ts: TestSet, size_class: str, out: str | os.PathLike, force: bool
                fclib: bool = False, multigrid: bool = False) -> Path:
     """Write the problems of ``ts`` in ``size_class`` (of ``families``) to ``out``
     (``fclib``: each folder with its fclib file too, :func:`fclib_file`; ``multigrid``:
-    with its multigrid data, :func:`multigrid_file`).
+    with its multigrid data, :func:`multigrid_file`; either also where the set's
+    ``files`` name it).
 
     The folder appears complete or not at all (written beside it, renamed into place).
     Returns ``out``.
@@ -416,6 +417,7 @@ def export_set(ts: TestSet, size_class: str, out: str | os.PathLike, force: bool
 
     out = Path(out)
     check_out(out, force)
+    fclib, multigrid = fclib or "fclib" in ts.files, multigrid or "multigrid" in ts.files
     items = ts.problems(size_class, families)
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.partial-", dir=out.parent))
     try:

@@ -25,7 +25,9 @@ default) its last tangential step, ``step: <j>`` the tangential step ``j`` (1 ..
 ``<family>_L<level>_s<j>`` (a load-path family: each step's warm start is the previous
 step's reference solution). The
 families are also the workflow's scenes (:func:`workflows.studies.scenes_with_families`),
-so a hard case or a scene variant is typed once. Loading checks every name,
+so a hard case or a scene variant is typed once. A set's ``files`` (:data:`EXPORT_FILES`)
+name what its export adds to every problem folder; a set that extends another keeps its
+files and its description (its own appended). Loading checks every name,
 problem, parameter, level and step (:class:`TestSetError` names the key and what is
 allowed); loading builds no problem.
 """
@@ -42,11 +44,15 @@ from problems.spec import contact_scene_error, problems
 
 #: Where the sets live, and the one ``contactbench export`` uses by default.
 SETS_DIR = Path(__file__).resolve().parent / "config" / "test_sets"
-CURRENT = "contact-qp-5"
+CURRENT = "contact-qp-6"
 #: Size classes, smallest first.
 CLASSES = ("small", "medium", "large")
 #: A family's keys.
 FAMILY_KEYS = ("problem", "params", "levels", "step")
+#: The files a set's export may add to every problem folder beyond the QP and cone files
+#: (its ``files``): ``fclib`` the fclib global file (:func:`workflows.export.fclib_file`),
+#: ``multigrid`` what a multigrid solver needs (:func:`workflows.export.multigrid_file`).
+EXPORT_FILES = ("fclib", "multigrid")
 #: A frictional family's ``step`` besides a step number: the last step, or every one.
 STEP_CHOICES = ("last", "all")
 #: Significant digits (of the vector's largest entry) kept in a frictional step's slip
@@ -148,6 +154,7 @@ class TestSet:
     description: str
     classes: dict = field(repr=False)
     families: dict = field(repr=False)
+    files: tuple = ()
 
     @property
     def id(self) -> str:
@@ -237,8 +244,16 @@ def load(name: str | Path = CURRENT) -> TestSet:
     with open(path, encoding="utf-8") as fh:
         raw = yaml.safe_load(fh)
     classes, families = dict(raw.get("classes") or {}), dict(raw.get("families") or {})
+    files = list(raw.get("files") or [])
+    description = " ".join(str(raw.get("description", "")).split())
+    wrong = [f for f in files if f not in EXPORT_FILES]
+    if wrong:
+        raise TestSetError(f"test set file {path.name} 'files': {wrong} are not allowed; "
+                           f"allowed: {', '.join(EXPORT_FILES)}")
     if raw.get("extends"):
         base = load(set_file(raw["extends"], relative_to=path))
+        files = [*base.files, *(f for f in files if f not in base.files)]
+        description = " ".join(filter(None, (base.description, description)))
         again = sorted(set(families) & set(base.families))
         if again:
             raise TestSetError(f"test set file {path.name} 'families': {again} are families of "
@@ -247,8 +262,9 @@ def load(name: str | Path = CURRENT) -> TestSet:
                    for c in {*base.classes, *classes}}
         families = {**base.families, **families}
     ts = TestSet(name=str(raw["name"]), version=int(raw["version"]),
-                 description=" ".join(str(raw.get("description", "")).split()),
-                 classes=classes, families=families)
+                 description=description,
+                 classes=classes, families=families,
+                 files=tuple(f for f in EXPORT_FILES if f in files))
     if path.parent == SETS_DIR and ts.id != path.stem:
         raise TestSetError(f"test set file {path.name} declares name-version {ts.id!r}; "
                            f"allowed: {path.stem!r}")
