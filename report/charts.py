@@ -61,7 +61,7 @@ SHAPES = {"o": "circle", "s": "square", "^": "triangle-up", "D": "diamond",
                "L-0.4,0Z",
           "p": _polygon(5), "h": _polygon(6), "H": _polygon(6, start=0.0),
           "*": _polygon(5, inner=0.4), "d": _polygon(4, squash=0.6), "8": _polygon(8, 22.5),
-          "_": "stroke"}
+          (7, 0, 0): _polygon(7), (4, 1, 0): _polygon(4, inner=0.4), "_": "stroke"}
 #: A preset's line style (report.figures.PRESET_LINES) as a Vega-Lite stroke dash.
 DASHES = {"-": [1, 0], "--": [6, 3], ":": [2, 2]}
 

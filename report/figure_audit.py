@@ -111,7 +111,9 @@ def _legends(fig) -> list[tuple]:
 def _line_drawn(handle, axes) -> bool:
     """A Line2D entry is drawn if its marker (with its fill) is on a point of the same
     colour and its line style on a line of two points or more (a key entry, in
-    :data:`KEY_GREY`, in any colour; a key marker in any shape)."""
+    :data:`KEY_GREY`, in any colour; a key marker in any shape). A filled entry in a
+    colour (a solver's) is drawn by its hollow points too: the fill is the key's to
+    explain (verified or not), so a solver none of whose points is filled keeps its entry."""
     key = _same_colour(handle.get_color(), KEY_GREY)
     marker, ls = handle.get_marker(), handle.get_linestyle()
     lines = [ln for ax in axes for ln in ax.lines if ln.get_visible()]
@@ -125,7 +127,8 @@ def _line_drawn(handle, axes) -> bool:
         ok = any(len(_line_points(ln)) and colour_ok(ln.get_color())
                  and (ln.get_marker() == marker or (key and not _visible(ls)
                                                     and _visible(ln.get_marker())))
-                 and _hollow(ln) == _hollow(handle) for ln in lines)
+                 and (_hollow(ln) == _hollow(handle) or (not key and not _hollow(handle)))
+                 for ln in lines)
     if ok and _visible(ls):
         ok = any(len(_line_points(ln)) >= 2 and colour_ok(ln.get_color())
                  and _dashes(ln) == _dashes(handle) and _visible(ln.get_linestyle())

@@ -35,8 +35,10 @@ PALETTE = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e
            "#7b4173", "#8c6d31", "#de9ed6", "#00a087")
 #: One marker fewer than colours: the pair (colour, marker) repeats only after
 #: 18 x 17 solvers.
-MARKERS = ("o", "s", "^", "D", "v", "P", "X", "<", ">", "p", "h", "*", "d", "H", "8", "x",
-           "+")
+#: (The last two are matplotlib's (sides, style, angle) markers: a heptagon and a
+#: four-pointed star, filled like the others.)
+MARKERS = ("o", "s", "^", "D", "v", "P", "X", "<", ">", "p", "h", "*", "d", "H", "8",
+           (7, 0, 0), (4, 1, 0))
 #: Rows of the report that are not registered solvers but are drawn like one.
 EXTRA_SOLVERS = ("pdas_kkt",)
 #: Drawn in black: the floors and references every solver is measured against.

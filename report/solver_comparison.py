@@ -114,8 +114,8 @@ def _status_points(ax, x, y, verified, style: dict, **kw) -> None:
     where not."""
     ok = np.asarray(verified, dtype=bool)
     x, y = np.asarray(x), np.asarray(y)
-    ax.plot(x[ok], y[ok], style["marker"], color=style["color"], ms=6, ls="none", **kw)
-    ax.plot(x[~ok], y[~ok], style["marker"], color=style["color"], mfc="none", ms=6,
+    ax.plot(x[ok], y[ok], marker=style["marker"], color=style["color"], ms=6, ls="none", **kw)
+    ax.plot(x[~ok], y[~ok], marker=style["marker"], color=style["color"], mfc="none", ms=6,
             ls="none", **kw)
 
 

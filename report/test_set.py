@@ -178,7 +178,7 @@ def performance_profiles(profiles: pd.DataFrame, path: str) -> None:
             style = solver_style(solver)
             ax.semilogx(curve.tau, curve.share, lw=1.5, color=style["color"],
                         drawstyle="steps-post")
-            ax.semilogx(curve.tau.iloc[:-1], curve.share.iloc[:-1], style["marker"],
+            ax.semilogx(curve.tau.iloc[:-1], curve.share.iloc[:-1], marker=style["marker"],
                         color=style["color"], ms=4, ls="none")
         ax.set_xlabel("tau: time within this factor of the best (matched accuracy)")
         ax.set_ylabel("share of problems")
@@ -269,9 +269,10 @@ def work_precision(work: pd.DataFrame, family: str, path: str) -> None:
             err = r.energy_error
             ax.loglog(r.time, err, "-", color=style["color"], lw=1.2)
             ok = r.verified
-            ax.loglog(r.time[ok], err[ok], style["marker"], color=style["color"], ms=5)
-            ax.loglog(r.time[~ok], err[~ok], style["marker"], mfc="none", color=style["color"],
-                      ms=5)
+            ax.loglog(r.time[ok], err[ok], marker=style["marker"], color=style["color"], ms=5,
+                      ls="none")
+            ax.loglog(r.time[~ok], err[~ok], marker=style["marker"], mfc="none",
+                      color=style["color"], ms=5, ls="none")
         for preset, tol in TOLERANCES.items():
             ax.axhline(tol, color="0.6", lw=0.6, ls=":")
             ax.annotate(preset, (1.0, tol), xycoords=("axes fraction", "data"), fontsize=7,

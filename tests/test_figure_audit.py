@@ -69,6 +69,27 @@ def test_a_key_entry_stands_for_any_colour_but_its_own_encoding():
     assert audit.undrawn_entries(fig) == ["legend entry 'filled' of 'untitled panel' is not drawn"]
 
 
+def test_a_solver_whose_points_are_all_hollow_keeps_its_legend_entry():
+    """The fill is the key's to explain (verified or not): a solver never verified is still
+    in the legend by its colour and marker, and a hollow entry still needs hollow points."""
+    from report.figures import solver_legend
+    fig, ax = _axes()
+    ax.plot([1, 2], [1, 2], ls="none", color=solver_style("osqp")["color"],
+            marker=solver_style("osqp")["marker"])
+    ax.plot([1, 2], [2, 3], ls="none", color=solver_style("ecos")["color"],
+            marker=solver_style("ecos")["marker"], mfc="none")
+    solver_legend(ax, ["ecos", "osqp"])
+    labels = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert labels == ["ecos", "osqp", "verified converged", "not verified"]
+    assert audit.undrawn_entries(fig) == []
+    fig, ax = _axes()
+    ax.plot([1, 2], [1, 2], "o", color="C0")
+    ax.legend(handles=[Line2D([], [], color="C0", marker="o", ls="none", mfc="none",
+                              label="hollow, in a colour")])
+    assert audit.undrawn_entries(fig) == [
+        "legend entry 'hollow, in a colour' of 'untitled panel' is not drawn"]
+
+
 def test_a_colour_key_lists_only_the_colours_the_image_shows():
     from matplotlib.colors import ListedColormap
     fig, ax = _axes()
