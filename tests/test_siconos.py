@@ -9,6 +9,7 @@ import sys
 import numpy as np
 import pytest
 
+from problems.friction.data import coulomb_step
 from problems.kkt import energy_error
 from problems.spec import problems
 from solvers import siconos, system_python
@@ -60,6 +61,39 @@ def test_the_test_sets_tresca_steps_are_verified_and_agree_with_the_reference(sm
     assert np.abs(res.tangential - ref.tangential).max() <= 1e-6 * np.abs(ref.tangential).max()
     newton = solve(qp, "siconos_newton", tol="high")
     assert newton.status == "skipped" and "Coulomb's law only" in newton.message
+
+
+#: The test set's Coulomb steps against their reference: the reference is the fixed
+#: point's final Tresca step, its bounds mu p rounded to 8 significant digits.
+COULOMB_AGREEMENT = 1e-8
+
+
+@needs_siconos
+@pytest.mark.parametrize("name", ["circle_square_coulomb_q05_L0", "circle_square_coulomb_q05_L1",
+                                  "cube_sphere_coulomb_q05_L0", "circle_square_coulomb_mu1_L0"])
+def test_the_test_sets_coulomb_steps_as_one_problem_by_three_codes(small_class, name):
+    """The Coulomb step of a test-set Coulomb family (:func:`coulomb_step`), solved as one
+    problem by Siconos's Gauss-Seidel and Newton methods and by semismooth Newton
+    (``coulomb=monolithic``), each verified on its own bound ``mu p``: all three at the
+    fixed point's exported reference, to the rounding of its bounds."""
+    step = small_class[name].frictional_step()
+    qp = coulomb_step(step.qp)
+    for solver, options in (("siconos_nsgs", {}), ("siconos_newton", {}),
+                            ("semismooth_newton", {"coulomb": "monolithic"})):
+        res = solve(qp, solver, tol="high", **options)
+        assert res.status == "converged", (solver, res.message)
+        assert res.stats["friction"] == COULOMB_MONOLITHIC, solver
+        assert energy_error(qp, res.u, step.solution.u) <= COULOMB_AGREEMENT, solver
+
+
+def test_a_coulomb_step_needs_friction_isotropic_and_mu():
+    cube = problems()["cube_sphere"]
+    with pytest.raises(ValueError, match="parameter 'qp': a frictionless problem"):
+        coulomb_step(cube.make(0))
+    with pytest.raises(ValueError, match="friction.facets = 6; allowed: 0"):
+        coulomb_step(cube.make(0, friction="tresca", mu=0.5, shift=0.05, friction_facets=6))
+    step = coulomb_step(cube.make(0, friction="tresca", mu=0.5, shift=0.05))
+    assert step.friction.law == "coulomb" and step.friction.mu == 0.5
 
 
 @needs_siconos

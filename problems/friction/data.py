@@ -214,3 +214,35 @@ def check_facets(facets, dim: int, error: type, name: str = "friction.facets") -
     raise error(f"{name} = {facets!r} is not allowed in {dim}D; allowed: {allowed}")
 
 
+
+
+def coulomb_step(qp):
+    """A frictional step's Coulomb step as one problem: the same rows, previous state and
+    ``mu``, with Coulomb's law ``s = mu p`` in place of the given slip bounds
+    (``friction.law = "coulomb"``; the bounds stay as the fixed point's starting guess).
+
+    A solver that takes Coulomb's law directly (``stats["friction"]`` is
+    :data:`solvers.base.COULOMB_MONOLITHIC`) solves it as one problem and is verified on
+    the Tresca step of its own bound ``mu p`` (:func:`solvers.certificate.judged_step`);
+    any other solver solves the Tresca step of the given bounds. Its fclib form is the
+    same problem (:func:`solvers.kernels.fclib_form.global_problem`). A test set's
+    Coulomb family is the fixed point's final Tresca step (its bounds ``mu p`` of the
+    reference, rounded); this is its Coulomb step.
+
+    Raises
+    ------
+    ValueError
+        For a frictionless problem, a faceted law or ``mu = 0``, naming the parameter.
+    """
+    from dataclasses import replace
+
+    fr = getattr(qp, "friction", None)
+    if fr is None:
+        raise ValueError("parameter 'qp': a frictionless problem has no Coulomb step; "
+                         "allowed: a frictional step")
+    if fr.facets:
+        raise ValueError(f"parameter 'qp': friction.facets = {fr.facets}; allowed: 0 (Coulomb's "
+                         "law is the isotropic cone)")
+    if not fr.mu > 0:
+        raise ValueError(f"parameter 'qp': friction.mu = {fr.mu!r}; allowed: mu > 0")
+    return replace(qp, friction=replace(fr, law="coulomb"))
