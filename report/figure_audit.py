@@ -337,6 +337,12 @@ def solver_entries(fig) -> dict[str, dict]:
     return out
 
 
+def _marker(marker):
+    """A marker as one hashable, comparable value: matplotlib's ``(sides, style, angle)``
+    markers come back from a figure's JSON metadata as lists."""
+    return tuple(marker) if isinstance(marker, list) else marker
+
+
 def solver_problems(styles: dict[str, dict]) -> list[str]:
     """The entries of :func:`solver_entries` whose colour or marker is not the solver's
     (:func:`report.figures.solver_style`)."""
@@ -345,7 +351,7 @@ def solver_problems(styles: dict[str, dict]) -> list[str]:
     for solver, style in styles.items():
         own = solver_style(solver)
         if not _same_colour(style["color"], own["color"]) or (
-                style["marker"] and style["marker"] != own["marker"]):
+                style["marker"] and _marker(style["marker"]) != own["marker"]):
             out.append(f"solver {solver} drawn as {style['color']} {style['marker'] or 'line'}, "
                        f"not its {to_hex(own['color'])} {own['marker']}")
     return out
@@ -357,12 +363,14 @@ def style_conflicts(styles: dict[str, dict[str, dict]]) -> list[str]:
     seen: dict[str, set] = {}
     for per_figure in styles.values():
         for solver, style in per_figure.items():
-            seen.setdefault(solver, set()).add((to_hex(style["color"]), style["marker"]))
+            seen.setdefault(solver, set()).add((to_hex(style["color"]),
+                                                _marker(style["marker"])))
     out = []
     for solver, pairs in sorted(seen.items()):
         colours, markers = {c for c, _ in pairs}, {m for _, m in pairs if m}
         if len(colours) > 1 or len(markers) > 1:
-            out.append(f"solver {solver} has {len(pairs)} styles across figures: {sorted(pairs)}")
+            out.append(f"solver {solver} has {len(pairs)} styles across figures: "
+                       f"{sorted(pairs, key=str)}")
     owner: dict[tuple, str] = {}
     for solver, pairs in sorted(seen.items()):
         for pair in pairs:

@@ -176,6 +176,18 @@ def test_across_figures_one_style_per_solver_and_none_shared():
     assert any("osqp has 2 styles" in f for f in found)
     assert any("osqp and scs share the style" in f for f in found)
     assert audit.style_conflicts({"a.png": a, "c.png": a}) == []
+    # a (sides, style, angle) marker read back from a figure's JSON metadata is a list:
+    # the same marker, compared and reported like the others
+    tuple_marker = solver_style("tresca_exact")
+    assert isinstance(tuple_marker["marker"], tuple)
+    read_back = {"tresca_exact": json.loads(json.dumps(tuple_marker))}
+    assert isinstance(read_back["tresca_exact"]["marker"], list)
+    assert audit.style_conflicts({"a.png": read_back, "b.png": {"tresca_exact": tuple_marker},
+                                  "c.png": a}) == []
+    assert audit.solver_problems(read_back) == []
+    clash = {"osqp": {"color": tuple_marker["color"], "marker": tuple_marker["marker"]}}
+    assert any("share the style" in f
+               for f in audit.style_conflicts({"a.png": read_back, "d.png": clash}))
 
 
 def test_an_image_too_wide_for_its_fonts_is_refused():
