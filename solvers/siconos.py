@@ -100,10 +100,10 @@ def _tresca(qp: ContactQP) -> bool:
 
 
 def local_form(qp: ContactQP) -> tuple:
-    """``(W3, q3, mu, kept, solve_A, coulomb)``: the step's local problem in three
-    dimensions (:func:`embed_2d` in 2D), its friction coefficients (Tresca: ones, the
-    radii going with the initial reactions), the 3D positions of fclib's entries, the
-    solve with ``A`` and whether Coulomb's law is solved.
+    """``(W3, q3, mu, kept, solve_A)``: the step's local problem in three dimensions
+    (:func:`embed_2d` in 2D), its friction coefficients (a Tresca step: ones, the radii
+    going with the initial reactions), the 3D positions of fclib's entries and the solve
+    with ``A``.
 
     Raises
     ------
@@ -120,7 +120,7 @@ def local_form(qp: ContactQP) -> tuple:
     else:
         W3, q3, kept = local.W, local.q, np.arange(local.q.size)
     mu = np.asarray(local.mu, dtype=float) if coulomb else np.ones(qp.m)
-    return W3, q3, mu, kept, solve_A, coulomb
+    return W3, q3, mu, kept, solve_A
 
 
 def answer(qp: ContactQP, r_fclib: np.ndarray, solve_A) -> tuple:
@@ -156,6 +156,12 @@ def supports_for(method: str):
     return supports
 
 
+def _no_answer(qp: ContactQP, status: str, message: str, **fields) -> SolveResult:
+    """The row of a solve that gave no reactions (``status``, ``message`` say why)."""
+    return SolveResult(u=np.zeros(qp.n), p=np.zeros(qp.m), claimed_status=status,
+                       message=message, tangential=np.zeros(qp.friction.T.shape[0]), **fields)
+
+
 def _claimed(record: dict, tol: float, max_iter: int) -> str:
     if record["info"] == 0 or record["error"] <= tol:
         return "converged"
@@ -169,14 +175,12 @@ def solve_with(method: str):
         python, why = interpreter()
         if not python:
             raise RuntimeError(why)
-        fr = qp.friction
+        fr, coulomb = qp.friction, not _tresca(qp)
         try:
-            W3, q3, mu, kept, solve_A, coulomb = local_form(qp)
+            W3, q3, mu, kept, solve_A = local_form(qp)
         except FactorizationError as err:
-            return SolveResult(u=np.zeros(qp.n), p=np.zeros(qp.m), claimed_status="failed",
-                               message=f"the local form needs A^-1: {err}",
-                               solve_time=time.perf_counter() - t_start,
-                               tangential=np.zeros(fr.T.shape[0]))
+            return _no_answer(qp, "failed", f"the local form needs A^-1: {err}",
+                              solve_time=time.perf_counter() - t_start)
         r0 = np.zeros(q3.size)
         normal3 = 3 * np.arange(qp.m)
         note = ""
@@ -203,10 +207,8 @@ def solve_with(method: str):
                  "form": "local, 2D embedded in 3D" if qp.dim == 2 else "local",
                  "contacts": qp.m, "job_wall_time": job.wall}
         if job.record is None:
-            return SolveResult(u=np.zeros(qp.n), p=np.zeros(qp.m), claimed_status=job.status,
-                               message=job.message, setup_time=setup_time,
-                               solve_time=job.wall, stats=stats,
-                               tangential=np.zeros(fr.T.shape[0]))
+            return _no_answer(qp, job.status, job.message, setup_time=setup_time,
+                              solve_time=job.wall, stats=stats)
         rec = job.record
         r3 = np.frombuffer(base64.b64decode(rec["r"]), dtype="<f8").astype(float)
         if r3.shape != q3.shape:
@@ -229,8 +231,8 @@ def solve_with(method: str):
 
 
 def _parameters() -> tuple:
-    cost = ("the local form costs one solve with A's factor per column of H (three per "
-            "contact), and Siconos's dense W grows as the contacts squared")
+    cost = ("the local form costs one solve with A's factor per column of H (one per "
+            "component of each contact), and Siconos's dense W grows as the contacts squared")
     return (
         Parameter("max_unknowns_2d", 160_000, f"{cost}: in 2D a load path of circle-square's "
                   "149,616 unknowns (161 contacts) takes 13 s", low=1, kind=int),
@@ -246,24 +248,23 @@ def _parameters() -> tuple:
 _PRESETS = {name: f"Siconos's error <= tol_factor * {tol:g} (tol_factor = 0.01)"
             for name, tol in TOLERANCES.items()}
 
+
+def _spec(name: str, method: str, summary: str, default_max_iter: int) -> SolverSpec:
+    """A Siconos solver of ``method`` (the worker's) with the options they share."""
+    return SolverSpec(
+        name=name, summary=summary, solve=solve_with(method), parameters=_parameters(),
+        presets=_PRESETS, default_max_iter=default_max_iter, role=Role.OTHER,
+        handles_friction=True, size_limit={2: "max_unknowns_2d", 3: "max_unknowns_3d"},
+        facets_reason="fclib's and Siconos's cone is the isotropic one",
+        supports=supports_for(method))
+
+
 SOLVERS = (
-    SolverSpec(
-        name="siconos_nsgs",
-        summary="Siconos's nonsmooth Gauss-Seidel on the local (Delassus) form: Coulomb's law "
-                "itself, or a Tresca step through its Tresca fixed point held to one step; "
-                "under the system Python",
-        solve=solve_with("nsgs"), parameters=_parameters(), presets=_PRESETS,
-        default_max_iter=100_000, role=Role.OTHER, handles_friction=True,
-        size_limit={2: "max_unknowns_2d", 3: "max_unknowns_3d"},
-        facets_reason="fclib's and Siconos's cone is the isotropic one",
-        supports=supports_for("nsgs")),
-    SolverSpec(
-        name="siconos_newton",
-        summary="Siconos's nonsmooth Newton method on Alart and Curnier's function (line "
-                "search) on the local (Delassus) form, Coulomb steps; under the system Python",
-        solve=solve_with("nsn_ac"), parameters=_parameters(), presets=_PRESETS,
-        default_max_iter=1_000, role=Role.OTHER, handles_friction=True,
-        size_limit={2: "max_unknowns_2d", 3: "max_unknowns_3d"},
-        facets_reason="fclib's and Siconos's cone is the isotropic one",
-        supports=supports_for("nsn_ac")),
+    _spec("siconos_nsgs", "nsgs",
+          "Siconos's nonsmooth Gauss-Seidel on the local (Delassus) form: Coulomb's law "
+          "itself, or a Tresca step through its Tresca fixed point held to one step; under "
+          "the system Python", 100_000),
+    _spec("siconos_newton", "nsn_ac",
+          "Siconos's nonsmooth Newton method on Alart and Curnier's function (line search) "
+          "on the local (Delassus) form, Coulomb steps; under the system Python", 1_000),
 )

@@ -252,7 +252,7 @@ def load(name: str | Path = CURRENT) -> TestSet:
                            f"allowed: {', '.join(EXPORT_FILES)}")
     if raw.get("extends"):
         base = load(set_file(raw["extends"], relative_to=path))
-        files = [*base.files, *(f for f in files if f not in base.files)]
+        files = [*base.files, *files]
         description = " ".join(filter(None, (base.description, description)))
         again = sorted(set(families) & set(base.families))
         if again:
