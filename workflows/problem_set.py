@@ -38,7 +38,7 @@ from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
-import yaml
+from workflows.settings import read_yaml
 
 from problems.spec import contact_scene_error, problems
 
@@ -242,7 +242,7 @@ def load(name: str | Path = CURRENT) -> TestSet:
     """
     path = set_file(name)
     with open(path, encoding="utf-8") as fh:
-        raw = yaml.safe_load(fh)
+        raw = read_yaml(fh)
     classes, families = dict(raw.get("classes") or {}), dict(raw.get("families") or {})
     files = list(raw.get("files") or [])
     description = " ".join(str(raw.get("description", "")).split())

@@ -21,7 +21,7 @@ import threading
 import time
 from pathlib import Path
 
-import yaml
+from workflows.settings import read_yaml
 from tqdm import tqdm
 
 #: The file of a running job's bar, below the working directory.
@@ -37,7 +37,7 @@ def declared_runtime(rule: str) -> float | None:
     files = [f for f in os.environ.get("CONTACTBENCH_CONFIGFILE", "").split(",") if f]
     for path in reversed(files):
         try:
-            config = yaml.safe_load(Path(path).read_text()) or {}
+            config = read_yaml(Path(path).read_text()) or {}
         except OSError:
             continue
         runtime = (config.get("resources") or {}).get(rule, {}).get("runtime")

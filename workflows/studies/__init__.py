@@ -37,7 +37,7 @@ from types import ModuleType
 
 import yaml
 
-from workflows.settings import SCHEMA
+from workflows.settings import SCHEMA, read_yaml
 from workflows.studies._base import (CHART, COMMON_PATHS, REFERENCE, RESULTS, SCALES, AtScale,
                                      ConfigError, Study, ThesisItem, bench_path, captions_of,
                                      coarser_levels, discover_studies, log_path, path_pattern,
@@ -211,7 +211,7 @@ def config_schema() -> dict:
         If a study's section is declared both in its folder and in the file.
     """
     with open(SCHEMA, encoding="utf-8") as f:
-        schema = yaml.safe_load(f)
+        schema = read_yaml(f)
     properties = schema["properties"]
     for study in STUDIES.values():
         if study.settings is None:
@@ -269,7 +269,7 @@ def at_scale(config: dict) -> dict:
 def load_config(path) -> dict:
     """A config file as the workflow sees it before validation: the file, then
     :func:`at_scale`."""
-    return at_scale(yaml.safe_load(Path(path).read_text(encoding="utf-8")))
+    return at_scale(read_yaml(Path(path).read_text(encoding="utf-8")))
 
 
 def claim_keys() -> tuple[str, ...]:

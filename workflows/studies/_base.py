@@ -16,7 +16,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Callable
 
-import yaml
+from workflows.settings import read_yaml
 
 RESULTS = "results"
 #: The scales a study declares its config section at (``workflows/config/<scale>.yaml``
@@ -280,7 +280,7 @@ def read_settings(folder: Path) -> tuple[dict | None, dict]:
     path = folder / "settings.yaml"
     if not path.is_file():
         return None, {}
-    raw = yaml.safe_load(path.read_text(encoding="utf-8")) or {}
+    raw = read_yaml(path.read_text(encoding="utf-8")) or {}
     wrong = sorted(set(raw) - {"schema", "scales"}) + sorted(
         f"scales.{s}" for s in raw.get("scales") or {} if s not in SCALES) + sorted(
         f"scales.{s}.{k}" for s, at in (raw.get("scales") or {}).items()
