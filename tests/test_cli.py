@@ -19,9 +19,11 @@ from workflows.cli import main
 from agreement import within_certificate
 
 #: the roll stack (a floating work roll, minutes for some QP libraries at its size) is left
-#: out here; tests/test_roll_stack.py asserts every solver's status on it instead
+#: out here; tests/test_roll_stack.py asserts every solver's status on it instead; so is
+#: hertz_mindlin (65,000 unknowns at level 1: minutes for the QP libraries), whose
+#: solvers tests/test_hertz_mindlin.py runs at level 0
 CONTACT_SCENES = sorted(n for n, s in problems().items()
-                        if s.kind == "contact" and n != "roll_stack")
+                        if s.kind == "contact" and n not in ("roll_stack", "hertz_mindlin"))
 #: the template scene of an installed package (tests/example_scene): a scene the suite's
 #: solvers have never been tuned on
 EXAMPLE_SCENE = "cylinder_pair"

@@ -186,7 +186,8 @@ def test_a_claim_without_data_is_one_row_saying_so_never_a_template():
 
 def test_the_claims_take_the_sphere_bars():
     """A point contact (3D) is judged by its own bars: c/a within 10 % where at least 150
-    nodes are in contact; its traction profile is reported, not judged."""
+    nodes are in contact; its traction within 10 % where at least 800 are (the stick zone's
+    edge resolved), reported with the reason below."""
     import pandas as pd
 
     rows = [{"scene": "s", "role": "reference", "solver": "tresca_exact", "contact": "point",
@@ -199,7 +200,11 @@ def test_the_claims_take_the_sphere_bars():
     assert "0.1" in str(stick.bar)
     traction = table[table.claim.str.contains("tangential traction")].iloc[0]
     assert traction["pass"] is None or pd.isna(traction["pass"])
-    assert "parallel to Q" in traction.reason
+    assert "230 contact nodes" in traction.reason and "800" in traction.reason
+    for nodes, l2, verdict in ((1085, 0.0972, True), (1085, 0.12, False)):
+        resolved = [{**rows[-1], "contact_nodes": nodes, "traction_l2": l2}]
+        judged = claims(pd.DataFrame(resolved))
+        assert judged[judged.claim.str.contains("tangential traction")].iloc[0]["pass"] is verdict
     rows[-1]["dev_c_over_a"] = -0.12
     assert claims(pd.DataFrame(rows)).iloc[0]["pass"] is False
     rows[-1]["contact_nodes"] = 100                     # not resolved: a reason, no verdict
