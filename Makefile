@@ -88,14 +88,15 @@ SOLVER_TESTS := tests/test_rounding.py tests/test_solvers.py tests/test_semismoo
 	tests/test_friction_ssn.py tests/test_friction_random.py tests/test_mortar_3d.py tests/test_mortar_p2.py tests/test_friction_registry.py \
 	tests/test_friction_tnnmg.py tests/test_friction_tnnmg_3d.py tests/test_friction_3d_solvers.py \
 	tests/test_friction_libraries.py tests/test_friction_facets.py tests/test_problem_set_friction.py tests/test_siconos.py \
-	tests/test_certificate_friction.py tests/test_stabilised.py tests/test_circle_square.py \
+	tests/test_certificate_friction.py tests/test_stabilised.py tests/test_circle_square.py tests/test_hertz_mindlin.py \
 	tests/test_hard_cases.py::test_tolerances_are_scale_free \
 	tests/test_cli.py::test_every_solver_runs_through_the_cli
 
 # the tests spread over one process per core (pytest-xdist; at most 8 by default), a test file's tests in one
 # process (its fixtures built once), each process with one BLAS thread; the solver tests
-# then once more in one process per other kernel, side by side, each running all of them
-# (`--dist each`; a failure names its process by the kernel)
+# then once more under each other kernel: with several, one process per kernel side by side,
+# each running all of them (`--dist each`; a failure names its process by the kernel); with
+# one (an AVX2 machine's Sandybridge), spread over one process per core as above
 TEST_WORKERS ?= $(shell n=$$(nproc 2>/dev/null || echo 2); [ $$n -gt 8 ] && n=8; echo $$n)
 ONE_THREAD := OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 MKL_NUM_THREADS=1
 
@@ -108,9 +109,13 @@ test: setup browser petsc siconos
 	for k in $$kernels; do \
 		cbwr="$${1:-COMPATIBLE}"; [ $$# -gt 0 ] && shift; \
 		tx="$$tx --tx popen//id=$$k//env:OPENBLAS_CORETYPE=$$k//env:MKL_CBWR=$$cbwr"; \
-	done; \
-	echo "== the solver tests again under the OpenBLAS kernels $$kernels, side by side"; \
-	$(ONE_THREAD) $(BIN)/python -m pytest -q -p no:cacheprovider --dist each $$tx -m "not slow" \
+	done; dist="--dist each"; how="side by side"; \
+	if [ "$$(echo $$kernels | wc -w)" -eq 1 ]; then \
+		tx="--tx $(TEST_WORKERS)*popen//env:OPENBLAS_CORETYPE=$$kernels//env:MKL_CBWR=AVX2"; \
+		dist="--dist loadfile"; how="in $(TEST_WORKERS) processes"; \
+	fi; \
+	echo "== the solver tests again under the OpenBLAS kernels $$kernels, $$how"; \
+	$(ONE_THREAD) $(BIN)/python -m pytest -q -p no:cacheprovider $$dist $$tx -m "not slow" \
 		$(SOLVER_TESTS)
 
 # pytest-benchmark history in .benchmarks/ (not committed): each run saved and compared
