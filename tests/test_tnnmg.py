@@ -282,3 +282,32 @@ def test_the_contact_patch_option_gives_the_same_answer():
     runs = [solve(qp, solver="tnnmg", tol="mid", patch=hops) for hops in (0, 1)]
     assert [r.status for r in runs] == ["converged", "converged"], [r.message for r in runs]
     assert energy_error(qp, runs[1].u, runs[0].u) <= 2e-6
+
+
+def test_the_coarse_factor_takes_the_cholesky_kernel_above_its_size(monkeypatch):
+    """The truncated coarsest operator: SuperLU up to COARSE_SPLU_MAX unknowns, the Cholesky
+    kernel above (SuperLU where the kernel refuses it); each solves it."""
+    import solvers.kernels.tnnmg_correction as correction
+    from solvers.kernels.cholesky import FactorizationError
+
+    n = int(np.sqrt(correction.COARSE_SPLU_MAX)) + 2       # a 2D Laplacian just above the size
+    T = sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], shape=(n, n))
+    A = sp.kronsum(T, T).tocsr()
+    b = np.random.default_rng(0).standard_normal(A.shape[0])
+    used = []
+    real = correction.factorize
+
+    def spy(M):
+        used.append(M.shape[0])
+        return real(M)
+    monkeypatch.setattr(correction, "factorize", spy)
+    for M in (A, A[:100, :100]):
+        x = correction.coarse_factor(M)(b[:M.shape[0]])
+        assert np.linalg.norm(M @ x - b[:M.shape[0]]) <= 1e-10 * np.linalg.norm(b)
+    assert used == [A.shape[0]] and A.shape[0] > correction.COARSE_SPLU_MAX
+
+    def refuse(M):
+        raise FactorizationError("not positive definite")
+    monkeypatch.setattr(correction, "factorize", refuse)
+    x = correction.coarse_factor(A)(b)
+    assert np.linalg.norm(A @ x - b) <= 1e-10 * np.linalg.norm(b)

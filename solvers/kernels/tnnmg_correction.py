@@ -32,6 +32,23 @@ from solvers.kernels.block_gs import FIXED, FREE, with_pattern
 from solvers.kernels.cholesky import FactorizationError, factorize
 from solvers.kernels.tnnmg_system import FineSystem
 
+#: The truncated coarsest operator's direct solver, factorised anew at every change of the
+#: truncation: SuperLU up to this many unknowns (the coarsest levels of the thesis's scenes
+#: and their variants), the Cholesky kernel above (PARDISO: its nested-dissection ordering
+#: keeps a 3D operator's fill down, where SuperLU's grows; hertz_mindlin's graded level 0).
+COARSE_SPLU_MAX = 5000
+
+
+def coarse_factor(A: sp.spmatrix) -> Callable[[np.ndarray], np.ndarray]:
+    """The solve of the truncated coarsest operator ``A`` (:data:`COARSE_SPLU_MAX`); a
+    semidefinite one (a body held by nothing yet) by SuperLU at any size."""
+    if A.shape[0] > COARSE_SPLU_MAX:
+        try:
+            return factorize(A).solve
+        except FactorizationError:
+            pass
+    return spla.splu(sp.csc_matrix(A)).solve
+
 
 def positions(M: sp.csr_matrix, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
     """The positions of the entries ``(rows, cols)`` in ``M.data`` (sorted CSR), -1 where
@@ -196,7 +213,7 @@ class TruncatedHierarchy:
                   if self.truncate_coarse and (E.size or curvature is not None)
                   else [None] * len(self.coarse_ops))
         self.A_t = [op.set(delta) for op, delta in zip(self.coarse_ops, deltas)]
-        self.coarse_solve = spla.splu(sp.csc_matrix(self.A_t[-1])).solve
+        self.coarse_solve = coarse_factor(self.A_t[-1])
 
     def vcycle(self, r: np.ndarray, sweeps: int | None = None) -> np.ndarray:
         """One V(sweeps, sweeps)-cycle for the truncated system, zero start; ``r`` is zero
