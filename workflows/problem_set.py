@@ -38,7 +38,7 @@ from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
-from workflows.settings import read_yaml
+from workflows.yaml_io import read_yaml
 
 from problems.spec import contact_scene_error, problems
 

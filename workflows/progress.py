@@ -21,7 +21,7 @@ import threading
 import time
 from pathlib import Path
 
-from workflows.settings import read_yaml
+from workflows.yaml_io import read_yaml
 from tqdm import tqdm
 
 #: The file of a running job's bar, below the working directory.

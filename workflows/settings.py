@@ -13,17 +13,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import yaml
-
-#: YAML's C parser where PyYAML has it (the same documents, read about eight times faster:
-#: every job of a run reads the studies' settings when it starts), else the Python one.
-_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
-
-
-def read_yaml(source):
-    """The YAML document ``source`` (text or an open file) as ``yaml.safe_load`` reads it."""
-    return yaml.load(source, Loader=_LOADER)
-
+from workflows.yaml_io import read_yaml
 
 #: The config schema (its ``default`` entries are the study defaults).
 SCHEMA = Path(__file__).resolve().parent / "config.schema.yaml"

@@ -37,7 +37,8 @@ from types import ModuleType
 
 import yaml
 
-from workflows.settings import SCHEMA, read_yaml
+from workflows.settings import SCHEMA
+from workflows.yaml_io import read_yaml
 from workflows.studies._base import (CHART, COMMON_PATHS, REFERENCE, RESULTS, SCALES, AtScale,
                                      ConfigError, Study, ThesisItem, bench_path, captions_of,
                                      coarser_levels, discover_studies, log_path, path_pattern,

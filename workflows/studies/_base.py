@@ -16,7 +16,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Callable
 
-from workflows.settings import read_yaml
+from workflows.yaml_io import read_yaml
 
 RESULTS = "results"
 #: The scales a study declares its config section at (``workflows/config/<scale>.yaml``
