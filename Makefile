@@ -81,14 +81,16 @@ siconos:
 # (tests/blas_kernels.py), each with another of MKL's code paths for PARDISO (MKL_CBWR; the
 # OpenBLAS kernel does not reach it): rounding must not decide a solve. The reruns leave out
 # the tests marked `slow` (mostly a finer level of a solve whose coarser levels run there).
-SOLVER_TESTS := tests/test_rounding.py tests/test_solvers.py tests/test_semismooth_newton.py \
-	tests/test_augmented_projection.py tests/test_cholesky.py tests/test_qp.py tests/test_two_body.py \
-	tests/test_tnnmg.py tests/test_layered_multigrid.py tests/test_petsc_tao.py tests/test_degenerate.py \
-	tests/test_two_pass.py tests/test_friction.py tests/test_mortar.py \
-	tests/test_friction_ssn.py tests/test_friction_random.py tests/test_mortar_3d.py tests/test_mortar_p2.py tests/test_friction_registry.py \
-	tests/test_friction_tnnmg.py tests/test_friction_tnnmg_3d.py tests/test_friction_3d_solvers.py \
-	tests/test_friction_libraries.py tests/test_friction_facets.py tests/test_problem_set_friction.py tests/test_siconos.py \
-	tests/test_certificate_friction.py tests/test_stabilised.py tests/test_circle_square.py tests/test_hertz_mindlin.py \
+# The random frictional family first: spread over processes, its file (the longest) starts at once.
+SOLVER_TESTS := tests/test_friction_random.py tests/test_rounding.py tests/test_solvers.py \
+	tests/test_semismooth_newton.py tests/test_augmented_projection.py tests/test_cholesky.py \
+	tests/test_qp.py tests/test_two_body.py tests/test_tnnmg.py tests/test_layered_multigrid.py \
+	tests/test_petsc_tao.py tests/test_degenerate.py tests/test_two_pass.py tests/test_friction.py \
+	tests/test_mortar.py tests/test_friction_ssn.py tests/test_mortar_3d.py tests/test_mortar_p2.py \
+	tests/test_friction_registry.py tests/test_friction_tnnmg.py tests/test_friction_tnnmg_3d.py \
+	tests/test_friction_3d_solvers.py tests/test_friction_libraries.py tests/test_friction_facets.py \
+	tests/test_problem_set_friction.py tests/test_siconos.py tests/test_certificate_friction.py \
+	tests/test_stabilised.py tests/test_circle_square.py tests/test_hertz_mindlin.py \
 	tests/test_hard_cases.py::test_tolerances_are_scale_free \
 	tests/test_cli.py::test_every_solver_runs_through_the_cli
 
@@ -115,7 +117,8 @@ test: setup browser petsc siconos
 		dist="--dist loadfile"; how="in $(TEST_WORKERS) processes"; \
 	fi; \
 	echo "== the solver tests again under the OpenBLAS kernels $$kernels, $$how"; \
-	$(ONE_THREAD) $(BIN)/python -m pytest -q -p no:cacheprovider $$dist $$tx -m "not slow" \
+	$(ONE_THREAD) $(BIN)/python -m pytest -q -p no:cacheprovider $$dist --no-loadscope-reorder $$tx \
+		-m "not slow" \
 		$(SOLVER_TESTS)
 
 # pytest-benchmark history in .benchmarks/ (not committed): each run saved and compared
