@@ -161,8 +161,7 @@ def build(level: int, p: Options) -> ContactQP:
     load path (:func:`problems.fem.two_body.frictional_two_body`)."""
     friction_facets(p, 3)
     if p.friction != "none":
-        return frictional_two_body(scene, level, Options({**p, "coupling": "nodal", "degree": 1}),
-                                   "hertz_mindlin")
+        return frictional_two_body(scene, level, p, "hertz_mindlin")
     return assemble_two_body(scene(level, p), level, name=f"hertz_mindlin level {level}")
 
 

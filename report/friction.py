@@ -8,10 +8,11 @@ resolved: at least :data:`RESOLVED_CONTACT_NODES` contact nodes for c/a,
 :data:`RESOLVED_STICK_EDGE` for the traction); the fitted rates of both errors against N
 (reported); the solvers and the reference agreeing to 1e-8 in relative energy at every
 level where all ran; the mu = 0 path equal to the frictionless reference to 1e-10; every
-frictional solver run verified ``converged``; TNNMG's tangential-step iterations growing at most 15 % over the last two
-levels (judged when the finer is resolved); Coulomb's fixed point converging at every
-level, with its Tresca solves; TNNMG's time to the target energy error on the tangential
-step within :data:`TIME_BAR` times the linear multigrid solve at the finest level; on a
+frictional solver run verified ``converged``; TNNMG's tangential-step iterations growing at
+most 15 % over the last two levels (judged when the finer is resolved); Coulomb's fixed
+point converging at every level, with its Tresca solves; TNNMG's time to the target energy
+error on the tangential step within :data:`TIME_BAR` times the linear multigrid solve at
+the finest level; on a
 3D scene the faceted law's energy gap to the isotropic one falling like ``k^-2``
 (:data:`FACET_ENERGY_EXPONENT`, the finest level that ran it; the displacement's
 exponent reported, :func:`facet_claims`).
@@ -214,6 +215,13 @@ def complete(runs: pd.DataFrame) -> pd.DataFrame:
     return runs.assign(**{c: np.nan for c in missing}) if missing else runs
 
 
+def _unresolved(top, needed: int, what: str) -> str:
+    """The reason a Cattaneo-Mindlin bar is not judged on the finest reference row ``top``:
+    its contact nodes against the ``needed`` ones."""
+    return (f"level {int(top.level)} has {int(top.contact_nodes)} contact nodes; the bar is "
+            f"about {what} (>= {needed})")
+
+
 def claims(runs: pd.DataFrame) -> pd.DataFrame:
     """The claims of the module docstring, per scene."""
     runs = complete(runs)
@@ -225,8 +233,7 @@ def claims(runs: pd.DataFrame) -> pd.DataFrame:
             g = g.sort_values("N")
             top = g.iloc[-1]
             resolved = top.contact_nodes >= RESOLVED_CONTACT_NODES[kind]
-            why = (f"level {int(top.level)} has {int(top.contact_nodes)} contact nodes; the "
-                   f"bar is about a resolved zone (>= {RESOLVED_CONTACT_NODES[kind]})")
+            why = _unresolved(top, RESOLVED_CONTACT_NODES[kind], "a resolved zone")
             fields = dict(scene=scene, ratio=ratio, level=int(top.level))
             stick = replace(CLAIMS["stick_zone"], bar=STICK_ZONE_BAR[kind])
             rows.append(stick.row(float(top.dev_c_over_a), judged=resolved, reason=why,
@@ -234,8 +241,7 @@ def claims(runs: pd.DataFrame) -> pd.DataFrame:
             edge = RESOLVED_STICK_EDGE[kind]
             rows.append(CLAIMS["traction"].row(
                 float(top.traction_l2), judged=bool(top.contact_nodes >= edge),
-                reason=f"level {int(top.level)} has {int(top.contact_nodes)} contact nodes; "
-                f"the bar is about a resolved stick-zone edge (>= {edge})", **fields))
+                reason=_unresolved(top, edge, "a resolved stick-zone edge"), **fields))
             if len(g) >= 2:
                 rows.append(CLAIMS["stick_rate"].row(
                     fitted_slope(g.N, g.dev_c_over_a.abs(), last=len(g)), scene=scene,

@@ -457,7 +457,8 @@ def frictional_two_body(scene: Callable[[int, Options], TwoBodyScene], level: in
         For a coupling other than ``nodal`` or elements other than P1 (the tangential
         rows are built for the nodal P1 constraints).
     """
-    for key, value, allowed in (("coupling", p.coupling, "nodal"), ("degree", p.degree, 1)):
+    for key, allowed in (("coupling", "nodal"), ("degree", 1)):       # a scene without the
+        value = p.get(key, allowed)                                     # parameter has only it
         if value != allowed:
             raise ParameterError(f"parameter '{key}': {value!r} is not allowed with "
                                  f"friction={p.friction!r}; allowed: {allowed!r} (the tangential "
