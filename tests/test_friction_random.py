@@ -43,17 +43,11 @@ LIBRARIES = ("osqp", "scs", "proxsuite", "clarabel", "qpalm", "piqp")
 LIBRARY_DRAWS = 40
 
 
-def steps_of(seed: int) -> dict:
-    """The tangential steps of draw ``seed``, each with its exact reference."""
+def run_draw(seed: int) -> dict:
+    """Every solver on every tangential step of draw ``seed``: the first disagreement (or
+    None) and whether semismooth Newton fell back."""
     member = draw(seed)
-    return frictional_steps(member.problem, member.params, member.level)
-
-
-def run_draw(seed: int, steps: dict | None = None) -> dict:
-    """Every solver on every tangential step of draw ``seed`` (its ``steps`` if built
-    already): the first disagreement (or None) and whether semismooth Newton fell back."""
-    member = draw(seed)
-    steps = steps_of(seed) if steps is None else steps
+    steps = frictional_steps(member.problem, member.params, member.level)
     fell_back, problems = False, []
     for k, step in steps.items():
         for solver in SOLVERS:
@@ -69,14 +63,8 @@ def run_draw(seed: int, steps: dict | None = None) -> dict:
 
 
 @pytest.fixture(scope="module")
-def first_steps() -> dict[int, dict]:
-    """The steps of the first :data:`LIBRARY_DRAWS` draws, built once for both tests."""
-    return {seed: steps_of(seed) for seed in range(LIBRARY_DRAWS)}
-
-
-@pytest.fixture(scope="module")
-def outcomes(first_steps) -> list[dict]:
-    return [run_draw(seed, first_steps.get(seed)) for seed in range(DRAWS)]
+def outcomes() -> list[dict]:
+    return [run_draw(seed) for seed in range(DRAWS)]
 
 
 def test_the_family_is_seeded_and_spans_its_ranges():
@@ -113,11 +101,11 @@ def test_every_solver_converges_and_agrees_on_every_draw(outcomes, record_proper
     assert not bad, f"{len(bad)} runs not verified or not agreeing:\n" + "\n".join(bad[:20])
 
 
-def test_the_libraries_converged_never_contradicts_the_reference(first_steps, record_property):
+def test_the_libraries_converged_never_contradicts_the_reference(record_property):
     refuted, verified = {}, {}
     for seed in range(LIBRARY_DRAWS):
         member = draw(seed)
-        for k, step in first_steps[seed].items():
+        for k, step in frictional_steps(member.problem, member.params, member.level).items():
             for library in LIBRARIES:
                 res = solve(step.qp, library, "mid", time_limit=20)
                 if res.claimed_status == "converged" and res.status != "converged":
