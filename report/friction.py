@@ -12,10 +12,9 @@ frictional solver run verified ``converged``; TNNMG's tangential-step iterations
 most 15 % over the last two levels (judged when the finer is resolved); Coulomb's fixed
 point converging at every level, with its Tresca solves; TNNMG's time to the target energy
 error on the tangential step within :data:`TIME_BAR` times the linear multigrid solve at
-the finest level; on a
-3D scene the faceted law's energy gap to the isotropic one falling like ``k^-2``
-(:data:`FACET_ENERGY_EXPONENT`, the finest level that ran it; the displacement's
-exponent reported, :func:`facet_claims`).
+the finest level; on a 3D scene the faceted law's energy gap to the isotropic one falling
+like ``k^-2`` (:data:`FACET_ENERGY_EXPONENT`, the finest level that ran it; the
+displacement's exponent reported, :func:`facet_claims`).
 Figures: the traction profiles at the finest level, c/a against Q/(mu P), the stick and
 slip nodes in the contact plane, and iterations and time against N per solver with fitted
 exponents.

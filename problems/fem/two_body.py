@@ -457,8 +457,9 @@ def frictional_two_body(scene: Callable[[int, Options], TwoBodyScene], level: in
         For a coupling other than ``nodal`` or elements other than P1 (the tangential
         rows are built for the nodal P1 constraints).
     """
-    for key, allowed in (("coupling", "nodal"), ("degree", 1)):       # a scene without the
-        value = p.get(key, allowed)                                     # parameter has only it
+    # a scene that does not declare the parameter has only the allowed value
+    for key, allowed in (("coupling", "nodal"), ("degree", 1)):
+        value = p.get(key, allowed)
         if value != allowed:
             raise ParameterError(f"parameter '{key}': {value!r} is not allowed with "
                                  f"friction={p.friction!r}; allowed: {allowed!r} (the tangential "
