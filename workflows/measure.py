@@ -202,6 +202,75 @@ def amg_pcg_floor(qp, kind: str, target: float, u_exact: np.ndarray,
             "status": "converged" if ok else "max_iter"}
 
 
+#: Entries of each of the three arrays of the STREAM triad: 3 x 256 MB, far beyond any
+#: cache, so that the triad measures memory and not a cache level.
+STREAM_ENTRIES = 2 ** 25
+
+
+def stream_triad_gbs(entries: int = STREAM_ENTRIES, repeats: int = 10) -> float:
+    """One core's memory bandwidth in GB/s by the STREAM triad ``a = b + s c`` (a compiled
+    loop, one thread): 24 bytes per entry (STREAM's count, without write-allocate), the
+    best of ``repeats`` passes after one untimed pass, as STREAM reports it."""
+    if entries < 1 or repeats < 1:
+        raise ValueError(f"entries and repeats must be >= 1, got {entries} and {repeats}")
+    from numba import njit
+
+    @njit(cache=False)
+    def triad(a, b, c, s):
+        for i in range(a.size):
+            a[i] = b[i] + s * c[i]
+
+    a, b, c = np.zeros(entries), np.ones(entries), np.full(entries, 2.0)
+    triad(a, b, c, 3.0)                         # compiled and every page touched
+    best = np.inf
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        triad(a, b, c, 3.0)
+        best = min(best, time.perf_counter() - t0)
+    return 3 * a.itemsize * entries / best / 1e9
+
+
+def floor_traffic(qp, repeats: int, cg_steps: int = 20, seed: int = 0) -> dict:
+    """The floor's bytes against its time: one V-cycle of :func:`amg_pcg_floor`'s
+    geometric multigrid and one of its PCG steps, each timed as the median of ``repeats``
+    (a V-cycle on a seeded random right-hand side; ``cg_steps`` PCG steps from zero,
+    divided by their number), and the bytes each must move by the STREAM convention
+    (:func:`solvers.kernels.multigrid.vcycle_traffic`, ``cg_step_traffic``).
+
+    Returns the row's bytes (split into matrix values, index arrays and vectors), median
+    times with their spread (``_min``, ``_max``) and attained bandwidths in GB/s."""
+    if repeats < 1 or cg_steps < 1:
+        raise ValueError(f"repeats and cg_steps must be >= 1, got {repeats} and {cg_steps}")
+    ahat = pc.ahat_component("gmg")
+    smoother = ahat.options.get("smoother", pc.DEFAULT_SMOOTHER)
+    vc = _gmg_vcycle(qp)
+    vcycle = pc.vcycle_traffic(vc.ml, smoother, ahat.options["sweeps"])
+    step = pc.cg_step_traffic(qp.A) + vcycle
+    M = spla.LinearOperator(qp.A.shape, matvec=vc.vcycle_once)
+    r = np.random.default_rng(seed).standard_normal(qp.n)
+    vc.vcycle_once(r)                                   # untimed: first touch
+    t_vcycle, t_step = [], []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        vc.vcycle_once(r)
+        t_vcycle.append(time.perf_counter() - t0)
+        t0 = time.perf_counter()
+        spla.cg(qp.A, qp.f, M=M, rtol=0.0, atol=0.0, maxiter=cg_steps)   # no early stop
+        t_step.append((time.perf_counter() - t0) / cg_steps)
+    t_v, t_s = float(np.median(t_vcycle)), float(np.median(t_step))
+    return {"n": qp.n, "nnz_A": int(qp.A.nnz), "mg_levels": len(vc.ml.levels),
+            "operator_complexity": vc.operator_complexity(),
+            "vcycle_mb": vcycle.total / 1e6, "vcycle_values_mb": vcycle.values / 1e6,
+            "vcycle_indices_mb": vcycle.indices / 1e6,
+            "vcycle_vectors_mb": vcycle.vectors / 1e6,
+            "t_vcycle": t_v, "t_vcycle_min": min(t_vcycle), "t_vcycle_max": max(t_vcycle),
+            "vcycle_gbs": vcycle.total / t_v / 1e9,
+            "cg_step_mb": step.total / 1e6, "t_cg_step": t_s, "t_cg_step_min": min(t_step),
+            "t_cg_step_max": max(t_step), "cg_step_gbs": step.total / t_s / 1e9,
+            "timing_repeats": repeats,
+            "cg_steps": cg_steps}
+
+
 #: Relative residual of the multigrid PCG in :func:`dual_norm` (where ``A`` is not
 #: factorised): the norm's relative error is below ``kappa(A) DUAL_NORM_RTOL^2 / 2``
 #: (:func:`dual_norm`), under 1e-8 up to ``kappa(A) = 1e8``.

@@ -538,6 +538,127 @@ def _vcycle(ml, lvl: int, b: np.ndarray) -> np.ndarray:
     return x
 
 
+#: Bytes of one float64 entry of a vector.
+WORD = 8
+
+
+@dataclass(frozen=True)
+class Traffic:
+    """Bytes an operation must move between memory and the core, by the STREAM
+    convention: every array it reads counted once, every array it writes once (no
+    write-allocate, no re-reads after eviction), so ``bytes / time`` is comparable with
+    STREAM's bandwidth.
+
+    Attributes
+    ----------
+    values : int
+        Matrix and factor entries (8 bytes each as assembled).
+    indices : int
+        Their index arrays (column indices and row pointers).
+    vectors : int
+        Vectors read and written.
+    """
+
+    values: int = 0
+    indices: int = 0
+    vectors: int = 0
+
+    @property
+    def total(self) -> int:
+        return self.values + self.indices + self.vectors
+
+    def __add__(self, other: "Traffic") -> "Traffic":
+        return Traffic(self.values + other.values, self.indices + other.indices,
+                       self.vectors + other.vectors)
+
+    def __mul__(self, k: int) -> "Traffic":
+        return Traffic(k * self.values, k * self.indices, k * self.vectors)
+
+    __rmul__ = __mul__
+
+
+def matrix_traffic(M: sp.spmatrix) -> Traffic:
+    """One pass over ``M`` stored as CSR: its values, column indices and row pointers."""
+    M = sp.csr_matrix(M)
+    return Traffic(M.data.nbytes, M.indices.nbytes + M.indptr.nbytes)
+
+
+def spmv_traffic(M: sp.spmatrix) -> Traffic:
+    """``y = M x``: the matrix, ``x`` read and ``y`` written."""
+    rows, cols = M.shape
+    return matrix_traffic(M) + Traffic(vectors=WORD * (rows + cols))
+
+
+def vector_traffic(n: int, reads: int, writes: int) -> Traffic:
+    """A vector operation on ``n`` entries reading ``reads`` and writing ``writes`` vectors."""
+    return Traffic(vectors=WORD * n * (reads + writes))
+
+
+def smoother_traffic(M: sp.spmatrix, smoother: str, sweeps: int) -> Traffic:
+    """One smoothing step of :data:`SMOOTHERS` on ``M`` (:func:`_smoother`'s iterations):
+    per pass the matrix, ``x`` read and written and ``b`` read; a symmetric Gauss-Seidel
+    iteration is two passes (forward, backward), a Jacobi iteration one."""
+    kind, settings = _smoother(smoother, sweeps, blocked=False)
+    passes = settings["iterations"] * (2 if settings.get("sweep") == "symmetric" else 1)
+    return passes * (matrix_traffic(M) + vector_traffic(M.shape[0], reads=2, writes=1))
+
+
+def lu_traffic(lu) -> Traffic:
+    """A solve with SuperLU's factors ``lu``: both triangles once and the vector in and out
+    (the factors' supernodal storage counted as CSR of the same nonzeros)."""
+    return matrix_traffic(lu.L) + matrix_traffic(lu.U) + vector_traffic(lu.shape[0], 1, 1)
+
+
+def vcycle_traffic(ml, smoother: str, sweeps: int) -> Traffic:
+    """Bytes one V-cycle of :func:`_vcycle` moves on the hierarchy ``ml`` (built with
+    ``smoother`` and ``sweeps``), operation by operation as :func:`_vcycle` performs them:
+    per level the start vector, pre-smoothing, the residual, restriction, prolongation and
+    its update, post-smoothing, the deep blocks' exact solves where a level has them; the
+    coarsest level's direct solve (SuperLU's factors, as pyamg's ``splu`` coarse solver
+    holds them).
+    """
+    levels = ml.levels
+    coarse = levels[-1].A
+    total = lu_traffic(spla.splu(sp.csc_matrix(coarse)))
+    for level in levels[:-1]:
+        n = level.A.shape[0]
+        local = getattr(level, "local", None)
+        deep = getattr(level, "deep", None)
+        total += vector_traffic(n, reads=0, writes=1)                  # x = 0
+        if local is None:
+            smoothing = 2 * smoother_traffic(level.A, smoother, sweeps)
+            residual = spmv_traffic(level.A)
+        else:
+            k = len(local["rows"])
+            smoothing = (2 * smoother_traffic(local["block"], smoother, sweeps)
+                         + vector_traffic(k, 0, 1)                # x_rows = 0
+                         + 5 * vector_traffic(k, 1, 1)            # b, x gathered; x scattered
+                         + spmv_traffic(local["off"]) + vector_traffic(k, 2, 1))
+            residual = (spmv_traffic(local["columns"]) if deep is None
+                        else spmv_traffic(level.A))
+        if deep is not None:                      # after pre- and before post-smoothing
+            rows = len(deep["rows"])
+            total += 2 * (vector_traffic(rows, 1, 1) + spmv_traffic(deep["A_rows"])
+                          + vector_traffic(rows, 2, 1) + lu_traffic(deep["lu"])
+                          + vector_traffic(rows, 2, 1))
+        total += (smoothing + residual + vector_traffic(n, 2, 1)      # b - A x
+                  + spmv_traffic(level.R) + spmv_traffic(level.P)
+                  + vector_traffic(n, 2, 1))                          # x += P x_c
+    return total
+
+
+def cg_step_traffic(A: sp.spmatrix) -> Traffic:
+    """Bytes of one preconditioned CG step of SciPy's ``cg`` beside its preconditioner,
+    as its loop performs them: the residual's norm, ``rho = r'z``, ``p = z + beta p``
+    (in place, two operations), ``q = A p``, ``p'q``, and ``x += alpha p`` and
+    ``r -= alpha q``, each forming ``alpha p`` (``alpha q``) first."""
+    n = A.shape[0]
+    return (vector_traffic(n, 1, 0) + vector_traffic(n, 2, 0)          # |r|, r'z
+            + vector_traffic(n, 1, 1) + vector_traffic(n, 2, 1)        # p *= beta; p += z
+            + spmv_traffic(A) + vector_traffic(n, 2, 0)                # q = A p; p'q
+            + 2 * (vector_traffic(n, 1, 1) + vector_traffic(n, 2, 1)))  # x, r updates
+
+
 def _deep_solve(deep: dict, x: np.ndarray, b: np.ndarray) -> None:
     """``x`` corrected in place by the exact solve on a level's deep block
     (:func:`geometric_hierarchy`, ``depths``)."""
