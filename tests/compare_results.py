@@ -21,8 +21,8 @@ import pandas as pd
 
 #: Columns that measure time, memory or the machine, not the mathematics (the only
 #: ones two runs may disagree in).
-TIMING = re.compile(r"(^|_)(t|s|cpu|wall|rss|mb|peak|memory|created)($|_)|time|seconds|speedup|"
-                    r"floor_ratio|ratio_to_floor|efficiency|tnnmg_over_petsc|"
+TIMING = re.compile(r"(^|_)(t|s|cpu|wall|rss|mb|peak|memory|created|gbs)($|_)|time|seconds|"
+                    r"speedup|floor_ratio|ratio_to_floor|of_triad|efficiency|tnnmg_over_petsc|"
                     r"^(rank|median_ratio|spread|shift|fastest)$")
 #: Claims whose measured value is a time ratio or a time's growth, or a memory ratio.
 TIMING_CLAIM = re.compile(r"T_solve|time|faster|fastest|speed|memory|efficiency")
