@@ -311,3 +311,22 @@ def test_the_coarse_factor_takes_the_cholesky_kernel_above_its_size(monkeypatch)
     monkeypatch.setattr(correction, "factorize", refuse)
     x = correction.coarse_factor(A)(b)
     assert np.linalg.norm(A @ x - b) <= 1e-10 * np.linalg.norm(b)
+
+
+def test_the_time_to_target_keeps_the_verification_apart():
+    """TNNMG's history stamps the verification's running time beside every step's
+    (``t_verify``, part of ``time``, the certificate's factorisation of A included);
+    the floor comparison's time to target leaves it out and reports it beside."""
+    from workflows.measure import tnnmg_run
+
+    qp = _build("circle_square", 1, {})
+    u_ref = reference_solve(qp).u
+    res = solve(qp, "tnnmg", tol=1e-8)
+    h, s = res.history, res.stats
+    assert len(h["t_verify"]) == len(h["time"]) == res.iterations
+    assert np.all(np.diff(h["t_verify"]) >= 0) and np.all(np.asarray(h["t_verify"])
+                                                          <= np.asarray(h["time"]))
+    assert 0 < s["t_verify"] <= s["t_check"]        # it verified, inside the checks
+    run = tnnmg_run(qp, u_ref, 1e-8, 60.0)
+    assert run["status"] == "converged" and run["n_to_target"] > 0
+    assert 0 <= run["t_verify_to_target"] and 0 < run["t_to_target"]
