@@ -64,7 +64,8 @@ def figure(runs: pd.DataFrame, path: str) -> None:
     triad = float(t.stream_triad_gbs.iloc[0])
     left.axhline(triad, color="black", lw=1,
                  label=f"STREAM triad, one core ({triad:.1f} GB/s)")
-    fastest = max(float((t[f"{k}_mb"] / 1e3 / t[f"t_{k}_min"]).max()) for k in ("vcycle", "cg_step"))
+    fastest = max(float((t[f"{k}_mb"] / 1e3 / t[f"t_{k}_min"]).max())
+                  for k in ("vcycle", "cg_step"))
     left.set_ylim(0, 1.2 * max(triad, fastest))     # a cache-resident level may pass the triad
     left.set_xlabel("nodes N")
     left.set_ylabel("attained bandwidth [GB/s] (one thread)")
