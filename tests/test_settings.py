@@ -61,7 +61,7 @@ def test_no_step_option_repeats_a_schema_default():
     :func:`workflows.settings.study_defaults`, never as a literal (the test set's ``levels``
     reaches its step as the chosen levels, ``--levels``)."""
     studies = {s for s, (defaulted, _) in _settings().items() if defaulted}
-    assert studies == {"adaptive", "test_set"}
+    assert studies == {"adaptive", "floor_bandwidth", "test_set"}
     for study in sorted(studies):
         defaults = study_defaults(study)
         keys = {k for k, v in defaults.items() if not isinstance(v, dict)} | \

@@ -202,15 +202,11 @@ def amg_pcg_floor(qp, kind: str, target: float, u_exact: np.ndarray,
             "status": "converged" if ok else "max_iter"}
 
 
-#: Entries of each of the three arrays of the STREAM triad: 3 x 256 MB, far beyond any
-#: cache, so that the triad measures memory and not a cache level.
-STREAM_ENTRIES = 2 ** 25
-
-
-def stream_triad_gbs(entries: int = STREAM_ENTRIES, repeats: int = 10) -> float:
+def stream_triad_gbs(entries: int, repeats: int = 10) -> float:
     """One core's memory bandwidth in GB/s by the STREAM triad ``a = b + s c`` (a compiled
-    loop, one thread): 24 bytes per entry (STREAM's count, without write-allocate), the
-    best of ``repeats`` passes after one untimed pass, as STREAM reports it."""
+    loop, one thread) on three arrays of ``entries`` each (far beyond the caches, or it
+    measures a cache level): 24 bytes per entry (STREAM's count, without write-allocate),
+    the best of ``repeats`` passes after one untimed pass, as STREAM reports it."""
     if entries < 1 or repeats < 1:
         raise ValueError(f"entries and repeats must be >= 1, got {entries} and {repeats}")
     from numba import njit

@@ -21,9 +21,13 @@ import argparse
 import pandas as pd
 
 from workflows.io import write_csv
-from workflows.measure import STREAM_ENTRIES, floor_traffic, stream_triad_gbs
+from workflows.measure import floor_traffic, stream_triad_gbs
 from workflows.progress import study_progress
 from workflows.scene_args import add_scene_arguments, check_levels, scene_from_args
+from workflows.settings import study_defaults
+
+#: The study's defaults, declared once in the config schema (workflows/settings.py).
+DEFAULTS = study_defaults("floor_bandwidth")
 
 
 def main(argv=None) -> None:
@@ -31,11 +35,11 @@ def main(argv=None) -> None:
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     add_scene_arguments(parser)
     parser.add_argument("--levels", type=int, nargs="+", required=True)
-    parser.add_argument("--repeats", type=int, default=7,
+    parser.add_argument("--repeats", type=int, default=DEFAULTS["repeats"],
                         help="timed runs per level, the median kept (>= 1)")
-    parser.add_argument("--cg-steps", type=int, default=20,
+    parser.add_argument("--cg-steps", type=int, default=DEFAULTS["cg_steps"],
                         help="PCG steps per timed run (>= 1)")
-    parser.add_argument("--stream-mb", type=float, default=3 * 8 * STREAM_ENTRIES / 1e6,
+    parser.add_argument("--stream-mb", type=float, default=DEFAULTS["stream_mb"],
                         help="MB of the STREAM triad's three arrays (>= 24; beyond the "
                              "caches)")
     parser.add_argument("--out", required=True)
