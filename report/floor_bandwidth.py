@@ -52,20 +52,19 @@ def bandwidth_table(runs: pd.DataFrame) -> pd.DataFrame:
 def figure(runs: pd.DataFrame, path: str) -> None:
     """Attained bandwidth against N beside the triad's; V-cycle bytes per unknown by kind."""
     t = runs.sort_values("N").reset_index(drop=True)
+    table = bandwidth_table(t)           # the spread as the table gives it
     fig, (left, right) = plt.subplots(1, 2, figsize=(11, 4.2))
     for kind, style, color, label in (("vcycle", "o-", "tab:blue", "V-cycle"),
                                       ("cg_step", "s--", "tab:orange", "PCG step")):
-        gbs = t[f"{kind}_gbs"]
-        spread = [gbs - t[f"{kind}_mb"] / 1e3 / t[f"t_{kind}_max"],
-                  t[f"{kind}_mb"] / 1e3 / t[f"t_{kind}_min"] - gbs]
+        gbs = table[f"{kind}_gbs"]
+        spread = [gbs - table[f"{kind}_gbs_low"], table[f"{kind}_gbs_high"] - gbs]
         left.errorbar(t.N, gbs, yerr=spread, fmt=style, color=color, capsize=3,
                       label=f"{label} (median, bars: slowest and fastest run)")
     left.set_xscale("log")
     triad = float(t.stream_triad_gbs.iloc[0])
     left.axhline(triad, color="black", lw=1,
                  label=f"STREAM triad, one core ({triad:.1f} GB/s)")
-    fastest = max(float((t[f"{k}_mb"] / 1e3 / t[f"t_{k}_min"]).max())
-                  for k in ("vcycle", "cg_step"))
+    fastest = float(table[["vcycle_gbs_high", "cg_step_gbs_high"]].to_numpy().max())
     # every point and bar in the lower half, the legend above them (a cache-resident level
     # may pass the triad)
     left.set_ylim(0, 1.9 * max(triad, fastest))

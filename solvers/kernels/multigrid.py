@@ -598,7 +598,7 @@ def smoother_traffic(M: sp.spmatrix, smoother: str, sweeps: int) -> Traffic:
     """One smoothing step of :data:`SMOOTHERS` on ``M`` (:func:`_smoother`'s iterations):
     per pass the matrix, ``x`` read and written and ``b`` read; a symmetric Gauss-Seidel
     iteration is two passes (forward, backward), a Jacobi iteration one."""
-    kind, settings = _smoother(smoother, sweeps, blocked=False)
+    settings = _smoother(smoother, sweeps, blocked=False)[1]
     passes = settings["iterations"] * (2 if settings.get("sweep") == "symmetric" else 1)
     return passes * (matrix_traffic(M) + vector_traffic(M.shape[0], reads=2, writes=1))
 
