@@ -244,7 +244,8 @@ def _tresca_solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | 
     presmoothing = opts.presmoothing or AUTO_PRESMOOTHING[True]
     sweeps = opts.sweeps or (TRESCA_3D_SWEEPS if qp.dim == 3 else AUTO_SWEEPS.get(qp.dim, 2))
     ml = hierarchy(qp, fine if curvature is None else curvature.fine, sweeps,
-                   opts.coarse == "truncated", opts.patch, np.concatenate([piv, tpiv]))
+                   opts.coarse == "truncated", opts.patch, np.concatenate([piv, tpiv]),
+                   None if curvature is None else curvature.places)
     nb = box.node_ptr.size - 1
     mode_nonlinear = np.full(nb, FREE, dtype=np.int64)
     mode_nonlinear[fine.bounded_blocks] = TRESCA
@@ -325,7 +326,8 @@ def _tresca_solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | 
              "steps_to_face": to_face, "steps_on_face": k - to_face,
              "contraction_on_face": contraction_on_face(log.history["residual"], to_face),
              "presmoothing": presmoothing,
-             "truncation_updates": ml.updates, "n_active": int(np.count_nonzero(p > 0)),
+             "truncation_updates": ml.updates, "coarse_analyses": ml.coarse_factor.analyses,
+             "n_active": int(np.count_nonzero(p > 0)),
              "n_stick": int(np.count_nonzero(stick)),
              "n_slip": int(np.count_nonzero(~stick & (term.weight > 0))),
              "n_levels": len(ml.coarse_ops) + 1, **log.timing}
@@ -425,7 +427,8 @@ def solve(qp: ContactQP, tol: float, max_iter: int, time_limit: float | None,
         r = fine.f - fine.matvec(v)
     u, p = box.to_u(v), box.multipliers(r, v[piv] >= upper)
     stats = {"n_steps": k, "n_cg": n_cg, "n_vcycles": k, "presmoothing": presmoothing,
-             "truncation_updates": ml.updates, "n_active": int(np.count_nonzero(p > 0)),
+             "truncation_updates": ml.updates, "coarse_analyses": ml.coarse_factor.analyses,
+             "n_active": int(np.count_nonzero(p > 0)),
              "n_levels": len(ml.coarse_ops) + 1, **log.timing}
     return SolveResult(u=u, p=p, claimed_status=status, message=message, iterations=k,
                        setup_time=setup_time, solve_time=time.perf_counter() - log.t_solve,

@@ -95,6 +95,60 @@ def test_pardiso_refuses_an_indefinite_matrix():
         factorize(A, "pardiso")
 
 
+@pytest.mark.skipif("pardiso" not in BACKENDS, reason="MKL not installed (non-x86)")
+def test_same_pattern_refactorisation_keeps_the_analysis(scene_qp):
+    """``SamePatternCholesky``: matrices of one pattern (explicit zeros included) analysed
+    once, each new one's values factorised numerically, and solved as a fresh
+    factorisation solves them; another pattern analysed anew; a matrix that is not
+    positive definite refused without spoiling the next."""
+    A = sp.csr_matrix(scene_qp.A)
+    A.sort_indices()
+    n = A.shape[0]
+    rng = np.random.default_rng(3)
+    b = rng.standard_normal(n)
+    same = cholesky.SamePatternCholesky()
+
+    rows = np.repeat(np.arange(n), np.diff(A.indptr))
+    diag = np.flatnonzero(A.indices == rows)
+    ij = np.flatnonzero(A.indices != rows)[0]
+    i, j = rows[ij], A.indices[ij]
+    ji = np.flatnonzero((rows == j) & (A.indices == i))[0]
+
+    def with_values(scale, zero):      # one pattern; the coupling (i, j) an explicit zero
+        M = A.copy()                   # or not, its diagonals raised to keep M SPD
+        M.data = A.data * scale
+        M.data[diag[[i, j]]] += abs(A.data[ij]) * scale
+        if zero:
+            M.data[[ij, ji]] = 0.0
+        return M
+    mats = [with_values(1.0 + 0.5 * k, zero=k != 1) for k in range(3)]
+    assert mats[0].nnz == A.nnz and mats[0][i, j] == 0.0 and mats[1][i, j] != 0.0
+    for M in mats:
+        x = same.factorize(M).solve(b)
+        assert np.linalg.norm(M @ x - b) <= 1e-11 * np.linalg.norm(b)
+        np.testing.assert_allclose(x, factorize(M, "pardiso").solve(b), rtol=0, atol=1e-12
+                                   * np.abs(x).max())
+    assert same.analyses == 1
+    indefinite = mats[0].copy()
+    indefinite.data[indefinite.indices == np.repeat(np.arange(n), np.diff(indefinite.indptr))] \
+        *= -1.0
+    with pytest.raises(FactorizationError, match="positive definite"):
+        same.factorize(indefinite)
+    x = same.factorize(mats[1]).solve(b)
+    assert np.linalg.norm(mats[1] @ x - b) <= 1e-11 * np.linalg.norm(b)
+    assert same.analyses == 1
+    other = sp.csr_matrix(A[:100, :100])
+    x = same.factorize(other).solve(b[:100])
+    assert np.linalg.norm(other @ x - b[:100]) <= 1e-11 * np.linalg.norm(b[:100])
+    assert same.analyses == 2
+
+
+def test_same_pattern_refactorisation_needs_mkl(monkeypatch):
+    monkeypatch.setattr(cholesky, "_mkl", lambda: None)
+    with pytest.raises(ValueError, match="needs Intel MKL.*backend='splu'"):
+        cholesky.SamePatternCholesky()
+
+
 def test_the_cholesky_factor_is_sparse_and_exact(scene_qp):
     """``cholesky_factor``: ``F'F = A`` to round-off on a scene's stiffness matrix, ``F``
     sparse (the factorisation's fill, far below a dense factor's ``n (n + 1) / 2``), and

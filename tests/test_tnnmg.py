@@ -284,33 +284,42 @@ def test_the_contact_patch_option_gives_the_same_answer():
     assert energy_error(qp, runs[1].u, runs[0].u) <= 2e-6
 
 
-def test_the_coarse_factor_takes_the_cholesky_kernel_above_its_size(monkeypatch):
-    """The truncated coarsest operator: SuperLU up to COARSE_SPLU_MAX unknowns, the Cholesky
-    kernel above (SuperLU where the kernel refuses it); each solves it."""
+def test_the_coarse_factor_is_analysed_once_per_solve(monkeypatch):
+    """The truncated coarsest operator (``CoarseFactor``): with MKL its ordering and
+    symbolic analysis once per solve however often the truncation changes (every place a
+    change can take is in the operator's pattern), each solve to round-off; SuperLU where
+    the Cholesky kernel refuses the operator, and where MKL is absent."""
     import solvers.kernels.tnnmg_correction as correction
-    from solvers.kernels.cholesky import FactorizationError
+    from solvers.kernels.cholesky import FactorizationError, available_backends
 
-    n = int(np.sqrt(correction.COARSE_SPLU_MAX)) + 2       # a 2D Laplacian just above the size
+    for name, level in (("circle_square", 1), ("cube_sphere", 2)):
+        res = solve(_build(name, level, {}), solver="tnnmg", tol="high")
+        assert res.status == "converged", res.message
+        assert res.stats["truncation_updates"] >= 3
+        mkl = "pardiso" in available_backends()
+        assert res.stats["coarse_analyses"] == (1 if mkl else res.stats["truncation_updates"])
+
+    n = 40
     T = sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], shape=(n, n))
     A = sp.kronsum(T, T).tocsr()
     b = np.random.default_rng(0).standard_normal(A.shape[0])
-    used = []
-    real = correction.factorize
-
-    def spy(M):
-        used.append(M.shape[0])
-        return real(M)
-    monkeypatch.setattr(correction, "factorize", spy)
-    for M in (A, A[:100, :100]):
-        x = correction.coarse_factor(M)(b[:M.shape[0]])
-        assert np.linalg.norm(M @ x - b[:M.shape[0]]) <= 1e-10 * np.linalg.norm(b)
-    assert used == [A.shape[0]] and A.shape[0] > correction.COARSE_SPLU_MAX
+    factor = correction.CoarseFactor()
+    for shift in (0.0, 1.0, 2.0):
+        M = (A + shift * sp.eye(A.shape[0])).tocsr()
+        x = factor(M)(b)
+        assert np.linalg.norm(M @ x - b) <= 1e-10 * np.linalg.norm(b)
+    assert factor.analyses == (1 if factor.cholesky is not None else 3)
 
     def refuse(M):
         raise FactorizationError("not positive definite")
-    monkeypatch.setattr(correction, "factorize", refuse)
-    x = correction.coarse_factor(A)(b)
-    assert np.linalg.norm(A @ x - b) <= 1e-10 * np.linalg.norm(b)
+    for cholesky in (factor.cholesky, None):             # refused, then MKL absent
+        if cholesky is not None:
+            monkeypatch.setattr(cholesky, "factorize", refuse)
+        factor.cholesky = cholesky
+        before = factor.superlu
+        x = factor(A)(b)
+        assert np.linalg.norm(A @ x - b) <= 1e-10 * np.linalg.norm(b)
+        assert factor.superlu == before + 1
 
 
 def test_the_time_to_target_keeps_the_verification_apart():

@@ -169,67 +169,151 @@ def _mkl():
     return _MKL[0]
 
 
-def _pardiso(A: sp.csr_matrix, components: np.ndarray | None, threads: int) -> Cholesky:
-    lib = _mkl()
-    n = A.shape[0]
-    upper = sp.triu(A, format="csr")
-    upper.sort_indices()
-    if upper.nnz >= 2**31:
-        raise FactorizationError(f"{upper.nnz} nonzeros exceed PARDISO's 32-bit indices")
-    ia = (upper.indptr + 1).astype(np.int32)
-    ja = (upper.indices + 1).astype(np.int32)
-    data = np.ascontiguousarray(upper.data, dtype=np.float64)
-    handle = np.zeros(64, dtype=np.int64)          # PARDISO's internal pointer "pt"
-    iparm = np.zeros(64, dtype=np.int32)
-    iparm[0] = 1            # iparm(1): our own settings, not the defaults
-    iparm[1] = 2            # iparm(2): METIS nested dissection
-    iparm[7] = 0            # iparm(8): no iterative refinement inside the solve
-    iparm[17] = -1          # iparm(18): report nnz of the factor
-    perm = np.zeros(n, dtype=np.int32)
-    if components is not None:
-        iparm[30] = 1       # iparm(31): sparse right-hand sides, selected components
-        perm[components] = 1
-    int_p = ctypes.POINTER(ctypes.c_int32)
-    set_threads = getattr(lib, "MKL_Set_Num_Threads_Local", None)
+class _PardisoHandle:
+    """One PARDISO instance (its internal pointer ``pt``) for one sparsity pattern: the
+    upper triangle's ``ia``/``ja`` (1-based), the settings of :func:`factorize`'s backend,
+    and its memory freed when the handle is garbage collected."""
 
-    def call(phase: int, b: np.ndarray, x: np.ndarray) -> None:
-        err = ctypes.c_int32(0)
-        old = set_threads(ctypes.c_int(threads)) if set_threads else None
-        try:
-            lib.pardiso(handle.ctypes.data_as(ctypes.POINTER(ctypes.c_int64)),
-                        ctypes.byref(ctypes.c_int32(1)), ctypes.byref(ctypes.c_int32(1)),
-                        ctypes.byref(ctypes.c_int32(2)), ctypes.byref(ctypes.c_int32(phase)),
-                        ctypes.byref(ctypes.c_int32(n)), data.ctypes.data_as(ctypes.c_void_p),
-                        ia.ctypes.data_as(int_p), ja.ctypes.data_as(int_p),
-                        perm.ctypes.data_as(int_p),
-                        ctypes.byref(ctypes.c_int32(1 if b.ndim == 1 else b.shape[1])),
-                        iparm.ctypes.data_as(int_p), ctypes.byref(ctypes.c_int32(0)),
-                        b.ctypes.data_as(ctypes.c_void_p), x.ctypes.data_as(ctypes.c_void_p),
-                        ctypes.byref(err))
-        finally:
-            if set_threads:
-                set_threads(old)
-        if err.value:
-            raise FactorizationError(f"PARDISO phase {phase}: error {err.value}, "
-                                     f"{_PARDISO_ERRORS.get(err.value, 'unknown')}")
+    def __init__(self, upper: sp.csr_matrix, components: np.ndarray | None, threads: int):
+        if upper.nnz >= 2**31:
+            raise FactorizationError(f"{upper.nnz} nonzeros exceed PARDISO's 32-bit indices")
+        self.lib = _mkl()
+        self.n = upper.shape[0]
+        self.threads = threads
+        self.ia = (upper.indptr + 1).astype(np.int32)
+        self.ja = (upper.indices + 1).astype(np.int32)
+        self.data = np.ascontiguousarray(upper.data, dtype=np.float64)
+        self.pt = np.zeros(64, dtype=np.int64)          # PARDISO's internal pointer "pt"
+        self.iparm = iparm = np.zeros(64, dtype=np.int32)
+        iparm[0] = 1            # iparm(1): our own settings, not the defaults
+        iparm[1] = 2            # iparm(2): METIS nested dissection
+        iparm[7] = 0            # iparm(8): no iterative refinement inside the solve
+        iparm[17] = -1          # iparm(18): report nnz of the factor
+        self.perm = np.zeros(self.n, dtype=np.int32)
+        if components is not None:
+            iparm[30] = 1       # iparm(31): sparse right-hand sides, selected components
+            self.perm[components] = 1
+        self.analysed = False
+        weakref.finalize(self, _pardiso_release, self.lib, self.pt, self.n, self.ia, self.ja,
+                         self.perm, self.iparm)
 
-    t0 = time.perf_counter()
-    call(12, np.zeros(n), np.zeros(n))             # ordering + numerical factorisation
-    factor_time = time.perf_counter() - t0
-    # free PARDISO's memory when the factorisation is garbage collected
-    release = (lambda: call(-1, np.zeros(0), np.zeros(0)))
+    def call(self, phase: int, b: np.ndarray, x: np.ndarray) -> None:
+        _pardiso_call(self.lib, self.pt, phase, self.n, self.data, self.ia, self.ja, self.perm,
+                      self.iparm, b, x, self.threads)
 
-    def solve(b: np.ndarray, partial: bool) -> np.ndarray:
-        iparm[30] = 1 if partial else 0
+    def factor(self, phase: int) -> float:
+        """Phase 12 (ordering, symbolic and numerical factorisation) or 22 (numerical only,
+        on the analysis kept from an earlier phase 12); its seconds."""
+        t0 = time.perf_counter()
+        self.call(phase, np.zeros(self.n), np.zeros(self.n))
+        self.analysed = True
+        return time.perf_counter() - t0
+
+    def solve(self, b: np.ndarray, partial: bool) -> np.ndarray:
+        self.iparm[30] = 1 if partial else 0
         rhs = np.asfortranarray(b)
         x = np.zeros_like(rhs)
-        call(33, rhs, x)
+        self.call(33, rhs, x)
         return np.ascontiguousarray(x)
 
-    result = Cholesky(backend="pardiso", n=n, fill=int(iparm[17]), factor_time=factor_time,
-                      components=components, _solve=solve)
-    weakref.finalize(result, release)
-    return result
+
+def _pardiso_call(lib, pt, phase, n, data, ia, ja, perm, iparm, b, x, threads) -> None:
+    err = ctypes.c_int32(0)
+    int_p = ctypes.POINTER(ctypes.c_int32)
+    set_threads = getattr(lib, "MKL_Set_Num_Threads_Local", None)
+    old = set_threads(ctypes.c_int(threads)) if set_threads else None
+    try:
+        lib.pardiso(pt.ctypes.data_as(ctypes.POINTER(ctypes.c_int64)),
+                    ctypes.byref(ctypes.c_int32(1)), ctypes.byref(ctypes.c_int32(1)),
+                    ctypes.byref(ctypes.c_int32(2)), ctypes.byref(ctypes.c_int32(phase)),
+                    ctypes.byref(ctypes.c_int32(n)), data.ctypes.data_as(ctypes.c_void_p),
+                    ia.ctypes.data_as(int_p), ja.ctypes.data_as(int_p),
+                    perm.ctypes.data_as(int_p),
+                    ctypes.byref(ctypes.c_int32(1 if b.ndim == 1 else b.shape[1])),
+                    iparm.ctypes.data_as(int_p), ctypes.byref(ctypes.c_int32(0)),
+                    b.ctypes.data_as(ctypes.c_void_p), x.ctypes.data_as(ctypes.c_void_p),
+                    ctypes.byref(err))
+    finally:
+        if set_threads:
+            set_threads(old)
+    if err.value:
+        raise FactorizationError(f"PARDISO phase {phase}: error {err.value}, "
+                                 f"{_PARDISO_ERRORS.get(err.value, 'unknown')}")
+
+
+def _pardiso_release(lib, pt, n, ia, ja, perm, iparm) -> None:
+    """Free PARDISO's memory (phase -1)."""
+    _pardiso_call(lib, pt, -1, n, np.zeros(0), ia, ja, perm, iparm, np.zeros(0),
+                  np.zeros(0), 1)
+
+
+def _upper(A: sp.csr_matrix) -> sp.csr_matrix:
+    upper = sp.triu(A, format="csr")
+    upper.sort_indices()
+    return upper
+
+
+def _pardiso(A: sp.csr_matrix, components: np.ndarray | None, threads: int) -> Cholesky:
+    handle = _PardisoHandle(_upper(A), components, threads)
+    factor_time = handle.factor(12)
+    return Cholesky(backend="pardiso", n=handle.n, fill=int(handle.iparm[17]),
+                    factor_time=factor_time, components=components, _solve=handle.solve)
+
+
+class SamePatternCholesky:
+    """Factorisations of a sequence of SPD matrices that share one sparsity pattern, each
+    replacing the one before: PARDISO's ordering and symbolic analysis once per pattern,
+    then only the numerical factorisation (phase 22) of each new matrix's values.
+
+    Made for the truncated coarsest operator of TNNMG
+    (:class:`solvers.kernels.tnnmg_correction.TruncatedHierarchy`), whose values change
+    at every change of the truncation and whose pattern does not
+    (:class:`~solvers.kernels.tnnmg_correction.UpdatedOperator` keeps explicit zeros
+    where updates go). A matrix of another pattern is analysed anew. Needs MKL
+    (:func:`available_backends`); one thread (bitwise reproducible).
+    """
+
+    def __init__(self):
+        if _mkl() is None:
+            raise ValueError("SamePatternCholesky needs Intel MKL (pip install mkl; x86-64 "
+                             "only); use factorize(A, backend='splu')")
+        self.handle: _PardisoHandle | None = None
+        self.pattern: tuple[np.ndarray, np.ndarray] | None = None
+        self.upper: np.ndarray | None = None        # positions of A's upper triangle
+        self.analyses = 0                            # patterns analysed so far
+
+    def factorize(self, A: sp.spmatrix) -> Cholesky:
+        """The factorisation of ``A`` (both triangles stored); the previous one's solve is
+        no longer valid.
+
+        Raises
+        ------
+        FactorizationError
+            ``A`` is not positive definite; the next call may try again.
+        """
+        A = sp.csr_matrix(A)
+        if not A.has_canonical_format:
+            A = A.copy()
+            A.sum_duplicates()
+        same = (self.pattern is not None and self.handle is not None and self.handle.analysed
+                and np.array_equal(A.indptr, self.pattern[0])
+                and np.array_equal(A.indices, self.pattern[1]))
+        if same:
+            self.handle.data[:] = A.data[self.upper]
+            phase = 22
+        else:
+            rows = np.repeat(np.arange(A.shape[0]), np.diff(A.indptr))
+            self.upper = np.flatnonzero(A.indices >= rows)
+            self.pattern = (A.indptr.copy(), A.indices.copy())
+            counts = np.bincount(rows[self.upper], minlength=A.shape[0])
+            upper = sp.csr_matrix((A.data[self.upper], A.indices[self.upper],
+                                   np.r_[0, np.cumsum(counts)]), shape=A.shape)
+            self.handle = _PardisoHandle(upper, None, 1)
+            self.analyses += 1
+            phase = 12
+        factor_time = self.handle.factor(phase)
+        return Cholesky(backend="pardiso", n=self.handle.n, fill=int(self.handle.iparm[17]),
+                        factor_time=factor_time, components=None, _solve=self.handle.solve)
 
 
 # -- SciPy SuperLU -------------------------------------------------------------

@@ -29,25 +29,40 @@ from pyamg.relaxation.relaxation import gauss_seidel
 
 from problems.qp import ContactQP
 from solvers.kernels.block_gs import FIXED, FREE, with_pattern
-from solvers.kernels.cholesky import FactorizationError, factorize
+from solvers.kernels.cholesky import (FactorizationError, SamePatternCholesky,
+                                      available_backends, factorize)
 from solvers.kernels.tnnmg_system import FineSystem
 
-#: The truncated coarsest operator's direct solver, factorised anew at every change of the
-#: truncation: SuperLU up to this many unknowns (the coarsest levels of the thesis's scenes
-#: and their variants), the Cholesky kernel above (PARDISO: its nested-dissection ordering
-#: keeps a 3D operator's fill down, where SuperLU's grows; hertz_mindlin's graded level 0).
-COARSE_SPLU_MAX = 5000
+class CoarseFactor:
+    """The truncated coarsest operator's direct solver, factorised anew at every change of
+    the truncation (:meth:`TruncatedHierarchy.truncate`).
 
+    The truncation changes the operator's values, not its pattern
+    (:class:`UpdatedOperator` keeps explicit zeros where updates go), so where MKL is
+    present the ordering and symbolic analysis are kept and each change pays only the
+    numerical factorisation (:class:`solvers.kernels.cholesky.SamePatternCholesky`);
+    SuperLU where MKL is absent, and for a semidefinite operator (a body held by nothing
+    yet), which the Cholesky kernel refuses.
+    """
 
-def coarse_factor(A: sp.spmatrix) -> Callable[[np.ndarray], np.ndarray]:
-    """The solve of the truncated coarsest operator ``A`` (:data:`COARSE_SPLU_MAX`); a
-    semidefinite one (a body held by nothing yet) by SuperLU at any size."""
-    if A.shape[0] > COARSE_SPLU_MAX:
-        try:
-            return factorize(A).solve
-        except FactorizationError:
-            pass
-    return spla.splu(sp.csc_matrix(A)).solve
+    def __init__(self):
+        self.cholesky = SamePatternCholesky() if "pardiso" in available_backends() else None
+        self.superlu = 0          # factorisations by SuperLU
+
+    @property
+    def analyses(self) -> int:
+        """Factorisations that ordered and analysed the operator anew (SuperLU's all)."""
+        return self.superlu + (self.cholesky.analyses if self.cholesky is not None else 0)
+
+    def __call__(self, A: sp.spmatrix) -> Callable[[np.ndarray], np.ndarray]:
+        """The solve of ``A``; the previous call's solve is no longer valid."""
+        if self.cholesky is not None:
+            try:
+                return self.cholesky.factorize(A).solve
+            except FactorizationError:
+                pass
+        self.superlu += 1
+        return spla.splu(sp.csc_matrix(A)).solve
 
 
 def positions(M: sp.csr_matrix, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
@@ -124,6 +139,8 @@ class TruncatedHierarchy:
     truncate_coarse: bool
     patch: np.ndarray | None = None    # unknowns of the contact patch (None: no patch solve)
     truncatable: np.ndarray | None = None  # unknowns that may be truncated (None: the pivots)
+    curvature_places: sp.spmatrix | None = None  # every place of a fine-level curvature
+                                       # (SlipCurvature.places; None: no curvature)
     frozen: np.ndarray | None = None   # the truncated unknowns
     A_t: list = field(default_factory=list)
     coarse_solve: Callable | None = None
@@ -134,29 +151,45 @@ class TruncatedHierarchy:
     patch_solve: Callable | None = None
     coarse_ops: list = field(default_factory=list)
     coarse_R: list = field(default_factory=list)
+    coarse_factor: CoarseFactor = field(default_factory=CoarseFactor)
 
     def __post_init__(self, A_coarse):
         self.coarse_R = [sp.csr_matrix(Pl.T) for Pl in self.coarse_P]  # restrictions, once
         pivots = self.fine.box.pivot if self.truncatable is None else self.truncatable
-        patterns = (self._deltas(pivots) if self.truncate_coarse and self.P is not None
-                    and pivots.size else [None] * len(A_coarse))
+        patterns = (self._deltas(pivots, self.curvature_places, places=True)
+                    if self.truncate_coarse and self.P is not None and pivots.size
+                    else [None] * len(A_coarse))
         self.coarse_ops = [UpdatedOperator(M, d) for M, d in zip(A_coarse, patterns)]
 
-    def _deltas(self, E: np.ndarray, curvature: sp.spmatrix | None = None) -> list:
+    def _deltas(self, E: np.ndarray, curvature: sp.spmatrix | None = None,
+                places: bool = False) -> list:
         """The truncation's change of each coarse operator when the pivots ``E`` are
         truncated: ``Y'A~_EE Y - Y'X - X'Y`` (:mod:`solvers.tnnmg`), plus ``P~' K P~`` for a
         fine-level ``curvature`` ``K`` added to ``A~`` off ``E``
-        (:class:`solvers.kernels.tnnmg_tresca.SlipCurvature`), and its Galerkin products."""
-        Y = self.P[E]
-        A_E = self.fine.rows(E)
-        X = A_E @ self.P
+        (:class:`solvers.kernels.tnnmg_tresca.SlipCurvature`), and its Galerkin products.
+
+        ``places=True``: every place a change can take, not its value: the same products
+        of the matrices' absolute values, summed (no cancellation drops a place), for
+        :class:`UpdatedOperator`'s pattern; ``curvature`` then the pattern of every ``K``.
+        """
+        P, A_E = self.P, self.fine.rows(E)
+        coarse_P, coarse_R = self.coarse_P, self.coarse_R
+        if places:
+            P, A_E, coarse_P, coarse_R = abs(P), abs(A_E), [abs(M) for M in coarse_P], \
+                [abs(M) for M in coarse_R]
+            curvature = None if curvature is None else abs(sp.csr_matrix(curvature))
+        Y = P[E]
+        X = A_E @ P
         Yt = Y.T.tocsr()
         YtX = Yt @ X
-        delta = Yt @ (A_E[:, E] @ Y) - YtX - YtX.T.tocsr()
+        if places:
+            delta = Yt @ (A_E[:, E] @ Y) + YtX + YtX.T.tocsr()
+        else:
+            delta = Yt @ (A_E[:, E] @ Y) - YtX - YtX.T.tocsr()
         if curvature is not None:
-            delta = delta + sp.csr_matrix(self.P.T @ (curvature @ self.P))
+            delta = delta + sp.csr_matrix(P.T @ (curvature @ P))
         deltas = [delta]
-        for Pl, Rl in zip(reversed(self.coarse_P), reversed(self.coarse_R)):
+        for Pl, Rl in zip(reversed(coarse_P), reversed(coarse_R)):
             deltas.append(Rl @ (deltas[-1] @ Pl))
         return deltas
 
@@ -213,7 +246,7 @@ class TruncatedHierarchy:
                   if self.truncate_coarse and (E.size or curvature is not None)
                   else [None] * len(self.coarse_ops))
         self.A_t = [op.set(delta) for op, delta in zip(self.coarse_ops, deltas)]
-        self.coarse_solve = coarse_factor(self.A_t[-1])
+        self.coarse_solve = self.coarse_factor(self.A_t[-1])
 
     def vcycle(self, r: np.ndarray, sweeps: int | None = None) -> np.ndarray:
         """One V(sweeps, sweeps)-cycle for the truncated system, zero start; ``r`` is zero
@@ -264,7 +297,8 @@ def contact_patch(qp: ContactQP, fine: FineSystem, hops: int) -> np.ndarray | No
 
 
 def hierarchy(qp: ContactQP, fine: FineSystem, sweeps: int, truncate_coarse: bool, hops: int,
-              truncatable: np.ndarray | None = None) -> TruncatedHierarchy:
+              truncatable: np.ndarray | None = None,
+              curvature_places: sp.spmatrix | None = None) -> TruncatedHierarchy:
     prolongations = [sp.csr_matrix(P) for P in qp.multilevel.prolongations]
     if not prolongations:
         return TruncatedHierarchy(fine, None, [], [], sweeps, truncate_coarse,
@@ -277,7 +311,7 @@ def hierarchy(qp: ContactQP, fine: FineSystem, sweeps: int, truncate_coarse: boo
         mats.append(sp.csr_matrix(sp.csr_matrix(Pl.T) @ (mats[-1] @ Pl)))
     mats = mats[1:]
     return TruncatedHierarchy(fine, P, prolongations[:-1], mats, sweeps, truncate_coarse,
-                              contact_patch(qp, fine, hops), truncatable)
+                              contact_patch(qp, fine, hops), truncatable, curvature_places)
 
 
 @dataclass

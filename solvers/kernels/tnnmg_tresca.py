@@ -362,6 +362,7 @@ class SlipCurvature:
     base: np.ndarray               # fine.C.data without K
     block_ptr: np.ndarray          # the constrained node blocks, for block_inverses
     block_dofs: np.ndarray
+    places: sp.csr_matrix          # every place of K: the tangential unknowns' blocks
 
     @classmethod
     def build(cls, fine: FineSystem) -> "SlipCurvature":
@@ -384,7 +385,7 @@ class SlipCurvature:
         lin = FineSystem(fine.A, C, fine.f, box, fine.diag0.copy(), fine.inv_full.copy(),
                          fine.inv_sub.copy(), blocks, fine.upper_block, tresca=term)
         return cls(lin, positions(C, rows, cols).reshape(-1, k, k), C.data.copy(),
-                   block_ptr, block_dofs)
+                   block_ptr, block_dofs, pattern)
 
     def set(self, v: np.ndarray, stick: np.ndarray) -> sp.csr_matrix:
         """Put the curvature of the iterate ``v`` (slipping nodes: not ``stick``) into the
