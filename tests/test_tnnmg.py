@@ -322,6 +322,37 @@ def test_the_coarse_factor_is_analysed_once_per_solve(monkeypatch):
         assert factor.superlu == before + 1
 
 
+def test_the_exact_truncated_solve_keeps_one_pattern():
+    """Without a hierarchy (level 0) the truncated system is solved exactly: ``A~`` with
+    the rows and columns of ``E`` the identity's, one pattern for every ``E`` (analysed
+    once per solve with MKL), its solve that of the free block, zero on ``E``."""
+    from solvers.kernels.cholesky import available_backends
+    from solvers.kernels.tnnmg_correction import TruncatedOperator
+    from solvers.kernels.tnnmg_system import fine_system
+
+    qp = _build("circle_square", 0, {})
+    assert not qp.multilevel.prolongations
+    res = solve(qp, solver="tnnmg", tol="high")
+    assert res.status == "converged", res.message
+    assert res.stats["truncation_updates"] >= 2
+    mkl = "pardiso" in available_backends()
+    assert res.stats["coarse_analyses"] == (1 if mkl else res.stats["truncation_updates"])
+
+    fine = fine_system(qp)
+    op = TruncatedOperator(fine)
+    A_t = (fine.A + fine.C).tocsr()
+    rng = np.random.default_rng(1)
+    r = rng.standard_normal(qp.n)
+    for E in (fine.box.pivot[::2], fine.box.pivot[1::3]):
+        M = op.set(E)
+        assert M.nnz == op.work.nnz and M is op.work          # one pattern, changed in place
+        free = np.setdiff1d(np.arange(qp.n), E)
+        x = sp.linalg.spsolve(M.tocsc(), r)
+        x_free = sp.linalg.spsolve(A_t[free][:, free].tocsc(), r[free])
+        np.testing.assert_allclose(x[free], x_free, rtol=0, atol=1e-12 * np.abs(x_free).max())
+        np.testing.assert_array_equal(x[E], r[E])
+
+
 def test_the_time_to_target_keeps_the_verification_apart():
     """TNNMG's history stamps the verification's running time beside every step's
     (``t_verify``, part of ``time``, the certificate's factorisation of A included);

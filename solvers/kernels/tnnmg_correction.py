@@ -126,6 +126,50 @@ class UpdatedOperator:
         return work
 
 
+class TruncatedOperator:
+    """``A~`` truncated at ``E`` for the exact truncated solve (no hierarchy): the rows and
+    columns of ``E`` replaced by the identity's, in one pattern for every ``E`` (``A~``'s
+    own, the update ``C``'s places included), so that :class:`CoarseFactor` keeps its
+    analysis across changes of ``E``; the solve's other components are those of the
+    free block's. Reads ``C``'s values at every :meth:`set` (a curvature may change
+    them, never its places)."""
+
+    def __init__(self, fine: FineSystem):
+        A, C = canonical(fine.A), canonical(fine.C)
+        self.fine = fine
+        self.work = with_pattern(A, C)
+        self.base = self.work.data.copy()             # A's values, zeros at C's places
+        c = sp.coo_matrix(fine.C)                     # in the order of fine.C.data
+        self.c_places = positions(self.work, c.row, c.col)
+        n = A.shape[0]
+        self.diag = positions(self.work, np.arange(n), np.arange(n))
+        self.row = np.repeat(np.arange(n), np.diff(self.work.indptr))
+
+    def set(self, E: np.ndarray) -> sp.csr_matrix:
+        """``A~`` with the rows and columns of ``E`` the identity's (the returned matrix is
+        the one the next call changes)."""
+        work = self.work
+        work.data[:] = self.base
+        np.add.at(work.data, self.c_places, self.fine.C.data)
+        frozen = np.zeros(work.shape[0], dtype=bool)
+        frozen[E] = True
+        work.data[frozen[self.row] | frozen[work.indices]] = 0.0
+        work.data[self.diag[E]] = 1.0
+        return work
+
+
+def canonical(M: sp.spmatrix) -> sp.csr_matrix:
+    """``M`` as sorted CSR without duplicates; ``M`` itself where it is one already (a copy
+    otherwise: the caller's arrays are never reordered)."""
+    M = sp.csr_matrix(M)
+    if M.has_canonical_format:
+        return M
+    M = M.copy()
+    M.sum_duplicates()
+    M.sort_indices()
+    return M
+
+
 @dataclass
 class TruncatedHierarchy:
     """The V-cycle of the truncated linear correction (:mod:`solvers.tnnmg`, step 2)."""
@@ -152,6 +196,7 @@ class TruncatedHierarchy:
     coarse_ops: list = field(default_factory=list)
     coarse_R: list = field(default_factory=list)
     coarse_factor: CoarseFactor = field(default_factory=CoarseFactor)
+    exact: "TruncatedOperator | None" = None  # without a hierarchy: A~ truncated
 
     def __post_init__(self, A_coarse):
         self.coarse_R = [sp.csr_matrix(Pl.T) for Pl in self.coarse_P]  # restrictions, once
@@ -227,18 +272,13 @@ class TruncatedHierarchy:
         if self.patch is not None and self.P is not None:
             self._update_patch(E)
         if self.P is None:                       # no hierarchy: exact truncated solve
-            keep = np.ones(fine.A.shape[0], dtype=bool)
-            keep[E] = False
-            idx = np.flatnonzero(keep)
-            A_free = fine.rows(idx)[:, idx]
-            try:
-                factor = factorize(A_free).solve
-            except FactorizationError:         # semidefinite (a body held by nothing yet)
-                factor = spla.splu(sp.csc_matrix(A_free)).solve
+            if self.exact is None:
+                self.exact = TruncatedOperator(fine)
+            factor = self.coarse_factor(self.exact.set(E))
 
             def solve(r):
-                out = np.zeros_like(r)
-                out[idx] = factor(r[idx])
+                out = factor(r)
+                out[E] = 0.0
                 return out
             self.coarse_solve = solve
             return
