@@ -35,8 +35,18 @@ def comparable(frame: pd.DataFrame) -> pd.DataFrame:
     frame = frame[[c for c in frame.columns if not TIMING.search(str(c))]]
     if "claim" in frame.columns:
         frame = frame[~frame["claim"].astype(str).str.contains(TIMING_CLAIM)]
-    return frame.sort_values(list(frame.columns), key=lambda c: c.astype(str)).reset_index(
-        drop=True)
+    keys = [c for c in frame.columns if not measured(frame[c])]
+    order = keys + [c for c in frame.columns if c not in keys]
+    return frame.sort_values(order, key=lambda c: c.astype(str)).reset_index(drop=True)
+
+
+def measured(column: pd.Series) -> bool:
+    """Whether ``column`` holds measured reals (numbers, some not integers; blanks aside):
+    sorted on after the others, so that two checkouts whose results differ in the last
+    digits still pair the same rows (a scene, a level, a solver, a start, a count)."""
+    values = pd.to_numeric(column.replace("", None), errors="coerce")
+    given = column.astype(str) != ""
+    return bool(values[given].notna().all() and (values[given] % 1 != 0).any())
 
 
 def tables(root: Path) -> set[Path]:
