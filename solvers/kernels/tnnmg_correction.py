@@ -33,6 +33,7 @@ from solvers.kernels.cholesky import (FactorizationError, SamePatternCholesky,
                                       available_backends, factorize)
 from solvers.kernels.tnnmg_system import FineSystem
 
+
 class CoarseFactor:
     """The truncated coarsest operator's direct solver, factorised anew at every change of
     the truncation (:meth:`TruncatedHierarchy.truncate`).
