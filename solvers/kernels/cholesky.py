@@ -247,14 +247,31 @@ def _pardiso_release(lib, pt, n, ia, ja, perm, iparm) -> None:
                   np.zeros(0), 1)
 
 
-def _upper(A: sp.csr_matrix) -> sp.csr_matrix:
-    upper = sp.triu(A, format="csr")
-    upper.sort_indices()
-    return upper
+def canonical(M: sp.spmatrix) -> sp.csr_matrix:
+    """``M`` as sorted CSR without duplicates; ``M`` itself where it is one already (a copy
+    otherwise: the caller's arrays are never reordered)."""
+    M = sp.csr_matrix(M)
+    if M.has_canonical_format:
+        return M
+    M = M.copy()
+    M.sum_duplicates()
+    M.sort_indices()
+    return M
+
+
+def upper_triangle(A: sp.csr_matrix) -> tuple[sp.csr_matrix, np.ndarray]:
+    """The upper triangle of the canonical ``A`` (explicit zeros kept) and the positions of
+    its entries in ``A.data``."""
+    rows = np.repeat(np.arange(A.shape[0]), np.diff(A.indptr))
+    places = np.flatnonzero(A.indices >= rows)
+    counts = np.bincount(rows[places], minlength=A.shape[0])
+    upper = sp.csr_matrix((A.data[places], A.indices[places], np.r_[0, np.cumsum(counts)]),
+                          shape=A.shape)
+    return upper, places
 
 
 def _pardiso(A: sp.csr_matrix, components: np.ndarray | None, threads: int) -> Cholesky:
-    handle = _PardisoHandle(_upper(A), components, threads)
+    handle = _PardisoHandle(upper_triangle(canonical(A))[0], components, threads)
     factor_time = handle.factor(12)
     return Cholesky(backend="pardiso", n=handle.n, fill=int(handle.iparm[17]),
                     factor_time=factor_time, components=components, _solve=handle.solve)
@@ -291,10 +308,7 @@ class SamePatternCholesky:
         FactorizationError
             ``A`` is not positive definite; the next call may try again.
         """
-        A = sp.csr_matrix(A)
-        if not A.has_canonical_format:
-            A = A.copy()
-            A.sum_duplicates()
+        A = canonical(A)
         same = (self.pattern is not None and self.handle is not None and self.handle.analysed
                 and np.array_equal(A.indptr, self.pattern[0])
                 and np.array_equal(A.indices, self.pattern[1]))
@@ -302,12 +316,8 @@ class SamePatternCholesky:
             self.handle.data[:] = A.data[self.upper]
             phase = 22
         else:
-            rows = np.repeat(np.arange(A.shape[0]), np.diff(A.indptr))
-            self.upper = np.flatnonzero(A.indices >= rows)
+            upper, self.upper = upper_triangle(A)
             self.pattern = (A.indptr.copy(), A.indices.copy())
-            counts = np.bincount(rows[self.upper], minlength=A.shape[0])
-            upper = sp.csr_matrix((A.data[self.upper], A.indices[self.upper],
-                                   np.r_[0, np.cumsum(counts)]), shape=A.shape)
             self.handle = _PardisoHandle(upper, None, 1)
             self.analyses += 1
             phase = 12

@@ -30,7 +30,7 @@ from pyamg.relaxation.relaxation import gauss_seidel
 from problems.qp import ContactQP
 from solvers.kernels.block_gs import FIXED, FREE, with_pattern
 from solvers.kernels.cholesky import (FactorizationError, SamePatternCholesky,
-                                      available_backends, factorize)
+                                      available_backends, canonical, factorize)
 from solvers.kernels.tnnmg_system import FineSystem
 
 
@@ -91,14 +91,9 @@ class UpdatedOperator:
     and the coarse solve stay defined. It owns ``base``: its values change in place."""
 
     def __init__(self, base: sp.csr_matrix, pattern: sp.spmatrix | None = None):
-        work = sp.csr_matrix(base)
-        work.sum_duplicates()
-        work.sort_indices()
+        work = canonical(base)
         if pattern is not None:               # explicit zeros where updates will go
-            pattern = sp.csr_matrix(pattern)
-            pattern.sum_duplicates()
-            pattern.sort_indices()
-            work = with_pattern(work, pattern)
+            work = with_pattern(work, canonical(pattern))
         self.work = work
         self.dead_below = 1e-14 * max(float(np.max(work.diagonal(), initial=0.0)), 1e-300)
         self.touched = np.zeros(0, dtype=np.int64)
@@ -157,18 +152,6 @@ class TruncatedOperator:
         work.data[frozen[self.row] | frozen[work.indices]] = 0.0
         work.data[self.diag[E]] = 1.0
         return work
-
-
-def canonical(M: sp.spmatrix) -> sp.csr_matrix:
-    """``M`` as sorted CSR without duplicates; ``M`` itself where it is one already (a copy
-    otherwise: the caller's arrays are never reordered)."""
-    M = sp.csr_matrix(M)
-    if M.has_canonical_format:
-        return M
-    M = M.copy()
-    M.sum_duplicates()
-    M.sort_indices()
-    return M
 
 
 @dataclass
