@@ -192,6 +192,12 @@ class Multilevel:
     extrusion : Extrusion or None
         The layers of an extruded mesh, supplied by the scene (semicoarsening
         multigrid where there is no refinement hierarchy).
+    prescribed_prolongation : sparse or None
+        ``(n, N_c dim)``: the last prolongation's share of the coarser level's
+        prescribed values, from its full nodal vector (``u_fixed``, node-major) to
+        the free DOFs; zero columns at its free DOFs. The free nodes next to the
+        Dirichlet boundary take part of their interpolated value from it
+        (:func:`prolongate_displacement`).
     """
 
     prolongations: list = field(default_factory=list)
@@ -199,6 +205,7 @@ class Multilevel:
     body_of_dof: np.ndarray | None = None
     surface: SurfaceHierarchy | None = None
     extrusion: Extrusion | None = None
+    prescribed_prolongation: sp.spmatrix | None = None
 
 
 @dataclass(frozen=True)
@@ -488,6 +495,9 @@ class ContactQP:
         if ml.prolongations and ml.prolongations[-1].shape[0] != n:
             raise QPValidationError(f"multilevel.prolongations[-1] must end on the {n} unknowns, "
                                     f"got shape {ml.prolongations[-1].shape}")
+        if ml.prescribed_prolongation is not None and ml.prescribed_prolongation.shape[0] != n:
+            raise QPValidationError(f"multilevel.prescribed_prolongation must end on the {n} "
+                                    f"unknowns, got shape {ml.prescribed_prolongation.shape}")
         if ml.surface is not None:
             s = ml.surface
             if len(s.masses) != len(s.sizes) or len(s.prolongations) != len(s.masses) - 1:
@@ -568,3 +578,40 @@ def surface_pressure(qp: ContactQP, p: np.ndarray) -> np.ndarray:
     """Nodal contact pressure at the constrained nodes: :func:`surface_multipliers`
     turned into a pressure by :meth:`ContactSurface.pressure`."""
     return qp.contact.pressure(surface_multipliers(qp, p))
+
+
+def prolongate_displacement(qp_coarse: ContactQP, u: np.ndarray, qp_fine: ContactQP,
+                            ) -> np.ndarray:
+    """The coarser level's displacement ``u`` interpolated on ``qp_fine``'s free DOFs,
+    prescribed values included: ``P u + P_D u_fixed`` (the start of nested iteration,
+    Alg. 8.5).
+
+    ``P = qp_fine.multilevel.prolongations[-1]`` carries the coarse free DOFs and
+    ``P_D = qp_fine.multilevel.prescribed_prolongation`` the coarse prescribed values
+    (``qp_coarse.u_fixed``): a fine free node on an edge with one Dirichlet end takes
+    half its value from that end. Without ``P_D`` the start would carry the Dirichlet
+    lift's layer along the boundary as error, the same at every level. A fine problem
+    without ``P_D`` (built elsewhere, or loaded from an export) gets ``P u``.
+
+    Raises
+    ------
+    ValueError
+        ``qp_fine`` has no prolongations, or they do not start on ``qp_coarse``'s
+        unknowns and prescribed values.
+    """
+    ml = qp_fine.multilevel
+    if not ml.prolongations:
+        raise ValueError("parameter 'qp_fine': multilevel.prolongations are required")
+    P = ml.prolongations[-1]
+    if P.shape != (qp_fine.n, qp_coarse.n):
+        raise ValueError(f"prolongation has shape {P.shape}, expected "
+                         f"{(qp_fine.n, qp_coarse.n)}: not consecutive levels of one scene")
+    u0 = P @ np.asarray(u, dtype=float)
+    P_D = ml.prescribed_prolongation
+    if P_D is None:
+        return u0
+    if qp_coarse.u_fixed is None or P_D.shape[1] != np.size(qp_coarse.u_fixed):
+        raise ValueError(f"prescribed prolongation has shape {P_D.shape}, expected "
+                         f"{qp_fine.n} x {np.size(qp_coarse.u_fixed)} (the coarser level's "
+                         "u_fixed): not consecutive levels of one scene")
+    return u0 + P_D @ qp_coarse.u_fixed

@@ -818,7 +818,8 @@ def nested_initial_guess(qp_coarse: ContactQP, result_coarse, qp_fine: ContactQP
                          ) -> tuple[np.ndarray, np.ndarray]:
     """Initial guess on level L from the solution on level L-1 (Alg. 8.5, Sect. 8.6).
 
-    ``u0 = P u_{L-1}`` with ``P = qp_fine.multilevel.prolongations[-1]``;
+    ``u0 = P u_{L-1} + P_D u_fixed`` (:func:`problems.qp.prolongate_displacement`: the
+    coarse displacement interpolated with its prescribed values);
     ``p0 = M_L Prolongate(M_{L-1}^{-1} p_{L-1})``: the pressure
     ``p / contact mass`` is a grid function on the constrained surface,
     prolongated with the surface prolongation of the last mesh level and

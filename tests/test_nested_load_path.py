@@ -1,7 +1,7 @@
 """Nested iteration over a frictional load path
 (:func:`solvers.kernels.tresca.run_nested_load_path`): each solve on a finer level starts
 from its own last answer plus the coarser level's
-prolongated change over the same solve; the answers are those of the plain path (only the
+change over the same solve, interpolated with its prescribed values; the answers are those of the plain path (only the
 start differs); Coulomb's law is refused with the reason; the tangential step's scale is
 recovered exactly (:func:`solvers.kernels.tresca.tangential_scale`)."""
 from __future__ import annotations
@@ -33,10 +33,11 @@ def test_the_tangential_scale_is_recovered_exactly():
 
 def test_nested_path_starts_from_the_prolongated_change_and_reaches_the_same_answer():
     qps = _levels((0, 1))
-    starts, results = [], []
+    starts, results, step_qps = [], [], []
 
     def step(step_qp, start):
         starts.append(start)
+        step_qps.append(step_qp)
         res = solve(step_qp, "tnnmg", tol="high", **warm_start(start))
         results.append(res)
         return res
@@ -48,12 +49,21 @@ def test_nested_path_starts_from_the_prolongated_change_and_reaches_the_same_ans
         [r["tresca_solves"] for r in runs[1].records]
     coarse, fine = results[:n], results[n:]
     P = qps[1].multilevel.prolongations[-1]
+    P_D = qps[1].multilevel.prescribed_prolongation
+    # the coarse steps' own prescribed values: the tangential step moves the held part
+    fixed = [q.u_fixed for q in step_qps[:n]]
+    assert np.abs(fixed[-1] - fixed[0]).max() > 0
+    interpolate = lambda i: P @ coarse[i].u + P_D @ fixed[i]
     assert isinstance(starts[n], NestedStart)
-    np.testing.assert_allclose(starts[n].u, P @ coarse[0].u, rtol=0, atol=1e-14)
-    for i in range(1, n):                  # u0 = u_last + P (u_c,i - u_c,i-1)
-        expected = fine[i - 1].u + P @ (coarse[i].u - coarse[i - 1].u)
+    np.testing.assert_allclose(starts[n].u, interpolate(0), rtol=0, atol=1e-14)
+    for i in range(1, n):                  # u0 = u_last + I(u_c,i) - I(u_c,i-1)
+        expected = fine[i - 1].u + interpolate(i) - interpolate(i - 1)
         np.testing.assert_allclose(starts[n + i].u, expected, rtol=0, atol=1e-14)
         assert starts[n + i].p is fine[i - 1].p
+    # the prescribed values' share is what brings the start near the answer
+    first = fine[0].u
+    assert energy_error(step_qps[n], starts[n].u, first) < \
+        0.1 * energy_error(step_qps[n], P @ coarse[0].u, first)
     # the coarsest level runs as a warm path does
     assert starts[0] is None and all(s is r for s, r in zip(starts[1:n], coarse))
     plain = run_load_path(qps[1], lambda q, s: solve(q, "tnnmg", tol="high",

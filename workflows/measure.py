@@ -20,6 +20,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from problems.kkt import energy_error
+from problems.qp import prolongate_displacement
 from solvers.kernels import multigrid as pc
 from solvers import tnnmg
 from solvers.interface import linear_solver, verify
@@ -320,8 +321,9 @@ def tnnmg_run(qp, u_ref, target: float, time_limit: float, coarse=(), start=None
     ``coarse``: the scene's coarser problems, coarsest first, for nested iteration from
     the coarsest level: each solved by TNNMG until its KKT residuals meet
     :data:`NESTED_TOL` (no certificate: it only gives the next level's start) and
-    prolongated (``u0 = P u_coarse``); their time is ``t_coarse_levels``. ``start``: the
-    initial guess without ``coarse`` (a load path's previous answer; default zero).
+    prolongated with their prescribed values (``u0 = P u_coarse + P_D u_fixed``,
+    :func:`problems.qp.prolongate_displacement`); their time is ``t_coarse_levels``.
+    ``start``: the initial guess without ``coarse`` (a load path's previous answer; default zero).
     """
     ok, reason = tnnmg.supports(qp)
     if not ok:          # a row that says why, at once (the stabilised rows, Sect. 7.5)
@@ -333,7 +335,7 @@ def tnnmg_run(qp, u_ref, target: float, time_limit: float, coarse=(), start=None
     for q_c, q_f in zip(chain[:-1], chain[1:]):
         r_c = tnnmg.solve(q_c, max(target, NESTED_TOL), tnnmg.SOLVER.default_max_iter,
                           time_limit, u0, None, coarse_opts)
-        u0 = q_f.multilevel.prolongations[-1] @ r_c.u
+        u0 = prolongate_displacement(q_c, r_c.u, q_f)
     t_coarse = time.perf_counter() - t0
     rec = {"err": [], "at": [], "overhead": 0.0}
     norm = np.sqrt(max(float(u_ref @ (qp.A @ u_ref)), 0.0)) if u_ref is not None else np.nan

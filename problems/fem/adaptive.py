@@ -33,7 +33,7 @@ from problems.fem.estimators import VARIANTS, estimate
 from problems.fem.mesh import Hierarchy
 from problems.fem.two_body import TwoBodyScene, assemble_two_body
 from problems.kkt import kkt_residuals
-from problems.qp import ContactQP
+from problems.qp import ContactQP, prolongate_displacement
 
 
 #: The adaptive study's variants (Sects. 7.4, 7.5): ``name -> (estimator, discretisation)``.
@@ -144,9 +144,9 @@ def prolongate_solution(qp_coarse: ContactQP, u: np.ndarray, p: np.ndarray, qp_f
     carry most of the load there, and the
     split between the two sets of rows is the stabilised problem's slowest direction.
     ``u0`` is the P1 prolongation of the full nodal displacement (prescribed values
-    included) restricted to the free DOFs when ``node_prolongation`` (stacked
-    nodal P, fine x coarse nodes) is given, else ``P u`` on the free DOFs
-    (``P = qp_fine.multilevel.prolongations[-1]``, uniform levels).
+    included) restricted to the free DOFs: by ``node_prolongation`` (stacked
+    nodal P, fine x coarse nodes) when given, else on uniform levels by
+    :func:`problems.qp.prolongate_displacement` (``P u + P_D u_fixed``).
     """
     ml = qp_fine.multilevel
     if not ml.prolongations or ml.surface is None:
@@ -161,11 +161,7 @@ def prolongate_solution(qp_coarse: ContactQP, u: np.ndarray, p: np.ndarray, qp_f
     pressure = p[:mc_c] / qp_coarse.contact.mass
     p0 = np.maximum(P_s @ pressure, 0.0) * qp_fine.contact.mass
     if node_prolongation is None:
-        P = ml.prolongations[-1]
-        if P.shape != (qp_fine.n, qp_coarse.n):
-            raise ValueError(f"prolongation has shape {P.shape}, expected "
-                             f"{(qp_fine.n, qp_coarse.n)}: not consecutive levels of one scene")
-        u0 = P @ u
+        u0 = prolongate_displacement(qp_coarse, u, qp_fine)
     else:
         u0 = (node_prolongation @ qp_coarse.full_displacement(u)).ravel()[qp_fine.free_dofs]
     if qp_fine.stabilisation is not None:

@@ -299,6 +299,22 @@ def dof_prolongation(node_prolongation: sp.spmatrix, dim: int, free_fine: np.nda
     return P[free_fine][:, free_coarse].tocsr()
 
 
+def prescribed_dof_prolongation(node_prolongation: sp.spmatrix, dim: int,
+                                free_fine: np.ndarray, free_coarse: np.ndarray,
+                                ) -> sp.csr_matrix:
+    """The columns :func:`dof_prolongation` drops: vector-valued P1 prolongation from
+    the coarse prescribed DOFs (columns of the full coarse vector, zero at its free
+    DOFs) to the fine free DOFs, so that ``P u + P_D u_fixed`` interpolates the coarse
+    displacement with its prescribed values.
+    """
+    P = sp.kron(node_prolongation, sp.identity(dim), format="csr")[free_fine]
+    keep = np.ones(P.shape[1])
+    keep[free_coarse] = 0.0
+    P_D = (P @ sp.diags(keep)).tocsr()
+    P_D.eliminate_zeros()
+    return P_D
+
+
 def nested_prolongation(points: np.ndarray, cells: np.ndarray, fine_points: np.ndarray,
                         tol: float = 1e-9) -> sp.csr_matrix:
     """P1 prolongation to a nested refinement whose nodes are coarse nodes or

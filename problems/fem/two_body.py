@@ -35,7 +35,7 @@ from problems.fem.contact import contact_constraints, quadratic_constraints, tan
 from problems.fem.elasticity import (body_force_vector, boundary_facets, dirichlet_split,
                                      lumped_surface_mass, rigid_body_modes, stiffness_matrix,
                                      traction_vector)
-from problems.fem.mesh import Hierarchy, dof_prolongation
+from problems.fem.mesh import Hierarchy, dof_prolongation, prescribed_dof_prolongation
 from problems.fem.quadratic import (FACET_EDGES, body_force_vector_p2, edge_lookup, linear_to_quadratic,
                                     midpoint_supports, quadratic_facets, quadratic_mesh,
                                     stiffness_matrix_p2, surface_mass_p2, traction_vector_p2)
@@ -401,6 +401,8 @@ def assemble_two_body(scene: TwoBodyScene, level: int, name: str = "",
         node_P.append(linear_to_quadratic(quad.n_vertices, quad.edges))
     prolongations = [dof_prolongation(node_P[k], dim, levels[k + 1][4], levels[k][4])
                      for k in range(len(node_P))]
+    prescribed = (prescribed_dof_prolongation(node_P[-1], dim, levels[-1][4], levels[-2][4])
+                  if node_P else None)
     surf = [(nodes, None, mass, size) if k == len(levels) - 1 else
             _constrained_surface(scene, pts_k, cells_k, body_k)
             for k, (pts_k, cells_k, body_k, *_rest) in enumerate(levels)]
@@ -433,7 +435,8 @@ def assemble_two_body(scene: TwoBodyScene, level: int, name: str = "",
                                pressure_map=None if quad is None else
                                quadratic_pressure_map(surface)),
         multilevel=Multilevel(prolongations=prolongations, rigid_body_modes=rbm,
-                              body_of_dof=body_of_dof, surface=surface),
+                              body_of_dof=body_of_dof, surface=surface,
+                              prescribed_prolongation=prescribed),
         hertz=scene.hertz, name=name, units=scene.units, level=level,
     )
 
@@ -472,7 +475,7 @@ def frictional_two_body(scene: Callable[[int, Options], TwoBodyScene], level: in
     qp = steps[0]
     qp.friction.law, qp.friction.mu = p.friction, float(p.mu)
     qp.friction.facets = friction_facets(p, qp.dim)
-    normal, full = (LoadStep(s.f, s.g, s.friction.offset) for s in steps)
+    normal, full = (LoadStep(s.f, s.g, s.friction.offset, s.u_fixed) for s in steps)
     qp.friction.path = (normal, *shift_increments(normal, full, p.shift_steps))
     return qp
 
@@ -480,10 +483,7 @@ def frictional_two_body(scene: Callable[[int, Options], TwoBodyScene], level: in
 def shift_increments(normal: LoadStep, full: LoadStep, count: int) -> tuple[LoadStep, ...]:
     """The tangential steps of a path that applies the shift in ``count`` equal increments:
     step ``j`` the data at ``j / count`` of the way from ``normal`` to ``full`` (a step's
-    ``f``, ``g`` and ``offset`` are affine in the prescribed shift, so this is exact); the
+    data are affine in the prescribed shift, so this is exact: :meth:`LoadStep.toward`); the
     last step is ``full`` itself (``count = 1``: the two-step path as assembled)."""
-    between = tuple(LoadStep(*(a + (j / count) * (b - a) for a, b in
-                               ((normal.f, full.f), (normal.g, full.g),
-                                (normal.offset, full.offset))))
-                    for j in range(1, count))
+    between = tuple(normal.toward(full, j / count) for j in range(1, count))
     return (*between, full)

@@ -39,11 +39,23 @@ class LoadStep:
         Tangential relative displacement of the step's prescribed values
         (``T_full @ u_fixed``): the step's relative tangential displacement is
         ``T u + offset``.
+    u_fixed : (N dim,) array or None
+        The step's prescribed values (``ContactQP.u_fixed``); None: those of the
+        ContactQP that holds the path.
     """
 
     f: np.ndarray
     g: np.ndarray
     offset: np.ndarray
+    u_fixed: np.ndarray | None = None
+
+    def toward(self, other: "LoadStep", t: float) -> "LoadStep":
+        """The step ``t`` of the way from this step to ``other``: every datum is affine
+        in the prescribed values, so this is exact along a path that moves them
+        proportionally."""
+        mix = lambda a, b: None if a is None or b is None else a + t * (b - a)
+        return LoadStep(mix(self.f, other.f), mix(self.g, other.g),
+                        mix(self.offset, other.offset), mix(self.u_fixed, other.u_fixed))
 
 
 @dataclass

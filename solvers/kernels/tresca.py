@@ -47,11 +47,10 @@ import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
 
-from problems.friction.data import LoadStep
 from problems.friction.polygon import REGION_INSIDE, polygon_regions, region_projection
 from problems.friction.residuals import FrictionResiduals, friction_residuals, tresca_energy
 from problems.kkt import energy_error, kkt_residuals
-from problems.qp import ContactQP
+from problems.qp import ContactQP, prolongate_displacement
 from problems.spec import ParameterError
 from solvers.base import SolveResult
 from solvers.kernels.cholesky import factorize
@@ -465,7 +464,8 @@ def with_step(qp: ContactQP, step: int, slip_bound: np.ndarray, previous: np.nda
     ls = qp.friction.path[step]
     fr = replace(qp.friction, slip_bound=np.asarray(slip_bound, float), offset=ls.offset,
                  previous=np.asarray(previous, float))
-    return replace(qp, f=ls.f, g=ls.g, friction=fr)
+    return replace(qp, f=ls.f, g=ls.g, friction=fr,
+                   u_fixed=qp.u_fixed if ls.u_fixed is None else ls.u_fixed)
 
 
 def coulomb_step(qp: ContactQP, step: int, previous: np.ndarray, s0: np.ndarray,
@@ -682,13 +682,14 @@ def run_nested_load_path(levels: list[ContactQP], solve_step, tol: float,
     The coarsest level runs as :func:`run_load_path` does, each solve started from the
     path's last answer. On a finer level, solve ``i`` of the path starts from::
 
-        u0 = u_last + P (u_c,i - u_c,i-1),
+        u0 = u_last + I (u_c,i) - I (u_c,i-1),
 
     ``u_last`` its own path's last answer (zero before the first solve), ``u_c,i`` and
     ``u_c,i-1`` the coarser level's answers to the same solve and to the one before it
-    (zero before the first), ``P`` the finer level's prolongation
-    (``qp.multilevel.prolongations[-1]``): the coarser level's change over the solve is
-    added to the finer level's own state. The slip of a step is measured from the finer
+    (zero before the first), ``I`` the interpolation on the finer level with the coarser
+    step's prescribed values (:func:`problems.qp.prolongate_displacement`,
+    ``P u + P_D u_fixed``): the coarser level's change over the solve, the change of
+    its prescribed values included, is added to the finer level's own state. The slip of a step is measured from the finer
     level's own previous state, so only the start comes from below; what it brings is
     the stick zone's and the slip front's place, which a start from the previous step
     makes the solver find node by node (:mod:`solvers.tnnmg`, ``steps_to_face``).
@@ -722,18 +723,19 @@ def run_nested_load_path(levels: list[ContactQP], solve_step, tol: float,
                              "problems with Tresca friction and a load path (Coulomb's "
                              "fixed point takes a different number of solves per level)")
     runs, below = [], None
-    for j, qp in enumerate(levels):
+    for qp in levels:
         answers = []
-        P = qp.multilevel.prolongations[-1] if j else None
 
-        def step(step_qp, start, below=below, answers=answers, P=P):
+        def step(step_qp, start, below=below, answers=answers):
             i = len(answers)
             if below is not None and i < len(below):
-                change = below[i].u - (below[i - 1].u if i else 0.0)
+                change = prolongate_displacement(*below[i], step_qp)
+                if i:
+                    change -= prolongate_displacement(*below[i - 1], step_qp)
                 u_last = start.u if start is not None else np.zeros(step_qp.n)
-                start = NestedStart(u_last + P @ change, None if start is None else start.p)
+                start = NestedStart(u_last + change, None if start is None else start.p)
             res = solve_step(step_qp, start)
-            answers.append(res)
+            answers.append((step_qp, res.u))
             return res
 
         runs.append(run_load_path(qp, step, tol, max_iter, warm=True))
@@ -759,10 +761,7 @@ def scaled_tangential_step(qp: ContactQP, factor: float) -> ContactQP:
     if fr is None or len(fr.path) != 2:
         raise ValueError("scaled_tangential_step needs a two-step frictional load path")
     normal, tangential = fr.path
-    step = LoadStep(*(a + factor * (b - a) for a, b in
-                      ((normal.f, tangential.f), (normal.g, tangential.g),
-                       (normal.offset, tangential.offset))))
-    return replace(qp, friction=replace(fr, path=(normal, step)))
+    return replace(qp, friction=replace(fr, path=(normal, normal.toward(tangential, factor))))
 
 
 def tangential_ratio(steps: list[PathStep]) -> float:
