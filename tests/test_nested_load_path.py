@@ -1,8 +1,8 @@
 """Nested iteration over a frictional load path
 (:func:`solvers.kernels.tresca.run_nested_load_path`): each solve on a finer level starts
-from its own last answer plus the coarser level's
-change over the same solve, interpolated with its prescribed values; the answers are those of the plain path (only the
-start differs); Coulomb's law is refused with the reason; the tangential step's scale is
+from its own last answer plus the coarser level's change over the same solve,
+interpolated with its prescribed values; the answers are those of the plain path (only
+the start differs); Coulomb's law is refused with the reason; the tangential step's scale is
 recovered exactly (:func:`solvers.kernels.tresca.tangential_scale`)."""
 from __future__ import annotations
 

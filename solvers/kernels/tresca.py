@@ -689,10 +689,11 @@ def run_nested_load_path(levels: list[ContactQP], solve_step, tol: float,
     (zero before the first), ``I`` the interpolation on the finer level with the coarser
     step's prescribed values (:func:`problems.qp.prolongate_displacement`,
     ``P u + P_D u_fixed``): the coarser level's change over the solve, the change of
-    its prescribed values included, is added to the finer level's own state. The slip of a step is measured from the finer
-    level's own previous state, so only the start comes from below; what it brings is
-    the stick zone's and the slip front's place, which a start from the previous step
-    makes the solver find node by node (:mod:`solvers.tnnmg`, ``steps_to_face``).
+    its prescribed values included, is added to the finer level's own state. The slip
+    of a step is measured from the finer level's own previous state, so only the start
+    comes from below; what it brings is the stick zone's and the slip front's place,
+    which a start from the previous step makes the solver find node by node
+    (:mod:`solvers.tnnmg`, ``steps_to_face``).
     ``p0`` is the finer path's last answer's (the pressure changes little over a step).
 
     Parameters
