@@ -11,6 +11,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from problems.fem.mesh import midpoint_anchors
 from problems.kkt import energy_error
 from problems.qp import prolongate_displacement
 from problems.spec import problems
@@ -26,11 +27,8 @@ def _linear_field(qp, gradient):
 def _nested_nodes(coarse, fine):
     """The fine nodes that are a coarse node or a coarse edge's midpoint (same body)."""
     from scipy.spatial import cKDTree
-    X, cells = coarse.mesh.points, coarse.mesh.cells
-    d = cells.shape[1]
-    pairs = np.vstack([cells[:, [i, j]] for i in range(d) for j in range(i + 1, d)])
-    edges = np.unique(np.sort(pairs, axis=1), axis=0)
-    anchors = np.vstack([X, 0.5 * (X[edges[:, 0]] + X[edges[:, 1]])])
+    X = coarse.mesh.points
+    edges, anchors = midpoint_anchors(X, coarse.mesh.cells)
     body = np.concatenate([coarse.mesh.body_of_node, coarse.mesh.body_of_node[edges[:, 0]]])
     tol = 1e-12 * np.ptp(X, axis=0).max()
     found = np.zeros(len(fine.mesh.points), bool)

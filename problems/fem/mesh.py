@@ -315,6 +315,15 @@ def prescribed_dof_prolongation(node_prolongation: sp.spmatrix, dim: int,
     return P_D
 
 
+def midpoint_anchors(points: np.ndarray, cells: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The edges of a simplex mesh (sorted node pairs) and the places a red-type
+    refinement puts its nodes: the nodes, then the edges' midpoints."""
+    d = points.shape[1]
+    pairs = np.vstack([cells[:, [i, j]] for i in range(d + 1) for j in range(i + 1, d + 1)])
+    edges = np.unique(np.sort(pairs, axis=1), axis=0)
+    return edges, np.vstack([points, 0.5 * (points[edges[:, 0]] + points[edges[:, 1]])])
+
+
 def nested_prolongation(points: np.ndarray, cells: np.ndarray, fine_points: np.ndarray,
                         tol: float = 1e-9) -> sp.csr_matrix:
     """P1 prolongation to a nested refinement whose nodes are coarse nodes or
@@ -326,10 +335,7 @@ def nested_prolongation(points: np.ndarray, cells: np.ndarray, fine_points: np.n
     """
     from scipy.spatial import cKDTree
 
-    d = points.shape[1]
-    pairs = np.vstack([cells[:, [i, j]] for i in range(d + 1) for j in range(i + 1, d + 1)])
-    edges = np.unique(np.sort(pairs, axis=1), axis=0)
-    anchors = np.vstack([points, 0.5 * (points[edges[:, 0]] + points[edges[:, 1]])])
+    edges, anchors = midpoint_anchors(points, cells)
     scale = np.ptp(points, axis=0).max()
     dist, idx = cKDTree(anchors).query(fine_points)
     if np.any(dist > tol * scale):
