@@ -55,10 +55,12 @@ def tables(root: Path) -> set[Path]:
             if "benchmarks" not in p.parts}
 
 
-def differences(a_root: Path, b_root: Path) -> dict[str, object]:
+def differences(a_root: Path, b_root: Path, only: set[Path] | None = None) -> dict[str, object]:
     """``{table: what differs}``: the columns that differ, a different shape, or a table
-    only one checkout has."""
+    only one checkout has; among the tables ``only`` (relative paths) where given."""
     a_tables, b_tables = tables(a_root), tables(b_root)
+    if only is not None:
+        a_tables, b_tables = a_tables & only, b_tables & only
     out: dict[str, object] = {str(p): "only in the first" for p in a_tables - b_tables}
     out.update({str(p): "only in the second" for p in b_tables - a_tables})
     for rel in sorted(a_tables & b_tables):

@@ -1,10 +1,13 @@
 """The whole regeneration, end to end, at the tiny scale (workflows/config/tiny.yaml):
 every target made, the HTML report opened in headless Chromium with every figure present,
 an interrupted run resumed without redoing finished jobs or leaving a half-written file,
-and two runs giving identical results apart from timing columns.
+and every table a solving job writes made twice, identical apart from timing columns.
 
-Two regenerations run here (~1-2 minutes each on 2 cores): a plain one and one that is
-interrupted (SIGINT to the whole process group, as Ctrl-C does) and then resumed.
+Two regenerations run here: a plain one of every target, and one of every solving job
+(the rules that solve, :data:`SOLVING`: each study's heavy rules, whose tables the reports
+read) that is interrupted (SIGINT to the whole process group, as Ctrl-C does) and then
+resumed. Every table a solving job writes is thus made twice, by separate processes, and
+the two must agree; the report jobs (tables and figures drawn from those tables) run once.
 """
 from __future__ import annotations
 
@@ -23,7 +26,7 @@ import pytest
 
 from compare_results import differences, tables
 from workflows.io import META, PARTIAL, check_result
-from workflows.studies import PATHS, all_targets, load_config
+from workflows.studies import PATHS, STUDIES, all_targets, load_config
 from workflows.table_pages import page_path
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -59,6 +62,12 @@ if _gate and set({HELD_JOB!r}) <= set(getattr(sys, "orig_argv", ())):
 """
 
 
+#: The rules whose outputs the resumed run makes: every study's heavy rules (those that
+#: solve, with a benchmark file), and the held job's rule.
+SOLVING = frozenset({rule for study in STUDIES.values() for rule in study.heavy_rules}
+                     | {"laplace_summary"})
+
+
 def targets() -> list[str]:
     """Every file the tiny run makes: the scale file read as the workflow reads it, with
     the sections its studies declare at the tiny scale (``scale: tiny``)."""
@@ -77,15 +86,17 @@ def tiny_run(tmp_path_factory) -> Path:
 
 
 @pytest.fixture(scope="module")
-def resumed_run(tmp_path_factory):
-    """A regeneration interrupted (SIGINT to its process group, as Ctrl-C) while the held
-    job (:data:`HELD_JOB`) runs, then resumed with the same command."""
+def resumed_run(tmp_path_factory, tiny_run):
+    """A regeneration of the :data:`SOLVING` rules' outputs (the plain run's, as targets)
+    interrupted (SIGINT to its process group, as Ctrl-C) while the held job
+    (:data:`HELD_JOB`) runs, then resumed with the same command."""
+    wanted = solving_outputs(tiny_run)
     cwd = tmp_path_factory.mktemp("resumed")
     gate = tmp_path_factory.mktemp("gate")
     (gate / "sitecustomize.py").write_text(GATE)
     env = {**os.environ, "CONTACTBENCH_TEST_GATE": str(gate),
            "PYTHONPATH": os.pathsep.join(filter(None, [str(gate), os.environ.get("PYTHONPATH")]))}
-    proc = regenerate(cwd, popen=True, env=env)
+    proc = regenerate(cwd, *wanted, popen=True, env=env)
     held = gate / "held"
     while not held.exists() and proc.poll() is None:
         time.sleep(0.2)
@@ -98,8 +109,14 @@ def resumed_run(tmp_path_factory):
                if p.is_file() and Path(str(p) + META).exists()]
     broken = [str(p) for p in written if not check_result(p)]
     after_interrupt = {cwd / f: (cwd / f).stat().st_mtime_ns for f in finished_outputs(log)}
-    resumed = regenerate(cwd)
+    resumed = regenerate(cwd, *wanted)
     return cwd, log, after_interrupt, broken, resumed
+
+
+def jobs(log: str) -> dict[int, tuple[str, list[str]]]:
+    """``{jobid: (rule, outputs)}`` of the jobs Snakemake's ``log`` reports started."""
+    return {jobid: (rule, outputs) for kind, jobid, rule, outputs in job_events(log)
+            if kind == "start"}
 
 
 def finished_outputs(log: str) -> set[str]:
@@ -108,15 +125,16 @@ def finished_outputs(log: str) -> set[str]:
     A job interrupted after writing some of its outputs is not finished: Snakemake marks
     its outputs incomplete and rightly reruns it, so the test judges by jobs, not files.
     """
-    outputs, job_outputs = {}, None
-    for line in log.splitlines():
-        line = line.strip()
-        if line.startswith("output:"):
-            job_outputs = [f.strip() for f in line[len("output:"):].split(",")]
-        elif line.startswith("jobid:") and job_outputs is not None:
-            outputs[int(line.split()[1])], job_outputs = job_outputs, None
+    started = jobs(log)
     done = {int(m) for m in re.findall(r"^Finished jobid: (\d+)", log, flags=re.M)}
-    return {f for jobid in done & outputs.keys() for f in outputs[jobid]}
+    return {f for jobid in done & started.keys() for f in started[jobid][1]}
+
+
+def solving_outputs(run: Path) -> list[str]:
+    """The outputs of the :data:`SOLVING` rules' jobs in the plain ``run`` (its log)."""
+    log = (run / "snakemake.log").read_text()
+    return sorted(f for rule, outputs in jobs(log).values() if rule in SOLVING
+                  for f in outputs)
 
 
 def test_tiny_regeneration_makes_every_target(tiny_run):
@@ -181,17 +199,20 @@ def test_the_leaderboards_read_without_running_anything(tiny_run):
     assert (taken.groupby(["problem", "solver"]).rung.nunique() >= 3).all()
 
 
-def job_events(log: str) -> list[tuple[str, int, str]]:
-    """``("start" | "finish", jobid, rule)`` in the order Snakemake's ``log`` reports them."""
-    events, rule = [], None
+def job_events(log: str) -> list[tuple[str, int, str, list[str]]]:
+    """``("start" | "finish", jobid, rule, outputs)`` in the order Snakemake's ``log``
+    reports them (a finish names neither rule nor outputs)."""
+    events, rule, outputs = [], None, []
     for line in log.splitlines():
         if m := re.match(r"^(?:local)?rule (\w+):$", line):
-            rule = m[1]
+            rule, outputs = m[1], []
+        elif line.strip().startswith("output:"):
+            outputs = [f.strip() for f in line.strip()[len("output:"):].split(",")]
         elif (m := re.match(r"^\s+jobid: (\d+)$", line)) and rule is not None:
-            events.append(("start", int(m[1]), rule))
+            events.append(("start", int(m[1]), rule, outputs))
             rule = None
         elif m := re.match(r"^Finished jobid: (\d+)", line):
-            events.append(("finish", int(m[1]), ""))
+            events.append(("finish", int(m[1]), "", []))
     return events
 
 
@@ -202,12 +223,12 @@ def test_timing_jobs_run_alone(tiny_run):
     from workflows.studies import RUNS_ALONE
 
     events = job_events((tiny_run / "snakemake.log").read_text())
-    started = {jobid: rule for kind, jobid, rule in events if kind == "start"}
+    started = {jobid: rule for kind, jobid, rule, _ in events if kind == "start"}
     timed = RUNS_ALONE & set(started.values())        # the tiny scale runs most of them
     assert len(timed) >= 5, timed
-    assert len(started) > 20 and {j for k, j, _ in events if k == "finish"} == set(started)
+    assert len(started) > 20 and {j for k, j, _, _ in events if k == "finish"} == set(started)
     running, overlapped = set(), 0
-    for kind, jobid, rule in events:
+    for kind, jobid, rule, _ in events:
         if kind == "finish":
             running.discard(jobid)
             continue
@@ -572,7 +593,7 @@ def test_every_unjudged_claim_gives_its_reason(tiny_run):
     assert (claims.loc[claims["result"] != "n/a", "reason"] == "").all()
 
 
-def test_interrupted_run_resumes_without_redoing_finished_jobs(resumed_run):
+def test_interrupted_run_resumes_without_redoing_finished_jobs(tiny_run, resumed_run):
     cwd, log, after_interrupt, broken, resumed = resumed_run
     # the held job's four inputs had finished, the held job had not
     laplace_runs = {cwd / PATHS["laplace_runs"].format(case=case, side=side)
@@ -585,11 +606,16 @@ def test_interrupted_run_resumes_without_redoing_finished_jobs(resumed_run):
               if p.exists() and p.stat().st_mtime_ns != mtime]
     assert not redone, f"finished results rebuilt after the resume: {redone}"
     assert not [p for p in (cwd / "results").rglob(f"*{PARTIAL}*")]
-    assert not [t for t in targets() if not (cwd / t).exists()]
+    wanted = solving_outputs(tiny_run)
+    assert len(wanted) >= 20 and not [f for f in wanted if not (cwd / f).exists()]
 
 
 def test_two_runs_agree_apart_from_timing_columns(tiny_run, resumed_run):
-    """Seeded and deterministic: every CSV of the plain run equals the resumed run's,
-    bit for bit, except what measures time or memory (tests/compare_results.py)."""
-    assert len(tables(tiny_run)) >= 20
-    assert not differences(tiny_run, resumed_run[0])
+    """Seeded and deterministic: every table a solving job wrote in the plain run equals
+    the resumed run's, bit for bit, except what measures time or memory
+    (tests/compare_results.py); the resumed run makes no table the plain run lacks."""
+    solved = {p for p in tables(tiny_run)
+              if any(Path(f) in (p, *p.parents) for f in solving_outputs(tiny_run))}
+    assert len(solved) >= 20 and len(tables(tiny_run) - solved) >= 10
+    assert tables(resumed_run[0]) == solved
+    assert not differences(tiny_run, resumed_run[0], only=solved)
