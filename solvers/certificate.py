@@ -521,7 +521,13 @@ def linear_solver(qp: ContactQP) -> Callable[..., np.ndarray]:
         from solvers.kernels.cholesky import factorize, shared_floating_factor
         # a body held only by weak springs: its rigid part solved apart (no 1/spring-sized
         # intermediate results; see FloatingCholesky)
-        chol = shared_floating_factor(qp, modes) if modes.shape[1] else factorize(qp.A)
+        if modes.shape[1]:
+            chol = shared_floating_factor(qp, modes)
+        else:
+            # the dual operators' factor where they are cached (the same factorize(qp.A):
+            # the same factor, bit for bit), else a factorisation of its own
+            kept = next(iter(qp.cache.dual_operators.values()), None)
+            chol = kept.factor if kept is not None else factorize(qp.A)
 
         def solve_A(r, guess=None, rtol=1e-14):
             x = chol.solve(r)

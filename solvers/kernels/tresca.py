@@ -244,7 +244,7 @@ def _projection_jacobian(z: np.ndarray, m: int, bound: np.ndarray, sets: tuple,
         code = np.where(disc == DISC_ZERO, REGION_INSIDE, disc)
         blocks = region_projection(lam, bound, facets, code)[1]
         blocks = np.where((disc == DISC_ZERO)[:, None, None], 0.0, blocks)
-        return sp.block_diag([sp.diags(free * 1.0), sp.block_diag(list(blocks))], format="csr")
+        return _block_diagonal(free * 1.0, blocks)
     k = lam.shape[1]
     norm = np.sqrt(np.sum(lam * lam, axis=1))
     edge = disc == DISC_EDGE
@@ -252,7 +252,26 @@ def _projection_jacobian(z: np.ndarray, m: int, bound: np.ndarray, sets: tuple,
     n[edge] = lam[edge] / norm[edge, None]
     alpha = np.where(edge, bound / np.where(edge, norm, 1.0), (disc == DISC_INSIDE) * 1.0)
     blocks = alpha[:, None, None] * (np.eye(k)[None] - n[:, :, None] * n[:, None, :])
-    return sp.block_diag([sp.diags(free * 1.0), sp.block_diag(list(blocks))], format="csr")
+    return _block_diagonal(free * 1.0, blocks)
+
+
+def _block_diagonal(diagonal: np.ndarray, blocks: np.ndarray) -> sp.csr_matrix:
+    """``sp.block_diag([sp.diags(diagonal), sp.block_diag(list(blocks))], format="csr")``
+    with its arrays built at once rather than block by block (the same matrix, the same
+    arrays: the diagonal's zeros left out, every entry of the dense ``(r, k, k)`` blocks
+    kept, zeros too, row by row)."""
+    m = diagonal.size
+    r, k = blocks.shape[0], blocks.shape[1]
+    if m == 0 or r == 0 or blocks.shape != (r, k, k):
+        return sp.block_diag([sp.diags(diagonal), sp.block_diag(list(blocks))], format="csr")
+    size = m + r * k
+    kept = np.flatnonzero(diagonal != 0)
+    counts = np.concatenate([(diagonal != 0).astype(np.int64), np.full(r * k, k, np.int64)])
+    indptr = np.concatenate([[0], np.cumsum(counts)]).astype(np.int32)
+    block_cols = (m + (np.arange(r * k) // k) * k)[:, None] + np.arange(k)[None]
+    indices = np.concatenate([kept, block_cols.ravel()]).astype(np.int32)
+    data = np.concatenate([diagonal[kept], blocks.reshape(-1)])
+    return sp.csr_matrix((data, indices, indptr), shape=(size, size))
 
 
 def disc_qp_newton(S: np.ndarray, c: np.ndarray, m: int, bound: np.ndarray,
