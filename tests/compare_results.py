@@ -3,8 +3,8 @@
 Every CSV under ``A/results`` and ``B/results`` (benchmark files aside) is read and
 compared column by column after dropping the timing columns (:data:`TIMING`), the claims
 about time (:data:`TIMING_CLAIM`), and the row order; a table only one run has is named.
-Used by the tests (two tiny runs of one commit agree bit for bit) and by hand, to show that
-a restructuring changed no result::
+Used by the tests (the solving jobs' tables of two tiny runs of one commit agree bit for
+bit) and by hand, to show that a restructuring changed no result::
 
     python tests/compare_results.py OLD_CHECKOUT NEW_CHECKOUT
 
