@@ -533,19 +533,15 @@ def _check_symmetric(A: sp.csr_matrix, symmetry_tol: float) -> None:
     forming ``A - A^T``: the same differences, so the same maximum; any other ``A`` through
     the sparse difference.
     """
-    if A.has_canonical_format and A.nnz:
-        At = A.tocsc()
-        if np.array_equal(At.indptr, A.indptr) and np.array_equal(At.indices, A.indices):
-            worst = float(np.abs(A.data - At.data).max())
-            scale = float(np.abs(A.data).max())
-            if worst > symmetry_tol * scale:
-                raise QPValidationError(f"A is not symmetric: max |A - A^T| = {worst:.3e} "
-                                        f"(scale {scale:.3e})")
-            return
-    asym = abs(A - A.T)
-    scale = abs(A).max() if A.nnz else 1.0
-    if asym.nnz and asym.max() > symmetry_tol * scale:
-        raise QPValidationError(f"A is not symmetric: max |A - A^T| = {asym.max():.3e} "
+    At = A.tocsc() if A.has_canonical_format and A.nnz else None
+    if At is not None and np.array_equal(At.indptr, A.indptr) and np.array_equal(At.indices,
+                                                                                 A.indices):
+        worst, scale = float(np.abs(A.data - At.data).max()), float(np.abs(A.data).max())
+    else:
+        asym = abs(A - A.T)
+        worst, scale = (asym.max() if asym.nnz else 0.0), (abs(A).max() if A.nnz else 1.0)
+    if worst != 0 and worst > symmetry_tol * scale:
+        raise QPValidationError(f"A is not symmetric: max |A - A^T| = {worst:.3e} "
                                 f"(scale {scale:.3e})")
 
 

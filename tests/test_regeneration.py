@@ -51,6 +51,7 @@ def regenerate(cwd: Path, *extra: str, popen: bool = False, env: dict | None = N
 #: workflow knows of it) marks the job as started and keeps it running until the test's
 #: SIGINT ends it: the interrupt lands inside a job whatever the machine's speed.
 HELD_JOB = ("report.laplace_nonmatching", "tables")
+HELD_RULE = "laplace_summary"
 GATE = f"""
 import os, sys, time
 from pathlib import Path
@@ -65,7 +66,7 @@ if _gate and set({HELD_JOB!r}) <= set(getattr(sys, "orig_argv", ())):
 #: The rules whose outputs the resumed run makes: every study's heavy rules (those that
 #: solve, with a benchmark file), and the held job's rule.
 SOLVING = frozenset({rule for study in STUDIES.values() for rule in study.heavy_rules}
-                     | {"laplace_summary"})
+                     | {HELD_RULE})
 
 
 def targets() -> list[str]:
@@ -89,7 +90,8 @@ def tiny_run(tmp_path_factory) -> Path:
 def resumed_run(tmp_path_factory, tiny_run):
     """A regeneration of the :data:`SOLVING` rules' outputs (the plain run's, as targets)
     interrupted (SIGINT to its process group, as Ctrl-C) while the held job
-    (:data:`HELD_JOB`) runs, then resumed with the same command."""
+    (:data:`HELD_JOB`) runs, then resumed with the same command; with the outputs it was
+    asked for."""
     wanted = solving_outputs(tiny_run)
     cwd = tmp_path_factory.mktemp("resumed")
     gate = tmp_path_factory.mktemp("gate")
@@ -110,7 +112,7 @@ def resumed_run(tmp_path_factory, tiny_run):
     broken = [str(p) for p in written if not check_result(p)]
     after_interrupt = {cwd / f: (cwd / f).stat().st_mtime_ns for f in finished_outputs(log)}
     resumed = regenerate(cwd, *wanted)
-    return cwd, log, after_interrupt, broken, resumed
+    return cwd, log, after_interrupt, broken, resumed, wanted
 
 
 def jobs(log: str) -> dict[int, tuple[str, list[str]]]:
@@ -593,8 +595,8 @@ def test_every_unjudged_claim_gives_its_reason(tiny_run):
     assert (claims.loc[claims["result"] != "n/a", "reason"] == "").all()
 
 
-def test_interrupted_run_resumes_without_redoing_finished_jobs(tiny_run, resumed_run):
-    cwd, log, after_interrupt, broken, resumed = resumed_run
+def test_interrupted_run_resumes_without_redoing_finished_jobs(resumed_run):
+    cwd, log, after_interrupt, broken, resumed, wanted = resumed_run
     # the held job's four inputs had finished, the held job had not
     laplace_runs = {cwd / PATHS["laplace_runs"].format(case=case, side=side)
                     for case in ("sin10x", "linear") for side in ("coarse", "fine")}
@@ -606,7 +608,6 @@ def test_interrupted_run_resumes_without_redoing_finished_jobs(tiny_run, resumed
               if p.exists() and p.stat().st_mtime_ns != mtime]
     assert not redone, f"finished results rebuilt after the resume: {redone}"
     assert not [p for p in (cwd / "results").rglob(f"*{PARTIAL}*")]
-    wanted = solving_outputs(tiny_run)
     assert len(wanted) >= 20 and not [f for f in wanted if not (cwd / f).exists()]
 
 
@@ -614,7 +615,7 @@ def test_two_runs_agree_apart_from_timing_columns(tiny_run, resumed_run):
     """Seeded and deterministic: every table a solving job wrote in the plain run equals
     the resumed run's, bit for bit, except what measures time or memory
     (tests/compare_results.py); the resumed run makes no table the plain run lacks."""
-    outputs = {Path(f) for f in solving_outputs(tiny_run)}
+    outputs = {Path(f) for f in resumed_run[-1]}
     solved = {p for p in tables(tiny_run) if outputs & {p, *p.parents}}
     assert len(solved) >= 20 and len(tables(tiny_run) - solved) >= 10
     assert tables(resumed_run[0]) == solved
