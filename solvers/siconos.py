@@ -5,8 +5,8 @@ a frictional step, in a process of their own under the system Python.
 The step's fclib form (:mod:`solvers.kernels.fclib_form`: ``M = A``, ``H_i = [-B_i',
 -T_i']`` per contact, ``w`` from the gaps and the previous state) gives the local problem
 ``u = W r + q`` with the Delassus operator ``W = H'A^-1 H`` (dense; ``A`` factorised once,
-the factor kept to recover ``u = A^-1 (f - B'p - T'lam)`` from the reactions
-``r_i = (p_i, lam_i)``). Siconos's solvers take the law per contact in three dimensions;
+``W``'s columns partial solves on the contact rows, the factor kept to recover
+``u = A^-1 (f - B'p - T'lam)`` from the reactions ``r_i = (p_i, lam_i)``). Siconos's solvers take the law per contact in three dimensions;
 a 2D step is solved as a 3D one whose second tangential component is decoupled
 (:func:`embed_2d`: ``W`` extended by ``c I`` on it, ``q`` by zero), where the law forces
 that component's reaction to zero, so the 2D law is solved exactly.
@@ -48,16 +48,15 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
-import scipy.sparse as sp
 
 from problems.qp import ContactQP
 from problems.spec import Options, Parameter
 from solvers import system_python
 from solvers.base import (COULOMB_MONOLITHIC, TOLERANCES, Role, SolveResult, SolverSpec,
                           guess_not_used)
-from solvers.kernels.cholesky import FactorizationError, factorize
+from solvers.kernels.cholesky import FactorizationError
 from solvers.kernels.fclib_form import (LOCAL_MAX_ENTRIES, contact_columns, fclib_form,
-                                        global_problem, local_problem)
+                                        global_problem, local_factor, local_problem)
 
 #: The worker script, shipped beside this module (run by the interpreter with Siconos).
 WORKER = Path(__file__).with_name("_siconos_worker.py")
@@ -113,14 +112,14 @@ def local_form(qp: ContactQP) -> tuple:
     coulomb = not _tresca(qp)
     as_coulomb = qp if coulomb else replace(qp, friction=replace(qp.friction, law="coulomb"))
     problem = global_problem(as_coulomb, coulomb=True)
-    solve_A = factorize(sp.csr_matrix(qp.A)).solve
-    local = local_problem(problem, solve_A)
+    factor = local_factor(problem)
+    local = local_problem(problem, factor)
     if qp.dim == 2:
         W3, q3, kept = embed_2d(local.W, local.q)
     else:
         W3, q3, kept = local.W, local.q, np.arange(local.q.size)
     mu = np.asarray(local.mu, dtype=float) if coulomb else np.ones(qp.m)
-    return W3, q3, mu, kept, solve_A
+    return W3, q3, mu, kept, factor.solve
 
 
 def answer(qp: ContactQP, r_fclib: np.ndarray, solve_A) -> tuple:
@@ -231,13 +230,16 @@ def solve_with(method: str):
 
 
 def _parameters() -> tuple:
-    cost = ("the local form costs one solve with A's factor per column of H (one per "
-            "component of each contact), and Siconos's dense W grows as the contacts squared")
+    cost = ("the local form costs A's factorisation and one partial solve with it (the "
+            "contact rows only) per column of H (one per component of each contact), and "
+            "Siconos's dense W grows as the contacts squared")
     return (
-        Parameter("max_unknowns_2d", 160_000, f"{cost}: in 2D a load path of circle-square's "
-                  "149,616 unknowns (161 contacts) takes 13 s", low=1, kind=int),
-        Parameter("max_unknowns_3d", 60_000, f"{cost}: in 3D a load path of cube-sphere's "
-                  "51,459 unknowns (289 contacts) takes 23 s", low=1, kind=int),
+        Parameter("max_unknowns_2d", 160_000, f"{cost}: in 2D the largest taken is "
+                  "circle-square's load path at 149,616 unknowns (161 contacts)", low=1,
+                  kind=int),
+        Parameter("max_unknowns_3d", 60_000, f"{cost}: in 3D the largest taken is "
+                  "cube-sphere's load path at 51,459 unknowns (289 contacts)", low=1,
+                  kind=int),
         Parameter("tol_factor", 0.01, "Siconos's stop at tol_factor * tol on its own error (the "
                   "suite's verification decides)", low=0.0, high=1.0, low_open=True),
         Parameter("grace", 30.0, "wall seconds the process gets beyond time_limit (start-up, "

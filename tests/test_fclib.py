@@ -138,6 +138,26 @@ def test_what_fclib_cannot_hold_is_said(export, tmp_path, monkeypatch):
         local_problem(problem)
 
 
+@pytest.mark.parametrize("name", ["circle_square_coulomb_q05_L0", "cube_sphere_coulomb_q05_L0"])
+def test_the_delassus_operator_of_partial_solves_is_the_whole_one(export, name):
+    """The local form's W, formed from partial solves on the contact rows
+    (:func:`local_problem`), is ``H' M^-1 H`` of whole solves with SuperLU (another
+    backend, every component) to 1e-12, and so is q; a factorisation whose components
+    miss H's rows is refused, not used."""
+    from solvers.kernels.cholesky import factorize
+
+    problem = read_global(export / name / "fclib.hdf5")
+    H = sp.csc_matrix(problem.H)
+    whole = factorize(problem.M, backend="splu")
+    W = H.T @ whole.solve(H.toarray())
+    q = problem.w - H.T @ whole.solve(problem.f)
+    local = local_problem(problem)
+    assert np.abs(local.W - W).max() <= 1e-12 * np.abs(W).max()
+    assert np.abs(local.q - q).max() <= 1e-12 * np.abs(q).max()
+    with pytest.raises(ValueError, match="parameter 'factor'"):
+        local_problem(problem, factorize(problem.M))
+
+
 def test_triplet_and_row_matrices_of_other_writers_are_read(export, tmp_path):
     """fclib's C library writes triplet (nz >= 0), column (-1) and row (-2) matrices:
     the same problem in each reads to the same arrays; another nz is refused."""

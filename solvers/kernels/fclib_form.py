@@ -185,10 +185,15 @@ class FclibLocal:
     mu: np.ndarray
 
 
-def local_problem(problem: FclibGlobal, solve_M=None) -> FclibLocal:
+def local_problem(problem: FclibGlobal, factor=None) -> FclibLocal:
     """The local (Delassus) form of ``problem``: ``v = M^-1 (H r - f)`` eliminated.
-    ``solve_M``: a solve with ``M`` (its factorisation, kept by a caller that recovers
-    ``v`` from ``r`` afterwards); by default ``M`` is factorised here.
+
+    ``W``'s columns are partial solves (:func:`solvers.kernels.cholesky.factorize` with
+    ``components``): a column of ``H`` is nonzero only on the contact rows, and ``H'``
+    reads ``M^-1 H`` only there, so only those components are computed, which skips most
+    of the elimination tree. ``factor``: a factorisation of ``M`` whose ``components``
+    hold ``H``'s rows (:func:`local_factor`; kept by a caller that recovers ``v`` from
+    ``r`` afterwards); by default it is made here.
 
     Raises
     ------
@@ -199,19 +204,34 @@ def local_problem(problem: FclibGlobal, solve_M=None) -> FclibLocal:
     if k * k > LOCAL_MAX_ENTRIES:
         raise FclibError(f"the Delassus operator: {k} x {k} entries exceed "
                          f"{LOCAL_MAX_ENTRIES} (a dense W is formed); the global form only")
-    if solve_M is None:
-        from solvers.kernels.cholesky import factorize
-
-        solve_M = factorize(sp.csr_matrix(problem.M)).solve
     H = sp.csc_matrix(problem.H)
+    if factor is None:
+        factor = local_factor(problem)
+    elif factor.components is None or np.setdiff1d(H.indices, factor.components).size:
+        raise ValueError("parameter 'factor': its components must hold every row of H "
+                         "(local_factor(problem))")
     W = np.empty((k, k))
     for start in range(0, k, LOCAL_BLOCK):         # W's columns, a block of M^-1 H at a time
         cols = slice(start, min(start + LOCAL_BLOCK, k))
-        W[:, cols] = H.T @ solve_M(H[:, cols].toarray())
+        W[:, cols] = H.T @ factor.solve(H[:, cols], partial=True)
     W = 0.5 * (W + W.T)                        # symmetric to round-off
-    q = problem.w - problem.H.T @ solve_M(problem.f)
+    q = problem.w - problem.H.T @ factor.solve(problem.f)
     return FclibLocal(spacedim=problem.spacedim, W=W, q=np.asarray(q, dtype=float),
                       mu=problem.mu)
+
+
+def local_factor(problem: FclibGlobal):
+    """The factorisation of ``M`` :func:`local_problem` takes: partial solves on the rows
+    of ``H`` (:func:`solvers.kernels.cholesky.factorize`).
+
+    Raises
+    ------
+    solvers.kernels.cholesky.FactorizationError
+        Where ``M`` is not positive definite.
+    """
+    from solvers.kernels.cholesky import factorize
+
+    return factorize(sp.csr_matrix(problem.M), components=sp.csc_matrix(problem.H).indices)
 
 
 def contact_arrays(problem: FclibGlobal) -> dict:
