@@ -6,10 +6,11 @@ The step's fclib form (:mod:`solvers.kernels.fclib_form`: ``M = A``, ``H_i = [-B
 -T_i']`` per contact, ``w`` from the gaps and the previous state) gives the local problem
 ``u = W r + q`` with the Delassus operator ``W = H'A^-1 H`` (dense; ``A`` factorised once,
 ``W``'s columns partial solves on the contact rows, the factor kept to recover
-``u = A^-1 (f - B'p - T'lam)`` from the reactions ``r_i = (p_i, lam_i)``). Siconos's solvers take the law per contact in three dimensions;
-a 2D step is solved as a 3D one whose second tangential component is decoupled
-(:func:`embed_2d`: ``W`` extended by ``c I`` on it, ``q`` by zero), where the law forces
-that component's reaction to zero, so the 2D law is solved exactly.
+``u = A^-1 (f - B'p - T'lam)`` from the reactions ``r_i = (p_i, lam_i)``). Siconos's
+solvers take the law per contact in three dimensions; a 2D step is solved as a 3D one
+whose second tangential component is decoupled (:func:`embed_2d`: ``W`` extended by
+``c I`` on it, ``q`` by zero), where the law forces that component's reaction to zero, so
+the 2D law is solved exactly.
 
 Two solvers:
 
