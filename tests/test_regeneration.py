@@ -35,8 +35,10 @@ TINY = ROOT / "workflows/config/tiny.yaml"
 PROFILE = ROOT / "workflows/profiles/default"
 
 def regenerate(cwd: Path, *extra: str, popen: bool = False, env: dict | None = None):
+    # greedy job selection: the profile's (ilp) runs a MILP in a CBC subprocess at every
+    # scheduling round, CPU time the other tests beside this run need (docs/performance.md)
     cmd = [str(SNAKEMAKE), "-s", str(ROOT / "Snakefile"), "--configfile", str(TINY),
-           "--profile", str(PROFILE), "--cores", "2", *extra]
+           "--profile", str(PROFILE), "--cores", "2", "--scheduler", "greedy", *extra]
     if popen:     # SIGINT handled as a terminal's Ctrl-C is, even under a shell that started
                   # this test in the background (its jobs inherit SIGINT ignored)
         return subprocess.Popen(cmd, cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
