@@ -60,13 +60,12 @@ from problems.floating import floating_modes
 from problems.kkt import kkt_residuals
 from problems.qp import ContactQP
 from problems.spec import Options, Parameter
-from solvers.kernels.cholesky import InfeasibleError, factorize, row_basis, shared_floating_factor
+from solvers.kernels.cholesky import (InfeasibleError, dense_schur, factorize, row_basis,
+                                      shared_floating_factor)
 from solvers.kernels.active_set import (check_positive_diagonal, damped_update, initial_active_set,
                                         pdas_update, stiffness_scale)
 from solvers.base import Role, SolveResult, SolverSpec
 
-#: Columns of ``A^{-1} B^T`` computed at once when forming the Schur complement.
-_SCHUR_BLOCK = 64
 
 #: Largest number of constraints for ``method="schur"`` (dense m x m complement,
 #: one solve with A per constraint).
@@ -313,13 +312,7 @@ class _ActiveSetSystem:
             self.G = self.B @ fl.R - B @ fl.W          # G~ = B R - B_r A_rr^{-1} C  (m x k)
         else:
             self.chol = factorize(self.A, self.factorization, components=self.B.indices)
-        m = self.qp.m
-        S = np.empty((m, m))
-        Bt = sp.csc_matrix(B.T)
-        for start in range(0, m, _SCHUR_BLOCK):
-            cols = Bt[:, start:start + _SCHUR_BLOCK]
-            S[:, start:start + cols.shape[1]] = B @ self.chol.solve(cols, partial=True)
-        self.S = 0.5 * (S + S.T)
+        self.S = dense_schur(self.chol, B)
         if self.floating is None:
             self.w = self._solve_A(self.qp.f)  # unconstrained solution A^{-1} f
         self.factor_time += time.perf_counter() - t0

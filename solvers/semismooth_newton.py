@@ -74,7 +74,7 @@ from solvers.kernels.face import FACE_PROJECTION, FaceProjector, face_hops, face
 from solvers.kernels.multigrid import AHAT, component_vcycle
 from solvers.base import VERIFIED_PRESETS, Role, SolveResult, SolverSpec
 from solvers.certificate import certify
-from solvers.kernels.cholesky import BLOCK as SCHUR_BLOCK, InfeasibleError, factorize, row_basis
+from solvers.kernels.cholesky import InfeasibleError, dense_schur, factorize, row_basis
 from solvers.kernels.active_set import (check_positive_diagonal, damped_update, initial_active_set,
                                         pdas_update, stiffness_scale)
 
@@ -517,13 +517,7 @@ def contact_schur(qp: ContactQP, factorization: str = "auto") -> ContactSchur:
         return kept
     G = sp.vstack([qp.B, qp.friction.T]).tocsr()
     chol = factorize(qp.A, factorization, components=G.indices)
-    k = G.shape[0]
-    S = np.empty((k, k))
-    Gt = sp.csc_matrix(G.T)
-    for start in range(0, k, SCHUR_BLOCK):
-        cols = Gt[:, start:start + SCHUR_BLOCK]
-        S[:, start:start + cols.shape[1]] = G @ chol.solve(cols, partial=True)
-    ops = ContactSchur(chol, sp.csr_matrix(qp.A), G, 0.5 * (S + S.T))
+    ops = ContactSchur(chol, sp.csr_matrix(qp.A), G, dense_schur(chol, G))
     qp.cache.contact_schur[factorization] = ops
     return ops
 

@@ -132,6 +132,21 @@ def factorize(A: sp.spmatrix, backend: str = "auto", components: np.ndarray | No
     return BACKENDS[backend](sp.csr_matrix(A), components, threads)
 
 
+def dense_schur(chol: Cholesky, G: sp.spmatrix) -> np.ndarray:
+    """``G A^{-1} G'`` dense, symmetric to round-off, ``A`` the matrix ``chol`` factorises
+    (the dual operator of (7.3), the Delassus operator): ``A^{-1} G'`` :data:`BLOCK`
+    columns at a time by partial solves, so ``chol.components`` must hold ``G``'s columns
+    (:meth:`Cholesky.solve`)."""
+    G = sp.csr_matrix(G)
+    Gt = sp.csc_matrix(G.T)
+    k = G.shape[0]
+    S = np.empty((k, k))
+    for start in range(0, k, BLOCK):
+        cols = Gt[:, start:start + BLOCK]
+        S[:, start:start + cols.shape[1]] = G @ chol.solve(cols, partial=True)
+    return 0.5 * (S + S.T)
+
+
 def available_backends() -> tuple[str, ...]:
     """The backends that work on this machine."""
     return tuple(b for b in BACKENDS if b != "pardiso" or _mkl() is not None)

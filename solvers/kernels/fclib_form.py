@@ -170,8 +170,6 @@ def natural_map_residual(problem: FclibGlobal, v: np.ndarray, r: np.ndarray) -> 
 # ------------------------------------------------------------------- the local form
 #: Largest Delassus operator formed (entries of the dense ``W``): 2e7 (160 MB).
 LOCAL_MAX_ENTRIES = 20_000_000
-#: Columns of ``M^-1 H`` formed at a time (its memory ``n`` times this, never the whole).
-LOCAL_BLOCK = 256
 
 
 @dataclass
@@ -188,10 +186,9 @@ class FclibLocal:
 def local_problem(problem: FclibGlobal, factor=None) -> FclibLocal:
     """The local (Delassus) form of ``problem``: ``v = M^-1 (H r - f)`` eliminated.
 
-    ``W``'s columns are partial solves (:func:`solvers.kernels.cholesky.factorize` with
-    ``components``): a column of ``H`` is nonzero only on the contact rows, and ``H'``
-    reads ``M^-1 H`` only there, so only those components are computed, which skips most
-    of the elimination tree. ``factor``: a factorisation of ``M`` whose ``components``
+    ``W``'s columns are partial solves (:func:`solvers.kernels.cholesky.dense_schur`): a
+    column of ``H`` is nonzero only on the contact rows, and ``H'`` reads ``M^-1 H`` only
+    there, so only those components are computed, which skips most of the elimination tree. ``factor``: a factorisation of ``M`` whose ``components``
     hold ``H``'s rows (:func:`local_factor`; kept by a caller that recovers ``v`` from
     ``r`` afterwards); by default it is made here.
 
@@ -200,6 +197,8 @@ def local_problem(problem: FclibGlobal, factor=None) -> FclibLocal:
     FclibError
         Where the dense ``W`` would exceed :data:`LOCAL_MAX_ENTRIES` entries.
     """
+    from solvers.kernels.cholesky import dense_schur
+
     n, k = problem.H.shape
     if k * k > LOCAL_MAX_ENTRIES:
         raise FclibError(f"the Delassus operator: {k} x {k} entries exceed "
@@ -210,11 +209,7 @@ def local_problem(problem: FclibGlobal, factor=None) -> FclibLocal:
     elif factor.components is None or np.setdiff1d(H.indices, factor.components).size:
         raise ValueError("parameter 'factor': its components must hold every row of H "
                          "(local_factor(problem))")
-    W = np.empty((k, k))
-    for start in range(0, k, LOCAL_BLOCK):         # W's columns, a block of M^-1 H at a time
-        cols = slice(start, min(start + LOCAL_BLOCK, k))
-        W[:, cols] = H.T @ factor.solve(H[:, cols], partial=True)
-    W = 0.5 * (W + W.T)                        # symmetric to round-off
+    W = dense_schur(factor, H.T)
     q = problem.w - problem.H.T @ factor.solve(problem.f)
     return FclibLocal(spacedim=problem.spacedim, W=W, q=np.asarray(q, dtype=float),
                       mu=problem.mu)
