@@ -4,8 +4,9 @@ Runs under an interpreter that has petsc4py and mpi4py (Debian's ``python3-petsc
 built against that interpreter's numpy), started as ``mpiexec -n RANKS python3
 _petsc_tao_worker.py ...``; it imports nothing of the suite, whose environment it does
 not share. The problem, in PETSc's binary format (:func:`solvers.petsc_tao.problem_stream`),
-comes on rank 0's standard input, or from a file every rank can read (``--input``,
-loaded by PETSc itself: the path of a cluster job whose problem was written beforehand)::
+is read from a file every rank can read (``--input``, loaded by PETSc's own parallel
+``MatLoad`` / ``VecLoad``; the suite writes it to a temporary file, a cluster job
+beforehand to a shared file system)::
 
     Mat A~ (n x n AIJ), Vec f~, Vec upper, Vec v0, Vec mode_1 ... Vec mode_r
 
@@ -23,70 +24,10 @@ import time
 
 import numpy as np
 
-#: PETSc's binary class ids (petscmat.h, petscvec.h)
-MAT_FILE_CLASSID, VEC_FILE_CLASSID = 1211216, 1211214
 #: the first word of the output line
 TAG = "contactbench-petsc-tao"
 #: Relative tolerance of GPCG's linear solves on the face.
 GPCG_KSP_RTOL = 1e-10
-
-
-def parse_stream(data: bytes) -> tuple:
-    """The objects of a PETSc binary stream: ``[("mat", (n, indptr, indices, values)),
-    ("vec", values), ...]`` (big-endian int32 indices, float64 values)."""
-    out, pos = [], 0
-
-    def take(count, dtype):
-        nonlocal pos
-        arr = np.frombuffer(data, dtype=dtype, count=count, offset=pos)
-        pos += arr.nbytes
-        return arr
-
-    while pos < len(data):
-        classid = int(take(1, ">i4")[0])
-        if classid == MAT_FILE_CLASSID:
-            rows, cols, nnz = (int(x) for x in take(3, ">i4"))
-            lengths = take(rows, ">i4").astype(np.int64)
-            indptr = np.concatenate([[0], np.cumsum(lengths)])
-            indices = take(nnz, ">i4").astype(np.int32)
-            values = take(nnz, ">f8").astype(float)
-            out.append(("mat", (rows, cols, indptr, indices, values)))
-        elif classid == VEC_FILE_CLASSID:
-            size = int(take(1, ">i4")[0])
-            out.append(("vec", take(size, ">f8").astype(float)))
-        else:
-            raise ValueError(f"not a PETSc binary object at byte {pos - 4}: class id {classid}")
-    return out
-
-
-def from_stdin(PETSc, comm):
-    """Rank 0 reads the stream and sends each rank its rows (PETSc's default layout)."""
-    mpi = comm.tompi4py()
-    objects = parse_stream(sys.stdin.buffer.read()) if comm.rank == 0 else None
-    n = mpi.bcast(objects[0][1][0] if comm.rank == 0 else None, root=0)
-    layout = PETSc.Vec().createMPI(n, comm=comm)
-    lo, hi = layout.getOwnershipRange()
-    ranges = mpi.gather((lo, hi), root=0)
-    count = mpi.bcast(len(objects) if comm.rank == 0 else None, root=0)
-    pieces = None
-    if comm.rank == 0:
-        _, (rows, cols, indptr, indices, values) = objects[0]
-        pieces = []
-        for a, b in ranges:
-            ptr = indptr[a:b + 1]
-            pieces.append(((ptr - ptr[0]).astype(np.int32), indices[ptr[0]:ptr[-1]],
-                           values[ptr[0]:ptr[-1]],
-                           [obj[1][a:b] for _, obj in zip(range(count - 1), objects[1:])]))
-    ptr, cols_local, vals_local, vec_parts = mpi.scatter(pieces, root=0)
-    A = PETSc.Mat().createAIJ(size=((hi - lo, n), (hi - lo, n)),
-                              csr=(ptr, cols_local, vals_local), comm=comm)
-    A.assemble()
-    vecs = []
-    for part in vec_parts:
-        v = layout.duplicate()
-        v.setArray(part)
-        vecs.append(v)
-    return A, vecs
 
 
 def from_file(PETSc, comm, path, n_vectors):
@@ -236,7 +177,7 @@ def main(argv=None):
     parser.add_argument("--max-iter", type=int, required=True)
     parser.add_argument("--time-limit", type=float, default=0.0, help="0: none")
     parser.add_argument("--modes", type=int, default=0)
-    parser.add_argument("--input", default="", help="a PETSc binary file (default: stdin)")
+    parser.add_argument("--input", required=True, help="the problem: a PETSc binary file")
     args, petsc_args = parser.parse_known_args(argv)
 
     import petsc4py
@@ -246,8 +187,7 @@ def main(argv=None):
     t_start = time.perf_counter()
     comm = PETSc.COMM_WORLD
     count = 3 + args.modes
-    A, vecs = (from_file(PETSc, comm, args.input, count) if args.input
-               else from_stdin(PETSc, comm))
+    A, vecs = from_file(PETSc, comm, args.input, count)
     f, upper, x = vecs[0], vecs[1], vecs[2]
     modes = vecs[3:]
     A.setOption(PETSc.Mat.Option.SYMMETRIC, True)

@@ -21,14 +21,17 @@ ones at PETSc's infinity and does not converge on the smallest scenes.
 PETSc's Debian build (``python3-petsc4py``) is built against that Python's numpy, not
 the suite's, so the solve runs as its own job: ``mpiexec -n RANKS python3
 _petsc_tao_worker.py`` (:mod:`solvers._petsc_tao_worker`, imports nothing of the
-suite). The problem goes to rank 0's standard input as a stream in PETSc's binary format
-(:func:`problem_stream`; the same bytes in a file are what PETSc's ``MatLoad`` /
-``VecLoad`` read, the worker's ``--input``), the answer ``v`` comes back on standard
-output; no file is written. ``u = T v``, and the multipliers are the transformed
-problem's residual at the pivots at their bounds (``p_i = max(r[pivot_i], 0) / beta_i``,
-:func:`at_bound`,
-:meth:`~solvers.kernels.contact_box.BoxTransformation.multipliers`); the suite verifies both
-like any solver's.
+suite). The problem is written in PETSc's binary format (:func:`problem_stream`) to a
+temporary file, which PETSc's own ``MatLoad`` / ``VecLoad`` read on every rank (the
+worker's ``--input``) and which is removed when the job ends, however it ends; the
+answer ``v`` comes back on standard output. The job's standard input is closed, and
+Open MPI's launcher is told to forward none (``--stdin none``): its forwarding of
+standard input to rank 0 now and then crashes the launcher itself (a segmentation fault
+in ``orte_iof_hnp_read_local_handler``), a failed row that says nothing of the solver.
+``u = T v``, and the multipliers are the transformed problem's residual at the pivots at
+their bounds (``p_i = max(r[pivot_i], 0) / beta_i``, :func:`at_bound`,
+:meth:`~solvers.kernels.contact_box.BoxTransformation.multipliers`); the suite verifies
+both like any solver's.
 
 Where it runs: the interpreter with petsc4py is ``CONTACTBENCH_PETSC_PYTHON`` (default
 ``/usr/bin/python3``), the launcher ``CONTACTBENCH_MPIEXEC`` (default ``mpiexec`` on the
@@ -47,7 +50,10 @@ import base64
 import functools
 import glob
 import os
+import re
 import shutil
+import subprocess
+import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -155,6 +161,8 @@ class Runtime:
     python: str
     mpiexec: str
     petsc_dir: str
+    #: the launcher's own options before ``-n`` (Open MPI's: forward no standard input)
+    launcher_options: tuple[str, ...] = ()
 
     def environment(self) -> dict:
         """The job's environment: PETSc's directory, OpenMPI allowed to run as root and to
@@ -169,7 +177,8 @@ class Runtime:
         return env
 
     def command(self, ranks: int, args: list[str]) -> list[str]:
-        return [self.mpiexec, "-n", str(ranks), self.python, str(WORKER), *args]
+        return [self.mpiexec, *self.launcher_options, "-n", str(ranks), self.python,
+                str(WORKER), *args]
 
 
 def _default_petsc_dir() -> str:
@@ -197,11 +206,23 @@ def _probe(python: str, mpiexec: str, petsc_dir: str) -> tuple[Runtime | None, s
         return None, f"no MPI launcher {mpiexec!r} (CONTACTBENCH_MPIEXEC): {hint}"
     if shutil.which(python) is None:
         return None, f"no interpreter {python!r} (CONTACTBENCH_PETSC_PYTHON): {hint}"
-    rt = Runtime(shutil.which(python), launcher, petsc_dir)
+    rt = Runtime(shutil.which(python), launcher, petsc_dir, launcher_options(launcher))
     why = probe(rt.python, "petsc4py, mpi4py", (("PETSC_DIR", petsc_dir),))
     if why:
         return None, f"{why} with PETSC_DIR={petsc_dir or '(unset)'}: {hint}"
     return rt, ""
+
+
+def launcher_options(launcher: str) -> tuple[str, ...]:
+    """``("--stdin", "none")`` for Open MPI's launcher (its ``--version`` names Open MPI or
+    its runtime, OpenRTE / PRRTE), none for another launcher (whose options differ)."""
+    try:
+        out = subprocess.run([launcher, "--version"], capture_output=True, text=True,
+                             timeout=60)
+    except (OSError, subprocess.TimeoutExpired):
+        return ()
+    said = out.stdout + out.stderr
+    return ("--stdin", "none") if re.search(r"Open MPI|OpenRTE|PRRTE|open-mpi", said) else ()
 
 
 def supports(qp: ContactQP) -> tuple[bool, str]:
@@ -217,10 +238,16 @@ def supports(qp: ContactQP) -> tuple[bool, str]:
 # ----------------------------------------------------------------------- the job
 def run_job(rt: Runtime, ranks: int, args: list[str], stream: bytes,
             hard_limit: float | None) -> JobOutcome:
-    """Run the worker under ``mpiexec -n ranks`` with ``stream`` on its input; past
-    ``hard_limit`` wall seconds the launcher's process group is killed."""
-    return system_python.run_job(rt.command(ranks, args), rt.environment(), stream, hard_limit,
-                                 TAG, f"MPI job ({ranks} ranks)")
+    """Run the worker under ``mpiexec -n ranks`` on the problem ``stream``, written to a
+    temporary file (the worker's ``--input``) that is removed when the job ends; the job's
+    standard input is closed. Past ``hard_limit`` wall seconds the launcher's process group
+    is killed."""
+    with tempfile.TemporaryDirectory(prefix="contactbench-petsc-") as folder:
+        problem = Path(folder, "problem.petsc")
+        problem.write_bytes(stream)
+        return system_python.run_job(rt.command(ranks, [*args, "--input", str(problem)]),
+                                     rt.environment(), None, hard_limit, TAG,
+                                     f"MPI job ({ranks} ranks)")
 
 
 def at_bound(v_pivot: np.ndarray, upper: np.ndarray) -> np.ndarray:

@@ -4,16 +4,17 @@ job, Siconos): the job, its environment and its answer, shared by their adapters
 Debian builds its packages for the system Python (``python3-petsc4py``,
 ``python3-siconos``) against that Python's numpy, not the suite's, so such a solve runs
 as a child process started from the suite: the problem goes to its standard input as
-bytes, the answer comes back on its standard output as one line, ``TAG`` and a JSON
-record; no file is written. A job past its hard limit is killed with its process group,
-one that dies is reported with its exit status and the end of its error output: a row
-either way (:func:`run_job`).
+bytes (or, for a job that reads it from a file, standard input is closed), the answer
+comes back on its standard output as one line, ``TAG`` and a JSON record. A job past its
+hard limit is killed with its process group, one that dies is reported with its exit
+status and the end of its error output: a row either way (:func:`run_job`).
 """
 from __future__ import annotations
 
 import functools
 import json
 import os
+import re
 import shutil
 import signal
 import subprocess
@@ -70,21 +71,31 @@ def die_with_parent() -> None:
         pass
 
 
+#: A line of a job's error output that says what went wrong: Python's exception, PETSc's
+#: error stack (``[0]...``), a crash report's signal and the frame it stopped in (Open MPI's
+#: ``[host:pid] Signal: Segmentation fault (11)``, ``[host:pid] [ 1] lib.so(function+0x30)``).
+SAYS_WHAT_WENT_WRONG = re.compile(r"[Ee]rror|^\[0\]|Signal: |\[ ?1\] ")
+#: A crash report's frame lines, which say nothing themselves.
+REPORT_FRAME = re.compile(r"\*\*\* (End of error message|Process received signal) \*\*\*")
+
+
 def error_lines(text: str, count: int = 4) -> list[str]:
-    """The last ``count`` lines of a job's error output that say what went wrong (Python's
-    exception, PETSc's error stack), without the launcher's frame."""
+    """The last ``count`` lines of a job's error output that say what went wrong
+    (:data:`SAYS_WHAT_WENT_WRONG`), without a crash report's frame lines."""
     lines = [ln.strip() for ln in text.splitlines() if ln.strip()]
-    said = [ln for ln in lines if "Error" in ln or "error" in ln or ln.startswith("[0]")]
+    said = [ln for ln in lines if SAYS_WHAT_WENT_WRONG.search(ln) and not REPORT_FRAME.search(ln)]
     return (said or lines)[-count:]
 
 
-def run_job(command: list[str], env: dict, stream: bytes, hard_limit: float | None,
+def run_job(command: list[str], env: dict, stream: bytes | None, hard_limit: float | None,
             tag: str, what: str) -> JobOutcome:
-    """Run ``command`` with ``stream`` on its input and read its answer line (``tag``, a
-    space, a JSON record); past ``hard_limit`` wall seconds its process group is killed.
-    ``what`` names the job in the messages (e.g. ``"MPI job (2 ranks)"``)."""
+    """Run ``command`` with ``stream`` on its input (``None``: its input closed) and read
+    its answer line (``tag``, a space, a JSON record); past ``hard_limit`` wall seconds its
+    process group is killed. ``what`` names the job in the messages (e.g. ``"MPI job (2
+    ranks)"``)."""
     t0 = time.perf_counter()
-    proc = subprocess.Popen(command, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+    stdin = subprocess.DEVNULL if stream is None else subprocess.PIPE
+    proc = subprocess.Popen(command, stdin=stdin, stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, env=env, start_new_session=True,
                             preexec_fn=die_with_parent)
     try:

@@ -1,11 +1,14 @@
 """PETSc/Tao under MPI (solvers/petsc_tao.py): verified and agreeing with the exact
 reference on the contact scenes, the same answer on 1 and 2 ranks, PETSc's own loader
-reads the stream the suite writes, and a job that hangs, dies or is stopped by its time
-limit is a row. Where PETSc or MPI is missing, the runs are ``skipped`` with the install
-command (checked everywhere) and the rest of this file skips with that reason."""
+reads the file the suite writes (removed when the job ends), Open MPI's launcher forwards
+no standard input, and a job that hangs, dies or is stopped by its time limit is a row.
+Where PETSc or MPI is missing, the runs are ``skipped`` with the install command (checked
+everywhere) and the rest of this file skips with that reason."""
 from __future__ import annotations
 
+import base64
 import functools
+import tempfile
 import time
 
 import numpy as np
@@ -14,7 +17,7 @@ import pytest
 
 from problems.kkt import energy_error
 from problems.spec import problems
-from solvers import petsc_tao
+from solvers import petsc_tao, system_python
 from solvers.kernels.contact_box import box_transformation
 from solvers.interface import solve
 from solvers.reference import reference_solve
@@ -74,26 +77,60 @@ def test_the_stream_is_petscs_binary_format():
 
 
 @needs_petsc
-def test_petscs_own_loader_reads_the_stream(tmp_path):
-    """The stream saved to a file and loaded by PETSc's MatLoad/VecLoad (``--input``, the
-    cluster path) gives the run on standard input, step for step."""
-    qp, _ = _scene("circle_square", 0)
+def test_the_job_reads_its_problem_from_a_file_removed_when_it_ends(tmp_path, monkeypatch):
+    """The stream goes to the job as a file PETSc's own MatLoad/VecLoad read (the worker's
+    ``--input``, the cluster path), and the file is gone when the job ends; the answer is
+    the exact reference's."""
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    qp, ref = _scene("circle_square", 0)
     box = box_transformation(qp)
     bqp = petsc_tao.bound_qp(qp, box)
     stream = petsc_tao.problem_stream(bqp.A, bqp.f, bqp.upper, np.zeros(qp.n), bqp.modes)
-    path = tmp_path / "problem.petsc"
-    path.write_bytes(stream)
-    args = ["--tao", "bnls", "--pc", "gamg", "--gatol", repr(bqp.gatol(1e-7)),
+    args = ["--tao", "bnls", "--pc", "gamg", "--gatol", repr(bqp.gatol(1e-9)),
             "--max-iter", "100", "--modes", str(bqp.modes.shape[1])]
-    piped = petsc_tao.run_job(RUNTIME, 1, args, stream, 300)
-    loaded = petsc_tao.run_job(RUNTIME, 1, args + ["--input", str(path)], b"", 300)
-    assert piped.record is not None and loaded.record is not None, (piped.message,
-                                                                    loaded.message)
-    assert piped.record["reason"] == loaded.record["reason"] == "CONVERGED_GATOL"
-    assert piped.record["iterations"] == loaded.record["iterations"]
-    v1, v2 = (np.frombuffer(__import__("base64").b64decode(j.record["v"]), dtype=">f8")
-              for j in (piped, loaded))
-    assert np.abs(v1 - v2).max() <= 1e-12 * np.abs(v1).max()
+    job = petsc_tao.run_job(RUNTIME, 1, args, stream, 300)
+    assert job.record is not None, job.message
+    assert job.record["reason"] == "CONVERGED_GATOL"
+    v = np.frombuffer(base64.b64decode(job.record["v"]), dtype=">f8").astype(float)
+    assert energy_error(qp, box.to_u(v), ref.u) <= 1e-8
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_open_mpis_launcher_forwards_no_standard_input(tmp_path):
+    """Open MPI's launcher (4.x names its runtime OpenRTE, 5.x itself) is started with
+    ``--stdin none``: its forwarding of standard input to rank 0 can crash the launcher
+    itself. Another launcher gets no option it may not know."""
+    said = {"openrte": "mpiexec (OpenRTE) 4.1.4\nReport bugs to http://www.open-mpi.org/",
+            "ompi5": "mpiexec (Open MPI) 5.0.3", "hydra": "HYDRA build details:\n    Version: 4.1"}
+    options = {}
+    for name, text in said.items():
+        launcher = tmp_path / name
+        launcher.write_text(f"#!/bin/sh\nprintf '%s\\n' '{text}'\n")
+        launcher.chmod(0o755)
+        options[name] = petsc_tao.launcher_options(str(launcher))
+    assert options == {"openrte": ("--stdin", "none"), "ompi5": ("--stdin", "none"),
+                       "hydra": ()}
+    rt = petsc_tao.Runtime("python3", "mpiexec", "", ("--stdin", "none"))
+    assert rt.command(2, ["--tao", "bnls"])[:4] == ["mpiexec", "--stdin", "none", "-n"]
+
+
+def test_a_launchers_crash_report_says_where_it_stopped():
+    """A crashed job's message keeps the signal and the frame it stopped in, not the crash
+    report's closing line."""
+    report = """[host:87043] *** Process received signal ***
+[host:87043] Signal: Segmentation fault (11)
+[host:87043] Signal code: Address not mapped (1)
+[host:87043] Failing at address: 0x88
+[host:87043] [ 0] /lib/x86_64-linux-gnu/libc.so.6(+0x3c050)[0x7f0]
+[host:87043] [ 1] /usr/lib/mca_iof_hnp.so(orte_iof_hnp_read_local_handler+0x30e)[0x7f1]
+[host:87043] [ 2] /usr/lib/libopen-pal.so.40(+0x7efcc)[0x7f2]
+[host:87043] *** End of error message ***"""
+    lines = system_python.error_lines(report)
+    assert any("Segmentation fault (11)" in ln for ln in lines)
+    assert any("orte_iof_hnp_read_local_handler" in ln for ln in lines)
+    assert not any("End of error message" in ln or "Process received" in ln for ln in lines)
+    python = "Traceback (most recent call last):\n  File x\nValueError: no such contact"
+    assert system_python.error_lines(python) == ["ValueError: no such contact"]
 
 
 CASES = [("circle_square", 1), ("circle_square", 2),
@@ -128,13 +165,16 @@ def test_one_and_two_ranks_give_the_same_answer(name, tao):
 
 
 @needs_petsc
-def test_a_hung_job_is_killed_and_becomes_a_row():
-    """No answer within time_limit + grace: the launcher's process group is killed."""
+def test_a_hung_job_is_killed_and_becomes_a_row(tmp_path, monkeypatch):
+    """No answer within time_limit + grace: the launcher's process group is killed, and
+    the problem's file is gone."""
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
     qp, _ = _scene("circle_square", 1)
     res = solve(qp, solver="petsc_tao", tol="mid", time_limit=0.01, grace=0.01)
     assert res.status == "time_limit" and "killed" in res.message
     assert res.kkt is not None                 # verified like any row: zeros, not a crash
     _no_mpi_job_left()
+    assert list(tmp_path.iterdir()) == []
 
 
 @needs_petsc
