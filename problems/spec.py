@@ -342,8 +342,14 @@ def discover(package: str, attribute: str) -> dict[str, Any]:
 
     Modules whose name starts with an underscore and subpackages (shared
     machinery such as ``problems.fem``) are skipped. Returns ``{name: spec}``
-    sorted by name; a module's registry name is its ``spec.name``.
+    sorted by name; a module's registry name is its ``spec.name``. The package's folder
+    is read once per process (a registry is asked for at every solve).
     """
+    return dict(_discovered(package, attribute))
+
+
+@functools.lru_cache(maxsize=None)
+def _discovered(package: str, attribute: str) -> dict[str, Any]:
     pkg = importlib.import_module(package)
     found = {}
     for info in pkgutil.iter_modules(pkg.__path__):
