@@ -206,11 +206,10 @@ def _probe(python: str, mpiexec: str, petsc_dir: str) -> tuple[Runtime | None, s
         return None, f"no MPI launcher {mpiexec!r} (CONTACTBENCH_MPIEXEC): {hint}"
     if shutil.which(python) is None:
         return None, f"no interpreter {python!r} (CONTACTBENCH_PETSC_PYTHON): {hint}"
-    rt = Runtime(shutil.which(python), launcher, petsc_dir, launcher_options(launcher))
-    why = probe(rt.python, "petsc4py, mpi4py", (("PETSC_DIR", petsc_dir),))
+    why = probe(shutil.which(python), "petsc4py, mpi4py", (("PETSC_DIR", petsc_dir),))
     if why:
         return None, f"{why} with PETSC_DIR={petsc_dir or '(unset)'}: {hint}"
-    return rt, ""
+    return Runtime(shutil.which(python), launcher, petsc_dir, launcher_options(launcher)), ""
 
 
 def launcher_options(launcher: str) -> tuple[str, ...]:

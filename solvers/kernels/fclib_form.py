@@ -29,6 +29,8 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
+from solvers.kernels.cholesky import dense_schur, factorize
+
 
 class FclibError(ValueError):
     """A problem or file without an fclib global form here (the message says why)."""
@@ -188,17 +190,16 @@ def local_problem(problem: FclibGlobal, factor=None) -> FclibLocal:
 
     ``W``'s columns are partial solves (:func:`solvers.kernels.cholesky.dense_schur`): a
     column of ``H`` is nonzero only on the contact rows, and ``H'`` reads ``M^-1 H`` only
-    there, so only those components are computed, which skips most of the elimination tree. ``factor``: a factorisation of ``M`` whose ``components``
-    hold ``H``'s rows (:func:`local_factor`; kept by a caller that recovers ``v`` from
-    ``r`` afterwards); by default it is made here.
+    there, so only those components are computed, which skips most of the elimination
+    tree. ``factor``: a factorisation of ``M`` whose ``components`` hold ``H``'s rows
+    (:func:`local_factor`; kept by a caller that recovers ``v`` from ``r`` afterwards); by
+    default it is made here.
 
     Raises
     ------
     FclibError
         Where the dense ``W`` would exceed :data:`LOCAL_MAX_ENTRIES` entries.
     """
-    from solvers.kernels.cholesky import dense_schur
-
     n, k = problem.H.shape
     if k * k > LOCAL_MAX_ENTRIES:
         raise FclibError(f"the Delassus operator: {k} x {k} entries exceed "
@@ -224,8 +225,6 @@ def local_factor(problem: FclibGlobal):
     solvers.kernels.cholesky.FactorizationError
         Where ``M`` is not positive definite.
     """
-    from solvers.kernels.cholesky import factorize
-
     return factorize(sp.csr_matrix(problem.M), components=sp.csc_matrix(problem.H).indices)
 
 
