@@ -3,6 +3,7 @@ reference, Coulomb's fixed point, and Cattaneo-Mindlin partial slip on circle_sq
 (elastically similar bodies: E1 = E2 = 1, nu1 = nu2 = 0.3, the scene's defaults)."""
 from __future__ import annotations
 
+import importlib
 import itertools
 from dataclasses import replace
 
@@ -12,7 +13,7 @@ import pytest
 from problems.friction.residuals import tresca_energy
 from problems.kkt import energy_error
 from problems.qp import ContactQP, QPValidationError
-from problems.spec import ParameterError, problems
+from problems.spec import Options, ParameterError, problems
 from reference.cattaneo_mindlin import (partial_slip_reference, relative_l2, stick_zone_ratio,
                                         stick_zone_size, tangential_traction)
 from reference.hertz import moment_estimate
@@ -44,6 +45,33 @@ def test_friction_none_leaves_the_problem_unchanged():
     # the tangential step moves the held arc along x only: same gaps, another load
     assert np.array_equal(qp.friction.path[1].g, plain.g)
     assert not np.array_equal(qp.friction.path[1].f, plain.f)
+
+
+@pytest.mark.parametrize("problem, level", [("circle_square", 1), ("cube_sphere", 0)])
+def test_the_shifted_step_is_the_shifted_scene_assembled(problem, level):
+    """The path's last step (assembled once, its data from the unshifted assembly's
+    matrices) is bit for bit the shifted scene assembled on its own."""
+    from problems.fem.two_body import assemble_two_body
+
+    spec = problems()[problem]
+    p = spec.options(friction="coulomb", mu=0.4, shift=0.02)
+    scene = importlib.import_module(f"problems.{problem}").scene
+    alone = assemble_two_body(scene(level, p), level, tangential=True)
+    last = spec.make(level, **dict(p)).friction.path[-1]
+    for name in ("f", "g", "u_fixed"):
+        assert np.array_equal(getattr(last, name), getattr(alone, name)), name
+    assert np.array_equal(last.offset, alone.friction.offset)
+
+
+def test_a_load_path_whose_meshes_change_is_refused():
+    from problems.circle_square import scene
+    from problems.fem.two_body import frictional_two_body
+
+    p = SCENE.options(friction="tresca", mu=0.5, shift=0.01)
+    moving = lambda level, o: scene(level, o if o.shift == 0 else
+                                    Options({**o, "square_cells": o.square_cells // 2}))
+    with pytest.raises(ValueError, match="other meshes or supported DOFs"):
+        frictional_two_body(moving, 0, p, "circle_square")
 
 
 def test_tangential_rows_measure_the_relative_tangential_displacement():

@@ -317,6 +317,39 @@ def spring_forces(scene: TwoBodyScene, qp: ContactQP, u: np.ndarray) -> np.ndarr
     return -(K @ qp.full_displacement(u).ravel()).reshape(-1, qp.dim).sum(axis=0)
 
 
+@dataclass(frozen=True)
+class _LoadMap:
+    """What maps a scene's prescribed values to a step's data, kept from one assembly: the
+    full stiffness and load, the full contact (and tangential) rows and their gaps, and the
+    finest level's geometry and free DOFs that the values must belong to."""
+
+    A_full: sp.csr_matrix
+    f_full: np.ndarray
+    B_full: sp.csr_matrix
+    g_full: np.ndarray
+    T_full: sp.csr_matrix | None
+    points: np.ndarray
+    free: np.ndarray
+
+    def load(self, u_fixed: np.ndarray) -> LoadStep:
+        """The step's data for the prescribed values ``u_fixed``: the load with them lifted,
+        the gaps they leave and their tangential offset (empty without tangential rows)."""
+        f = self.f_full[self.free] - (self.A_full @ u_fixed)[self.free]
+        g = self.g_full - self.B_full @ u_fixed
+        offset = self.T_full @ u_fixed if self.T_full is not None else np.zeros(0)
+        return LoadStep(f, g, offset, u_fixed)
+
+    def step(self, scene: TwoBodyScene, level: int) -> LoadStep:
+        """The step's data of ``scene``, whose meshes and supported DOFs must be this
+        assembly's (only the prescribed values differ)."""
+        points, _, _, _, free, u_fixed = _level(scene, level)
+        if not (np.array_equal(points, self.points) and np.array_equal(free, self.free)):
+            raise ValueError("the scene of a later load step has other meshes or supported "
+                             "DOFs than the first: a load path may change prescribed values "
+                             "only")
+        return self.load(u_fixed)
+
+
 def assemble_two_body(scene: TwoBodyScene, level: int, name: str = "",
                       degree: int = 1, tangential: bool = False) -> ContactQP:
     """The ContactQP of ``scene`` on mesh level ``level`` (see the module docstring).
@@ -341,6 +374,12 @@ def assemble_two_body(scene: TwoBodyScene, level: int, name: str = "",
         DOFs from level 0 up, rigid-body modes per body, body of each DOF, the
         constrained surface on every level) and ``hertz``.
     """
+    return _assemble(scene, level, name, degree, tangential)[0]
+
+
+def _assemble(scene: TwoBodyScene, level: int, name: str, degree: int,
+              tangential: bool) -> tuple[ContactQP, _LoadMap]:
+    """:func:`assemble_two_body`'s ContactQP and what maps prescribed values to its data."""
     if degree not in (1, 2):
         raise ValueError(f"parameter 'degree': {degree!r} is not allowed; allowed: 1 (P1) or "
                          "2 (P2, Remark 7.11)")
@@ -387,9 +426,12 @@ def assemble_two_body(scene: TwoBodyScene, level: int, name: str = "",
                          "each other along the contact direction (check on_opposing)")
 
     A = A_full[free][:, free].tocsr()
-    f = f_full[free] - (A_full @ u_fixed)[free]
     B = cc.B[:, free].tocsr()
-    g = cc.g - cc.B @ u_fixed
+    T_full, tangent = tangential_rows(cc, n_nodes) if tangential else (None, None)
+    load_map = _LoadMap(A_full=A_full, f_full=f_full, B_full=cc.B, g_full=cc.g,
+                        T_full=T_full, points=points, free=free)
+    data = load_map.load(u_fixed)
+    f, g, offset = data.f, data.g, data.offset
 
     body_of_dof = np.repeat(body_of_node, dim)[free]
     rbm = np.hstack([_body_modes(points, body_of_node == b)[free]
@@ -420,12 +462,11 @@ def assemble_two_body(scene: TwoBodyScene, level: int, name: str = "",
 
     friction = None
     if tangential:
-        T_full, tangent = tangential_rows(cc, n_nodes)
         friction = Friction(law="tresca", mu=0.0, T=T_full[:, free].tocsr(), tangent=tangent,
-                            slip_bound=np.zeros(cc.m), offset=T_full @ u_fixed,
+                            slip_bound=np.zeros(cc.m), offset=offset,
                             previous=np.zeros(T_full.shape[0]))
 
-    return ContactQP(
+    qp = ContactQP(
         A=A, f=f, B=B, g=g, free_dofs=free, u_fixed=u_fixed, dim=dim, friction=friction,
         mesh=Mesh(points=points, cells=cells, body_of_node=body_of_node, E_cell=E_cell,
                   nu_cell=nu_cell, bodies=tuple(b.name for b in scene.bodies)),
@@ -439,6 +480,7 @@ def assemble_two_body(scene: TwoBodyScene, level: int, name: str = "",
                               prescribed_prolongation=prescribed),
         hertz=scene.hertz, name=name, units=scene.units, level=level,
     )
+    return qp, load_map
 
 
 def frictional_two_body(scene: Callable[[int, Options], TwoBodyScene], level: int, p: Options,
@@ -452,13 +494,17 @@ def frictional_two_body(scene: Callable[[int, Options], TwoBodyScene], level: in
     shape ``friction_facets`` (:func:`friction_facets`).
 
     ``scene(level, options)`` builds the scene with the held part's x-displacement set
-    to ``options.shift``; the two steps differ only in their prescribed values.
+    to ``options.shift``; the two steps differ only in their prescribed values, so the
+    scene is assembled once and the shifted step's load, gaps and offset come from the same
+    matrices (:class:`_LoadMap`: the same arithmetic as an assembly of the shifted scene).
 
     Raises
     ------
     ParameterError
         For a coupling other than ``nodal`` or elements other than P1 (the tangential
         rows are built for the nodal P1 constraints).
+    ValueError
+        If the shifted scene has other meshes or supported DOFs than the unshifted one.
     """
     # a scene that does not declare the parameter has only the allowed value
     for key, allowed in (("coupling", "nodal"), ("degree", 1)):
@@ -470,12 +516,12 @@ def frictional_two_body(scene: Callable[[int, Options], TwoBodyScene], level: in
     name = f"{name} level {level} {p.friction} mu={p.mu:g}"
     if p.get("friction_facets", 0):
         name += f" facets={p.friction_facets}"
-    steps = [assemble_two_body(scene(level, Options({**p, "shift": shift})), level, name=name,
-                               tangential=True) for shift in (0.0, p.shift)]
-    qp = steps[0]
+    qp, load_map = _assemble(scene(level, Options({**p, "shift": 0.0})), level, name,
+                             degree=1, tangential=True)
     qp.friction.law, qp.friction.mu = p.friction, float(p.mu)
     qp.friction.facets = friction_facets(p, qp.dim)
-    normal, full = (LoadStep(s.f, s.g, s.friction.offset, s.u_fixed) for s in steps)
+    normal = LoadStep(qp.f, qp.g, qp.friction.offset, qp.u_fixed)
+    full = load_map.step(scene(level, Options({**p, "shift": p.shift})), level)
     qp.friction.path = (normal, *shift_increments(normal, full, p.shift_steps))
     return qp
 
