@@ -204,12 +204,13 @@ def _probe(python: str, mpiexec: str, petsc_dir: str) -> tuple[Runtime | None, s
     launcher = shutil.which(mpiexec)
     if launcher is None:
         return None, f"no MPI launcher {mpiexec!r} (CONTACTBENCH_MPIEXEC): {hint}"
-    if shutil.which(python) is None:
+    interpreter = shutil.which(python)
+    if interpreter is None:
         return None, f"no interpreter {python!r} (CONTACTBENCH_PETSC_PYTHON): {hint}"
-    why = probe(shutil.which(python), "petsc4py, mpi4py", (("PETSC_DIR", petsc_dir),))
+    why = probe(interpreter, "petsc4py, mpi4py", (("PETSC_DIR", petsc_dir),))
     if why:
         return None, f"{why} with PETSC_DIR={petsc_dir or '(unset)'}: {hint}"
-    return Runtime(shutil.which(python), launcher, petsc_dir, launcher_options(launcher)), ""
+    return Runtime(interpreter, launcher, petsc_dir, launcher_options(launcher)), ""
 
 
 def launcher_options(launcher: str) -> tuple[str, ...]:

@@ -378,8 +378,9 @@ def assemble_two_body(scene: TwoBodyScene, level: int, name: str = "",
 
 
 def _assemble(scene: TwoBodyScene, level: int, name: str, degree: int,
-              tangential: bool) -> tuple[ContactQP, _LoadMap]:
-    """:func:`assemble_two_body`'s ContactQP and what maps prescribed values to its data."""
+              tangential: bool) -> tuple[ContactQP, _LoadMap, LoadStep]:
+    """:func:`assemble_two_body`'s ContactQP, what maps prescribed values to its data, and
+    its own step's data (the ContactQP's load, gaps, offset and prescribed values)."""
     if degree not in (1, 2):
         raise ValueError(f"parameter 'degree': {degree!r} is not allowed; allowed: 1 (P1) or "
                          "2 (P2, Remark 7.11)")
@@ -480,7 +481,7 @@ def _assemble(scene: TwoBodyScene, level: int, name: str, degree: int,
                               prescribed_prolongation=prescribed),
         hertz=scene.hertz, name=name, units=scene.units, level=level,
     )
-    return qp, load_map
+    return qp, load_map, data
 
 
 def frictional_two_body(scene: Callable[[int, Options], TwoBodyScene], level: int, p: Options,
@@ -516,11 +517,10 @@ def frictional_two_body(scene: Callable[[int, Options], TwoBodyScene], level: in
     name = f"{name} level {level} {p.friction} mu={p.mu:g}"
     if p.get("friction_facets", 0):
         name += f" facets={p.friction_facets}"
-    qp, load_map = _assemble(scene(level, Options({**p, "shift": 0.0})), level, name,
-                             degree=1, tangential=True)
+    qp, load_map, normal = _assemble(scene(level, Options({**p, "shift": 0.0})), level, name,
+                                     degree=1, tangential=True)
     qp.friction.law, qp.friction.mu = p.friction, float(p.mu)
     qp.friction.facets = friction_facets(p, qp.dim)
-    normal = LoadStep(qp.f, qp.g, qp.friction.offset, qp.u_fixed)
     full = load_map.step(scene(level, Options({**p, "shift": p.shift})), level)
     qp.friction.path = (normal, *shift_increments(normal, full, p.shift_steps))
     return qp
