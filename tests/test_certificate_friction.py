@@ -10,6 +10,7 @@ import functools
 
 import numpy as np
 import pytest
+import scipy.sparse as sp
 
 from problems.kkt import energy_error
 from problems.spec import problems
@@ -143,6 +144,16 @@ def test_the_active_rows_by_complementarity_ignore_an_interior_point_tail(step):
     assert np.array_equal(certificate.complementary_active(qp, sol.u, p), exact)
 
 
+def _held(qp, sol):
+    """``(u, active, stick, facets)``: the answer with a residual slip of 1e-4 and what the
+    stick point holds of it (:func:`certificate.stick_point`'s arguments)."""
+    fr = qp.friction
+    u = _residual_slip(qp, sol, 1e-4)
+    stick = certificate.stick_nodes(fr, u, fr.clip(sol.lam))
+    return (u, certificate.complementary_active(qp, u, sol.p), stick,
+            certificate.facet_slips(fr, fr.slip(u), stick))
+
+
 def test_the_stick_point_from_the_cached_dual_operators_is_the_one_it_forms(step):
     """The stick point from the exact route's cached ``A^{-1} [B; T]'`` and ``S``
     (:func:`solvers.kernels.tresca.dual_operators`) is the one formed with the verification's
@@ -150,10 +161,7 @@ def test_the_stick_point_from_the_cached_dual_operators_is_the_one_it_forms(step
     the active rows."""
     qp, sol = step
     fr = qp.friction
-    u = _residual_slip(qp, sol, 1e-4)
-    active = certificate.complementary_active(qp, u, sol.p)
-    stick = certificate.stick_nodes(fr, u, fr.clip(sol.lam))
-    facets = certificate.facet_slips(fr, fr.slip(u), stick)
+    u, active, stick, facets = _held(qp, sol)
     args = (qp, u, active, stick, facets, linear_solver(qp))
     assert not qp.cache.dual_operators
     formed = certificate.stick_point(*args)
@@ -167,6 +175,25 @@ def test_the_stick_point_from_the_cached_dual_operators_is_the_one_it_forms(step
     slip = fr.magnitude(fr.slip(formed))
     assert slip[stick].max() <= 1e-12 * slip.max()
     assert np.abs((qp.B @ formed - qp.g)[active]).max() <= 1e-12 * np.abs(qp.g).max()
+
+
+def test_the_held_rows_of_the_cached_operators_are_read_bit_for_bit(step):
+    """The stick point's columns of ``A^{-1} [B; T]'`` (:func:`certificate.rows_of_transpose`,
+    which reads only the held rows' columns) are ``(R @ W.T).T`` bit for bit: the held
+    rows of each step (a faceted step's rows with a weight per tangential unknown among
+    them), and a row with several entries in an unsorted order."""
+    qp, sol = step
+    u, active, stick, facets = _held(qp, sol)
+    R = certificate.held_rows(qp, active, stick, facets)
+    try:
+        W = dual_operators(qp).W
+    finally:
+        qp.cache.dual_operators.clear()
+    assert 0 < np.unique(R.indices).size < W.shape[1]
+    assert np.array_equal(certificate.rows_of_transpose(R, W), (R @ W.T).T)
+    mixed = sp.csr_matrix((np.array([0.3, -1.7, 2.1, 1.0]), np.array([5, 1, 3, 0]),
+                           np.array([0, 3, 3, 4])), shape=(3, W.shape[1]))
+    assert np.array_equal(certificate.rows_of_transpose(mixed, W), (mixed @ W.T).T)
 
 
 def test_the_bound_stays_above_the_true_error(step):
