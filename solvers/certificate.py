@@ -440,16 +440,16 @@ def held_rows(qp: ContactQP, active: np.ndarray, stick: np.ndarray,
     return sp.csr_matrix((data, (rows, cols)), shape=(single.size + on.size, width))
 
 
-def rows_of_transpose(R: sp.csr_matrix, W: np.ndarray) -> np.ndarray:
-    """``(R @ W.T).T`` for a sparse ``R`` (``r x M``) and a dense ``W`` (``n x M``), reading
-    only the columns of ``W`` that ``R`` holds.
+def times_transpose(W: np.ndarray, R: sp.csr_matrix) -> np.ndarray:
+    """``W @ R.T`` for a dense ``W`` (``n x M``) and a sparse ``R`` (``r x M``), computed as
+    ``(R @ W.T).T`` computes it, reading only the columns of ``W`` that ``R`` holds.
 
-    The same products summed in the same order as ``R @ W.T`` (bit for bit), without its
-    copy of the whole ``W.T`` into row-major order (SciPy's sparse times dense makes one
-    at every call: ``W = A^-1 G'`` of :func:`solvers.kernels.tresca.dual_operators` holds
-    up to :data:`solvers.kernels.tresca.TRESCA_EXACT_MAX_ENTRIES` entries).
+    The same products summed in the same order (bit for bit), column-major as that result
+    is, without its copy of the whole ``W.T`` into row-major order (SciPy's sparse times
+    dense makes one at every call: ``W = A^-1 G'`` of
+    :func:`solvers.kernels.tresca.dual_operators` holds up to
+    :data:`solvers.kernels.tresca.TRESCA_EXACT_MAX_ENTRIES` entries).
     """
-    R = sp.csr_matrix(R)
     cols, local = np.unique(R.indices, return_inverse=True)
     R_local = sp.csr_matrix((R.data, local.reshape(-1), R.indptr), shape=(R.shape[0], cols.size))
     return (R_local @ np.ascontiguousarray(W.T[cols])).T
@@ -486,7 +486,7 @@ def stick_point(qp: ContactQP, u: np.ndarray, active: np.ndarray, stick: np.ndar
         return None
     ops = qp.cache.dual_operators.get(True)
     if ops is not None and ops.G.shape == (R.shape[1], qp.n):
-        W = rows_of_transpose(R, ops.W)
+        W = times_transpose(ops.W, R)
         S = R @ (R @ ops.S).T
     elif (getattr(solve_A, "direct", False) and R.shape[0] <= STICK_MAX_ROWS
           and R.shape[0] * qp.n <= STICK_MAX_ENTRIES):

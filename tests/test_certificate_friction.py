@@ -178,7 +178,7 @@ def test_the_stick_point_from_the_cached_dual_operators_is_the_one_it_forms(step
 
 
 def test_the_held_rows_of_the_cached_operators_are_read_bit_for_bit(step):
-    """The stick point's columns of ``A^{-1} [B; T]'`` (:func:`certificate.rows_of_transpose`,
+    """The stick point's columns of ``A^{-1} [B; T]'`` (:func:`certificate.times_transpose`,
     which reads only the held rows' columns) are ``(R @ W.T).T`` bit for bit: the held
     rows of each step (a faceted step's rows with a weight per tangential unknown among
     them), and a row with several entries in an unsorted order."""
@@ -190,10 +190,10 @@ def test_the_held_rows_of_the_cached_operators_are_read_bit_for_bit(step):
     finally:
         qp.cache.dual_operators.clear()
     assert 0 < np.unique(R.indices).size < W.shape[1]
-    assert np.array_equal(certificate.rows_of_transpose(R, W), (R @ W.T).T)
+    assert np.array_equal(certificate.times_transpose(W, R), (R @ W.T).T)
     mixed = sp.csr_matrix((np.array([0.3, -1.7, 2.1, 1.0]), np.array([5, 1, 3, 0]),
                            np.array([0, 3, 3, 4])), shape=(3, W.shape[1]))
-    assert np.array_equal(certificate.rows_of_transpose(mixed, W), (mixed @ W.T).T)
+    assert np.array_equal(certificate.times_transpose(W, mixed), (mixed @ W.T).T)
 
 
 def test_the_bound_stays_above_the_true_error(step):
