@@ -247,7 +247,8 @@ def _along(xy: np.ndarray, step: float) -> np.ndarray:
 def covering_legends(fig) -> list[str]:
     """The legends of ``fig`` that lie over plotted points of an axes they overlap (the
     figure drawn: legends placed, ticks labelled)."""
-    fig.canvas.draw()
+    if fig.stale:
+        fig.canvas.draw()
     renderer = fig.canvas.get_renderer()
     out = []
     for legend, axes in _legends(fig):

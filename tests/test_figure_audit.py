@@ -122,6 +122,23 @@ def test_a_legend_over_the_data_is_refused_and_one_beside_it_passes():
     assert audit.covering_legends(fig) == []
 
 
+def test_the_legends_check_sees_the_figure_as_it_is_now():
+    """The check draws only a figure changed since its last draw (save_figure has just
+    drawn it): a legend moved over the data after a draw is found, and one moved off it
+    is cleared."""
+    x = np.linspace(0, 1, 200)
+    fig, ax = _axes()
+    ax.plot(x, 0.5 + 0.4 * np.sin(12 * x), "o", ms=2, label="data everywhere")
+    legend_outside(ax)
+    fig.canvas.draw()
+    assert not fig.stale and audit.covering_legends(fig) == []
+    ax.legend(loc="center")
+    assert fig.stale and len(audit.covering_legends(fig)) == 1
+    assert not fig.stale
+    legend_outside(ax)
+    assert audit.covering_legends(fig) == []
+
+
 def test_a_legend_over_a_line_between_its_points_is_refused():
     """A line's segments are data too: two far points joined under the legend."""
     fig, ax = _axes()
