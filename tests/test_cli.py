@@ -14,7 +14,6 @@ import pytest
 from problems.kkt import energy_error, kkt_residuals
 from problems.slack import slack_form
 from problems.spec import Parameter, ParameterError, problems, resolve_parameters
-import solvers.interface as solvers_interface
 from solvers.interface import solve, solvers
 from workflows.cli import main
 from agreement import within_certificate
@@ -94,7 +93,7 @@ def test_every_solver_runs_through_the_cli(tmp_path, references, scene, solver, 
         runs.append(solve(*args, **kwargs))
         return runs[-1]
 
-    monkeypatch.setattr(solvers_interface, "solve", recorded)
+    monkeypatch.setattr("solvers.interface.solve", recorded)
     out = tmp_path / "run.json"
     assert main(["solve", "--problem", scene, "--level", "1", "--solver", solver,
                  "--out", str(out)]) == 0
